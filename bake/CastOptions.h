@@ -1,0 +1,40 @@
+#pragma once
+/// @file CastOptions.h
+/// @brief Switches and parameters of hierarchical penumbra casting, and what a cast measures.
+
+#include "receivers/ReceiverHierarchy.h"
+
+#include <cstdint>
+
+namespace penumbra {
+
+/// @brief Each optimization of Laine & Aila's Figure 3 can be switched off for testing and
+/// measurement; all combinations give identical masks.
+struct CastOptions {
+    bool umbraBits = true;     ///< A: group/full-umbra bits on nodes and receivers
+    bool activePlanes = true;  ///< B: active plane sets
+    bool lazyVolumes = true;   ///< C: build V_Gk and hard-shadow volumes only when needed
+    bool lazyMasks = true;     ///< D: allocate masks on demand, release them in full umbra
+    bool rebuild = true;       ///< rebuild the hierarchy without umbra receivers (needs A)
+    bool sortBlockers = true;  ///< process blockers largest first
+    double rebuildThreshold = 0.25;  ///< rebuild when this fraction of live receivers is in umbra
+    HierarchyParams hierarchy;
+    double epsilon = 1e-5;     ///< receiver-end epsilon, relative (BlockingRule.h)
+    int groupSize = 64;        ///< light samples per group, 1..64
+};
+
+/// @brief Counters and timers of one cast, summed over tiles (the paper's Table 2 columns).
+struct CastStats {
+    double hierarchyBuildSeconds = 0;  ///< thread-seconds, all builds and rebuilds
+    double castSeconds = 0;            ///< wall-clock seconds in cast()
+    uint64_t trianglesProcessed = 0;
+    uint64_t trianglesCulledAtRoot = 0;  ///< no tile root box intersected V_L
+    uint64_t rebuilds = 0;
+    uint64_t peakLiveMasks = 0;
+    uint64_t peakMaskBytes = 0;
+    uint64_t peakHierarchyBytes = 0;
+    uint64_t receiverBytes = 0;
+    uint64_t hardShadowTests = 0;
+};
+
+}  // namespace penumbra

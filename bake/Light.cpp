@@ -1,0 +1,260 @@
+#include "bake/Light.h"
+
+#include "stream/Error.h"
+
+#include <glm/geometric.hpp>
+#include <glm/gtc/constants.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace penumbra {
+namespace {
+
+struct Frame {
+    glm::dvec3 origin, u, v, n;  // u, v, n orthonormal
+};
+
+glm::dvec3 anyPerpendicular(const glm::dvec3& n) {
+    glm::dvec3 a = std::abs(n.x) < 0.9 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
+    return glm::normalize(glm::cross(n, a));
+}
+
+glm::dvec3 polygonNormal(const std::vector<glm::dvec3>& p) {
+    glm::dvec3 n(0.0);  // Newell's method: robust for nearly collinear first vertices
+    for (size_t i = 0; i < p.size(); ++i) {
+        const glm::dvec3& a = p[i];
+        const glm::dvec3& b = p[(i + 1) % p.size()];
+        n += glm::dvec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
+    }
+    return n;
+}
+
+Frame planarFrame(const LightDesc& l) {
+    Frame f;
+    switch (l.type) {
+        case LightType::Rect:
+            f.origin = l.center;
+            f.n = glm::normalize(glm::cross(l.u, l.v));
+            f.u = glm::normalize(l.u);
+            break;
+        case LightType::Disk:
+            f.origin = l.center;
+            f.n = glm::normalize(l.normal);
+            f.u = anyPerpendicular(f.n);
+            break;
+        default: {
+            f.origin = std::accumulate(l.polygon.begin(), l.polygon.end(), glm::dvec3(0.0)) / double(l.polygon.size());
+            f.n = glm::normalize(polygonNormal(l.polygon));
+            f.u = glm::normalize(l.polygon[1] - l.polygon[0]);
+            f.u = glm::normalize(f.u - glm::dot(f.u, f.n) * f.n);
+        }
+    }
+    f.v = glm::cross(f.n, f.u);
+    return f;
+}
+
+/// Factor n into a near-square (or near-cube) grid so strata are as compact as possible.
+std::vector<int> gridDims(int n, int dims) {
+    if (dims == 2) {
+        int a = int(std::sqrt(double(n)));
+        while (n % a) --a;
+        return {n / a, a};
+    }
+    int best[3] = {n, 1, 1};
+    double bestScore = INFINITY;
+    for (int a = 1; a <= n; ++a) {
+        if (n % a) continue;
+        for (int b = 1; b <= n / a; ++b) {
+            if ((n / a) % b) continue;
+            int c = n / a / b;
+            double score = double(std::max({a, b, c})) / std::min({a, b, c});
+            if (score < bestScore) bestScore = score, best[0] = a, best[1] = b, best[2] = c;
+        }
+    }
+    return {best[0], best[1], best[2]};
+}
+
+/// Maps a point of the canonical unit square (cube for spheres) onto the light.
+glm::dvec3 mapCanonical(const LightDesc& l, const Frame& f, const glm::dvec3& c) {
+    switch (l.type) {
+        case LightType::Rect: return l.center + (c.x - 0.5) * l.u + (c.y - 0.5) * l.v;
+        case LightType::Disk: {  // Shirley-Chiu concentric map keeps strata compact
+            double a = 2 * c.x - 1, b = 2 * c.y - 1, r, phi;
+            if (a == 0 && b == 0) return l.center;
+            if (std::abs(a) > std::abs(b)) r = a, phi = glm::quarter_pi<double>() * (b / a);
+            else r = b, phi = glm::half_pi<double>() - glm::quarter_pi<double>() * (a / b);
+            return l.center + l.radius * r * (std::cos(phi) * f.u + std::sin(phi) * f.v);
+        }
+        case LightType::Sphere: {
+            double r = l.radius * std::cbrt(c.x), z = 1 - 2 * c.y, phi = glm::two_pi<double>() * c.z;
+            double s = std::sqrt(std::max(0.0, 1 - z * z));
+            return l.center + r * glm::dvec3(s * std::cos(phi), s * std::sin(phi), z);
+        }
+        case LightType::Polygon: {  // fan triangles, chosen by x in proportion to their area
+            const auto& p = l.polygon;
+            std::vector<double> areas;
+            for (size_t i = 1; i + 1 < p.size(); ++i)
+                areas.push_back(0.5 * glm::length(glm::cross(p[i] - p[0], p[i + 1] - p[0])));
+            double total = std::accumulate(areas.begin(), areas.end(), 0.0), x = c.x * total;
+            size_t i = 0;
+            while (i + 1 < areas.size() && x > areas[i]) x -= areas[i++];
+            double s = std::sqrt(std::clamp(x / areas[i], 0.0, 1.0));
+            return (1 - s) * p[0] + s * (1 - c.y) * p[i + 1] + s * c.y * p[i + 2];
+        }
+    }
+    return l.center;
+}
+
+/// Orders strata so that recursive median splits make spatially compact groups of <= groupSize.
+void groupStrata(std::vector<int>& order, const std::vector<glm::dvec3>& centers, size_t begin, size_t end,
+                 size_t groupSize, std::vector<std::pair<size_t, size_t>>& groups) {
+    if (end - begin <= groupSize) {
+        std::sort(order.begin() + begin, order.begin() + end);
+        groups.push_back({begin, end});
+        return;
+    }
+    glm::dvec3 lo(INFINITY), hi(-INFINITY);
+    for (size_t i = begin; i < end; ++i) lo = glm::min(lo, centers[order[i]]), hi = glm::max(hi, centers[order[i]]);
+    glm::dvec3 ext = hi - lo;
+    int axis = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
+    // Split so the left part is a whole number of groups: halves of 256 stay 64-aligned.
+    size_t n = end - begin, groupsTotal = (n + groupSize - 1) / groupSize;
+    size_t mid = begin + std::min(n - 1, (groupsTotal / 2) * groupSize);
+    auto key = [&](int a, int b) {
+        if (centers[a][axis] != centers[b][axis]) return centers[a][axis] < centers[b][axis];
+        return a < b;
+    };
+    std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end, key);
+    groupStrata(order, centers, begin, mid, groupSize, groups);
+    groupStrata(order, centers, mid, end, groupSize, groups);
+}
+
+}  // namespace
+
+double LightDesc::area() const {
+    switch (type) {
+        case LightType::Rect: return glm::length(glm::cross(u, v));
+        case LightType::Disk: return glm::pi<double>() * radius * radius;
+        case LightType::Sphere: return 4.0 * glm::pi<double>() * radius * radius;
+        case LightType::Polygon: return 0.5 * glm::length(polygonNormal(polygon));
+    }
+    return 0.0;
+}
+
+void validateLight(const LightDesc& l) {
+    auto finite = [](const glm::dvec3& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); };
+    if (!finite(l.center) || !finite(l.u) || !finite(l.v) || !finite(l.normal) || !std::isfinite(l.radius))
+        fail(l.where, "non-finite light parameter");
+    if (l.samples < 1 || l.samples > 65536) fail(l.where, "samples must be in 1..65536, got {}", l.samples);
+    if (l.sampleSets < 1 || l.sampleSets > 256) fail(l.where, "sample_sets must be in 1..256, got {}", l.sampleSets);
+    switch (l.type) {
+        case LightType::Rect:
+            if (!(glm::length(glm::cross(l.u, l.v)) > 1e-12))
+                fail(l.where, "zero-area light: u x v is zero (u=[{},{},{}], v=[{},{},{}])", l.u.x, l.u.y, l.u.z,
+                     l.v.x, l.v.y, l.v.z);
+            break;
+        case LightType::Disk:
+            if (!(glm::length(l.normal) > 0)) fail(l.where, "normal is the zero vector");
+            [[fallthrough]];
+        case LightType::Sphere:
+            if (!(l.radius > 0)) fail(l.where, "zero-area light: radius must be positive, got {}", l.radius);
+            break;
+        case LightType::Polygon: {
+            if (l.polygon.size() < 3) fail(l.where, "polygon needs at least 3 vertices, got {}", l.polygon.size());
+            for (const auto& p : l.polygon)
+                if (!finite(p)) fail(l.where, "non-finite polygon vertex");
+            glm::dvec3 n = polygonNormal(l.polygon);
+            double len = glm::length(n);
+            if (!(len > 1e-12)) fail(l.where, "zero-area light: polygon has no area");
+            n /= len;
+            double scale = 0;
+            for (const auto& p : l.polygon) scale = std::max(scale, glm::length(p - l.polygon[0]));
+            for (size_t i = 0; i < l.polygon.size(); ++i) {
+                const auto& a = l.polygon[i];
+                const auto& b = l.polygon[(i + 1) % l.polygon.size()];
+                const auto& c = l.polygon[(i + 2) % l.polygon.size()];
+                if (std::abs(glm::dot(a - l.polygon[0], n)) > 1e-6 * scale)
+                    fail(l.where, "polygon vertex {} is not in the plane of the others", i);
+                if (glm::dot(glm::cross(b - a, c - b), n) < -1e-12 * scale * scale)
+                    fail(l.where, "polygon is not convex at vertex {}", (i + 1) % l.polygon.size());
+            }
+        }
+    }
+}
+
+LightSamples generateLightSamples(const std::vector<LightDesc>& lights, int groupSize, uint64_t seed) {
+    if (groupSize < 1 || groupSize > 64) throw InputError(fmt::format("group_size must be in 1..64, got {}", groupSize));
+    LightSamples out;
+    out.sets = 1;
+    for (const auto& l : lights) out.sets = std::max(out.sets, l.sampleSets), out.sampleCount += l.samples;
+    out.positions.resize(size_t(out.sets) * out.sampleCount);
+
+    int firstSample = 0;
+    for (size_t li = 0; li < lights.size(); ++li) {
+        const LightDesc& l = lights[li];
+        validateLight(l);
+        bool volumetric = l.type == LightType::Sphere;
+        Frame frame = volumetric ? Frame{} : planarFrame(l);
+        std::vector<int> dims = gridDims(l.samples, volumetric ? 3 : 2);
+        auto strataCoord = [&](int s) {
+            return glm::ivec3(s % dims[0], (s / dims[0]) % dims[1], volumetric ? s / (dims[0] * dims[1]) : 0);
+        };
+        auto canonical = [&](glm::ivec3 c, glm::dvec3 jitter) {
+            glm::dvec3 p((c.x + jitter.x) / dims[0], (c.y + jitter.y) / dims[1], 0.0);
+            if (volumetric) p.z = (c.z + jitter.z) / dims[2];
+            return p;
+        };
+        std::vector<glm::dvec3> centers(l.samples);
+        for (int s = 0; s < l.samples; ++s) centers[s] = mapCanonical(l, frame, canonical(strataCoord(s), glm::dvec3(0.5)));
+        std::vector<int> order(l.samples);
+        std::iota(order.begin(), order.end(), 0);
+        std::vector<std::pair<size_t, size_t>> ranges;
+        groupStrata(order, centers, 0, order.size(), size_t(groupSize), ranges);
+
+        for (int set = 0; set < out.sets; ++set) {
+            int ownSet = set % l.sampleSets;
+            for (int k = 0; k < l.samples; ++k) {
+                int stratum = order[k];
+                Rng rng(hashIndex(seed, li, ownSet, stratum));
+                glm::dvec3 jitter(rng.uniform(), rng.uniform(), rng.uniform());
+                out.positions[size_t(set) * out.sampleCount + firstSample + k] =
+                    glm::vec3(mapCanonical(l, frame, canonical(strataCoord(stratum), jitter)));
+            }
+        }
+
+        auto gather = [&](size_t begin, size_t end) {
+            std::vector<glm::dvec3> pts;
+            for (int set = 0; set < out.sets; ++set)
+                for (size_t k = begin; k < end; ++k) pts.push_back(glm::dvec3(out.position(set, firstSample + int(k))));
+            return pts;
+        };
+        auto bound = [&](const std::vector<glm::dvec3>& pts, bool withOutline) {
+            if (volumetric) return boundPoints3D(pts);
+            std::vector<glm::dvec3> outline;
+            if (withOutline && l.type == LightType::Rect)
+                for (auto [a, b] : {std::pair{-0.5, -0.5}, {0.5, -0.5}, {0.5, 0.5}, {-0.5, 0.5}})
+                    outline.push_back(l.center + a * l.u + b * l.v);
+            if (withOutline && l.type == LightType::Polygon) outline = l.polygon;
+            return boundPlanarPoints(pts, frame.origin, frame.u, frame.v, frame.n, outline);
+        };
+
+        out.lightFirstGroup.push_back(uint32_t(out.groups.size()));
+        out.lightBounds.push_back(bound(gather(0, l.samples), true));
+        for (auto [begin, end] : ranges) {
+            LightSampleGroup g;
+            g.light = uint32_t(li);
+            g.first = uint32_t(firstSample + begin);
+            g.count = uint32_t(end - begin);
+            g.bound = bound(gather(begin, end), false);
+            out.groups.push_back(std::move(g));
+        }
+        out.sampleLight.insert(out.sampleLight.end(), size_t(l.samples), uint32_t(li));
+        firstSample += l.samples;
+    }
+    out.lightFirstGroup.push_back(uint32_t(out.groups.size()));
+    return out;
+}
+
+}  // namespace penumbra

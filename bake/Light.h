@@ -1,0 +1,80 @@
+#pragma once
+/// @file Light.h
+/// @brief Area lights, their stratified jittered samples, sample sets and light-sample groups.
+
+#include "bake/ConvexBound.h"
+
+#include <glm/vec3.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace penumbra {
+
+enum class LightType { Rect, Disk, Sphere, Polygon };
+
+/// @brief A light as described in the scene file.
+struct LightDesc {
+    LightType type = LightType::Rect;
+    glm::dvec3 center{0.0};
+    glm::dvec3 u{1, 0, 0}, v{0, 0, 1};  ///< rect: full edge vectors; it emits on the side of u x v
+    glm::dvec3 normal{0, -1, 0};        ///< disk: emitting side
+    double radius = 0.5;                ///< disk and sphere
+    std::vector<glm::dvec3> polygon;    ///< polygon: convex, planar, in order
+    glm::dvec3 radiance{1.0};           ///< RGB radiance (W / (m^2 sr)), used by shading
+    int samples = 256;
+    int sampleSets = 8;
+    std::string where = "light";  ///< "scene.json: lights[0]", for messages
+
+    /// Emitting area (planar lights) or volume-equivalent surface area (sphere).
+    double area() const;
+};
+
+/// @brief Up to 64 spatially close samples of one light; one 64-bit mask word.
+struct LightSampleGroup {
+    uint32_t light = 0;
+    uint32_t first = 0;  ///< index of its first sample in LightSamples (global sample index)
+    uint32_t count = 0;  ///< 1..64
+    ConvexBound bound;   ///< contains the group's samples in every set
+
+    uint64_t fullMask() const { return count == 64 ? ~0ull : (1ull << count) - 1ull; }
+};
+
+/// @brief Every light's samples in every set. Sample k of set s is positions[s * sampleCount + k];
+/// the samples of all lights are concatenated in light order, and each group's samples are
+/// contiguous. Positions are float32 (as dumped) so every method casts from identical points.
+struct LightSamples {
+    int sets = 1;
+    int sampleCount = 0;  ///< K: samples per set, all lights together
+    std::vector<glm::vec3> positions;
+    std::vector<LightSampleGroup> groups;
+    std::vector<ConvexBound> lightBounds;      ///< Delta_L per light (all sets)
+    std::vector<uint32_t> lightFirstGroup;     ///< groups of light i: [first[i], first[i+1])
+    std::vector<uint32_t> sampleLight;         ///< light of each sample
+
+    const glm::vec3& position(int set, int k) const { return positions[size_t(set) * sampleCount + k]; }
+    int lightCount() const { return int(lightBounds.size()); }
+    int groupCount() const { return int(groups.size()); }
+};
+
+/// @brief Checks a light description; throws InputError naming light.where and the bad value
+/// (zero area, non-unit-count samples, non-planar or non-convex polygon...).
+void validateLight(const LightDesc& light);
+
+/// @brief Stratified, jittered samples for every light, @p groupSize (<= 64) per group.
+/// Deterministic in @p seed. Sets beyond a light's own sampleSets repeat its sets cyclically.
+LightSamples generateLightSamples(const std::vector<LightDesc>& lights, int groupSize, uint64_t seed);
+
+/// @brief The sample set a receiver uses: a hash of its index, so it is independent of tiling.
+inline int sampleSetOf(uint64_t receiverIndex, int sets, uint64_t seed);
+
+}  // namespace penumbra
+
+#include "stream/Random.h"
+
+namespace penumbra {
+inline int sampleSetOf(uint64_t receiverIndex, int sets, uint64_t seed) {
+    return int(hashIndex(seed ^ 0x5e75u, receiverIndex) % uint64_t(sets));
+}
+}  // namespace penumbra

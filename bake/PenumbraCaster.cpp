@@ -1,0 +1,347 @@
+#include "bake/PenumbraCaster.h"
+
+#include "bake/BlockingRule.h"
+#include "bake/PenumbraVolume.h"
+#include "receivers/MaskPool.h"
+#include "receivers/ReceiverHierarchy.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <numeric>
+
+namespace penumbra {
+namespace {
+
+double secondsSince(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+constexpr uint32_t kAllPlanes = ~0u;  // "ALL": masked by the volume's own plane count when used
+
+struct ActiveGroup {
+    uint32_t group;
+    uint32_t planes;
+};
+
+}  // namespace
+
+/// One tile: a hierarchy, a mask pool, and the per-triangle scratch of the traversal.
+struct PenumbraCaster::Tile {
+    const LightSamples& samples;
+    const CastOptions& options;
+    ReceiverHierarchy hierarchy;
+    MaskPool pool;
+    int groupCount, umbraWords;
+    std::vector<uint64_t> allGroupsBits;  // umbra words with every group's bit set
+
+    // Per-triangle state (Figure 3's "volumes-computed", split per light and per (set, group)).
+    const BlockerTriangle* tri = nullptr;
+    const PenumbraVolume* lightVolume = nullptr;
+    bool groupVolumesBuilt = false;
+    uint32_t currentLight = 0;
+    std::vector<PenumbraVolume> groupVolumes;
+    std::vector<HardShadowVolume> hardVolumes;  // [set][sample]
+    std::vector<uint8_t> hardReady;             // [set][group]
+    std::vector<uint32_t> hardReadyList;
+    std::vector<ActiveGroup> stack;
+    bool reachedRoot = false;
+
+    double buildSeconds = 0;
+    uint64_t rebuilds = 0, hardTests = 0;
+    size_t peakHierarchyBytes = 0, peakReceiverBytes = 0;
+
+    Tile(const LightSamples& s, const CastOptions& o)
+        : samples(s), options(o), hierarchy(o.hierarchy, s.groupCount()), pool(s.groupCount()),
+          groupCount(s.groupCount()), umbraWords((s.groupCount() + 63) / 64) {
+        allGroupsBits.assign(umbraWords, 0);
+        for (int k = 0; k < groupCount; ++k) allGroupsBits[k >> 6] |= 1ull << (k & 63);
+        groupVolumes.resize(groupCount);
+        hardVolumes.resize(size_t(s.sets) * s.sampleCount);
+        hardReady.assign(size_t(s.sets) * groupCount, 0);
+    }
+
+    void build(std::vector<ReceiverInput> inputs) {
+        auto t0 = std::chrono::steady_clock::now();
+        hierarchy.build(std::move(inputs));
+        buildSeconds += secondsSince(t0);
+        if (!options.lazyMasks)
+            for (auto& m : hierarchy.mask) m = pool.allocate();
+        notePeaks();
+    }
+
+    void notePeaks() {
+        peakHierarchyBytes = std::max(peakHierarchyBytes, hierarchy.hierarchyBytes());
+        peakReceiverBytes = std::max(peakReceiverBytes, hierarchy.receiverBytes());
+    }
+
+    bool umbra() const { return options.umbraBits; }
+
+    void buildGroupVolumes() {
+        for (uint32_t k = samples.lightFirstGroup[currentLight]; k < samples.lightFirstGroup[currentLight + 1]; ++k)
+            groupVolumes[k] = makePenumbraVolume(samples.groups[k].bound, *tri);
+        groupVolumesBuilt = true;
+    }
+
+    const HardShadowVolume* hardShadowVolumes(uint32_t set, uint32_t k) {
+        size_t slot = size_t(set) * groupCount + k;
+        const LightSampleGroup& g = samples.groups[k];
+        HardShadowVolume* h = &hardVolumes[size_t(set) * samples.sampleCount + g.first];
+        if (!hardReady[slot]) {
+            for (uint32_t j = 0; j < g.count; ++j)
+                h[j] = makeHardShadowVolume(glm::dvec3(samples.position(int(set), int(g.first + j))), *tri);
+            hardReady[slot] = 1;
+            hardReadyList.push_back(uint32_t(slot));
+        }
+        return h;
+    }
+
+    /// Processes one blocker against this tile; returns whether any root box met V_L.
+    void castTriangle(const BlockerTriangle& t, const PenumbraVolume* lightVolumes) {
+        reachedRoot = false;
+        ReceiverHierarchy& h = hierarchy;
+        if (h.nodes.empty()) return;
+        if (umbra() && options.rebuild && h.umbraCount > 0 &&
+            double(h.umbraCount) > options.rebuildThreshold * double(h.liveCount())) {  // line 29
+            auto t0 = std::chrono::steady_clock::now();
+            h.rebuild();
+            buildSeconds += secondsSince(t0);
+            ++rebuilds;
+            notePeaks();
+            if (h.nodes.empty()) return;
+        }
+        if (umbra() && h.nodeFullUmbra[0]) return;
+        tri = &t;
+        for (uint32_t slot : hardReadyList) hardReady[slot] = 0;
+        hardReadyList.clear();
+        for (currentLight = 0; currentLight < uint32_t(samples.lightCount()); ++currentLight) {
+            lightVolume = &lightVolumes[currentLight];
+            groupVolumesBuilt = false;
+            uint32_t g0 = samples.lightFirstGroup[currentLight], g1 = samples.lightFirstGroup[currentLight + 1];
+            if (!options.lazyVolumes) {  // optimization C off: build everything before traversal
+                buildGroupVolumes();
+                for (uint32_t set = 0; set < uint32_t(samples.sets); ++set)
+                    for (uint32_t k = g0; k < g1; ++k) hardShadowVolumes(set, k);
+            }
+            stack.clear();
+            for (uint32_t k = g0; k < g1; ++k) stack.push_back({k, kAllPlanes});
+            visit(0, lightVolume->all(), 0, stack.size());
+        }
+    }
+
+    void visit(uint32_t nodeIndex, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd) {
+        ReceiverHierarchy& h = hierarchy;
+        const ReceiverHierarchy::Node node = h.nodes[nodeIndex];
+        if (umbra() && h.nodeFullUmbra[nodeIndex]) return;  // line 35
+        Box box{node.lo, node.hi};
+        uint32_t planes = options.activePlanes ? lightPlanes : lightVolume->all();
+        if (!intersects(*lightVolume, box, planes)) return;  // line 36
+        if (!options.activePlanes) planes = lightVolume->all();
+        if (nodeIndex == 0) reachedRoot = true;
+
+        const size_t begin = stack.size();
+        const uint64_t* nodeBits = &h.nodeGroupUmbra[size_t(nodeIndex) * umbraWords];
+        for (size_t i = groupsBegin; i < groupsEnd; ++i) {  // lines 38-45
+            ActiveGroup g = stack[i];
+            if (umbra() && h.groupUmbraBit(nodeBits, g.group)) continue;
+            if (groupVolumesBuilt) {
+                const PenumbraVolume& v = groupVolumes[g.group];
+                uint32_t p = options.activePlanes ? (g.planes & v.all()) : v.all();
+                if (!intersects(v, box, p)) continue;
+                stack.push_back({g.group, options.activePlanes ? p : kAllPlanes});
+            } else {
+                stack.push_back({g.group, kAllPlanes});
+            }
+        }
+        const size_t end = stack.size();
+        if (begin == end) return;  // line 46
+
+        if (!node.leaf()) {
+            visit(node.first, planes, begin, end);
+            visit(node.first + 1, planes, begin, end);
+            if (umbra()) {  // lines 50-54
+                h.nodeFullUmbra[nodeIndex] = h.nodeFullUmbra[node.first] & h.nodeFullUmbra[node.first + 1];
+                uint64_t* bits = &h.nodeGroupUmbra[size_t(nodeIndex) * umbraWords];
+                for (int w = 0; w < umbraWords; ++w)
+                    bits[w] = h.nodeGroupUmbra[size_t(node.first) * umbraWords + w] &
+                              h.nodeGroupUmbra[size_t(node.first + 1) * umbraWords + w];
+            }
+        } else {
+            for (uint32_t r = node.first; r < node.first + node.count; ++r) castReceiver(r, planes, begin, end);
+            if (umbra()) updateLeafBits(nodeIndex, node);
+        }
+        stack.resize(begin);
+    }
+
+    void castReceiver(uint32_t r, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd) {
+        ReceiverHierarchy& h = hierarchy;
+        if (umbra() && h.fullUmbra[r]) return;  // line 57
+        const glm::dvec3& p = h.position[r];
+        if (!contains(*lightVolume, p, lightPlanes)) return;  // line 58
+        // Cheap exact early-out: a receiver not behind T's plane (beyond epsilon) on either side
+        // cannot be blocked by any sample (BlockingRule.h).
+        const double dist = distanceBehind(*tri, p), eps = h.epsilon[r];
+        if (!(dist > eps) && !(-dist > eps)) return;
+        if (!groupVolumesBuilt) buildGroupVolumes();  // lines 60-64
+
+        const uint32_t set = h.sampleSet[r];
+        uint64_t* bits = &h.groupUmbra[size_t(r) * umbraWords];
+        uint64_t* mask = h.mask[r] != MaskPool::kNone ? pool.data(h.mask[r]) : nullptr;
+        for (size_t i = groupsBegin; i < groupsEnd; ++i) {  // lines 65-73
+            const ActiveGroup g = stack[i];
+            if (umbra() && h.groupUmbraBit(bits, g.group)) continue;
+            const PenumbraVolume& v = groupVolumes[g.group];
+            if (!contains(v, p, g.planes & v.all())) continue;
+            const LightSampleGroup& group = samples.groups[g.group];
+            const HardShadowVolume* hard = hardShadowVolumes(set, g.group);
+            const uint64_t before = mask ? mask[g.group] : 0;
+            uint64_t word = before;
+            for (uint64_t todo = ~word & group.fullMask(); todo; todo &= todo - 1) {
+                int j = __builtin_ctzll(todo);
+                ++hardTests;
+                if (blocks(hard[j], p, dist, eps)) word |= 1ull << j;
+            }
+            if (word != before) {
+                if (!mask) {  // line 59, deferred until a bit is really set
+                    h.mask[r] = pool.allocate();
+                    mask = pool.data(h.mask[r]);
+                }
+                mask[g.group] = word;
+            }
+            if (umbra() && word == group.fullMask()) bits[g.group >> 6] |= 1ull << (g.group & 63);
+        }
+        if (umbra() && std::equal(bits, bits + umbraWords, allGroupsBits.begin())) {  // lines 74-75
+            h.fullUmbra[r] = 1;
+            ++h.umbraCount;
+            if (options.lazyMasks && mask) {
+                pool.release(h.mask[r]);
+                h.mask[r] = MaskPool::kNone;
+            }
+        }
+    }
+
+    void updateLeafBits(uint32_t nodeIndex, const ReceiverHierarchy::Node& node) {  // lines 77-80
+        ReceiverHierarchy& h = hierarchy;
+        uint64_t* bits = &h.nodeGroupUmbra[size_t(nodeIndex) * umbraWords];
+        uint8_t full = 1;
+        std::fill_n(bits, umbraWords, ~0ull);
+        for (uint32_t r = node.first; r < node.first + node.count; ++r) {
+            full &= h.fullUmbra[r];
+            for (int w = 0; w < umbraWords; ++w) bits[w] &= h.groupUmbra[size_t(r) * umbraWords + w];
+        }
+        h.nodeFullUmbra[nodeIndex] = full;
+    }
+};
+
+std::vector<std::vector<uint32_t>> partitionReceivers(const ReceiverSet& receivers, std::span<const uint32_t> ids,
+                                                      int count) {
+    std::vector<uint32_t> order(ids.begin(), ids.end());
+    std::vector<std::vector<uint32_t>> parts;
+    auto split = [&](auto&& self, size_t begin, size_t end, int pieces) -> void {
+        if (pieces <= 1 || end - begin <= 1) {
+            parts.emplace_back(order.begin() + begin, order.begin() + end);
+            std::sort(parts.back().begin(), parts.back().end());
+            return;
+        }
+        glm::vec3 lo(INFINITY), hi(-INFINITY);
+        for (size_t i = begin; i < end; ++i)
+            lo = glm::min(lo, receivers.position[order[i]]), hi = glm::max(hi, receivers.position[order[i]]);
+        glm::vec3 e = hi - lo;
+        int axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
+        int left = pieces / 2;
+        size_t mid = begin + (end - begin) * left / pieces;
+        std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end, [&](uint32_t a, uint32_t b) {
+            float pa = receivers.position[a][axis], pb = receivers.position[b][axis];
+            return pa < pb || (pa == pb && a < b);
+        });
+        self(self, begin, mid, left);
+        self(self, mid, end, pieces - left);
+    };
+    split(split, 0, order.size(), std::max(1, count));
+    return parts;
+}
+
+PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& receivers,
+                               std::span<const uint32_t> sampleSetOf, const CastOptions& options, int tiles,
+                               std::span<const uint32_t> receiverIds)
+    : samples_(samples), options_(options) {
+    std::vector<uint32_t> all;
+    if (receiverIds.empty()) {
+        all.resize(receivers.size());
+        std::iota(all.begin(), all.end(), 0u);
+        receiverIds = all;
+    }
+    auto parts = partitionReceivers(receivers, receiverIds, std::max(1, tiles));
+    tiles_.resize(parts.size());
+    tbb::parallel_for(size_t(0), parts.size(), [&](size_t t) {
+        tiles_[t] = std::make_unique<Tile>(samples_, options_);
+        std::vector<ReceiverInput> inputs;
+        inputs.reserve(parts[t].size());
+        for (uint32_t id : parts[t]) {
+            glm::dvec3 p(receivers.position[id]);
+            inputs.push_back({p, receiverEpsilon(p, options_.epsilon), id, sampleSetOf[id]});
+        }
+        tiles_[t]->build(std::move(inputs));
+    });
+}
+
+PenumbraCaster::~PenumbraCaster() = default;
+
+void PenumbraCaster::cast(std::span<const Triangle> blockers) {
+    auto t0 = std::chrono::steady_clock::now();
+    const size_t n = blockers.size(), lights = size_t(samples_.lightCount());
+    std::vector<BlockerTriangle> prepared(n);
+    std::vector<PenumbraVolume> lightVolumes(n * lights);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t i = range.begin(); i != range.end(); ++i) {
+            prepared[i] = BlockerTriangle::from(blockers[i]);
+            if (!prepared[i].valid) continue;
+            for (size_t l = 0; l < lights; ++l)
+                lightVolumes[i * lights + l] = makePenumbraVolume(samples_.lightBounds[l], prepared[i]);
+        }
+    });
+    std::vector<std::vector<uint8_t>> reached(tiles_.size(), std::vector<uint8_t>(n, 0));
+    tbb::parallel_for(size_t(0), tiles_.size(), [&](size_t t) {
+        Tile& tile = *tiles_[t];
+        for (size_t i = 0; i < n; ++i) {
+            if (!prepared[i].valid) continue;
+            tile.castTriangle(prepared[i], &lightVolumes[i * lights]);
+            reached[t][i] = tile.reachedRoot;
+        }
+    });
+    for (size_t i = 0; i < n; ++i) {
+        bool any = false;
+        for (const auto& r : reached) any = any || r[i];
+        stats_.trianglesCulledAtRoot += !any;
+    }
+    stats_.trianglesProcessed += n;
+    stats_.castSeconds += secondsSince(t0);
+}
+
+void PenumbraCaster::finish(const MaskVisitor& visit) const {
+    for (const auto& tile : tiles_) {
+        const ReceiverHierarchy& h = tile->hierarchy;
+        for (uint32_t id : h.retired) visit(id, nullptr, true);
+        for (size_t r = 0; r < h.liveCount(); ++r) {
+            if (h.fullUmbra[r]) visit(h.id[r], nullptr, true);
+            else visit(h.id[r], h.mask[r] != MaskPool::kNone ? tile->pool.data(h.mask[r]) : nullptr, false);
+        }
+    }
+}
+
+CastStats PenumbraCaster::stats() const {
+    CastStats s = stats_;
+    for (const auto& tile : tiles_) {
+        s.hierarchyBuildSeconds += tile->buildSeconds;
+        s.rebuilds += tile->rebuilds;
+        s.peakLiveMasks += tile->pool.peakLive();
+        s.peakMaskBytes += tile->pool.peakLive() * size_t(tile->pool.words()) * sizeof(uint64_t);
+        s.peakHierarchyBytes += tile->peakHierarchyBytes;
+        s.receiverBytes += tile->peakReceiverBytes;
+        s.hardShadowTests += tile->hardTests;
+    }
+    return s;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,54 @@
+#pragma once
+/// @file PenumbraCaster.h
+/// @brief Hierarchical penumbra casting (Laine & Aila 2005, Figure 3) over tiles of receivers.
+
+#include "bake/CastOptions.h"
+#include "bake/Light.h"
+#include "receivers/ReceiverSet.h"
+#include "stream/Triangle.h"
+
+#include <functional>
+#include <memory>
+#include <span>
+#include <vector>
+
+namespace penumbra {
+
+/// @brief Called once per receiver when a cast finishes. @p groupWords holds one word per light
+/// sample group (bit j of word k: sample groups[k].first + j is blocked); it is nullptr when no
+/// relation of the receiver is blocked. @p fullUmbra means every sample is blocked.
+using MaskVisitor = std::function<void(uint32_t receiver, const uint64_t* groupWords, bool fullUmbra)>;
+
+/// @brief Receivers are split spatially into tiles, each with its own hierarchy and mask pool.
+/// Tiles are independent, so they are cast in parallel and the result does not depend on the
+/// tile count or the thread count. Blocker order does not change the result either: a mask is
+/// the OR over all blockers.
+class PenumbraCaster {
+public:
+    /// @param receiverIds which receivers of @p receivers to cast (all when empty)
+    /// @param tiles how many spatial tiles to cut the receivers into (>= 1)
+    PenumbraCaster(const LightSamples& samples, const ReceiverSet& receivers, std::span<const uint32_t> sampleSetOf,
+                   const CastOptions& options, int tiles, std::span<const uint32_t> receiverIds = {});
+    ~PenumbraCaster();
+
+    /// @brief Casts a chunk of blockers (in the order given) against every tile.
+    void cast(std::span<const Triangle> blockers);
+    /// @brief Reports every receiver's result to @p visit, tile by tile.
+    void finish(const MaskVisitor& visit) const;
+
+    CastStats stats() const;
+
+private:
+    struct Tile;
+    const LightSamples& samples_;
+    CastOptions options_;
+    std::vector<std::unique_ptr<Tile>> tiles_;
+    CastStats stats_;
+};
+
+/// @brief Splits receivers into @p count spatially compact parts of near-equal size by recursive
+/// median splits, deterministic in the input.
+std::vector<std::vector<uint32_t>> partitionReceivers(const ReceiverSet& receivers, std::span<const uint32_t> ids,
+                                                      int count);
+
+}  // namespace penumbra

@@ -1,0 +1,35 @@
+#pragma once
+/// @file Pipeline.h
+/// @brief A whole bake: stream the scene, make receivers and light samples, sort blockers, cast
+/// with the chosen method, and write the outputs, dump and stats.
+
+#include "bake/Scene.h"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+
+namespace penumbra {
+
+enum class Method { Hpc, Reference, Embree };
+
+/// @brief Parses "hpc", "reference" or "embree". @throw InputError otherwise.
+Method parseMethod(const std::string& name);
+const char* methodName(Method method);
+
+/// @brief How to run a bake (the CLI's flags); the scene says what to bake.
+struct BakeSettings {
+    Method method = Method::Hpc;
+    int threads = 0;          ///< 0: all cores
+    std::string statsPath;    ///< JSON stats, optional
+    std::string dumpDir;      ///< receivers.npy, samples.npy, masks.npy, optional
+    bool quiet = false;
+};
+
+/// @brief Runs the bake and writes the scene's output (EXR + PNG preview for camera receivers,
+/// .npy visibilities for points).
+/// @return the stats document (also written to settings.statsPath when set).
+/// @throw InputError for every user-facing problem; no partial output file is left behind.
+nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings);
+
+}  // namespace penumbra

@@ -1,0 +1,43 @@
+#pragma once
+/// @file Plane.h
+/// @brief Oriented planes and the box/point classifications that penumbra-volume culling uses.
+
+#include <glm/vec3.hpp>
+#include <glm/geometric.hpp>
+
+namespace penumbra {
+
+/// @brief The plane dot(n, p) + d = 0; the positive side is "inside" every volume built from planes.
+struct Plane {
+    glm::dvec3 n{0.0};
+    double d = 0.0;
+
+    double eval(const glm::dvec3& p) const { return glm::dot(n, p) + d; }
+    static Plane through(const glm::dvec3& normal, const glm::dvec3& point) {
+        return {normal, -glm::dot(normal, point)};
+    }
+    Plane flipped() const { return {-n, -d}; }
+};
+
+/// Axis-aligned box with float corners, as stored in the receiver hierarchy.
+struct Box {
+    glm::vec3 lo{0.0f}, hi{0.0f};
+};
+
+/// Result of classifying a box against one plane.
+enum class BoxSide { Outside, Straddles, Inside };
+
+/// @brief Classifies @p box against @p plane using the box corner nearest to / farthest along n.
+inline BoxSide classify(const Plane& plane, const Box& box) {
+    glm::dvec3 farthest, nearest;
+    for (int i = 0; i < 3; ++i) {
+        bool positive = plane.n[i] >= 0.0;
+        farthest[i] = positive ? box.hi[i] : box.lo[i];
+        nearest[i] = positive ? box.lo[i] : box.hi[i];
+    }
+    if (plane.eval(farthest) < 0.0) return BoxSide::Outside;
+    if (plane.eval(nearest) >= 0.0) return BoxSide::Inside;
+    return BoxSide::Straddles;
+}
+
+}  // namespace penumbra

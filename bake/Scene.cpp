@@ -1,0 +1,185 @@
+#include "bake/Scene.h"
+
+#include "stream/Error.h"
+#include "stream/GeometryFile.h"
+#include "stream/JsonParams.h"
+#include "stream/SourceRegistry.h"
+
+#include <fstream>
+#include <sstream>
+
+namespace penumbra {
+namespace {
+
+std::string indexed(const std::string& key, size_t i) { return key + "[" + std::to_string(i) + "]"; }
+
+std::string resolve(const std::filesystem::path& base, const std::string& p) {
+    std::filesystem::path path(p);
+    return (path.is_absolute() ? path : base / path).lexically_normal().string();
+}
+
+Transform parseTransform(const JsonParams& entry) {
+    Transform t;
+    const nlohmann::json* raw = entry.raw("transform");
+    if (!raw) return t;
+    JsonParams j(*raw, entry.file(), entry.path("transform"));
+    double scale = j.number("scale", 1.0);
+    if (!(scale != 0.0)) fail(j.where("scale"), "must not be zero");
+    t.scale = float(scale);
+    t.rotateDeg = glm::vec3(j.vec3("rotate_deg", glm::dvec3(0.0)));
+    t.translate = glm::vec3(j.vec3("translate", glm::dvec3(0.0)));
+    j.finish();
+    return t;
+}
+
+LightDesc parseLight(const JsonParams& j) {
+    LightDesc l;
+    l.where = j.where();
+    std::string type = j.string("type");
+    if (type == "rect") {
+        l.type = LightType::Rect;
+        l.center = j.vec3("center"), l.u = j.vec3("u"), l.v = j.vec3("v");
+    } else if (type == "disk") {
+        l.type = LightType::Disk;
+        l.center = j.vec3("center"), l.normal = j.vec3("normal"), l.radius = j.number("radius");
+    } else if (type == "sphere") {
+        l.type = LightType::Sphere;
+        l.center = j.vec3("center"), l.radius = j.number("radius");
+    } else if (type == "polygon") {
+        l.type = LightType::Polygon;
+        const nlohmann::json* pts = j.raw("vertices");
+        if (!pts) fail(j.where("vertices"), "missing required field");
+        if (!pts->is_array()) fail(j.where("vertices"), "expected an array of [x, y, z] points");
+        for (size_t i = 0; i < pts->size(); ++i) {
+            nlohmann::json wrapper = {{"p", (*pts)[i]}};
+            l.polygon.push_back(JsonParams(wrapper, j.file(), j.path(indexed("vertices", i))).vec3("p"));
+        }
+    } else {
+        fail(j.where("type"), "unknown light type \"{}\" (known: rect, disk, sphere, polygon)", type);
+    }
+    l.radiance = j.vec3("radiance", l.radiance);
+    l.samples = int(j.integer("samples", l.samples, 1, 65536));
+    l.sampleSets = int(j.integer("sample_sets", l.sampleSets, 1, 256));
+    j.finish();
+    validateLight(l);
+    return l;
+}
+
+ReceiverDesc parseReceivers(const JsonParams& j, const std::filesystem::path& base) {
+    ReceiverDesc r;
+    std::string type = j.string("type");
+    if (type == "camera") {
+        r.kind = ReceiverKind::Camera;
+        CameraDesc& c = r.camera;
+        c.where = j.where();
+        c.eye = j.vec3("eye"), c.target = j.vec3("target"), c.up = j.vec3("up", c.up);
+        c.fovDeg = j.number("fov_deg", c.fovDeg);
+        c.width = int(j.integer("width", c.width, 1, 65536));
+        c.height = int(j.integer("height", c.height, 1, 65536));
+        validateCamera(c);
+    } else if (type == "points") {
+        r.kind = ReceiverKind::Points;
+        r.pointsPath = resolve(base, j.string("path"));
+    } else {
+        fail(j.where("type"), "unknown receiver type \"{}\" (known: camera, points)", type);
+    }
+    j.finish();
+    return r;
+}
+
+void parseOptions(const JsonParams& j, SceneDesc& scene) {
+    CastOptions& o = scene.options;
+    o.umbraBits = j.boolean("umbra_bits", o.umbraBits);
+    o.activePlanes = j.boolean("active_planes", o.activePlanes);
+    o.lazyVolumes = j.boolean("lazy_volumes", o.lazyVolumes);
+    o.lazyMasks = j.boolean("lazy_masks", o.lazyMasks);
+    o.rebuild = j.boolean("rebuild", o.rebuild);
+    o.sortBlockers = j.boolean("sort_blockers", o.sortBlockers);
+    o.rebuildThreshold = j.number("rebuild_threshold", o.rebuildThreshold);
+    if (!(o.rebuildThreshold > 0 && o.rebuildThreshold <= 1))
+        fail(j.where("rebuild_threshold"), "must be in (0, 1], got {}", o.rebuildThreshold);
+    o.hierarchy.leafSize = int(j.integer("leaf_size", o.hierarchy.leafSize, 1, 4096));
+    o.hierarchy.medianSplitAbove = int(j.integer("median_split_above", o.hierarchy.medianSplitAbove, 1, 1 << 30));
+    o.groupSize = int(j.integer("group_size", o.groupSize, 1, 64));
+    o.epsilon = j.number("epsilon", o.epsilon);
+    if (!(o.epsilon >= 0)) fail(j.where("epsilon"), "must not be negative, got {}", o.epsilon);
+    scene.seed = uint64_t(j.integer("seed", int64_t(scene.seed), 0, INT64_MAX));
+    j.finish();
+}
+
+}  // namespace
+
+void registerFileSourceTypes() {
+    for (const char* type : {"obj", "gltf", "glb", "ptri", "file"})
+        registerSourceType(type, [](const SourceRequest& r) {
+            JsonParams j(r.params, r.file, r.path);
+            std::string path = resolve(r.baseDir, j.string("path"));
+            j.finish();
+            return openGeometryFile(path);
+        });
+}
+
+SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
+    SceneDesc scene;
+    scene.file = file;
+    scene.baseDir = std::filesystem::path(file).parent_path();
+    JsonParams j(root, file, "");
+
+    const nlohmann::json* geometry = j.raw("geometry");
+    if (!geometry) fail(j.where("geometry"), "missing required field");
+    if (!geometry->is_array()) fail(j.where("geometry"), "expected an array of geometry entries");
+    for (size_t i = 0; i < geometry->size(); ++i) {
+        JsonParams g((*geometry)[i], file, indexed("geometry", i));
+        GeometryDesc desc;
+        desc.path = indexed("geometry", i);
+        desc.type = g.string("type");
+        desc.transform = parseTransform(g);
+        desc.params = (*geometry)[i];
+        desc.params.erase("type");
+        desc.params.erase("transform");
+        scene.geometry.push_back(std::move(desc));
+    }
+
+    const nlohmann::json* lights = j.raw("lights");
+    if (!lights) fail(j.where("lights"), "missing required field");
+    if (!lights->is_array() || lights->empty()) fail(j.where("lights"), "expected a non-empty array of lights");
+    for (size_t i = 0; i < lights->size(); ++i)
+        scene.lights.push_back(parseLight(JsonParams((*lights)[i], file, indexed("lights", i))));
+
+    const nlohmann::json* receivers = j.raw("receivers");
+    if (!receivers) fail(j.where("receivers"), "missing required field");
+    scene.receivers = parseReceivers(JsonParams(*receivers, file, "receivers"), scene.baseDir);
+
+    scene.output = resolve(scene.baseDir, j.string("output", scene.output));
+    if (const nlohmann::json* bake = j.raw("bake")) parseOptions(JsonParams(*bake, file, "bake"), scene);
+    j.finish();
+    return scene;
+}
+
+SceneDesc loadScene(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) fail(path, "cannot open scene file: {}", std::strerror(errno));
+    std::stringstream text;
+    text << in.rdbuf();
+    nlohmann::json root;
+    try {
+        root = nlohmann::json::parse(text.str());
+    } catch (const nlohmann::json::parse_error& e) {
+        std::string what = e.what();
+        fail(path, "invalid JSON at byte {}: {}", e.byte, what.substr(what.find(']') + 2));
+    }
+    return parseScene(root, path);
+}
+
+TriangleSourcePtr openSceneGeometry(const SceneDesc& scene) {
+    std::vector<TriangleSourcePtr> parts;
+    for (const GeometryDesc& g : scene.geometry) {
+        TriangleSourcePtr source = openSource(g.type, SourceRequest{g.params, scene.file, g.path, scene.baseDir});
+        if (!g.transform.isIdentity())
+            source = std::make_unique<TransformedSource>(std::move(source), g.transform.matrix());
+        parts.push_back(std::move(source));
+    }
+    return std::make_unique<ConcatSource>(std::move(parts));
+}
+
+}  // namespace penumbra

@@ -1,0 +1,61 @@
+#pragma once
+/// @file Scene.h
+/// @brief The scene file (JSON): geometry, lights, receivers, output and bake options.
+/// docs/scene-format.md is the reference for every key.
+
+#include "bake/CastOptions.h"
+#include "bake/Light.h"
+#include "receivers/CameraReceivers.h"
+#include "stream/Transform.h"
+#include "stream/TriangleSource.h"
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace penumbra {
+
+/// @brief One "geometry" entry: a file or a generator, with its placement.
+struct GeometryDesc {
+    std::string type;
+    nlohmann::json params;  ///< the entry without "type" and "transform"
+    Transform transform;
+    std::string path;       ///< key path for messages, "geometry[1]"
+};
+
+enum class ReceiverKind { Camera, Points };
+
+struct ReceiverDesc {
+    ReceiverKind kind = ReceiverKind::Camera;
+    CameraDesc camera;
+    std::string pointsPath;  ///< points: .npy (float32 N x 6) or .csv, resolved against the scene
+};
+
+/// @brief A parsed scene. Paths are already resolved relative to the scene file.
+struct SceneDesc {
+    std::string file;  ///< the scene file, for messages
+    std::filesystem::path baseDir;
+    std::vector<GeometryDesc> geometry;
+    std::vector<LightDesc> lights;
+    ReceiverDesc receivers;
+    std::string output = "out/shadows.exr";
+    CastOptions options;
+    uint64_t seed = 1;
+};
+
+/// @brief Reads and validates a scene file.
+/// @throw InputError naming the file and the key ("scene.json: lights[0].u: expected an array of 3
+/// numbers", "scene.json: receivers.colour: unknown key").
+SceneDesc loadScene(const std::string& path);
+/// @brief Same, from JSON text already in memory; @p file is used in messages and for paths.
+SceneDesc parseScene(const nlohmann::json& root, const std::string& file);
+
+/// @brief Opens every geometry entry as one stream, in scene order, with transforms applied.
+TriangleSourcePtr openSceneGeometry(const SceneDesc& scene);
+
+/// @brief Registers the file-backed geometry types: obj, gltf, glb, ptri and "file" (by extension).
+void registerFileSourceTypes();
+
+}  // namespace penumbra

@@ -1,0 +1,140 @@
+#include "receivers/CameraReceivers.h"
+
+#include "stream/Error.h"
+
+#include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace penumbra {
+namespace {
+
+struct Basis {
+    glm::dvec3 right, up, forward;
+    double tanHalf, aspect;
+};
+
+Basis basisOf(const CameraDesc& c) {
+    Basis b;
+    b.forward = glm::normalize(c.target - c.eye);
+    b.right = glm::normalize(glm::cross(b.forward, c.up));
+    b.up = glm::cross(b.right, b.forward);
+    b.tanHalf = std::tan(glm::radians(c.fovDeg) * 0.5);
+    b.aspect = double(c.width) / c.height;
+    return b;
+}
+
+}  // namespace
+
+glm::dvec3 CameraDesc::pixelDirection(int x, int y) const {
+    Basis b = basisOf(*this);
+    double sx = (2.0 * (x + 0.5) / width - 1.0) * b.tanHalf * b.aspect;
+    double sy = (1.0 - 2.0 * (y + 0.5) / height) * b.tanHalf;
+    return glm::normalize(b.forward + sx * b.right + sy * b.up);
+}
+
+void validateCamera(const CameraDesc& c) {
+    if (c.width < 1 || c.height < 1 || c.width > 65536 || c.height > 65536)
+        fail(c.where, "width and height must be in 1..65536, got {}x{}", c.width, c.height);
+    if (!(c.fovDeg > 0.0 && c.fovDeg < 180.0)) fail(c.where, "fov_deg must be in (0, 180), got {}", c.fovDeg);
+    glm::dvec3 f = c.target - c.eye;
+    if (!(glm::length(f) > 0.0)) fail(c.where, "eye and target are the same point");
+    if (!(glm::length(glm::cross(f, c.up)) > 1e-12 * glm::length(f) * glm::length(c.up)))
+        fail(c.where, "up is parallel to the view direction (or zero)");
+}
+
+ReceiverSet rasterizeCamera(TriangleSource& source, const CameraDesc& camera,
+                            const std::function<void(std::span<const Triangle>)>& onChunk) {
+    validateCamera(camera);
+    const Basis b = basisOf(camera);
+    const int W = camera.width, H = camera.height;
+    const size_t pixels = size_t(W) * H;
+    std::vector<float> depth(pixels, std::numeric_limits<float>::infinity());
+    std::vector<glm::vec3> normal(pixels);
+    // Pixel centre directions are recomputed per covered pixel; caching a row keeps it cheap.
+    auto direction = [&](int x, int y) {
+        double sx = (2.0 * (x + 0.5) / W - 1.0) * b.tanHalf * b.aspect;
+        double sy = (1.0 - 2.0 * (y + 0.5) / H) * b.tanHalf;
+        return glm::normalize(b.forward + sx * b.right + sy * b.up);
+    };
+    const double nearZ = 1e-6;
+
+    std::vector<Triangle> chunk(kTriangleChunk);
+    while (size_t count = source.read(chunk)) {
+        for (size_t ti = 0; ti < count; ++ti) {
+            const Triangle& tri = chunk[ti];
+            glm::dvec3 v[3] = {glm::dvec3(tri.v[0]), glm::dvec3(tri.v[1]), glm::dvec3(tri.v[2])};
+            glm::dvec3 n = glm::cross(v[1] - v[0], v[2] - v[0]);
+            if (!(glm::length(n) > 0.0) || !std::isfinite(glm::length(n))) continue;
+            // Camera space, then clip against the near plane (at most 4 vertices remain).
+            glm::dvec3 c[3];
+            for (int i = 0; i < 3; ++i) {
+                glm::dvec3 q = v[i] - camera.eye;
+                c[i] = {glm::dot(q, b.right), glm::dot(q, b.up), glm::dot(q, b.forward)};
+            }
+            glm::dvec3 poly[4];
+            int m = 0;
+            for (int i = 0; i < 3; ++i) {
+                const glm::dvec3 &p = c[i], &q = c[(i + 1) % 3];
+                if (p.z >= nearZ) poly[m++] = p;
+                if ((p.z >= nearZ) != (q.z >= nearZ)) poly[m++] = p + (q - p) * ((nearZ - p.z) / (q.z - p.z));
+            }
+            if (m < 3) continue;
+            double sx[4], sy[4];
+            double xLo = INFINITY, xHi = -INFINITY, yLo = INFINITY, yHi = -INFINITY;
+            for (int i = 0; i < m; ++i) {
+                sx[i] = (poly[i].x / poly[i].z / (b.tanHalf * b.aspect) + 1.0) * 0.5 * W;
+                sy[i] = (1.0 - poly[i].y / poly[i].z / b.tanHalf) * 0.5 * H;
+                xLo = std::min(xLo, sx[i]), xHi = std::max(xHi, sx[i]);
+                yLo = std::min(yLo, sy[i]), yHi = std::max(yHi, sy[i]);
+            }
+            int x0 = std::max(0, int(std::ceil(xLo - 0.5))), x1 = std::min(W - 1, int(std::floor(xHi - 0.5)));
+            int y0 = std::max(0, int(std::ceil(yLo - 0.5))), y1 = std::min(H - 1, int(std::floor(yHi - 0.5)));
+            if (x0 > x1 || y0 > y1) continue;
+            double area = 0;
+            for (int i = 0; i < m; ++i) area += sx[i] * sy[(i + 1) % m] - sx[(i + 1) % m] * sy[i];
+            if (area == 0) continue;
+            double orient = area > 0 ? 1.0 : -1.0;
+            double planeD = glm::dot(n, v[0] - camera.eye);
+            for (int y = y0; y <= y1; ++y) {
+                double py = y + 0.5;
+                for (int x = x0; x <= x1; ++x) {
+                    double px = x + 0.5;
+                    bool inside = true;
+                    for (int i = 0; i < m && inside; ++i) {
+                        int j = (i + 1) % m;
+                        inside = orient * ((sx[j] - sx[i]) * (py - sy[i]) - (sy[j] - sy[i]) * (px - sx[i])) >= 0;
+                    }
+                    if (!inside) continue;
+                    glm::dvec3 d = direction(x, y);
+                    double denom = glm::dot(n, d);
+                    if (denom == 0.0) continue;
+                    double t = planeD / denom;
+                    size_t p = size_t(y) * W + x;
+                    if (!(t > 0.0) || !(float(t) < depth[p])) continue;
+                    depth[p] = float(t);
+                    normal[p] = glm::vec3(glm::normalize(denom > 0 ? -n : n));
+                }
+            }
+        }
+        if (onChunk) onChunk(std::span<const Triangle>(chunk.data(), count));
+    }
+
+    ReceiverSet set;
+    set.width = W, set.height = H;
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            size_t p = size_t(y) * W + x;
+            if (!std::isfinite(depth[p])) continue;
+            set.position.push_back(glm::vec3(camera.eye + double(depth[p]) * direction(x, y)));
+            set.normal.push_back(normal[p]);
+            set.pixel.push_back(uint32_t(p));
+            set.depth.push_back(depth[p]);
+        }
+    return set;
+}
+
+}  // namespace penumbra

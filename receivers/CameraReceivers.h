@@ -1,0 +1,39 @@
+#pragma once
+/// @file CameraReceivers.h
+/// @brief Camera receivers: rasterize the scene into a z-buffer, one triangle at a time, and turn
+/// every covered pixel into a receiver at the visible surface point.
+
+#include "receivers/ReceiverSet.h"
+#include "stream/TriangleSource.h"
+
+#include <glm/vec3.hpp>
+
+#include <functional>
+#include <string>
+
+namespace penumbra {
+
+/// @brief A pinhole camera; fov_deg is the vertical field of view.
+struct CameraDesc {
+    glm::dvec3 eye{0, 3, 8}, target{0.0}, up{0, 1, 0};
+    double fovDeg = 45.0;
+    int width = 640, height = 480;
+    std::string where = "receivers";
+
+    /// Unit direction of the ray through the centre of pixel (x, y); y grows downwards.
+    glm::dvec3 pixelDirection(int x, int y) const;
+};
+
+/// @brief Checks the camera; throws InputError naming `where` and the bad value.
+void validateCamera(const CameraDesc& camera);
+
+/// @brief Rasterizes every triangle of @p source (one pass, streamed) and returns one receiver per
+/// covered pixel, in scanline order, at the nearest surface along the pixel's centre ray. The
+/// normal is the geometric normal of the visible triangle, turned to face the camera.
+/// Depth ties keep the earlier triangle, so the result depends only on the stream order.
+/// @param onChunk called with the triangles of each chunk after rasterizing it (lets the caller
+/// build an area histogram in the same pass).
+ReceiverSet rasterizeCamera(TriangleSource& source, const CameraDesc& camera,
+                            const std::function<void(std::span<const Triangle>)>& onChunk = {});
+
+}  // namespace penumbra

@@ -1,0 +1,43 @@
+#include "receivers/PointReceivers.h"
+
+#include "stream/Csv.h"
+#include "stream/Error.h"
+#include "stream/Npy.h"
+
+#include <glm/geometric.hpp>
+
+#include <cmath>
+#include <filesystem>
+
+namespace penumbra {
+
+ReceiverSet loadPointReceivers(const std::string& path) {
+    std::vector<float> values;
+    std::string ext = std::filesystem::path(path).extension().string();
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (ext == ".csv") {
+        for (const auto& row : readCsvNumbers(path, 6))
+            for (double v : row) values.push_back(float(v));
+    } else {
+        NpyArray array = readNpy(path);
+        if (array.shape.size() != 2 || array.shape[1] != 6)
+            fail(path, "expected an N x 6 array (position, normal), got shape of {} dimensions{}", array.shape.size(),
+                 array.shape.size() == 2 ? fmt::format(" ({} x {})", array.shape[0], array.shape[1]) : "");
+        values = npyAsFloat32(array, path);
+    }
+    ReceiverSet set;
+    const size_t n = values.size() / 6;
+    set.position.resize(n), set.normal.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+        const float* v = &values[i * 6];
+        for (int c = 0; c < 6; ++c)
+            if (!std::isfinite(v[c])) fail(path, "receiver {} has a non-finite value in column {}", i, c);
+        set.position[i] = {v[0], v[1], v[2]};
+        glm::vec3 normal(v[3], v[4], v[5]);
+        float len = glm::length(normal);
+        set.normal[i] = len > 0 ? normal / len : normal;
+    }
+    return set;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# One entry point for a fresh Debian 12 machine:
+#   ./setup.sh bake   install dependencies, build, bake examples/default.json to out/default.{exr,png}
+#   ./setup.sh test   install dependencies, build, run the whole test suite
+set -euo pipefail
+cd "$(dirname "$0")"
+mode=${1:-bake}
+
+packages=(build-essential cmake ninja-build ccache pkg-config
+  libopenvdb-dev libboost-iostreams-dev libopenexr-dev libimath-dev libtinygltf-dev
+  libglm-dev libtbb-dev catch2 libembree-dev nlohmann-json3-dev libcli11-dev
+  libfmt-dev libstb-dev)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  sudo=""; [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  echo "setup: installing ${missing[*]}" >&2
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
+fi
+
+build=${PENUMBRA_BUILD_DIR:-build}
+cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$build" --parallel "$(nproc)"
+
+case "$mode" in
+  bake)
+    mkdir -p out
+    "$build/penumbra" bake examples/default.json -o out/default.exr --stats out/default-stats.json
+    echo "setup: wrote out/default.exr and out/default.png" >&2 ;;
+  test)
+    cd "$build" && ctest --output-on-failure --timeout 1200 ;;
+  build) ;;
+  *) echo "usage: ./setup.sh [bake|test|build]" >&2; exit 2 ;;
+esac

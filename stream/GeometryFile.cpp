@@ -1,0 +1,167 @@
+#include "stream/GeometryFile.h"
+
+#include "stream/AtomicFile.h"
+#include "stream/Error.h"
+#include "stream/GltfReader.h"
+#include "stream/ObjReader.h"
+#include "stream/PtriFormat.h"
+
+#include <tiny_gltf.h>
+
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cctype>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+#include <sstream>
+
+namespace penumbra {
+
+namespace {
+
+std::string lowercaseExtension(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    return ext;
+}
+
+/// Calls @p consume with successive chunks of @p source, from its start.
+template <typename Consume>
+void forEachChunk(TriangleSource& source, Consume&& consume) {
+    source.rewind();
+    std::vector<Triangle> chunk(kTriangleChunk);
+    while (size_t n = source.read(chunk)) consume(std::span<const Triangle>(chunk.data(), n));
+}
+
+void writePtri(TriangleSource& in, const std::string& outPath) {
+    PtriWriter writer(outPath);
+    forEachChunk(in, [&](std::span<const Triangle> triangles) { writer.write(triangles); });
+    writer.finish();
+}
+
+void writeObj(TriangleSource& in, const std::string& outPath) {
+    AtomicFile file(outPath);
+    fmt::memory_buffer text;
+    fmt::format_to(std::back_inserter(text), "# triangle soup written by penumbra: 3 vertices per face\n");
+    uint64_t vertex = 1;  // OBJ indices start at 1
+    forEachChunk(in, [&](std::span<const Triangle> triangles) {
+        for (const Triangle& t : triangles) {
+            // "{}" prints the shortest text that parses back to the same float.
+            for (const glm::vec3& p : t.v) fmt::format_to(std::back_inserter(text), "v {} {} {}\n", p.x, p.y, p.z);
+            fmt::format_to(std::back_inserter(text), "f {} {} {}\n", vertex, vertex + 1, vertex + 2);
+            vertex += 3;
+        }
+        if (text.size() >= (1u << 20)) {
+            file.write(text.data(), text.size());
+            text.clear();
+        }
+    });
+    file.write(text.data(), text.size());
+    file.commit();
+}
+
+void writeGltf(TriangleSource& in, const std::string& outPath, bool binary) {
+    // The JSON states buffer and accessor sizes up front, so the positions are gathered first.
+    std::vector<float> positions;
+    glm::vec3 lo(0.0f), hi(0.0f);
+    // A GLB's length fields are 32-bit; stay well inside them (headers and JSON need room too).
+    const uint64_t maxTriangles = (std::numeric_limits<uint32_t>::max() - (1u << 20)) / 36;
+    forEachChunk(in, [&](std::span<const Triangle> triangles) {
+        for (const Triangle& t : triangles) {
+            if (positions.empty()) lo = hi = t.v[0];
+            if (positions.size() / 9 >= maxTriangles)
+                fail(outPath, "more than {} triangles do not fit in one glTF buffer", maxTriangles);
+            for (const glm::vec3& p : t.v) {
+                positions.insert(positions.end(), {p.x, p.y, p.z});
+                lo = glm::min(lo, p);
+                hi = glm::max(hi, p);
+            }
+        }
+    });
+
+    tinygltf::Model model;
+    model.asset.version = "2.0";
+    model.asset.generator = "penumbra";
+    if (!positions.empty()) {
+        tinygltf::Buffer buffer;
+        buffer.data.resize(positions.size() * sizeof(float));
+        std::memcpy(buffer.data.data(), positions.data(), buffer.data.size());
+        tinygltf::BufferView view;
+        view.buffer = 0;
+        view.byteLength = buffer.data.size();
+        view.target = TINYGLTF_TARGET_ARRAY_BUFFER;
+        tinygltf::Accessor accessor;
+        accessor.bufferView = 0;
+        accessor.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+        accessor.type = TINYGLTF_TYPE_VEC3;
+        accessor.count = positions.size() / 3;
+        accessor.minValues = {lo.x, lo.y, lo.z};  // required for POSITION by the spec
+        accessor.maxValues = {hi.x, hi.y, hi.z};
+        tinygltf::Primitive primitive;
+        primitive.attributes["POSITION"] = 0;
+        primitive.mode = TINYGLTF_MODE_TRIANGLES;
+        tinygltf::Mesh mesh;
+        mesh.primitives.push_back(primitive);
+        tinygltf::Node node;
+        node.mesh = 0;
+        model.buffers.push_back(std::move(buffer));
+        model.bufferViews.push_back(view);
+        model.accessors.push_back(accessor);
+        model.meshes.push_back(mesh);
+        model.nodes.push_back(node);
+        tinygltf::Scene scene;
+        scene.nodes.push_back(0);
+        model.scenes.push_back(scene);
+        model.defaultScene = 0;
+    }
+    // An empty source writes a model without scenes: tinygltf would serialize an empty scene
+    // as null, which its own loader then rejects.
+    std::vector<float>().swap(positions);  // the model holds its own copy now
+
+    std::ostringstream encoded;
+    tinygltf::TinyGLTF writer;
+    if (!writer.WriteGltfSceneToStream(&model, encoded, /*prettyPrint=*/!binary, binary) || !encoded)
+        fail(outPath, "tinygltf could not encode the model");
+    std::string bytes = std::move(encoded).str();
+    writeFileAtomically(outPath, std::span(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()));
+}
+
+}  // namespace
+
+TriangleSourcePtr openGeometryFile(const std::string& path) {
+    std::string ext = lowercaseExtension(path);
+    if (ext == ".obj") return openObj(path);
+    if (ext == ".gltf" || ext == ".glb") return openGltf(path);
+    if (ext == ".ptri") return openPtri(path);
+    fail(path, "unknown geometry file extension '{}' (expected .obj, .gltf, .glb or .ptri)", ext);
+}
+
+GeometryInfo scanGeometry(TriangleSource& source) {
+    GeometryInfo info;
+    forEachChunk(source, [&](std::span<const Triangle> triangles) {
+        for (const Triangle& t : triangles) {
+            if (info.triangles++ == 0) info.lo = info.hi = t.v[0];
+            for (const glm::vec3& p : t.v) {
+                info.lo = glm::min(info.lo, p);
+                info.hi = glm::max(info.hi, p);
+            }
+            glm::dvec3 a(t.v[0]), b(t.v[1]), c(t.v[2]);
+            info.area += 0.5 * glm::length(glm::cross(b - a, c - a));
+        }
+    });
+    source.rewind();
+    return info;
+}
+
+void convertGeometry(TriangleSource& in, const std::string& outPath) {
+    std::string ext = lowercaseExtension(outPath);
+    if (ext == ".ptri") return writePtri(in, outPath);
+    if (ext == ".obj") return writeObj(in, outPath);
+    if (ext == ".glb" || ext == ".gltf") return writeGltf(in, outPath, ext == ".glb");
+    fail(outPath, "unknown output extension '{}' (expected .obj, .gltf, .glb or .ptri)", ext);
+}
+
+}  // namespace penumbra

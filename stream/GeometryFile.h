@@ -1,0 +1,44 @@
+#pragma once
+/// @file GeometryFile.h
+/// @brief Geometry files by name: opening any supported format, summarising a source, and
+/// converting between formats.
+
+#include "stream/TriangleSource.h"
+
+#include <glm/vec3.hpp>
+
+#include <cstdint>
+#include <string>
+
+namespace penumbra {
+
+/// @brief Opens a geometry file, choosing the reader by extension (case-insensitive):
+/// .obj (ObjReader.h), .gltf / .glb (GltfReader.h), .ptri (PtriFormat.h).
+/// @throw InputError naming @p path for an unknown extension, or whatever the reader throws.
+TriangleSourcePtr openGeometryFile(const std::string& path);
+
+/// What a pass over a source found.
+struct GeometryInfo {
+    uint64_t triangles = 0;
+    glm::vec3 lo{0}, hi{0};  ///< bounds of all vertices; both zero when there are no triangles
+    double area = 0;         ///< total surface area, accumulated in double precision
+};
+
+/// @brief Reads @p source from the start to the end and summarises it.
+/// The source is rewound before and after, so it can be handed on for the real pass.
+/// @throw InputError when the source does.
+GeometryInfo scanGeometry(TriangleSource& source);
+
+/// @brief Writes every triangle of @p in (from its start) to @p outPath.
+///
+/// The format follows the extension: .ptri (PtriWriter, chunked and checksummed), .obj
+/// (streamed; three `v` lines and one `f` line per triangle, vertices not shared), or
+/// .glb / .gltf (one non-indexed FLOAT mesh with an identity node; buffered in memory because
+/// the JSON must state the buffer size; .gltf embeds the buffer as a base64 data URI). Floats
+/// are written so that they read back bit-identical. Triangle flags survive only in .ptri.
+/// Output is atomic: a temporary in the same directory is renamed into place at the end.
+/// @throw InputError naming @p outPath for an unknown extension or a failed write, or when the
+///        source throws; no partial output is left behind.
+void convertGeometry(TriangleSource& in, const std::string& outPath);
+
+}  // namespace penumbra

@@ -1,0 +1,33 @@
+#pragma once
+/// @file Memory.h
+/// @brief Process memory figures for --stats and budget checks, and parsing of byte sizes.
+
+#include <cstdint>
+#include <string>
+
+namespace penumbra {
+
+/// @brief Highest resident set size of this process so far, in bytes (getrusage ru_maxrss).
+uint64_t peakRssBytes();
+
+/// @brief Current resident set size in bytes (/proc/self/statm); 0 when unavailable.
+uint64_t currentRssBytes();
+
+/// @brief Parses a byte size such as "1000", "512k", "256M", "1G", "1.5GiB" or "2 GB".
+///
+/// Units are case-insensitive and all binary: k/K/KB/KiB = 1024, M/MB/MiB = 1024^2,
+/// G/GB/GiB = 1024^3, T/TB/TiB = 1024^4 (a memory budget is naturally a power of two, and
+/// treating "GB" as 10^9 would make "1G" and "1GB" silently differ). A trailing "B" alone means
+/// bytes. Fractions are allowed with a unit and rounded down to whole bytes; a plain byte count
+/// must be an integer.
+///
+/// @param text the user's text.
+/// @param what names the setting in error messages, e.g. "--memory" or "scene.json: memory".
+/// @throw InputError "WHAT: 'TEXT' is not a byte size ..." on empty, negative, malformed,
+///        unknown-unit or overflowing input.
+uint64_t parseByteSize(const std::string& text, const std::string& what);
+
+/// @brief Formats a byte count for messages: "512 B", "1.50 KiB", "25.0 MiB", "256 MiB".
+std::string formatBytes(uint64_t bytes);
+
+}  // namespace penumbra

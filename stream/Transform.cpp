@@ -1,0 +1,81 @@
+#include "stream/Transform.h"
+
+#include "stream/Error.h"
+
+#include <glm/mat3x3.hpp>
+#include <glm/matrix.hpp>
+
+#include <cmath>
+#include <utility>
+
+namespace penumbra {
+
+namespace {
+
+/// Cosine and sine of an angle in degrees; exact at multiples of 90 degrees, where
+/// std::cos(M_PI / 2) would give 6e-17 instead of 0 and smear axis-aligned geometry.
+std::pair<float, float> cosSinDegrees(float degrees) {
+    double turns = std::fmod(static_cast<double>(degrees), 360.0);
+    if (turns < 0) turns += 360.0;
+    if (turns == 0.0) return {1.0f, 0.0f};
+    if (turns == 90.0) return {0.0f, 1.0f};
+    if (turns == 180.0) return {-1.0f, 0.0f};
+    if (turns == 270.0) return {0.0f, -1.0f};
+    double radians = turns * (3.14159265358979323846 / 180.0);
+    return {static_cast<float>(std::cos(radians)), static_cast<float>(std::sin(radians))};
+}
+
+// glm matrices are column-major: m[column][row].
+glm::mat4 rotationX(float degrees) {
+    auto [c, s] = cosSinDegrees(degrees);
+    glm::mat4 m(1.0f);
+    m[1][1] = c, m[1][2] = s;
+    m[2][1] = -s, m[2][2] = c;
+    return m;
+}
+
+glm::mat4 rotationY(float degrees) {
+    auto [c, s] = cosSinDegrees(degrees);
+    glm::mat4 m(1.0f);
+    m[0][0] = c, m[0][2] = -s;
+    m[2][0] = s, m[2][2] = c;
+    return m;
+}
+
+glm::mat4 rotationZ(float degrees) {
+    auto [c, s] = cosSinDegrees(degrees);
+    glm::mat4 m(1.0f);
+    m[0][0] = c, m[0][1] = s;
+    m[1][0] = -s, m[1][1] = c;
+    return m;
+}
+
+}  // namespace
+
+glm::mat4 Transform::matrix() const {
+    glm::mat4 scaling(scale);
+    scaling[3][3] = 1.0f;
+    glm::mat4 translation(1.0f);
+    translation[3] = glm::vec4(translate, 1.0f);
+    return translation * rotationZ(rotateDeg.z) * rotationY(rotateDeg.y) * rotationX(rotateDeg.x) *
+           scaling;
+}
+
+bool Transform::isIdentity() const { return matrix() == glm::mat4(1.0f); }
+
+TransformedSource::TransformedSource(TriangleSourcePtr inner, const glm::mat4& matrix)
+    : inner_(std::move(inner)), matrix_(matrix),
+      mirrors_(glm::determinant(glm::mat3(matrix)) < 0.0f) {}
+
+size_t TransformedSource::read(std::span<Triangle> out) {
+    size_t n = inner_->read(out);
+    for (size_t i = 0; i < n; ++i) {
+        Triangle& t = out[i];
+        for (auto& p : t.v) p = glm::vec3(matrix_ * glm::vec4(p, 1.0f));
+        if (mirrors_) std::swap(t.v[1], t.v[2]);
+        if (!isFinite(t)) fail(inner_->name(), "transform produced a non-finite vertex");
+    }
+    return n;
+}
+
+}  // namespace penumbra

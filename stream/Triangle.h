@@ -1,0 +1,37 @@
+#pragma once
+/// @file Triangle.h
+/// @brief The record that flows through every stage: one world-space blocker triangle.
+
+#include <glm/vec3.hpp>
+#include <glm/geometric.hpp>
+
+#include <array>
+#include <cstdint>
+
+namespace penumbra {
+
+/// Bits of Triangle::flags.
+enum TriangleFlag : uint32_t {
+    kTriangleAlphaMatte = 1u << 0,  ///< cut-out foliage; bucketed and replayed after opaque blockers
+};
+
+/// @brief One triangle in world space. 40 bytes, trivially copyable, so chunks of them can be
+/// written to and read from bucket files as raw bytes.
+struct Triangle {
+    std::array<glm::vec3, 3> v;
+    uint32_t flags = 0;
+
+    /// Twice the area is what the cross product gives; the area itself is what the buckets sort on.
+    float area() const { return 0.5f * glm::length(glm::cross(v[1] - v[0], v[2] - v[0])); }
+};
+static_assert(sizeof(Triangle) == 40, "Triangle is a raw on-disk record");
+
+/// True when all nine coordinates are finite.
+inline bool isFinite(const Triangle& t) {
+    for (const auto& p : t.v)
+        for (int i = 0; i < 3; ++i)
+            if (!(p[i] - p[i] == 0.0f)) return false;  // NaN and inf both fail
+    return true;
+}
+
+}  // namespace penumbra

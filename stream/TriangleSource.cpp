@@ -1,0 +1,44 @@
+#include "stream/TriangleSource.h"
+
+#include <algorithm>
+
+namespace penumbra {
+
+size_t VectorSource::read(std::span<Triangle> out) {
+    size_t n = std::min(out.size(), triangles_.size() - next_);
+    std::copy_n(triangles_.begin() + static_cast<std::ptrdiff_t>(next_), n, out.begin());
+    next_ += n;
+    return n;
+}
+
+size_t ConcatSource::read(std::span<Triangle> out) {
+    while (current_ < parts_.size()) {
+        if (size_t n = parts_[current_]->read(out)) return n;
+        ++current_;
+    }
+    return 0;
+}
+
+void ConcatSource::rewind() {
+    for (auto& p : parts_) p->rewind();
+    current_ = 0;
+}
+
+std::optional<uint64_t> ConcatSource::sizeHint() const {
+    uint64_t total = 0;
+    for (const auto& p : parts_) {
+        auto n = p->sizeHint();
+        if (!n) return std::nullopt;
+        total += *n;
+    }
+    return total;
+}
+
+std::vector<Triangle> readAll(TriangleSource& source) {
+    std::vector<Triangle> all;
+    std::vector<Triangle> chunk(kTriangleChunk);
+    while (size_t n = source.read(chunk)) all.insert(all.end(), chunk.begin(), chunk.begin() + n);
+    return all;
+}
+
+}  // namespace penumbra

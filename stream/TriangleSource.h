@@ -1,0 +1,77 @@
+#pragma once
+/// @file TriangleSource.h
+/// @brief The streaming interface every geometry input implements (file readers, generators).
+///
+/// A source hands out triangles in caller-sized chunks and never promises to hold more than
+/// one chunk plus whatever index data its format needs. Sources are the extension point of the
+/// stream stage: readers, procedural generators and transforms all implement this interface.
+
+#include "stream/Triangle.h"
+
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace penumbra {
+
+class TriangleSource {
+public:
+    virtual ~TriangleSource() = default;
+
+    /// @brief Fill the front of @p out with the next triangles.
+    /// @return how many were written; 0 only at the end of the stream.
+    /// @throw InputError naming the file and the problem when the input is malformed.
+    virtual size_t read(std::span<Triangle> out) = 0;
+
+    /// @brief Start again from the first triangle (sources are replayed by multi-pass bakes).
+    virtual void rewind() = 0;
+
+    /// A name for messages: the file path or the generator type.
+    virtual std::string name() const = 0;
+
+    /// The triangle count when known up front (a .ptri header, a glTF accessor sum).
+    virtual std::optional<uint64_t> sizeHint() const { return std::nullopt; }
+};
+
+using TriangleSourcePtr = std::unique_ptr<TriangleSource>;
+
+/// @brief A source over triangles already in memory (tests, small scenes).
+class VectorSource final : public TriangleSource {
+public:
+    explicit VectorSource(std::vector<Triangle> triangles, std::string name = "memory")
+        : triangles_(std::move(triangles)), name_(std::move(name)) {}
+    size_t read(std::span<Triangle> out) override;
+    void rewind() override { next_ = 0; }
+    std::string name() const override { return name_; }
+    std::optional<uint64_t> sizeHint() const override { return triangles_.size(); }
+
+private:
+    std::vector<Triangle> triangles_;
+    std::string name_;
+    size_t next_ = 0;
+};
+
+/// @brief Plays several sources back to back, in order (a scene's geometry list).
+class ConcatSource final : public TriangleSource {
+public:
+    explicit ConcatSource(std::vector<TriangleSourcePtr> parts) : parts_(std::move(parts)) {}
+    size_t read(std::span<Triangle> out) override;
+    void rewind() override;
+    std::string name() const override { return "scene"; }
+    std::optional<uint64_t> sizeHint() const override;
+
+private:
+    std::vector<TriangleSourcePtr> parts_;
+    size_t current_ = 0;
+};
+
+/// Reads a whole source into memory. For tests and small scenes only.
+std::vector<Triangle> readAll(TriangleSource& source);
+
+/// Chunk size used by the pipeline when pulling from a source.
+inline constexpr size_t kTriangleChunk = 4096;
+
+}  // namespace penumbra

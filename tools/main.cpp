@@ -1,0 +1,130 @@
+/// @file main.cpp
+/// @brief The `penumbra` command-line tool: bake, compare, info, convert.
+
+#include "Compare.h"
+
+#include "bake/Pipeline.h"
+#include "bake/Scene.h"
+#include "procedural/Generators.h"
+#include "stream/AtomicFile.h"
+#include "stream/Error.h"
+#include "stream/GeometryFile.h"
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include <cstdio>
+#include <sstream>
+
+using namespace penumbra;
+
+namespace {
+
+/// Applies `--disable a,b,c` to the scene's cast options.
+void disableOptimizations(CastOptions& o, const std::vector<std::string>& names) {
+    for (const std::string& name : names) {
+        if (name == "umbra") o.umbraBits = false;
+        else if (name == "active-planes") o.activePlanes = false;
+        else if (name == "lazy-volumes") o.lazyVolumes = false;
+        else if (name == "lazy-masks") o.lazyMasks = false;
+        else if (name == "rebuild") o.rebuild = false;
+        else if (name == "sort") o.sortBlockers = false;
+        else if (name == "all") o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = false;
+        else
+            throw InputError("--disable: unknown optimization \"" + name +
+                             "\" (known: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, all)");
+    }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    installCleanupSignalHandlers();
+    registerFileSourceTypes();
+    registerProceduralGenerators();
+
+    CLI::App app{"penumbra: out-of-core soft-shadow baker (hierarchical penumbra casting)"};
+    app.require_subcommand(1);
+
+    std::string scenePath, output, method = "hpc", statsPath, dumpDir;
+    int threads = 0;
+    bool quiet = false;
+    std::vector<std::string> disabled;
+    CLI::App* bake = app.add_subcommand("bake", "bake soft shadows for a scene file");
+    bake->add_option("scene", scenePath, "scene file (JSON)")->required();
+    bake->add_option("-o,--output", output, "output file (overrides the scene's \"output\")");
+    bake->add_option("--method", method, "hpc (default), reference or embree");
+    bake->add_option("--threads", threads, "worker threads (default: all cores)");
+    bake->add_option("--stats", statsPath, "write JSON stats to this file");
+    bake->add_option("--dump", dumpDir, "write receivers.npy, samples.npy and masks.npy to this directory");
+    bake->add_option("--disable", disabled, "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, all")
+        ->delimiter(',');
+    bake->add_flag("-q,--quiet", quiet, "no progress on stderr");
+
+    std::string dumpA, dumpB, compareScene;
+    CLI::App* compare = app.add_subcommand("compare", "compare two --dump directories relation by relation");
+    compare->add_option("dump_a", dumpA)->required();
+    compare->add_option("dump_b", dumpB)->required();
+    compare->add_option("--scene", compareScene, "scene file: classify mismatches as ties of the blocking rule");
+
+    std::string infoPath;
+    CLI::App* info = app.add_subcommand("info", "print triangle count, bounds and total area of a geometry file");
+    info->add_option("file", infoPath)->required();
+
+    std::string convertIn, convertOut;
+    CLI::App* convert = app.add_subcommand("convert", "convert geometry between .obj, .gltf/.glb and .ptri");
+    convert->add_option("input", convertIn)->required();
+    convert->add_option("output", convertOut)->required();
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        return app.exit(e);
+    }
+
+    try {
+        if (*bake) {
+            SceneDesc scene = loadScene(scenePath);
+            if (!output.empty()) scene.output = output;
+            disableOptimizations(scene.options, disabled);
+            BakeSettings settings;
+            settings.method = parseMethod(method);
+            if (threads < 0) throw InputError(fmt::format("--threads: must not be negative, got {}", threads));
+            settings.threads = threads;
+            settings.statsPath = statsPath;
+            settings.dumpDir = dumpDir;
+            settings.quiet = quiet;
+            nlohmann::json stats = runBake(scene, settings);
+            if (!quiet)
+                fmt::print(stderr, "penumbra: {} receivers, {} samples, {} triangles, {:.2f} s -> {}\n",
+                           stats["receivers"].get<uint64_t>(), stats["light_samples"].get<int>(),
+                           stats["counters"]["triangles_read"].get<uint64_t>(),
+                           stats["table2"]["total_time_s"].get<double>(), scene.output);
+        } else if (*compare) {
+            CompareResult r = compareDumps(dumpA, dumpB, compareScene);
+            fmt::print("receivers {}\nsamples {}\nrelations {}\nblocked_a {}\nblocked_b {}\nonly_a {}\nonly_b {}\n",
+                       r.receivers, r.samples, r.relations, r.blockedA, r.blockedB, r.onlyA, r.onlyB);
+            if (r.classified) fmt::print("ties {}\nunexplained {}\n", r.ties, r.unexplained());
+            bool same = r.classified ? r.unexplained() == 0 : r.onlyA + r.onlyB == 0;
+            return same ? 0 : 3;
+        } else if (*info) {
+            TriangleSourcePtr source = openGeometryFile(infoPath);
+            GeometryInfo g = scanGeometry(*source);
+            fmt::print("triangles {}\nbounds_min {} {} {}\nbounds_max {} {} {}\narea {}\n", g.triangles, g.lo.x, g.lo.y,
+                       g.lo.z, g.hi.x, g.hi.y, g.hi.z, g.area);
+        } else if (*convert) {
+            TriangleSourcePtr source = openGeometryFile(convertIn);
+            convertGeometry(*source, convertOut);
+        }
+    } catch (const InputError& e) {
+        fmt::print(stderr, "penumbra: error: {}\n", e.what());
+        return 1;
+    } catch (const std::bad_alloc&) {
+        fmt::print(stderr, "penumbra: error: out of memory (try --memory-budget or fewer receivers)\n");
+        return 1;
+    } catch (const std::exception& e) {
+        fmt::print(stderr, "penumbra: internal error: {}\n", e.what());
+        return 70;
+    }
+    return 0;
+}
