@@ -17,15 +17,12 @@ namespace penumbra {
 namespace {
 
 /// Reads a file line by line with a reusable buffer, tracking byte offsets (to resume the
-/// streaming pass) and line numbers (for messages).
+/// streaming pass) and line numbers (for messages). Only next() and seek() need it open.
 class LineReader {
 public:
-    explicit LineReader(const std::string& path) : path_(path) {
-        file_ = std::fopen(path.c_str(), "rb");
-        if (!file_) fail(path, "cannot open: {}", std::strerror(errno));
-    }
+    explicit LineReader(const std::string& path) : path_(path) { open(); }
     ~LineReader() {
-        std::fclose(file_);
+        close();
         std::free(buffer_);
     }
     LineReader(const LineReader&) = delete;
@@ -46,6 +43,23 @@ public:
         line = std::string_view(buffer_, end);
         return true;
     }
+
+    /// @brief Opens the file (again), reading from its start.
+    void open() {
+        close();
+        file_ = std::fopen(path_.c_str(), "rb");
+        if (!file_) fail(path_, "cannot open: {}", std::strerror(errno));
+        offset_ = lineStart_ = lineNumber_ = 0;
+    }
+
+    /// @brief Releases the descriptor between passes, so that a scene of many files does not
+    /// hold one open per file.
+    void close() {
+        if (file_) std::fclose(file_);
+        file_ = nullptr;
+    }
+
+    bool isOpen() const { return file_ != nullptr; }
 
     /// @brief Continues reading at @p offset, which is the start of line @p lineNumber + 1.
     void seek(uint64_t offset, uint64_t lineNumber) {
@@ -227,15 +241,20 @@ void ObjSource::scan() {
 }
 
 void ObjSource::rewind() {
+    // The file is reopened by the first read() of the next pass.
+    lines_.close();
     polygon_.clear();
     nextFan_ = 0;
     finished_ = !hasFaces_;
     verticesSeen_ = verticesBeforeFirstFace_;
-    if (hasFaces_) lines_.seek(firstFaceOffset_, linesBeforeFirstFace_);
 }
 
 /// Advances the streaming pass to the next face; false at the end of the file.
 bool ObjSource::nextPolygon() {
+    if (!lines_.isOpen()) {
+        lines_.open();
+        lines_.seek(firstFaceOffset_, linesBeforeFirstFace_);
+    }
     std::string_view line;
     while (lines_.next(line)) {
         Tokens tokens(line);
@@ -257,6 +276,7 @@ size_t ObjSource::read(std::span<Triangle> out) {
     while (written < out.size() && !finished_) {
         if (nextFan_ + 1 >= polygon_.size() && !nextPolygon()) {
             finished_ = true;
+            lines_.close();
             break;
         }
         for (; nextFan_ + 1 < polygon_.size() && written < out.size(); ++nextFan_) {

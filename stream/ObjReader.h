@@ -8,6 +8,8 @@
 /// continues a second, streaming pass over the file that starts at the remembered offset of
 /// the first `f` line; rewind() seeks back to that offset. The file is read line by line and
 /// never loaded whole, so a multi-gigabyte OBJ costs its vertex array plus one line buffer.
+/// The file is closed between passes (reopened by the first read() after open or rewind()),
+/// so a scene of many sources does not hold a descriptor per file.
 ///
 /// Supported: `v x y z [w | r g b]` (only x y z are used), `f` with `v`, `v/vt`, `v//vn` and
 /// `v/vt/vn` corners, positive and negative (relative) indices, polygons of any size

@@ -135,10 +135,11 @@ class PtriSource final : public TriangleSource {
 public:
     explicit PtriSource(const std::string& path) : path_(path) {
         OpenFile opened = openVerified(path);
-        file_ = opened.file;
+        // Closed until the first read(): a scene may open many files before streaming any.
+        std::fclose(opened.file);
         info_ = opened.info;
     }
-    ~PtriSource() override { std::fclose(file_); }
+    ~PtriSource() override { closeFile(); }
     PtriSource(const PtriSource&) = delete;
     PtriSource& operator=(const PtriSource&) = delete;
 
@@ -149,6 +150,10 @@ public:
 
 private:
     void loadChunk();
+    void closeFile() {
+        if (file_) std::fclose(file_);
+        file_ = nullptr;
+    }
 
     std::string path_;
     std::FILE* file_ = nullptr;
@@ -159,8 +164,7 @@ private:
 };
 
 void PtriSource::rewind() {
-    if (std::fseek(file_, static_cast<long>(kPtriHeaderBytes), SEEK_SET) != 0)
-        fail(path_, "cannot seek: {}", std::strerror(errno));
+    closeFile();  // reopened by the next read()
     nextChunk_ = 0;
     chunk_.clear();
     used_ = 0;
@@ -170,6 +174,14 @@ void PtriSource::loadChunk() {
     uint64_t k = nextChunk_;
     uint32_t expectedCount = info_.chunkTriangles(k);
     size_t expectedBytes = kPtriChunkHeaderBytes + size_t(expectedCount) * kPtriTriangleBytes;
+    if (!file_) {
+        file_ = std::fopen(path_.c_str(), "rb");
+        if (!file_) fail(path_, "cannot open: {}", std::strerror(errno));
+        // Every chunk before k is full, so chunk k's offset follows from the header.
+        uint64_t offset = kPtriHeaderBytes + k * (kPtriChunkHeaderBytes + uint64_t(info_.chunkSize) * kPtriTriangleBytes);
+        if (::fseeko(file_, static_cast<off_t>(offset), SEEK_SET) != 0)
+            fail(path_, "cannot seek: {}", std::strerror(errno));
+    }
 
     // The size was checked at open; a short read now means the file changed underneath us.
     uint32_t fields[2];
@@ -189,6 +201,7 @@ void PtriSource::loadChunk() {
         if (!isFinite(chunk_[i])) fail(path_, "chunk {} triangle {} has a non-finite coordinate", k, i);
     ++nextChunk_;
     used_ = 0;
+    if (nextChunk_ == info_.chunkCount()) closeFile();
 }
 
 size_t PtriSource::read(std::span<Triangle> out) {

@@ -122,7 +122,8 @@ PtriInfo readPtriHeader(const std::string& path);
 ///
 /// The header and file size are verified here (see readPtriHeader); each chunk's count and
 /// checksum are verified as read() reaches it, so a damaged chunk fails that read() with e.g.
-/// `scene.ptri: checksum mismatch in chunk 3`. Only one chunk is held in memory.
+/// `scene.ptri: checksum mismatch in chunk 3`. Only one chunk is held in memory, and the file
+/// is open only while a pass is under way (from the first read() to the last chunk).
 /// @throw InputError as readPtriHeader.
 TriangleSourcePtr openPtri(const std::string& path);
 

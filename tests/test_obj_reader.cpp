@@ -221,3 +221,22 @@ TEST_CASE("OBJ: every truncated prefix and damaged byte fails cleanly or parses"
             attempt(damaged);
         }
 }
+
+TEST_CASE("OBJ: sources hold no descriptor between passes", "[stream][obj]") {
+    TempDir dir("obj");
+    writeText(dir.file("m.obj"), std::string(kSquare) + "f 1 2 3 4\nf 4 3 2\n");
+    auto openDescriptors = [] {
+        return std::distance(std::filesystem::directory_iterator("/proc/self/fd"), std::filesystem::directory_iterator());
+    };
+    auto before = openDescriptors();
+    std::vector<TriangleSourcePtr> sources;
+    for (int i = 0; i < 50; ++i) sources.push_back(openObj(dir.file("m.obj")));
+    CHECK(openDescriptors() == before);
+    std::vector<Triangle> one(1);
+    CHECK(sources[0]->read(one) == 1);
+    CHECK(openDescriptors() == before + 1);
+    CHECK(readAll(*sources[0]).size() == 2);
+    CHECK(openDescriptors() == before);
+    sources[0]->rewind();
+    CHECK(readAll(*sources[0]).size() == 3);
+}

@@ -13,6 +13,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include <csignal>
 #include <cstdio>
 #include <sstream>
 
@@ -39,6 +40,9 @@ void disableOptimizations(CastOptions& o, const std::vector<std::string>& names)
 }  // namespace
 
 int main(int argc, char** argv) {
+    // A file-size limit (prlimit --fsize) must surface as EFBIG from write(), which the writers
+    // report with the file name, instead of killing the process with SIGXFSZ.
+    std::signal(SIGXFSZ, SIG_IGN);
     installCleanupSignalHandlers();
     registerFileSourceTypes();
     registerProceduralGenerators();

@@ -1,0 +1,124 @@
+#pragma once
+// Shared builders for the casting tests: random blockers, receivers, lights, and a helper that
+// runs hierarchical penumbra casting and returns masks in the same layout as the reference.
+
+#include "bake/CastOptions.h"
+#include "bake/Light.h"
+#include "bake/PenumbraCaster.h"
+#include "bake/VisibilityMasks.h"
+#include "bucket/AreaSort.h"
+#include "receivers/ReceiverSet.h"
+#include "stream/Random.h"
+#include "stream/Triangle.h"
+
+#include <glm/geometric.hpp>
+
+#include <string>
+#include <vector>
+
+namespace penumbra::test {
+
+inline std::string sharedData(const std::string& rel) { return std::string(PENUMBRA_SOURCE_DIR) + "/../shared/data/" + rel; }
+
+inline glm::vec3 randomIn(Rng& rng, glm::vec3 lo, glm::vec3 hi) {
+    return {float(rng.uniform(lo.x, hi.x)), float(rng.uniform(lo.y, hi.y)), float(rng.uniform(lo.z, hi.z))};
+}
+
+/// Random triangles of varied size inside a box.
+inline std::vector<Triangle> triangleSoup(uint64_t seed, int count, glm::vec3 lo, glm::vec3 hi, float maxEdge) {
+    Rng rng(seed);
+    std::vector<Triangle> out;
+    for (int i = 0; i < count; ++i) {
+        glm::vec3 c = randomIn(rng, lo, hi);
+        float s = maxEdge * float(0.1 + 0.9 * rng.uniform());
+        Triangle t;
+        for (auto& v : t.v) v = c + s * randomIn(rng, glm::vec3(-0.5f), glm::vec3(0.5f));
+        out.push_back(t);
+    }
+    return out;
+}
+
+/// A flat quad as two triangles.
+inline void addQuad(std::vector<Triangle>& out, glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d) {
+    out.push_back({{a, b, c}, 0});
+    out.push_back({{a, c, d}, 0});
+}
+
+/// Random receivers in a box with random unit normals.
+inline ReceiverSet randomReceivers(uint64_t seed, int count, glm::vec3 lo, glm::vec3 hi) {
+    Rng rng(seed);
+    ReceiverSet set;
+    for (int i = 0; i < count; ++i) {
+        set.position.push_back(randomIn(rng, lo, hi));
+        set.normal.push_back(glm::normalize(randomIn(rng, glm::vec3(-1), glm::vec3(1)) + glm::vec3(0, 1e-3f, 0)));
+    }
+    return set;
+}
+
+/// Receivers on the given triangles (barycentric points, some very close to edges).
+inline void addReceiversOnTriangles(ReceiverSet& set, const std::vector<Triangle>& tris, uint64_t seed, int perTriangle) {
+    Rng rng(seed);
+    for (const Triangle& t : tris)
+        for (int i = 0; i < perTriangle; ++i) {
+            double a = rng.uniform(), b = rng.uniform();
+            if (a + b > 1) a = 1 - a, b = 1 - b;
+            if (i % 3 == 0) b = rng.uniform() * 1e-6;  // hugging an edge
+            glm::dvec3 p = glm::dvec3(t.v[0]) + a * glm::dvec3(t.v[1] - t.v[0]) + b * glm::dvec3(t.v[2] - t.v[0]);
+            set.position.push_back(glm::vec3(p));
+            set.normal.push_back(glm::normalize(glm::cross(t.v[1] - t.v[0], t.v[2] - t.v[0])));
+        }
+}
+
+inline std::vector<uint32_t> assignSets(const ReceiverSet& r, int sets, uint64_t seed = 1) {
+    std::vector<uint32_t> out(r.size());
+    for (size_t i = 0; i < out.size(); ++i) out[i] = uint32_t(sampleSetOf(i, sets, seed));
+    return out;
+}
+
+inline LightDesc rectLight(glm::dvec3 center, glm::dvec3 u, glm::dvec3 v, int samples = 64, int sets = 4) {
+    LightDesc l;
+    l.type = LightType::Rect, l.center = center, l.u = u, l.v = v, l.samples = samples, l.sampleSets = sets;
+    return l;
+}
+
+/// Runs hierarchical penumbra casting and converts the result to VisibilityMasks.
+inline VisibilityMasks castHpc(const LightSamples& samples, const ReceiverSet& receivers,
+                               const std::vector<uint32_t>& sets, std::vector<Triangle> triangles,
+                               const CastOptions& options, int tiles = 1, size_t chunk = 97) {
+    if (options.sortBlockers) sortByAreaDescending(triangles);
+    PenumbraCaster caster(samples, receivers, sets, options, tiles);
+    for (size_t i = 0; i < triangles.size(); i += chunk)
+        caster.cast(std::span<const Triangle>(triangles.data() + i, std::min(chunk, triangles.size() - i)));
+    VisibilityMasks masks(receivers.size(), samples.groupCount());
+    caster.finish([&](uint32_t r, const uint64_t* words, bool full) {
+        for (int k = 0; k < masks.groups; ++k)
+            masks.row(r)[k] = full ? samples.groups[k].fullMask() : (words ? words[k] : 0);
+    });
+    return masks;
+}
+
+/// Every combination worth testing: all on, each optimization off alone, all off.
+inline std::vector<std::pair<std::string, CastOptions>> optionVariants() {
+    std::vector<std::pair<std::string, CastOptions>> v;
+    CastOptions base;
+    base.rebuildThreshold = 0.05;  // rebuild often so rebuilds are exercised
+    base.hierarchy.leafSize = 4;
+    base.hierarchy.medianSplitAbove = 64;
+    v.push_back({"all on", base});
+    auto off = [&](const char* name, auto change) {
+        CastOptions o = base;
+        change(o);
+        v.push_back({name, o});
+    };
+    off("no umbra bits (A)", [](CastOptions& o) { o.umbraBits = false; });
+    off("no active planes (B)", [](CastOptions& o) { o.activePlanes = false; });
+    off("no lazy volumes (C)", [](CastOptions& o) { o.lazyVolumes = false; });
+    off("no lazy masks (D)", [](CastOptions& o) { o.lazyMasks = false; });
+    off("no rebuild", [](CastOptions& o) { o.rebuild = false; });
+    off("all off", [](CastOptions& o) {
+        o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = false;
+    });
+    return v;
+}
+
+}  // namespace penumbra::test

@@ -1,0 +1,140 @@
+// Exactness: hierarchical penumbra casting, with every optimization on, off, or singly off,
+// gives masks bit-identical to plain ray casting under the same blocking rule.
+
+#include "TestScenes.h"
+
+#include "bake/ReferenceCaster.h"
+#include "procedural/GridGenerator.h"
+#include "stream/ObjReader.h"
+#include "stream/Transform.h"
+
+#include <catch2/catch.hpp>
+
+using namespace penumbra;
+using namespace penumbra::test;
+
+namespace {
+
+void requireExact(const std::string& scene, const std::vector<LightDesc>& lights, const ReceiverSet& receivers,
+                  const std::vector<Triangle>& triangles, int groupSize = 64) {
+    LightSamples samples = generateLightSamples(lights, groupSize, 7);
+    std::vector<uint32_t> sets = assignSets(receivers, samples.sets);
+    CastOptions defaults;
+    VisibilityMasks reference = castReference(samples, receivers, sets, triangles, defaults.epsilon);
+    INFO(scene << ": " << reference.blockedCount() << " blocked of " << receivers.size() * samples.sampleCount);
+    // A scene where nothing or everything is blocked proves little.
+    REQUIRE(reference.blockedCount() > 0);
+    REQUIRE(reference.blockedCount() < uint64_t(receivers.size()) * samples.sampleCount);
+    for (const auto& [name, options] : optionVariants()) {
+        for (int tiles : {1, 3}) {
+            INFO(name << ", tiles " << tiles);
+            VisibilityMasks hpc = castHpc(samples, receivers, sets, triangles, options, tiles);
+            CHECK(hpc.blockedCount() == reference.blockedCount());
+            CHECK(hpc.words == reference.words);
+        }
+    }
+}
+
+std::vector<Triangle> floorQuad(float half, float y = 0.f) {
+    std::vector<Triangle> t;
+    addQuad(t, {-half, y, -half}, {half, y, -half}, {half, y, half}, {-half, y, half});
+    return t;
+}
+
+}  // namespace
+
+TEST_CASE("random triangle soups match the reference", "[hpc][exact]") {
+    for (uint64_t seed : {1, 2, 3}) {
+        std::vector<Triangle> tris = triangleSoup(seed, 60, {-2, 1, -2}, {2, 3, 2}, 1.2f);
+        std::vector<Triangle> floor = floorQuad(4);
+        ReceiverSet receivers = randomReceivers(seed + 10, 300, {-3, -0.5f, -3}, {3, 2.5f, 3});
+        addReceiversOnTriangles(receivers, floor, seed, 150);
+        addReceiversOnTriangles(receivers, tris, seed + 20, 2);
+        tris.insert(tris.end(), floor.begin(), floor.end());
+        requireExact("soup " + std::to_string(seed), {rectLight({0, 5, 0}, {2, 0, 0}, {0, 0, 1.5}, 128, 4)}, receivers, tris);
+    }
+}
+
+TEST_CASE("stacked perforated grids match the reference", "[hpc][exact]") {
+    GridParams p;
+    p.cells = 5, p.levels = 3, p.size = 3, p.floorSize = 6;
+    std::vector<Triangle> tris = readAll(*makeGridSource(p));
+    ReceiverSet receivers;
+    addReceiversOnTriangles(receivers, std::vector<Triangle>(tris.begin(), tris.begin() + 2), 5, 400);
+    addReceiversOnTriangles(receivers, std::vector<Triangle>(tris.begin() + 2, tris.begin() + 200), 6, 1);
+    requireExact("grids", {rectLight({0.3, 4, 0.2}, {1.5, 0, 0}, {0, 0, 1.5}, 256, 8)}, receivers, tris);
+}
+
+TEST_CASE("a closed mesh (spot.obj) shadowing itself and a floor matches the reference", "[hpc][exact]") {
+    Transform place;
+    place.scale = 1.0f;
+    place.translate = {0, 1.0f, 0};
+    TransformedSource spot(openObj(sharedData("meshes/spot.obj")), place.matrix());
+    std::vector<Triangle> mesh = readAll(spot);
+    REQUIRE(mesh.size() == 5856);
+    std::vector<Triangle> floor = floorQuad(3);
+    ReceiverSet receivers;
+    addReceiversOnTriangles(receivers, floor, 9, 200);
+    std::vector<Triangle> some;
+    for (size_t i = 0; i < mesh.size(); i += 40) some.push_back(mesh[i]);
+    addReceiversOnTriangles(receivers, some, 10, 1);
+    mesh.insert(mesh.end(), floor.begin(), floor.end());
+    requireExact("spot", {rectLight({0.5, 4, 0.5}, {1.5, 0, 0}, {0, 0.3, 1.2}, 64, 4)}, receivers, mesh);
+}
+
+TEST_CASE("slivers, near-degenerate triangles and receivers on edges match the reference", "[hpc][exact]") {
+    Rng rng(42);
+    std::vector<Triangle> tris;
+    for (int i = 0; i < 60; ++i) {
+        glm::vec3 a = randomIn(rng, {-2, 1, -2}, {2, 2.5f, 2});
+        glm::vec3 b = a + randomIn(rng, {-2, -0.2f, -2}, {2, 0.2f, 2});
+        float t = float(rng.uniform());
+        glm::vec3 c = a + t * (b - a) + glm::vec3(0, float(1e-4 * rng.uniform()), float(1e-5 * rng.uniform()));
+        tris.push_back({{a, b, c}, 0});
+    }
+    tris.push_back({{glm::vec3(0, 1, 0), glm::vec3(1, 1, 0), glm::vec3(2, 1, 0)}, 0});  // zero area: blocks nothing
+    std::vector<Triangle> floor = floorQuad(3);
+    ReceiverSet receivers;
+    addReceiversOnTriangles(receivers, floor, 3, 300);
+    addReceiversOnTriangles(receivers, tris, 4, 3);
+    tris.insert(tris.end(), floor.begin(), floor.end());
+    requireExact("slivers", {rectLight({0, 4, 0}, {1, 0, 0}, {0, 0, 1}, 64, 4)}, receivers, tris);
+}
+
+TEST_CASE("blockers straddling and touching the light's plane match the reference", "[hpc][exact]") {
+    std::vector<Triangle> tris = triangleSoup(77, 40, {-2, 2.5f, -2}, {2, 3.5f, 2}, 1.5f);  // light at y=3
+    tris.push_back({{glm::vec3(-0.2f, 3, -0.2f), glm::vec3(0.3f, 2.5f, 0), glm::vec3(0, 3.5f, 0.3f)}, 0});  // through the light
+    std::vector<Triangle> floor = floorQuad(3);
+    ReceiverSet receivers = randomReceivers(78, 300, {-3, -0.2f, -3}, {3, 4.5f, 3});
+    addReceiversOnTriangles(receivers, floor, 79, 200);
+    tris.insert(tris.end(), floor.begin(), floor.end());
+    requireExact("straddling", {rectLight({0, 3, 0}, {1.5, 0, 0}, {0, 0.4, 1.5}, 64, 4)}, receivers, tris);
+}
+
+TEST_CASE("every light type, alone and together, matches the reference", "[hpc][exact]") {
+    std::vector<Triangle> tris = triangleSoup(5, 50, {-2, 1, -2}, {2, 2.5f, 2}, 1.0f);
+    std::vector<Triangle> floor = floorQuad(4);
+    ReceiverSet receivers;
+    addReceiversOnTriangles(receivers, floor, 6, 250);
+    addReceiversOnTriangles(receivers, tris, 7, 2);
+    tris.insert(tris.end(), floor.begin(), floor.end());
+
+    LightDesc disk;
+    disk.type = LightType::Disk, disk.center = {0.5, 4.5, -0.3}, disk.normal = {0.2, -1, 0.1}, disk.radius = 0.9;
+    disk.samples = 100, disk.sampleSets = 3;
+    LightDesc sphere;
+    sphere.type = LightType::Sphere, sphere.center = {-0.5, 4.2, 0.4}, sphere.radius = 0.6, sphere.samples = 96;
+    sphere.sampleSets = 4;
+    LightDesc polygon;
+    polygon.type = LightType::Polygon;
+    for (glm::dvec2 q : {glm::dvec2(-1, -1), {1, -1}, {1.4, 0.5}, {0, 1.2}, {-1.2, 0.3}})  // tilted plane
+        polygon.polygon.push_back({q.x, 4.2 + 0.15 * q.x + 0.1 * q.y, q.y});
+    polygon.samples = 80, polygon.sampleSets = 2;
+    LightDesc rect = rectLight({0, 4, 0}, {1.3, 0.2, 0}, {0, 0.1, 1.1}, 64, 4);
+
+    requireExact("disk", {disk}, receivers, tris);
+    requireExact("sphere", {sphere}, receivers, tris);
+    requireExact("polygon", {polygon}, receivers, tris);
+    requireExact("rect, groups of 17", {rect}, receivers, tris, 17);
+    requireExact("all four lights", {rect, disk, sphere, polygon}, receivers, tris, 32);
+}
