@@ -14,7 +14,11 @@
 //    Distance along the ray is never shorter than the perpendicular distance, so every relation
 //    the rule blocks through the band test is also beyond tnear; Embree can additionally block
 //    when r is within eps(r) of T's plane but the ray reaches T more than eps(r) away from r
-//    (grazing rays). Those relations are inside isTie()'s epsilon band.
+//    (grazing rays). Those relations are inside isTie()'s epsilon band. In the tests, this is
+//    where nearly all mismatches are: a receiver lying on a triangle, a ray nearly parallel to
+//    that triangle, and Embree's float hit distance (roundoff ~1e-7 x coordinates, divided by
+//    the cosine between ray and plane) landing beyond tnear, so Embree shadows the receiver
+//    with its own triangle where the rule does not.
 //  - The light end. The rule never blocks a sample by a triangle whose plane contains it; here
 //    the ray stops at tfar = 1 - 1e-6 (relative), so a triangle within that distance of the
 //    sample (including one containing it, up to Embree's roundoff) does not block. Both cases

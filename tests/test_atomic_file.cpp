@@ -8,6 +8,8 @@
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
 
+#include "TestSupport.h"
+
 #include <catch2/catch.hpp>
 
 #include <fcntl.h>
@@ -29,6 +31,7 @@
 
 extern char** environ;
 
+using namespace penumbra::test;
 namespace fs = std::filesystem;
 using penumbra::AtomicFile;
 using penumbra::InputError;
@@ -36,43 +39,6 @@ using penumbra::InputError;
 namespace {
 
 /// A fresh directory under the system temp dir, removed with everything in it.
-struct ScratchDir {
-    fs::path path;
-    ScratchDir() {
-        std::string pattern = (fs::temp_directory_path() / "penumbra-io-XXXXXX").string();
-        REQUIRE(::mkdtemp(pattern.data()) != nullptr);
-        path = pattern;
-    }
-    ~ScratchDir() {
-        std::error_code ec;
-        fs::permissions(path, fs::perms::owner_all, fs::perm_options::add, ec);
-        fs::remove_all(path, ec);
-    }
-    std::string file(const std::string& name) const { return (path / name).string(); }
-    std::vector<std::string> entries() const {
-        std::vector<std::string> names;
-        for (const auto& e : fs::directory_iterator(path)) names.push_back(e.path().filename().string());
-        std::sort(names.begin(), names.end());
-        return names;
-    }
-};
-
-std::string slurp(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
-
-std::string errorOf(const std::function<void()>& action) {
-    try {
-        action();
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "(no InputError thrown)";
-}
-
 /// Runs this test binary again on the hidden test case tagged @p tag, with
 /// PENUMBRA_IO_HELPER_DIR=@p dir in its environment and, if @p fileSizeLimit > 0, that
 /// RLIMIT_FSIZE and SIGXFSZ ignored (so an oversize write fails with EFBIG instead of killing).

@@ -39,7 +39,7 @@ bool hasTempFiles(const std::filesystem::path& dir) {
 }  // namespace
 
 TEST_CASE("bake writes the EXR, PNG, dump and stats; hpc matches reference via compare", "[cli]") {
-    TempDir dir("bake");
+    ScratchDir dir("bake");
     write(dir / "scene.json", kSmallScene);
     RunResult hpc = runPenumbra("bake " + (dir / "scene.json") + " --quiet --dump " + (dir / "hpc") + " --stats " + (dir / "stats.json"));
     INFO(hpc.err);
@@ -64,7 +64,7 @@ TEST_CASE("bake writes the EXR, PNG, dump and stats; hpc matches reference via c
     CHECK(msk.dtype == "<u8");
     CHECK(msk.shape == std::vector<uint64_t>{rec.shape[0], 1});
 
-    nlohmann::json stats = nlohmann::json::parse(readText(dir / "stats.json"));
+    nlohmann::json stats = nlohmann::json::parse(slurp(dir / "stats.json"));
     for (const char* key : {"sort_time_s", "hierarchy_build_time_s", "penumbra_cast_time_s", "samples_memory_bytes",
                             "peak_hierarchy_memory_bytes", "peak_mask_memory_bytes", "total_time_s"})
         CHECK(stats["table2"].contains(key));
@@ -87,7 +87,7 @@ TEST_CASE("bake writes the EXR, PNG, dump and stats; hpc matches reference via c
 }
 
 TEST_CASE("bad input gives one clean line and a non-zero exit", "[cli]") {
-    TempDir dir("bad");
+    ScratchDir dir("bad");
     write(dir / "broken.json", "{ \"geometry\": [ ");
     requireCleanError(runPenumbra("bake " + (dir / "broken.json")), "broken.json: invalid JSON");
 
@@ -116,7 +116,7 @@ TEST_CASE("bad input gives one clean line and a non-zero exit", "[cli]") {
 }
 
 TEST_CASE("a full disk while writing outputs leaves no partial file", "[cli]") {
-    TempDir dir("fsize");
+    ScratchDir dir("fsize");
     nlohmann::json s = nlohmann::json::parse(kSmallScene);
     s["receivers"]["width"] = 320, s["receivers"]["height"] = 240;
     write(dir / "scene.json", s.dump());

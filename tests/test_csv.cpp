@@ -3,6 +3,8 @@
 #include "stream/Csv.h"
 #include "stream/Error.h"
 
+#include "TestSupport.h"
+
 #include <catch2/catch.hpp>
 
 #include <stdlib.h>
@@ -11,6 +13,7 @@
 #include <fstream>
 #include <functional>
 
+using namespace penumbra::test;
 namespace fs = std::filesystem;
 using penumbra::InputError;
 using penumbra::readCsvNumbers;
@@ -18,30 +21,12 @@ using Rows = std::vector<std::vector<double>>;
 
 namespace {
 
+/// A CSV file with the given content in its own scratch directory.
 struct CsvFile {
-    fs::path dir;
-    std::string path;
-    explicit CsvFile(const std::string& content) {
-        std::string pattern = (fs::temp_directory_path() / "penumbra-csv-XXXXXX").string();
-        REQUIRE(::mkdtemp(pattern.data()) != nullptr);
-        dir = pattern;
-        path = (dir / "points.csv").string();
-        std::ofstream(path, std::ios::binary) << content;
-    }
-    ~CsvFile() {
-        std::error_code ec;
-        fs::remove_all(dir, ec);
-    }
+    ScratchDir dir{"csv"};
+    std::string path = dir.file("points.csv");
+    explicit CsvFile(const std::string& content) { std::ofstream(path, std::ios::binary) << content; }
 };
-
-std::string errorOf(const std::function<void()>& action) {
-    try {
-        action();
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "(no InputError thrown)";
-}
 
 }  // namespace
 
@@ -109,5 +94,5 @@ TEST_CASE("readCsvNumbers names an unreadable file", "[io]") {
     CsvFile f("1\n");
     CHECK(errorOf([&] { readCsvNumbers(f.path + ".missing", 1); }) ==
           f.path + ".missing: cannot open: No such file or directory");
-    CHECK(errorOf([&] { readCsvNumbers(f.dir.string(), 1); }) == f.dir.string() + ": is a directory, not a CSV file");
+    CHECK(errorOf([&] { readCsvNumbers(f.dir.path.string(), 1); }) == f.dir.path.string() + ": is a directory, not a CSV file");
 }

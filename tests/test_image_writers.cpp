@@ -3,6 +3,8 @@
 #include "bake/ImageWriters.h"
 #include "stream/Error.h"
 
+#include "TestSupport.h"
+
 #include <catch2/catch.hpp>
 
 #include <OpenEXR/ImfChannelList.h>
@@ -19,38 +21,13 @@
 #include <functional>
 #include <limits>
 
+using namespace penumbra::test;
 namespace fs = std::filesystem;
 using penumbra::ExrAttribute;
 using penumbra::ExrChannel;
 using penumbra::InputError;
 
 namespace {
-
-struct ImageDir {
-    fs::path path;
-    ImageDir() {
-        std::string pattern = (fs::temp_directory_path() / "penumbra-img-XXXXXX").string();
-        REQUIRE(::mkdtemp(pattern.data()) != nullptr);
-        path = pattern;
-    }
-    ~ImageDir() {
-        std::error_code ec;
-        fs::remove_all(path, ec);
-    }
-    std::string file(const std::string& name) const { return (path / name).string(); }
-    size_t count() const {
-        return static_cast<size_t>(std::distance(fs::directory_iterator(path), fs::directory_iterator()));
-    }
-};
-
-std::string errorOf(const std::function<void()>& action) {
-    try {
-        action();
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "(no InputError thrown)";
-}
 
 bool sameBits(const std::vector<float>& a, const std::vector<float>& b) {
     return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
@@ -59,7 +36,7 @@ bool sameBits(const std::vector<float>& a, const std::vector<float>& b) {
 }  // namespace
 
 TEST_CASE("writeExr round-trips channels bit-exactly with ZIP compression and attributes", "[io]") {
-    ImageDir dir;
+    ScratchDir dir;
     const int w = 37, h = 21;  // more than one 16-line ZIP block, odd sizes
     const size_t n = static_cast<size_t>(w) * h;
     std::vector<float> y(n), a(n), shadow(n);
@@ -102,7 +79,7 @@ TEST_CASE("writeExr round-trips channels bit-exactly with ZIP compression and at
 }
 
 TEST_CASE("writeExr rejects bad arguments and leaves no file", "[io]") {
-    ImageDir dir;
+    ScratchDir dir;
     std::vector<float> px(4, 1.0f);
     const std::string path = dir.file("bad.exr");
     const ExrChannel dup[] = {{"Y", px.data()}, {"Y", px.data()}};
@@ -116,7 +93,7 @@ TEST_CASE("writeExr rejects bad arguments and leaves no file", "[io]") {
 }
 
 TEST_CASE("writeExr and writePng8 into a missing or unwritable directory", "[io]") {
-    ImageDir dir;
+    ScratchDir dir;
     std::vector<float> px(4, 0.5f);
     const ExrChannel one[] = {{"Y", px.data()}};
     const std::vector<uint8_t> grey(4, 128);
@@ -145,7 +122,7 @@ TEST_CASE("writeExr and writePng8 into a missing or unwritable directory", "[io]
 }
 
 TEST_CASE("writePng8 output reads back with stbi_load", "[io]") {
-    ImageDir dir;
+    ScratchDir dir;
     for (int channels = 1; channels <= 4; ++channels) {
         const int w = 5, h = 3;
         std::vector<uint8_t> px(static_cast<size_t>(w * h * channels));
@@ -173,7 +150,7 @@ TEST_CASE("writePng8 output reads back with stbi_load", "[io]") {
 }
 
 TEST_CASE("readExr reports unreadable files naming the path", "[io]") {
-    ImageDir dir;
+    ScratchDir dir;
     const std::string missing = dir.file("missing.exr");
     std::string msg = errorOf([&] { penumbra::readExr(missing); });
     CHECK(msg.rfind(missing + ": cannot read EXR: ", 0) == 0);

@@ -3,26 +3,17 @@
 #include "stream/Error.h"
 #include "stream/Memory.h"
 
+#include "TestSupport.h"
+
 #include <catch2/catch.hpp>
 
 #include <functional>
 #include <memory>
 
+using namespace penumbra::test;
 using penumbra::InputError;
 using penumbra::parseByteSize;
 
-namespace {
-
-std::string errorOf(const std::function<void()>& action) {
-    try {
-        action();
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "(no InputError thrown)";
-}
-
-}  // namespace
 
 TEST_CASE("parseByteSize accepts plain counts and binary units", "[io]") {
     constexpr uint64_t K = 1024, M = K * K, G = M * K, T = G * K;

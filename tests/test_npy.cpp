@@ -4,6 +4,8 @@
 #include "stream/Error.h"
 #include "stream/Npy.h"
 
+#include "TestSupport.h"
+
 #include <catch2/catch.hpp>
 
 #include <stdlib.h>
@@ -15,32 +17,12 @@
 #include <random>
 #include <sstream>
 
+using namespace penumbra::test;
 namespace fs = std::filesystem;
 using penumbra::InputError;
 using penumbra::NpyArray;
 
 namespace {
-
-struct NpyDir {
-    fs::path path;
-    NpyDir() {
-        std::string pattern = (fs::temp_directory_path() / "penumbra-npy-XXXXXX").string();
-        REQUIRE(::mkdtemp(pattern.data()) != nullptr);
-        path = pattern;
-    }
-    ~NpyDir() {
-        std::error_code ec;
-        fs::remove_all(path, ec);
-    }
-    std::string file(const std::string& name) const { return (path / name).string(); }
-};
-
-std::string slurp(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
 
 void spit(const std::string& path, const std::string& bytes) {
     std::ofstream(path, std::ios::binary | std::ios::trunc).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
@@ -69,19 +51,10 @@ std::string floatBytes(std::initializer_list<float> values) {
     return s;
 }
 
-std::string errorOf(const std::function<void()>& action) {
-    try {
-        action();
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "(no InputError thrown)";
-}
-
 }  // namespace
 
 TEST_CASE("writeNpy/readNpy round-trip every supported dtype", "[io]") {
-    NpyDir dir;
+    ScratchDir dir;
     std::mt19937 rng(7);
     const std::vector<std::pair<std::string, size_t>> dtypes = {
         {"<f4", 4}, {"<f8", 8}, {"<f2", 2}, {"<i4", 4}, {"<u8", 8}, {"<i8", 8}, {"<u4", 4},
@@ -116,7 +89,7 @@ TEST_CASE("writeNpy/readNpy round-trip every supported dtype", "[io]") {
 }
 
 TEST_CASE("writeNpy emits exactly numpy's header text", "[io]") {
-    NpyDir dir;
+    ScratchDir dir;
     const std::string path = dir.file("n.npy");
     float v[3] = {1, 2, 3};
     const uint64_t shape1[] = {3};
@@ -136,7 +109,7 @@ TEST_CASE("writeNpy emits exactly numpy's header text", "[io]") {
 }
 
 TEST_CASE("readNpy accepts numpy-style headers written by hand", "[io]") {
-    NpyDir dir;
+    ScratchDir dir;
     const std::string path = dir.file("h.npy");
     const std::string data = floatBytes({1, 2, 3, 4, 5, 6});
     struct Case {
@@ -173,7 +146,7 @@ TEST_CASE("readNpy accepts numpy-style headers written by hand", "[io]") {
 }
 
 TEST_CASE("readNpy rejects every truncated prefix of a valid file", "[io]") {
-    NpyDir dir;
+    ScratchDir dir;
     const std::string good = dir.file("good.npy"), cut = dir.file("cut.npy");
     const double values[4] = {1.5, -2, 1e300, 0};
     const uint64_t shape[] = {2, 2};
@@ -190,7 +163,7 @@ TEST_CASE("readNpy rejects every truncated prefix of a valid file", "[io]") {
 }
 
 TEST_CASE("readNpy names what is wrong with a corrupt file", "[io]") {
-    NpyDir dir;
+    ScratchDir dir;
     const std::string path = dir.file("pts.npy");
     const std::string six = floatBytes({1, 2, 3, 4, 5, 6});
     auto header = [](const std::string& descr, const std::string& order, const std::string& shape) {
@@ -274,7 +247,7 @@ TEST_CASE("npyAsFloat32 converts float arrays and rejects the rest", "[io]") {
 }
 
 TEST_CASE("writeNpy validates its arguments", "[io]") {
-    NpyDir dir;
+    ScratchDir dir;
     const std::string path = dir.file("w.npy");
     float v[4] = {};
     const uint64_t shape[] = {5};
