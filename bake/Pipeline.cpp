@@ -1,12 +1,13 @@
 #include "bake/Pipeline.h"
 
-#include "bake/EmbreeCaster.h"
-#include "bake/ImageWriters.h"
-#include "bake/PenumbraCaster.h"
-#include "bake/ReferenceCaster.h"
-#include "receivers/PointReceivers.h"
 #include "bake/CameraOutput.h"
+#include "bake/EmbreeCaster.h"
+#include "bake/MemoryPlan.h"
+#include "bake/PenumbraCaster.h"
+#include "bake/ReceiverShading.h"
+#include "bake/ReferenceCaster.h"
 #include "bucket/AreaSort.h"
+#include "receivers/PointReceivers.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
 #include "stream/Memory.h"
@@ -21,18 +22,64 @@
 namespace penumbra {
 namespace {
 
-/// Everything the casting stage needs, gathered by the streaming pass(es).
+/// Everything the casting stage needs, gathered by the streaming pass.
 struct Prepared {
     LightSamples samples;
     ReceiverSet receivers;
     std::vector<uint32_t> sampleSets;
-    std::vector<Triangle> triangles;  // in memory for now; bucket files replace this out of core
+    TriangleSourcePtr blockers;  ///< replayable, largest first when sorting is on
+    uint64_t triangleCount = 0;
+    uint64_t blockerBytes = 0;   ///< bytes of blockers held in memory (0 when they stream from disk)
 };
 
-void checkFinite(std::span<const Triangle> chunk, uint64_t firstIndex, const SceneDesc& scene) {
-    for (size_t i = 0; i < chunk.size(); ++i)
-        if (!isFinite(chunk[i]))
-            fail(scene.file, "geometry triangle {} has a non-finite (NaN or infinite) vertex", firstIndex + i);
+/// Rejects NaN/inf vertices as they stream by, naming the triangle's position in the stream.
+class FiniteCheck {
+public:
+    explicit FiniteCheck(const SceneDesc& scene) : scene_(scene) {}
+    void operator()(std::span<const Triangle> chunk) {
+        for (size_t i = 0; i < chunk.size(); ++i)
+            if (!isFinite(chunk[i]))
+                fail(scene_.file, "geometry triangle {} has a non-finite (NaN or infinite) vertex", seen_ + i);
+        seen_ += chunk.size();
+    }
+
+private:
+    const SceneDesc& scene_;
+    uint64_t seen_ = 0;
+};
+
+/// The streaming pass: camera receivers are rasterized from the same stream the blockers come
+/// from, so one pass over the source makes both.
+Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, double& streamSeconds, double& sortSeconds) {
+    Prepared p;
+    p.samples = generateLightSamples(scene.lights, scene.options.groupSize, scene.seed);
+    std::vector<Triangle> blockers;
+    {
+        ScopedTimer timer(streamSeconds);
+        TriangleSourcePtr source = openSceneGeometry(scene);
+        FiniteCheck check(scene);
+        auto keep = [&](std::span<const Triangle> chunk) {
+            check(chunk);
+            blockers.insert(blockers.end(), chunk.begin(), chunk.end());
+        };
+        if (scene.receivers.kind == ReceiverKind::Camera) {
+            p.receivers = rasterizeCamera(*source, scene.receivers.camera, keep);
+        } else {
+            p.receivers = loadPointReceivers(scene.receivers.pointsPath);
+            std::vector<Triangle> chunk(kTriangleChunk);
+            while (size_t n = source->read(chunk)) keep(std::span<const Triangle>(chunk.data(), n));
+        }
+    }
+    p.sampleSets.resize(p.receivers.size());
+    for (size_t i = 0; i < p.receivers.size(); ++i) p.sampleSets[i] = uint32_t(sampleSetOf(i, p.samples.sets, scene.seed));
+    if (scene.options.sortBlockers) {
+        ScopedTimer timer(sortSeconds);
+        sortByAreaDescending(blockers);
+    }
+    p.triangleCount = blockers.size();
+    p.blockerBytes = blockers.size() * sizeof(Triangle);
+    p.blockers = std::make_unique<VectorSource>(std::move(blockers), "blockers");
+    return p;
 }
 
 void writeDump(const std::string& dir, const Prepared& p, const VisibilityMasks& masks) {
@@ -57,6 +104,47 @@ void writeDump(const std::string& dir, const Prepared& p, const VisibilityMasks&
     writeNpy((base / "masks.npy").string(), "<u8", maskShape, dense.data(), dense.size() * sizeof(uint64_t));
 }
 
+/// Hierarchical penumbra casting, one memory tile after another; each tile replays the blockers.
+CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettings& settings, int threads,
+                           const MemoryPlan& plan, const ReceiverShader& shader, ReceiverResults& results,
+                           VisibilityMasks* dumpMasks) {
+    CastStats total;
+    std::vector<uint32_t> all(p.receivers.size());
+    for (uint32_t i = 0; i < all.size(); ++i) all[i] = i;
+    const auto tiles = partitionReceivers(p.receivers, all, plan.tiles);
+    ProgressReporter progress("cast", p.triangleCount * tiles.size(), settings.quiet);
+    std::vector<Triangle> chunk(kTriangleChunk);
+    for (const auto& tile : tiles) {
+        // Within a memory tile, threads work on disjoint sub-tiles (2 per thread balances load).
+        PenumbraCaster caster(p.samples, p.receivers, p.sampleSets, scene.options, threads > 1 ? 2 * threads : 1, tile);
+        p.blockers->rewind();
+        while (size_t n = p.blockers->read(chunk)) {
+            caster.cast(std::span<const Triangle>(chunk.data(), n));
+            progress.update(n);
+        }
+        caster.finish([&](uint32_t r, const uint64_t* words, bool full) {
+            shader.shade(r, words, full, results);
+            if (dumpMasks)
+                for (int k = 0; k < dumpMasks->groups; ++k)
+                    dumpMasks->row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
+        });
+        CastStats s = caster.stats();
+        total.hierarchyBuildSeconds += s.hierarchyBuildSeconds;
+        total.castSeconds += s.castSeconds;
+        total.trianglesProcessed += s.trianglesProcessed;
+        total.trianglesCulledAtRoot += s.trianglesCulledAtRoot;
+        total.rebuilds += s.rebuilds;
+        total.hardShadowTests += s.hardShadowTests;
+        // Tiles run one after another: peaks are the largest tile's, not the sum.
+        total.peakLiveMasks = std::max(total.peakLiveMasks, s.peakLiveMasks);
+        total.peakMaskBytes = std::max(total.peakMaskBytes, s.peakMaskBytes);
+        total.peakHierarchyBytes = std::max(total.peakHierarchyBytes, s.peakHierarchyBytes);
+        total.receiverBytes = std::max(total.receiverBytes, s.receiverBytes);
+    }
+    progress.done();
+    return total;
+}
+
 }  // namespace
 
 Method parseMethod(const std::string& name) {
@@ -79,84 +167,68 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     Stopwatch total;
     const int threads = settings.threads > 0 ? settings.threads : int(tbb::info::default_concurrency());
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(threads));
-    const CastOptions& options = scene.options;
+    const bool dump = !settings.dumpDir.empty();
 
-    Prepared p;
-    p.samples = generateLightSamples(scene.lights, options.groupSize, scene.seed);
+    // Check the plan before any work, with the pixel count standing in for camera receivers.
+    MemoryDemand demand;
+    if (scene.receivers.kind == ReceiverKind::Camera)
+        demand.pixels = demand.receivers = uint64_t(scene.receivers.camera.width) * scene.receivers.camera.height;
+    int samplesTotal = 0;
+    for (const LightDesc& l : scene.lights) samplesTotal += l.samples;
+    demand.groups = (samplesTotal + scene.options.groupSize - 1) / scene.options.groupSize;
+    demand.umbraWords = (demand.groups + 63) / 64;
+    demand.dumpMasks = dump;
+    planMemory(demand, settings.memoryBudget);
 
-    // Pass over the stream: rasterize camera receivers and keep the blockers.
-    double streamSeconds = 0;
-    {
-        ScopedTimer timer(streamSeconds);
-        TriangleSourcePtr source = openSceneGeometry(scene);
-        uint64_t seen = 0;
-        auto keep = [&](std::span<const Triangle> chunk) {
-            checkFinite(chunk, seen, scene);
-            seen += chunk.size();
-            p.triangles.insert(p.triangles.end(), chunk.begin(), chunk.end());
-        };
-        if (scene.receivers.kind == ReceiverKind::Camera) {
-            p.receivers = rasterizeCamera(*source, scene.receivers.camera, keep);
-        } else {
-            p.receivers = loadPointReceivers(scene.receivers.pointsPath);
-            std::vector<Triangle> chunk(kTriangleChunk);
-            while (size_t n = source->read(chunk)) keep(std::span<const Triangle>(chunk.data(), n));
-        }
-    }
-    p.sampleSets.resize(p.receivers.size());
-    for (size_t i = 0; i < p.receivers.size(); ++i) p.sampleSets[i] = uint32_t(sampleSetOf(i, p.samples.sets, scene.seed));
+    double streamSeconds = 0, sortSeconds = 0;
+    Prepared p = prepare(scene, settings, streamSeconds, sortSeconds);
+    demand.receivers = p.receivers.size();
+    demand.groups = p.samples.groupCount();
+    demand.umbraWords = (demand.groups + 63) / 64;
+    demand.sampleBytes = p.samples.positions.size() * sizeof(glm::vec3);
+    demand.bufferBytes = p.blockerBytes;
+    const MemoryPlan plan = planMemory(demand, settings.memoryBudget);
 
-    double sortSeconds = 0;
-    if (options.sortBlockers) {
-        ScopedTimer timer(sortSeconds);
-        sortByAreaDescending(p.triangles);
-    }
+    ReceiverResults results;
+    results.visibility.resize(p.receivers.size());
+    results.irradiance.resize(p.receivers.size());
+    ReceiverShader shader(scene.lights, p.samples, p.receivers, p.sampleSets);
+    VisibilityMasks masks;
+    if (dump || settings.method != Method::Hpc) masks = VisibilityMasks(p.receivers.size(), p.samples.groupCount());
 
-    VisibilityMasks masks(p.receivers.size(), p.samples.groupCount());
     CastStats cast;
     EmbreeStats embree;
     double castSeconds = 0;
     {
         ScopedTimer timer(castSeconds);
         if (settings.method == Method::Hpc) {
-            ProgressReporter progress("cast", p.triangles.size(), settings.quiet);
-            PenumbraCaster caster(p.samples, p.receivers, p.sampleSets, options, threads > 1 ? 2 * threads : 1);
-            for (size_t i = 0; i < p.triangles.size(); i += kTriangleChunk) {
-                size_t n = std::min(kTriangleChunk, p.triangles.size() - i);
-                caster.cast(std::span<const Triangle>(p.triangles.data() + i, n));
-                progress.update(n);
-            }
-            progress.done();
-            caster.finish([&](uint32_t r, const uint64_t* words, bool full) {
-                uint64_t* row = masks.row(r);
-                for (int k = 0; k < masks.groups; ++k)
-                    row[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
-            });
-            cast = caster.stats();
+            cast = castHierarchical(p, scene, settings, threads, plan, shader, results, dump ? &masks : nullptr);
         } else {
+            // The ray casters need the whole scene in memory: that is their nature, not ours.
+            p.blockers->rewind();
+            std::vector<Triangle> all = readAll(*p.blockers);
             ProgressReporter progress(methodName(settings.method), p.receivers.size(), settings.quiet);
             auto tick = [&](uint64_t n) { progress.update(n); };
             if (settings.method == Method::Reference)
-                masks = castReference(p.samples, p.receivers, p.sampleSets, p.triangles, options.epsilon, tick);
+                masks = castReference(p.samples, p.receivers, p.sampleSets, all, scene.options.epsilon, tick);
             else
-                masks = castEmbree(p.samples, p.receivers, p.sampleSets, p.triangles, options.epsilon, &embree, tick);
+                masks = castEmbree(p.samples, p.receivers, p.sampleSets, all, scene.options.epsilon, &embree, tick);
             progress.done();
+            for (uint32_t r = 0; r < p.receivers.size(); ++r) shader.shade(r, masks.row(r), false, results);
         }
     }
 
-    // Outputs.
-    std::vector<float> visibility(p.receivers.size());
-    for (size_t i = 0; i < visibility.size(); ++i) visibility[i] = float(masks.visibleFraction(i, p.samples));
     if (scene.receivers.kind == ReceiverKind::Camera) {
-        writeCameraOutputs(scene, p.receivers, p.samples, p.sampleSets, masks, visibility);
+        writeCameraOutputs(scene, p.receivers, p.samples, results);
     } else {
-        uint64_t shape[1] = {visibility.size()};
+        uint64_t shape[1] = {results.visibility.size()};
         ensureParentDirectory(scene.output);
-        writeNpy(scene.output, "<f4", shape, visibility.data(), visibility.size() * sizeof(float));
+        writeNpy(scene.output, "<f4", shape, results.visibility.data(), results.visibility.size() * sizeof(float));
     }
-    if (!settings.dumpDir.empty()) writeDump(settings.dumpDir, p, masks);
+    if (dump) writeDump(settings.dumpDir, p, masks);
 
-    const uint64_t triangleBytes = p.triangles.size() * sizeof(Triangle);
+    uint64_t blocked = 0;
+    for (float v : results.visibility) blocked += uint64_t(std::llround((1.0 - v) * p.samples.sampleCount));
     nlohmann::json stats = {
         {"scene", scene.file},
         {"method", methodName(settings.method)},
@@ -165,7 +237,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         {"light_samples", p.samples.sampleCount},
         {"sample_sets", p.samples.sets},
         {"light_sample_groups", p.samples.groupCount()},
-        {"blocked_relations", masks.blockedCount()},
+        {"blocked_relations", blocked},
         {"table2",
          {{"sort_time_s", sortSeconds},
           {"hierarchy_build_time_s", cast.hierarchyBuildSeconds},
@@ -175,13 +247,19 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
           {"peak_mask_memory_bytes", cast.peakMaskBytes},
           {"total_time_s", total.seconds()}}},
         {"counters",
-         {{"triangles_read", p.triangles.size()},
+         {{"triangles_read", p.triangleCount},
           {"triangles_culled_at_root", cast.trianglesCulledAtRoot},
           {"rebuilds", cast.rebuilds},
           {"peak_live_masks", cast.peakLiveMasks},
           {"hard_shadow_tests", cast.hardShadowTests},
           {"peak_rss_bytes", peakRssBytes()}}},
-        {"stream", {{"time_s", streamSeconds}, {"triangle_bytes_in_memory", triangleBytes}}},
+        {"memory_plan",
+         {{"budget_bytes", plan.budget},
+          {"tiles", plan.tiles},
+          {"resident_bytes", plan.residentBytes},
+          {"per_receiver_bytes", plan.perReceiverBytes},
+          {"minimum_budget_bytes", plan.minimumBudget}}},
+        {"stream", {{"time_s", streamSeconds}, {"blocker_bytes_in_memory", p.blockerBytes}}},
     };
     if (settings.method == Method::Embree)
         stats["embree"] = {{"build_time_s", embree.buildSeconds}, {"trace_time_s", embree.traceSeconds},

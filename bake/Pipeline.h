@@ -24,6 +24,9 @@ struct BakeSettings {
     std::string statsPath;    ///< JSON stats, optional
     std::string dumpDir;      ///< receivers.npy, samples.npy, masks.npy, optional
     bool quiet = false;
+    uint64_t memoryBudget = 0;  ///< --memory-budget in bytes; 0: unlimited
+    std::string tmpDir;         ///< where bucket files go (default: the system temp dir)
+    bool keepBuckets = false;   ///< leave bucket files behind for debugging
 };
 
 /// @brief Runs the bake and writes the scene's output (EXR + PNG preview for camera receivers,

@@ -64,31 +64,34 @@ void writeObj(TriangleSource& in, const std::string& outPath) {
 }
 
 void writeGltf(TriangleSource& in, const std::string& outPath, bool binary) {
-    // The JSON states buffer and accessor sizes up front, so the positions are gathered first.
-    std::vector<float> positions;
+    // The JSON states buffer and accessor sizes up front, so the positions are gathered first,
+    // straight into the bytes the buffer will hold.
+    std::vector<unsigned char> positionBytes;
+    uint64_t vertexCount = 0;
     glm::vec3 lo(0.0f), hi(0.0f);
     // A GLB's length fields are 32-bit; stay well inside them (headers and JSON need room too).
     const uint64_t maxTriangles = (std::numeric_limits<uint32_t>::max() - (1u << 20)) / 36;
     forEachChunk(in, [&](std::span<const Triangle> triangles) {
+        if (vertexCount / 3 + triangles.size() > maxTriangles)
+            fail(outPath, "more than {} triangles do not fit in one glTF buffer", maxTriangles);
+        if (vertexCount == 0 && !triangles.empty()) lo = hi = triangles[0].v[0];
         for (const Triangle& t : triangles) {
-            if (positions.empty()) lo = hi = t.v[0];
-            if (positions.size() / 9 >= maxTriangles)
-                fail(outPath, "more than {} triangles do not fit in one glTF buffer", maxTriangles);
             for (const glm::vec3& p : t.v) {
-                positions.insert(positions.end(), {p.x, p.y, p.z});
+                const auto* bytes = reinterpret_cast<const unsigned char*>(&p);
+                positionBytes.insert(positionBytes.end(), bytes, bytes + sizeof p);
                 lo = glm::min(lo, p);
                 hi = glm::max(hi, p);
             }
+            vertexCount += 3;
         }
     });
 
     tinygltf::Model model;
     model.asset.version = "2.0";
     model.asset.generator = "penumbra";
-    if (!positions.empty()) {
+    if (vertexCount > 0) {
         tinygltf::Buffer buffer;
-        buffer.data.resize(positions.size() * sizeof(float));
-        std::memcpy(buffer.data.data(), positions.data(), buffer.data.size());
+        buffer.data = std::move(positionBytes);
         tinygltf::BufferView view;
         view.buffer = 0;
         view.byteLength = buffer.data.size();
@@ -97,7 +100,7 @@ void writeGltf(TriangleSource& in, const std::string& outPath, bool binary) {
         accessor.bufferView = 0;
         accessor.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
         accessor.type = TINYGLTF_TYPE_VEC3;
-        accessor.count = positions.size() / 3;
+        accessor.count = vertexCount;
         accessor.minValues = {lo.x, lo.y, lo.z};  // required for POSITION by the spec
         accessor.maxValues = {hi.x, hi.y, hi.z};
         tinygltf::Primitive primitive;
@@ -119,7 +122,6 @@ void writeGltf(TriangleSource& in, const std::string& outPath, bool binary) {
     }
     // An empty source writes a model without scenes: tinygltf would serialize an empty scene
     // as null, which its own loader then rejects.
-    std::vector<float>().swap(positions);  // the model holds its own copy now
 
     std::ostringstream encoded;
     tinygltf::TinyGLTF writer;

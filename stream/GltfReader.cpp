@@ -12,6 +12,7 @@
 #include <glm/matrix.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -20,6 +21,8 @@
 #include <limits>
 #include <map>
 #include <optional>
+
+#include <sys/stat.h>
 
 namespace penumbra {
 
@@ -98,11 +101,62 @@ bool ignoreImage(tinygltf::Image*, const int, std::string*, std::string*, int, i
     return true;
 }
 
+bool isImageFile(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    for (const char* image : {".png", ".jpg", ".jpeg", ".webp", ".ktx", ".ktx2", ".basis", ".dds", ".bmp", ".tga"})
+        if (ext == image) return true;
+    return false;
+}
+
+// File-system callbacks for tinygltf, replacing its defaults for two reasons. Its default
+// ExpandFilePath runs URIs through wordexp(3), shell word expansion ($VARS, ~ and, depending on
+// how the library was built, $(command) substitution), which has no business touching names
+// taken from a downloaded scene; here a URI is only ever a file name. And only regular files are
+// read, so a URI naming /dev/zero or a FIFO cannot hang the load. Images are reported as
+// unreadable (tinygltf then only warns) so that gigabytes of textures are never read just to
+// be ignored.
+bool regularFileExists(const std::string& path, void*) {
+    std::error_code error;
+    return std::filesystem::is_regular_file(path, error);
+}
+
+std::string pathAsIs(const std::string& path, void*) { return path; }
+
+std::vector<unsigned char> readWholeFile(const std::string& path);
+
+bool readRegularFile(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {
+    if (!regularFileExists(path, nullptr) || isImageFile(path)) {
+        if (err) *err = "not read (not a regular file, or an image)";
+        return false;
+    }
+    try {
+        *out = readWholeFile(path);
+    } catch (const InputError& e) {
+        if (err) *err = e.what();
+        return false;
+    }
+    return true;
+}
+
+bool refuseWrite(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
+    if (err) *err = "penumbra does not write files while loading glTF";
+    return false;
+}
+
+/// Reads a regular file whole; anything else (a device, a FIFO) could never end.
 std::vector<unsigned char> readWholeFile(const std::string& path) {
     std::FILE* file = std::fopen(path.c_str(), "rb");
     if (!file) fail(path, "cannot open: {}", std::strerror(errno));
     std::unique_ptr<std::FILE, int (*)(std::FILE*)> guard(file, &std::fclose);
+    struct stat status {};
+    if (::fstat(::fileno(file), &status) != 0) fail(path, "cannot stat: {}", std::strerror(errno));
+    if (!S_ISREG(status.st_mode)) fail(path, "not a regular file");
+    // tinygltf takes lengths as unsigned int.
+    if (uint64_t(status.st_size) > std::numeric_limits<unsigned int>::max())
+        fail(path, "file is larger than 4 GiB, which tinygltf cannot address");
     std::vector<unsigned char> bytes;
+    bytes.reserve(size_t(status.st_size));
     unsigned char block[1 << 16];
     while (size_t n = std::fread(block, 1, sizeof block, file)) bytes.insert(bytes.end(), block, block + n);
     if (std::ferror(file)) fail(path, "read error: {}", std::strerror(errno));
@@ -140,13 +194,14 @@ size_t checkGlbContainer(const std::string& path, const std::vector<unsigned cha
 /// Loads the model with tinygltf, turning every failure into an InputError.
 void loadModel(const std::string& path, tinygltf::Model& model) {
     std::vector<unsigned char> bytes = readWholeFile(path);
-    if (bytes.size() > std::numeric_limits<unsigned int>::max())
-        fail(path, "file is larger than 4 GiB, which glTF loaders cannot address");
+    if (bytes.size() > std::numeric_limits<unsigned int>::max())  // grew while being read
+        fail(path, "file is larger than 4 GiB, which tinygltf cannot address");
     std::string baseDir = std::filesystem::path(path).parent_path().string();
     if (baseDir.empty()) baseDir = ".";
 
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(&ignoreImage, nullptr);
+    loader.SetFsCallbacks({&regularFileExists, &pathAsIs, &readRegularFile, &refuseWrite, nullptr});
     std::string error, warning;
     bool loaded = false;
     try {
@@ -304,6 +359,10 @@ void GltfSource::checkMeshes() {
             if (g.positions.sparse)
                 fail(where(), "POSITION accessor {} uses sparse storage, which penumbra does not support",
                      position->second);
+            // Without a bufferView every position is zero: only degenerate triangles, and a count
+            // bounded by nothing but the JSON (a tiny file could ask for 2^60 of them).
+            if (!g.positions.data && g.positions.count > 0)
+                fail(where(), "POSITION accessor {} has no bufferView", position->second);
 
             uint64_t sequence = g.positions.count;  // vertices in drawing order
             if (primitive.indices >= 0) {

@@ -7,7 +7,6 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <string_view>
@@ -107,9 +106,9 @@ private:
     std::string_view rest_;
 };
 
-/// from_chars does not accept a leading '+', which some exporters write.
+/// from_chars does not accept a leading '+', which some exporters write ("+-1" stays invalid).
 std::string_view withoutPlus(std::string_view token) {
-    if (token.size() > 1 && token[0] == '+') token.remove_prefix(1);
+    if (token.size() > 1 && token[0] == '+' && token[1] != '-' && token[1] != '+') token.remove_prefix(1);
     return token;
 }
 
@@ -122,10 +121,17 @@ float parseCoordinate(std::string_view token, const LineReader& lines) {
     if (end != digits.data() + digits.size() || (error != std::errc() && error != std::errc::result_out_of_range))
         fail(lines.where(), "unparsable number '{}'", token);
     if (error == std::errc::result_out_of_range) {
-        // Underflow to a denormal or zero is harmless; overflow is an infinite coordinate.
-        double wide = std::strtod(std::string(digits).c_str(), nullptr);
+        // from_chars reports overflow and underflow alike. Underflow (to a denormal or zero) is
+        // harmless, overflow is an infinite coordinate; a double parse tells them apart (strtod
+        // would depend on the locale's decimal point). Beyond double range, the sign of the
+        // exponent decides.
+        double wide = 0;
+        if (std::from_chars(digits.data(), digits.data() + digits.size(), wide).ec != std::errc()) {
+            bool tiny = digits.find("e-") != std::string_view::npos || digits.find("E-") != std::string_view::npos;
+            wide = tiny ? 0.0 : HUGE_VAL;
+        }
         if (!(std::abs(wide) <= FLT_MAX)) fail(lines.where(), "non-finite coordinate '{}'", token);
-        value = static_cast<float>(wide);
+        value = std::copysign(static_cast<float>(wide), digits[0] == '-' ? -1.0f : 1.0f);
     }
     if (!std::isfinite(value)) fail(lines.where(), "non-finite coordinate '{}'", token);
     return value;

@@ -379,6 +379,38 @@ TEST_CASE("glTF: external buffers and embedded data URIs", "[stream][gltf]") {
                    readGltf(single(binary, dir, primitive(binary.positions(kFive), -1, TINYGLTF_MODE_TRIANGLE_FAN), "e.glb"))));
 }
 
+TEST_CASE("glTF: URIs are file names, never shell words or devices", "[stream][gltf]") {
+    TempDir dir("gltf");
+    std::string marker = dir.file("pwned");
+    auto withUri = [&](const std::string& uri) {
+        return fmt::format(R"({{
+          "asset": {{"version": "2.0"}},
+          "buffers": [{{"uri": "{}", "byteLength": 36}}],
+          "bufferViews": [{{"buffer": 0, "byteLength": 36}}],
+          "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}}],
+          "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}}}]}}],
+          "nodes": [{{"mesh": 0}}]
+        }})", uri);
+    };
+    // URIs must never reach shell word expansion (tinygltf's default uses wordexp).
+    writeText(dir.file("inject.gltf"), withUri("$(touch " + marker + ").bin"));
+    CHECK_THROWS_AS(readGltf(dir.file("inject.gltf")), InputError);
+    CHECK_FALSE(std::filesystem::exists(marker));
+    // A device would never end (or never answer); only regular files are read.
+    writeText(dir.file("device.gltf"), withUri("../../../../../../../../../../dev/zero"));
+    CHECK_THROWS_AS(readGltf(dir.file("device.gltf")), InputError);
+    std::filesystem::create_directory(dir.file("folder.bin"));
+    writeText(dir.file("folder.gltf"), withUri("folder.bin"));
+    CHECK_THROWS_AS(readGltf(dir.file("folder.gltf")), InputError);
+    // Missing textures do not matter to geometry.
+    std::vector<float> data = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    writeBytes(dir.file("tri.bin"), data.data(), data.size() * 4);
+    std::string textured = withUri("tri.bin");
+    textured.insert(textured.rfind('}'), R"(, "images": [{"uri": "missing.png"}])");
+    writeText(dir.file("textured.gltf"), textured);
+    CHECK(readGltf(dir.file("textured.gltf")).size() == 1);
+}
+
 TEST_CASE("glTF: validation names the file and the offending object", "[stream][gltf]") {
     TempDir dir("gltf");
     auto expectError = [&](ModelBuilder& b, const std::string& expected) {
@@ -457,6 +489,12 @@ TEST_CASE("glTF: validation names the file and the offending object", "[stream][
     }
     {
         ModelBuilder b;
+        int pos = b.accessor(-1, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, size_t(1) << 60);
+        single(b, dir, primitive(pos));
+        expectError(b, "mesh 0 primitive 0: POSITION accessor 0 has no bufferView");
+    }
+    {
+        ModelBuilder b;
         b.node(3);
         b.scene({0});
         expectError(b, "node 0 refers to mesh 3 (file has 0)");
@@ -495,6 +533,8 @@ TEST_CASE("glTF: load failures carry tinygltf's first error line", "[stream][glt
     CHECK(message.find('\n') == std::string::npos);
     writeText(dir.file("empty.glb"), "");
     CHECK(gltfError(dir.file("empty.glb")) != "no error");
+    CHECK(gltfError("/dev/zero") == "/dev/zero: not a regular file");
+    CHECK(gltfError(dir.path().string()) == dir.path().string() + ": not a regular file");
 }
 
 TEST_CASE("glTF: sample models", "[stream][gltf][data]") {

@@ -160,8 +160,17 @@ TEST_CASE("OBJ: errors name the file and line", "[stream][obj]") {
     CHECK(objError(dir, "v 0 0 0\nv 1 0 0\nf -1 -2 -3\nv 0 1 0\n") ==
           "mesh.obj:3: face index -3 out of range (2 vertices)");
 
-    // The denormal underflow case is not an error.
-    CHECK(objError(dir, square + "v 1e-40 0 0\nf 5 1 2\n") == "no error");
+    CHECK(objError(dir, "v +-1 0 0\n") == "mesh.obj:1: unparsable number '+-1'");
+    CHECK(objError(dir, "v 0x10 0 0\n") == "mesh.obj:1: unparsable number '0x10'");
+    CHECK(objError(dir, "v 0 1e400 0\n") == "mesh.obj:1: non-finite coordinate '1e400'");
+
+    // Underflow is not an error: denormals keep their value, smaller numbers become zero.
+    auto tiny = readObjText(dir, square + "v 1e-40 -1e-45 1e-400\nv -1e-999 0 0\nf 5 6 1\n");
+    REQUIRE(tiny.size() == 1);
+    CHECK(tiny[0].v[0].x == 1e-40f);
+    CHECK(tiny[0].v[0].y == -1e-45f);
+    CHECK(tiny[0].v[0].z == 0.0f);
+    CHECK(std::signbit(tiny[0].v[1].x));
 }
 
 TEST_CASE("OBJ: a missing file is an input error naming it", "[stream][obj]") {
