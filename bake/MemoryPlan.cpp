@@ -13,15 +13,16 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget) {
     // Resident for the whole bake, per receiver: the receiver set (position, normal, pixel, depth:
     // 32 bytes), its sample set (4) and its results (visibility 4, irradiance 12).
     const uint64_t residentPerReceiver = 32 + 4 + 16 + (d.dumpMasks ? 8ull * d.groups : 0);
-    // The z-buffer pass holds depth + normal per pixel while the receiver set grows.
-    const uint64_t zbuffer = d.pixels * 16;
-    plan.residentBytes = kBaselineBytes + d.bufferBytes + d.sampleBytes + d.receivers * residentPerReceiver + zbuffer;
+    plan.residentBytes = kBaselineBytes + d.bufferBytes + d.sampleBytes + d.receivers * residentPerReceiver;
+    // The camera pass holds a z-buffer (depth + normal: 16 bytes per pixel) while the receiver
+    // set (32 bytes per covered pixel) grows; it is freed before casting starts.
+    const uint64_t passBytes = kBaselineBytes + d.bufferBytes + d.pixels * (16 + 32);
     // In a tile, per live receiver: double position 24, epsilon 8, id/set/mask slot 12, umbra
     // 1 + 8 * umbraWords, about one node per 4 receivers (32 bytes + bits), and in the worst case a
     // mask of one word per group.
     plan.perReceiverBytes = 24 + 8 + 12 + 1 + 8ull * d.umbraWords + (32 + 1 + 8ull * d.umbraWords) / 4 + 8ull * d.groups;
     const uint64_t smallestTile = std::min<uint64_t>(std::max<uint64_t>(d.receivers, 1), kMinimumTileReceivers);
-    plan.minimumBudget = plan.residentBytes + smallestTile * plan.perReceiverBytes;
+    plan.minimumBudget = std::max(passBytes, plan.residentBytes + smallestTile * plan.perReceiverBytes);
     if (budget == 0) return plan;
     if (budget < plan.minimumBudget)
         throw InputError(fmt::format("--memory-budget {} is too small for {} receivers with {} mask words each; at least {} is needed",

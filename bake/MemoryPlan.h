@@ -11,7 +11,7 @@ namespace penumbra {
 
 /// @brief What the plan needs to know about a bake.
 struct MemoryDemand {
-    uint64_t receivers = 0;      ///< receivers (for camera receivers: before the pass, the pixel count)
+    uint64_t receivers = 0;      ///< receivers (0 before the camera pass has counted them)
     uint64_t pixels = 0;         ///< camera image size (z-buffer of the receiver pass), 0 for points
     int groups = 1;              ///< light-sample groups: mask words per receiver
     int umbraWords = 1;          ///< ceil(groups / 64)

@@ -169,10 +169,11 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(threads));
     const bool dump = !settings.dumpDir.empty();
 
-    // Check the plan before any work, with the pixel count standing in for camera receivers.
+    // Check before any work that the camera pass fits; the receiver count is known after it, and
+    // the full plan is checked again then, before casting.
     MemoryDemand demand;
     if (scene.receivers.kind == ReceiverKind::Camera)
-        demand.pixels = demand.receivers = uint64_t(scene.receivers.camera.width) * scene.receivers.camera.height;
+        demand.pixels = uint64_t(scene.receivers.camera.width) * scene.receivers.camera.height;
     int samplesTotal = 0;
     for (const LightDesc& l : scene.lights) samplesTotal += l.samples;
     demand.groups = (samplesTotal + scene.options.groupSize - 1) / scene.options.groupSize;

@@ -127,3 +127,32 @@ TEST_CASE("a full disk while writing outputs leaves no partial file", "[cli]") {
     CHECK_FALSE(std::filesystem::exists(dir / "out/small.exr"));
     CHECK_FALSE(hasTempFiles(dir.path));
 }
+
+TEST_CASE("point receivers from .npy and .csv bake to a .npy of visible fractions", "[cli]") {
+    ScratchDir dir("points");
+    // Three receivers on the floor: in the umbra of a 1x1 quad at y=1, in its penumbra
+    // (x in [0.583, 0.75] for this light), and far away (lit).
+    std::vector<float> pts = {0, 0, 0, 0, 1, 0, 0.66f, 0, 0, 0, 1, 0, 5, 0, 5, 0, 1, 0};
+    uint64_t shape[2] = {3, 6};
+    writeNpy(dir / "pts.npy", "<f4", shape, pts.data(), pts.size() * sizeof(float));
+    std::ofstream(dir / "pts.csv") << "px,py,pz,nx,ny,nz\n0,0,0,0,1,0\n0.66,0,0,0,1,0\n5,0,5,0,1,0\n";
+    std::ofstream(dir / "quad.obj") << "v -0.5 1 -0.5\nv 0.5 1 -0.5\nv 0.5 1 0.5\nv -0.5 1 0.5\nf 1 2 3 4\n";
+    for (const char* file : {"pts.npy", "pts.csv"}) {
+        nlohmann::json s = {
+            {"geometry", {{{"type", "obj"}, {"path", "quad.obj"}}}},
+            {"lights", {{{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {0.5, 0, 0}}, {"v", {0, 0, 0.5}}, {"samples", 64}}}},
+            {"receivers", {{"type", "points"}, {"path", file}}},
+            {"output", "vis.npy"}};
+        std::ofstream(dir / "scene.json") << s.dump();
+        RunResult r = runPenumbra("bake " + (dir / "scene.json") + " -q");
+        INFO(file << ": " << r.err);
+        REQUIRE(r.exitCode == 0);
+        NpyArray vis = readNpy(dir / "vis.npy");
+        REQUIRE(vis.shape == std::vector<uint64_t>{3});
+        const float* v = reinterpret_cast<const float*>(vis.data.data());
+        CHECK(v[0] == 0.0f);
+        CHECK(v[1] > 0.0f);
+        CHECK(v[1] < 1.0f);
+        CHECK(v[2] == 1.0f);
+    }
+}

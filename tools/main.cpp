@@ -1,7 +1,9 @@
 /// @file main.cpp
-/// @brief The `penumbra` command-line tool: bake, compare, info, convert.
+/// @brief The `penumbra` command-line tool: bake, compare, info, convert, generate, bench.
 
 #include "Compare.h"
+#include "Generate.h"
+#include "GeneratorBench.h"
 
 #include "bake/Pipeline.h"
 #include "bake/Scene.h"
@@ -9,6 +11,7 @@
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
 #include "stream/GeometryFile.h"
+#include "stream/Memory.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -64,6 +67,11 @@ int main(int argc, char** argv) {
     bake->add_option("--disable", disabled, "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, all")
         ->delimiter(',');
     bake->add_flag("-q,--quiet", quiet, "no progress on stderr");
+    std::string memoryBudget, tmpDir;
+    bool keepBuckets = false;
+    bake->add_option("--memory-budget", memoryBudget, "bound on bake memory, e.g. 256M or 2G; receivers are tiled to fit");
+    bake->add_option("--tmp", tmpDir, "directory for temporary bucket files (default: the system temp dir)");
+    bake->add_flag("--keep-buckets", keepBuckets, "keep the bucket files (for debugging)");
 
     std::string dumpA, dumpB, compareScene;
     CLI::App* compare = app.add_subcommand("compare", "compare two --dump directories relation by relation");
@@ -79,6 +87,14 @@ int main(int argc, char** argv) {
     CLI::App* convert = app.add_subcommand("convert", "convert geometry between .obj, .gltf/.glb and .ptri");
     convert->add_option("input", convertIn)->required();
     convert->add_option("output", convertOut)->required();
+
+    GenerateOptions generateOptions;
+    CLI::App* generate = addGenerateCommand(app, generateOptions);
+
+    BenchGeneratorsOptions benchGeneratorsOptions;
+    CLI::App* bench = app.add_subcommand("bench", "benchmarks");
+    bench->require_subcommand(1);
+    CLI::App* benchGenerators = addBenchGeneratorsCommand(*bench, benchGeneratorsOptions);
 
     try {
         app.parse(argc, argv);
@@ -98,6 +114,9 @@ int main(int argc, char** argv) {
             settings.statsPath = statsPath;
             settings.dumpDir = dumpDir;
             settings.quiet = quiet;
+            if (!memoryBudget.empty()) settings.memoryBudget = parseByteSize(memoryBudget, "--memory-budget");
+            settings.tmpDir = tmpDir;
+            settings.keepBuckets = keepBuckets;
             nlohmann::json stats = runBake(scene, settings);
             if (!quiet)
                 fmt::print(stderr, "penumbra: {} receivers, {} samples, {} triangles, {:.2f} s -> {}\n",
@@ -116,6 +135,10 @@ int main(int argc, char** argv) {
             GeometryInfo g = scanGeometry(*source);
             fmt::print("triangles {}\nbounds_min {} {} {}\nbounds_max {} {} {}\narea {}\n", g.triangles, g.lo.x, g.lo.y,
                        g.lo.z, g.hi.x, g.hi.y, g.hi.z, g.area);
+        } else if (*generate) {
+            runGenerate(generateOptions);
+        } else if (*benchGenerators) {
+            runBenchGenerators(benchGeneratorsOptions);
         } else if (*convert) {
             TriangleSourcePtr source = openGeometryFile(convertIn);
             convertGeometry(*source, convertOut);
