@@ -1,0 +1,151 @@
+#include "procedural/GrassGenerator.h"
+
+#include "procedural/IndexedSource.h"
+#include "stream/Error.h"
+#include "stream/JsonParams.h"
+#include "stream/Random.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace penumbra {
+namespace {
+
+constexpr int kMaxSegments = 7;
+constexpr double kDegree = 3.14159265358979323846 / 180.0;
+constexpr uint64_t kClumpStream = 0x636C756D70ull;  // "clump": keeps the mask independent of placement
+
+/// Draws blade @p blade's root position (and the clump shortening factor) from @p rng; consumes
+/// a variable but deterministic number of draws.
+/// @param mask the clump field, or null when clumps are off
+float drawRoot(const GrassParams& p, const Fbm* mask, Rng& rng, double& x, double& z) {
+    randomPoint(p.placement.area, rng, x, z);
+    if (!mask) return 1.0f;
+    const ClumpParams& c = p.clump;
+    double best = (*mask)(x, z), bx = x, bz = z;
+    for (int t = 1; t < c.tries && best < c.threshold; ++t) {
+        randomPoint(p.placement.area, rng, x, z);
+        double m = (*mask)(x, z);
+        if (m > best) best = m, bx = x, bz = z;
+    }
+    x = bx, z = bz;
+    // Shorter blades near a clump's edge (and on the rare stragglers in bare patches).
+    double t = std::clamp((best - c.threshold) / c.edge, 0.0, 1.0);
+    return float(0.4 + 0.6 * t * t * (3.0 - 2.0 * t));
+}
+
+class GrassSource final : public ItemSource {
+public:
+    explicit GrassSource(const GrassParams& p)
+        : ItemSource("grass", p.placement.count, uint32_t(p.segments)), p_(p),
+          flags_(p.alphaMatte ? uint32_t(kTriangleAlphaMatte) : 0u), vertices_(p.segments + 2),
+          mask_(p.clump.seed, p.clump.noise) {
+        // Vertex j of the strip sits at s_j along the blade: the first two form the root edge,
+        // the others climb in equal steps, alternating sides, up to the tip (j = V - 1) where the
+        // width has tapered to zero. Every triangle thus spans both sides at distinct heights and
+        // cannot be degenerate while height and width are positive.
+        for (int j = 0; j < vertices_; ++j) {
+            float s = float(std::max(0, j - 1)) / float(vertices_ - 2);
+            along_[j] = s;
+            alongSq_[j] = s * s;
+            halfWidth_[j] = (j % 2 ? 0.5f : -0.5f) * (1.0f - s);
+        }
+        h0_ = float(p.height.x), hSpan_ = float(p.height.y - p.height.x);
+        w0_ = float(p.width.x), wSpan_ = float(p.width.y - p.width.x);
+        b0_ = float(p.bend.x), bSpan_ = float(p.bend.y - p.bend.x);
+        yaw0_ = float(p.orientationDeg.x * kDegree);
+        yawSpan_ = float((p.orientationDeg.y - p.orientationDeg.x) * kDegree);
+    }
+
+protected:
+    void item(uint64_t blade, Triangle* out) const override {
+        Rng rng(hashIndex(p_.seed, blade));
+        double x, z;
+        const float vigor = drawRoot(p_, p_.clump.enabled ? &mask_ : nullptr, rng, x, z);
+        const glm::vec3 root(float(x), float(p_.placement.groundHeight(x, z)), float(z));
+        const float height = (h0_ + hSpan_ * rng.uniformFloat()) * vigor;
+        const float width = w0_ + wSpan_ * rng.uniformFloat();
+        const float reach = (b0_ + bSpan_ * rng.uniformFloat()) * height;
+        const float yaw = yaw0_ + yawSpan_ * rng.uniformFloat();
+        const float c = std::cos(yaw), s = std::sin(yaw);
+
+        // The centre line is the parabola (forward, up) = (reach s^2, height s): the tip is
+        // exactly `height` above the root and `reach` ahead of it.
+        glm::vec3 v[kMaxSegments + 2];
+        for (int j = 0; j < vertices_; ++j) {
+            const float side = width * halfWidth_[j], forward = reach * alongSq_[j];
+            v[j] = glm::vec3(root.x + c * forward - s * side, root.y + height * along_[j], root.z + s * forward + c * side);
+        }
+        // A strip: flip every other triangle so that all of them wind the same way.
+        for (int j = 0; j + 2 < vertices_; ++j) {
+            Triangle& t = out[j];
+            t.v[0] = v[j + (j & 1)];
+            t.v[1] = v[j + 1 - (j & 1)];
+            t.v[2] = v[j + 2];
+            t.flags = flags_;
+        }
+    }
+
+private:
+    GrassParams p_;
+    uint32_t flags_;
+    int vertices_;
+    Fbm mask_;
+    float along_[kMaxSegments + 2], alongSq_[kMaxSegments + 2], halfWidth_[kMaxSegments + 2];
+    float h0_, hSpan_, w0_, wSpan_, b0_, bSpan_, yaw0_, yawSpan_;
+};
+
+void requirePositive(const JsonParams& j, const char* key, const glm::dvec2& r, double hi) {
+    if (!(r.x > 0 && r.y <= hi)) fail(j.where(key), "must lie in (0, {}], got [{}, {}]", hi, r.x, r.y);
+}
+
+}  // namespace
+
+GrassParams parseGrassParams(const SourceRequest& request) {
+    JsonParams j(request.params, request.file, request.path);
+    GrassParams p;
+    p.segments = int(j.integer("segments", p.segments, 3, kMaxSegments));
+    p.placement = parsePlacement(j, 10000, (uint64_t(1) << 62) / uint64_t(p.segments));
+    p.height = j.range("height", p.height);
+    p.width = j.range("width", p.width);
+    p.bend = j.range("bend", p.bend);
+    p.orientationDeg = j.range("orientation_deg", p.orientationDeg);
+    p.alphaMatte = j.boolean("alpha_matte", p.alphaMatte);
+    p.seed = uint64_t(j.integer("seed", int64_t(p.seed), 0, INT64_MAX));
+    p.clump.seed = hashIndex(p.seed, kClumpStream) >> 1;  // >> 1: expressible as a JSON seed
+    if (const nlohmann::json* c = j.raw("clump")) {
+        JsonParams cj(*c, j.file(), j.path("clump"));
+        ClumpParams& m = p.clump;
+        m.enabled = cj.boolean("enabled", true);
+        m.noise.frequency = cj.number("frequency", m.noise.frequency);
+        m.noise.octaves = int(cj.integer("octaves", m.noise.octaves, 1, 8));
+        m.threshold = cj.number("threshold", m.threshold);
+        m.edge = cj.number("edge", m.edge);
+        m.tries = int(cj.integer("tries", m.tries, 1, 64));
+        m.seed = uint64_t(cj.integer("seed", int64_t(m.seed), 0, INT64_MAX));
+        cj.finish();
+        if (!(m.noise.frequency > 0 && m.noise.frequency <= 1e6))
+            fail(cj.where("frequency"), "must be in (0, 1e6], got {}", m.noise.frequency);
+        if (!(m.threshold >= -1 && m.threshold <= 1)) fail(cj.where("threshold"), "must be in [-1, 1], got {}", m.threshold);
+        if (!(m.edge > 0)) fail(cj.where("edge"), "must be positive, got {}", m.edge);
+    }
+    j.finish();
+    requirePositive(j, "height", p.height, 1e6);
+    requirePositive(j, "width", p.width, 1e6);
+    if (!(p.bend.x >= -4 && p.bend.y <= 4)) fail(j.where("bend"), "must lie in [-4, 4], got [{}, {}]", p.bend.x, p.bend.y);
+    if (!(p.orientationDeg.x >= -3600 && p.orientationDeg.y <= 3600))
+        fail(j.where("orientation_deg"), "must lie in [-3600, 3600], got [{}, {}]", p.orientationDeg.x, p.orientationDeg.y);
+    return p;
+}
+
+TriangleSourcePtr makeGrassSource(const GrassParams& params) { return std::make_unique<GrassSource>(params); }
+
+glm::dvec3 grassBladeRoot(const GrassParams& params, uint64_t blade) {
+    Rng rng(hashIndex(params.seed, blade));
+    const Fbm mask(params.clump.seed, params.clump.noise);
+    double x, z;
+    drawRoot(params, params.clump.enabled ? &mask : nullptr, rng, x, z);
+    return {x, params.placement.groundHeight(x, z), z};
+}
+
+}  // namespace penumbra

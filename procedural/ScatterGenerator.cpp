@@ -1,0 +1,178 @@
+#include "procedural/ScatterGenerator.h"
+
+#include "procedural/IndexedSource.h"
+#include "stream/Error.h"
+#include "stream/JsonParams.h"
+#include "stream/Random.h"
+#include "stream/Transform.h"
+
+#include <cmath>
+
+namespace penumbra {
+namespace {
+
+constexpr double kDegree = 3.14159265358979323846 / 180.0;
+
+/// Where instance k goes: p' = base + Ry(yaw) (scale p), with the source's origin on the ground.
+struct Placer {
+    ScatterParams p;
+
+    struct Instance {
+        glm::dvec3 base;
+        double c, s, scale;
+    };
+
+    Instance instance(uint64_t k) const {
+        Rng rng(hashIndex(p.seed, k));
+        double x, z;
+        randomPoint(p.placement.area, rng, x, z);
+        const double yaw = rng.uniform(p.rotationDeg.x, p.rotationDeg.y) * kDegree;
+        return {glm::dvec3(x, p.placement.groundHeight(x, z), z), std::cos(yaw), std::sin(yaw), rng.uniform(p.scale.x, p.scale.y)};
+    }
+
+    static void place(const Instance& in, const Triangle& local, Triangle& out) {
+        for (int j = 0; j < 3; ++j) {
+            const glm::dvec3 q = in.scale * glm::dvec3(local.v[j]);
+            out.v[j] = glm::vec3(in.base + glm::dvec3(in.c * q.x + in.s * q.z, q.y, in.c * q.z - in.s * q.x));
+        }
+        out.flags = local.flags;
+    }
+};
+
+/// A source small enough to keep: instances are filled in parallel from the copy.
+class CachedScatter final : public IndexedSource {
+public:
+    CachedScatter(const ScatterParams& p, std::vector<Triangle> local)
+        : IndexedSource("scatter", p.placement.count * local.size()), placer_{p}, local_(std::move(local)) {}
+
+protected:
+    void triangle(uint64_t index, Triangle& out) const override { fill(index, std::span<Triangle>(&out, 1)); }
+
+    void fill(uint64_t first, std::span<Triangle> out) const override {
+        const uint64_t per = local_.size();
+        uint64_t current = UINT64_MAX;
+        Placer::Instance in{};
+        for (size_t k = 0; k < out.size(); ++k) {
+            const uint64_t i = (first + k) / per;
+            if (i != current) in = placer_.instance(i), current = i;
+            Placer::place(in, local_[(first + k) % per], out[k]);
+        }
+    }
+
+private:
+    Placer placer_;
+    std::vector<Triangle> local_;
+};
+
+/// A source too large to keep: replayed from its start for every instance.
+class StreamedScatter final : public TriangleSource {
+public:
+    StreamedScatter(const ScatterParams& p, TriangleSourcePtr inner, uint64_t per)
+        : placer_{p}, inner_(std::move(inner)), per_(per) {}
+
+    size_t read(std::span<Triangle> out) override {
+        while (instance_ < placer_.p.placement.count) {
+            if (done_ == 0) current_ = placer_.instance(instance_);
+            size_t n = inner_->read(out.first(size_t(std::min<uint64_t>(out.size(), per_ - done_))));
+            if (n == 0) {
+                if (done_ != per_) fail(inner_->name(), "source gave {} triangles on a later pass, {} on the first", done_, per_);
+                ++instance_, done_ = 0;
+                inner_->rewind();
+                continue;
+            }
+            for (size_t i = 0; i < n; ++i) Placer::place(current_, out[i], out[i]);
+            done_ += n;
+            if (done_ == per_) {  // next instance starts on the next call, from a rewound source
+                ++instance_, done_ = 0;
+                inner_->rewind();
+            }
+            return n;
+        }
+        return 0;
+    }
+
+    void rewind() override {
+        inner_->rewind();
+        instance_ = done_ = 0;
+    }
+    std::string name() const override { return "scatter"; }
+    std::optional<uint64_t> sizeHint() const override { return placer_.p.placement.count * per_; }
+
+private:
+    Placer placer_;
+    TriangleSourcePtr inner_;
+    uint64_t per_, instance_ = 0, done_ = 0;
+    Placer::Instance current_{};
+};
+
+/// A nested entry's optional "transform", read like the scene loader reads top-level ones.
+Transform parseNestedTransform(const JsonParams& entry) {
+    Transform t;
+    const nlohmann::json* raw = entry.raw("transform");
+    if (!raw) return t;
+    JsonParams j(*raw, entry.file(), entry.path("transform"));
+    const double scale = j.number("scale", 1.0);
+    if (!(scale != 0.0)) fail(j.where("scale"), "must not be zero");
+    t.scale = float(scale);
+    t.rotateDeg = glm::vec3(j.vec3("rotate_deg", glm::dvec3(0.0)));
+    t.translate = glm::vec3(j.vec3("translate", glm::dvec3(0.0)));
+    j.finish();
+    return t;
+}
+
+}  // namespace
+
+TriangleSourcePtr makeScatterSource(const ScatterParams& params, TriangleSourcePtr source, const std::string& where) {
+    // Keep the source if it is small: read at most cacheTriangles + 1 to find out.
+    std::vector<Triangle> local;
+    std::optional<uint64_t> hint = source->sizeHint();
+    uint64_t per = 0;
+    source->rewind();
+    if (!hint || *hint <= params.cacheTriangles) {
+        std::vector<Triangle> chunk(kTriangleChunk);
+        while (size_t n = source->read(chunk)) {
+            per += n;
+            if (per > params.cacheTriangles) break;
+            local.insert(local.end(), chunk.begin(), chunk.begin() + ptrdiff_t(n));
+        }
+        if (per > params.cacheTriangles) {  // too big after all: count the rest, then stream
+            std::vector<Triangle>().swap(local);
+            while (size_t n = source->read(chunk)) per += n;
+        }
+    } else {
+        per = *hint;
+    }
+    source->rewind();
+    if (per > 0 && params.placement.count > (uint64_t(1) << 62) / per)
+        fail(where, "{} instances of {} triangles are too many", params.placement.count, per);
+    if (per <= params.cacheTriangles) return std::make_unique<CachedScatter>(params, std::move(local));
+    return std::make_unique<StreamedScatter>(params, std::move(source), per);
+}
+
+TriangleSourcePtr openScatterSource(const SourceRequest& request) {
+    JsonParams j(request.params, request.file, request.path);
+    ScatterParams p;
+    p.placement = parsePlacement(j, 100, uint64_t(1) << 62);
+    p.scale = j.range("scale", p.scale);
+    p.rotationDeg = j.range("rotation_deg", p.rotationDeg);
+    p.cacheTriangles = uint64_t(j.integer("cache_triangles", int64_t(p.cacheTriangles), 0, int64_t(1) << 26));
+    p.seed = uint64_t(j.integer("seed", int64_t(p.seed), 0, INT64_MAX));
+    const nlohmann::json* inline_ = j.raw("source");
+    if (!inline_) fail(j.where("source"), "missing required field (a geometry entry such as {{\"type\": \"obj\", \"path\": \"rock.obj\"}})");
+    j.finish();
+    if (!(p.scale.x > 0 && p.scale.y <= 1e6)) fail(j.where("scale"), "must lie in (0, 1e6], got [{}, {}]", p.scale.x, p.scale.y);
+    if (!(std::abs(p.rotationDeg.x) <= 3600 && std::abs(p.rotationDeg.y) <= 3600))
+        fail(j.where("rotation_deg"), "must lie in [-3600, 3600], got [{}, {}]", p.rotationDeg.x, p.rotationDeg.y);
+
+    JsonParams s(*inline_, j.file(), j.path("source"));
+    const std::string type = s.string("type");
+    const Transform transform = parseNestedTransform(s);
+    nlohmann::json params = *inline_;
+    params.erase("type");
+    params.erase("transform");
+    TriangleSourcePtr source = openSource(type, SourceRequest{params, request.file, j.path("source"), request.baseDir});
+    if (!transform.isIdentity()) source = std::make_unique<TransformedSource>(std::move(source), transform.matrix());
+    return makeScatterSource(p, std::move(source), request.where());
+}
+
+}  // namespace penumbra

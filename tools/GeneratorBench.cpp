@@ -1,0 +1,122 @@
+#include "GeneratorBench.h"
+
+#include "procedural/Generators.h"
+#include "stream/AtomicFile.h"
+#include "stream/Error.h"
+#include "stream/SourceRegistry.h"
+
+#include <fmt/format.h>
+#include <tbb/global_control.h>
+
+#include <chrono>
+#include <span>
+
+namespace penumbra {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+/// Representative configurations: the ones the example scenes use, at streaming sizes.
+std::vector<std::pair<std::string, nlohmann::json>> benchCases() {
+    using nlohmann::json;
+    const json terrain = {{"area", {{-500, -500}, {500, 500}}}, {"resolution", 512}, {"amplitude", 6}, {"octaves", 6},
+                          {"frequency", 0.004}, {"seed", 3}};
+    return {
+        {"grid", {{"type", "grid"}, {"cells", 44}, {"levels", 3}}},
+        {"terrain", {{"type", "terrain"}, {"area", {{-500, -500}, {500, 500}}}, {"resolution", 1024}, {"octaves", 6}}},
+        {"grass", {{"type", "grass"}, {"count", 1000000000}, {"area", {{-100, -100}, {100, 100}}}}},
+        {"grass (terrain, clumps)",
+         {{"type", "grass"}, {"count", 1000000000}, {"terrain", terrain}, {"clump", {{"frequency", 0.05}, {"threshold", -0.1}}}}},
+        {"flowers", {{"type", "flowers"}, {"count", 100000000}, {"area", {{-100, -100}, {100, 100}}}}},
+        {"tree", {{"type", "tree"}, {"depth", 5}, {"leaves_per_branch", 10}}},
+        {"forest", {{"type", "forest"}, {"count", 100000}, {"terrain", terrain}}},
+        {"scatter (tree instances)",
+         {{"type", "scatter"}, {"count", 1000000}, {"area", {{-100, -100}, {100, 100}}}, {"source", {{"type", "tree"}}}}},
+        {"colonnade", {{"type", "colonnade"}}},
+    };
+}
+
+}  // namespace
+
+nlohmann::json benchGenerators(uint64_t trianglesPerGenerator, std::vector<int> threadCounts, const std::string& only) {
+    registerProceduralGenerators();
+    nlohmann::json out = {{"triangles_per_generator", trianglesPerGenerator}, {"chunk", kTriangleChunk}};
+    std::vector<Triangle> chunk(kTriangleChunk);
+    for (auto& [name, entry] : benchCases()) {
+        if (!only.empty() && name.find(only) == std::string::npos) continue;
+        nlohmann::json params = entry;
+        const std::string type = params["type"];
+        params.erase("type");
+        nlohmann::json row = {{"name", name}, {"entry", entry}, {"results", nlohmann::json::array()}};
+        for (int threads : threadCounts) {
+            tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(std::max(threads, 1)));
+            const auto setupStart = Clock::now();
+            TriangleSourcePtr source = openSource(type, SourceRequest{params, "bench", name, "."});
+            source->read(chunk);  // warm-up: first-touch of the chunk, TBB workers started
+            const double setup = secondsSince(setupStart);
+            float sink = 0;  // something read from every chunk, so nothing can be skipped
+            uint64_t pulled = 0;
+            const auto start = Clock::now();
+            while (pulled < trianglesPerGenerator) {
+                const size_t want = size_t(std::min<uint64_t>(chunk.size(), trianglesPerGenerator - pulled));
+                size_t n = source->read(std::span<Triangle>(chunk.data(), want));
+                if (n == 0) {
+                    source->rewind();
+                    continue;
+                }
+                sink += chunk[n - 1].v[2].y;
+                pulled += n;
+            }
+            const double seconds = secondsSince(start);
+            row["results"].push_back({{"threads", threads},
+                                      {"seconds", seconds},
+                                      {"setup_seconds", setup},
+                                      {"triangles_per_second", seconds > 0 ? double(pulled) / seconds : 0.0},
+                                      {"checksum", sink}});
+        }
+        out["generators"].push_back(row);
+    }
+    return out;
+}
+
+std::string generatorBenchTable(const nlohmann::json& result) {
+    std::string header = "| generator |", rule = "|---|";
+    for (const auto& r : result["generators"][0]["results"]) {
+        header += fmt::format(" {} thread{} (Mtri/s) |", r["threads"].get<int>(), r["threads"].get<int>() == 1 ? "" : "s");
+        rule += "---:|";
+    }
+    std::string table = header + "\n" + rule + "\n";
+    for (const auto& g : result["generators"]) {
+        table += "| " + g["name"].get<std::string>() + " |";
+        for (const auto& r : g["results"]) table += fmt::format(" {:.1f} |", r["triangles_per_second"].get<double>() / 1e6);
+        table += "\n";
+    }
+    return table;
+}
+
+CLI::App* addBenchGeneratorsCommand(CLI::App& bench, BenchGeneratorsOptions& options) {
+    CLI::App* cmd = bench.add_subcommand("generators", "triangles per second of every procedural generator");
+    cmd->add_option("--triangles", options.triangles, "triangles pulled per generator and thread count (default 20M)");
+    cmd->add_option("--threads", options.threads, "thread counts to measure, e.g. 1,2 (default)")->delimiter(',');
+    cmd->add_option("--json", options.jsonPath, "also write the full result as JSON");
+    cmd->add_option("--only", options.only, "measure only generators whose name contains this text");
+    return cmd;
+}
+
+void runBenchGenerators(const BenchGeneratorsOptions& options) {
+    if (options.triangles == 0) throw InputError("--triangles: must be positive");
+    for (int t : options.threads)
+        if (t < 1 || t > 1024) throw InputError(fmt::format("--threads: each count must be in 1..1024, got {}", t));
+    if (options.threads.empty()) throw InputError("--threads: give at least one thread count");
+    nlohmann::json result = benchGenerators(options.triangles, options.threads, options.only);
+    if (result["generators"].empty()) throw InputError("--only: no generator matches \"" + options.only + "\"");
+    fmt::print("{}", generatorBenchTable(result));
+    if (!options.jsonPath.empty()) {
+        std::string text = result.dump(2) + "\n";
+        writeFileAtomically(options.jsonPath, std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+    }
+}
+
+}  // namespace penumbra
