@@ -1,0 +1,85 @@
+#include "stream/PrefetchSource.h"
+
+#include <algorithm>
+
+namespace penumbra {
+
+PrefetchSource::PrefetchSource(TriangleSourcePtr inner, size_t chunkTriangles, size_t depth)
+    : inner_(std::move(inner)), chunkTriangles_(std::max<size_t>(1, chunkTriangles)), depth_(std::max<size_t>(1, depth)) {
+    start();
+}
+
+PrefetchSource::~PrefetchSource() { stop(); }
+
+void PrefetchSource::start() {
+    ready_.clear();
+    current_.clear();
+    currentPos_ = 0;
+    finished_ = stopping_ = false;
+    error_ = nullptr;
+    thread_ = std::thread([this] { run(); });
+}
+
+void PrefetchSource::stop() {
+    {
+        std::lock_guard lock(mutex_);
+        stopping_ = true;
+    }
+    changed_.notify_all();
+    if (thread_.joinable()) thread_.join();
+}
+
+void PrefetchSource::run() {
+    try {
+        for (;;) {
+            std::vector<Triangle> chunk(chunkTriangles_);
+            size_t n = inner_->read(chunk);
+            chunk.resize(n);
+            std::unique_lock lock(mutex_);
+            changed_.wait(lock, [&] { return stopping_ || ready_.size() < depth_; });
+            if (stopping_) return;
+            if (n == 0) {
+                finished_ = true;
+                changed_.notify_all();
+                return;
+            }
+            ready_.push_back(std::move(chunk));
+            changed_.notify_all();
+        }
+    } catch (...) {
+        std::lock_guard lock(mutex_);
+        error_ = std::current_exception();
+        finished_ = true;
+        changed_.notify_all();
+    }
+}
+
+size_t PrefetchSource::read(std::span<Triangle> out) {
+    size_t written = 0;
+    while (written < out.size()) {
+        if (currentPos_ == current_.size()) {
+            std::unique_lock lock(mutex_);
+            changed_.wait(lock, [&] { return !ready_.empty() || finished_; });
+            if (ready_.empty()) {
+                if (error_ && written == 0) std::rethrow_exception(error_);
+                break;  // end (or an error, reported on the next call, after the good triangles)
+            }
+            current_ = std::move(ready_.front());
+            ready_.pop_front();
+            currentPos_ = 0;
+            changed_.notify_all();
+        }
+        size_t n = std::min(out.size() - written, current_.size() - currentPos_);
+        std::copy_n(current_.begin() + std::ptrdiff_t(currentPos_), n, out.begin() + std::ptrdiff_t(written));
+        currentPos_ += n, written += n;
+    }
+    return written;
+}
+
+void PrefetchSource::rewind() {
+    stop();
+    inner_->rewind();
+    start();
+}
+
+}  // namespace penumbra
