@@ -6,12 +6,13 @@
 #include "bake/PenumbraCaster.h"
 #include "bake/ReceiverShading.h"
 #include "bake/ReferenceCaster.h"
-#include "bucket/AreaSort.h"
+#include "bucket/BucketPlan.h"
 #include "receivers/PointReceivers.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
 #include "stream/Memory.h"
 #include "stream/Npy.h"
+#include "stream/PrefetchSource.h"
 #include "stream/Progress.h"
 
 #include <tbb/global_control.h>
@@ -27,9 +28,10 @@ struct Prepared {
     LightSamples samples;
     ReceiverSet receivers;
     std::vector<uint32_t> sampleSets;
-    TriangleSourcePtr blockers;  ///< replayable, largest first when sorting is on
+    TriangleSourcePtr blockers;           ///< replayable, largest first when sorting is on
+    BucketReplaySource* replay = nullptr; ///< inside `blockers` when bucketed, for I/O counters
     uint64_t triangleCount = 0;
-    uint64_t blockerBytes = 0;   ///< bytes of blockers held in memory (0 when they stream from disk)
+    uint64_t bucketBufferBytes = 0;
 };
 
 /// Rejects NaN/inf vertices as they stream by, naming the triangle's position in the stream.
@@ -48,37 +50,53 @@ private:
     uint64_t seen_ = 0;
 };
 
-/// The streaming pass: camera receivers are rasterized from the same stream the blockers come
-/// from, so one pass over the source makes both.
-Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, double& streamSeconds, double& sortSeconds) {
+/// Pass 1 over the stream: camera receivers are rasterized (or points loaded) while the area
+/// histogram is built and every vertex is checked. Pass 2 streams the blockers into area buckets
+/// on disk; casting then replays the buckets, largest first, once per memory tile. So the source
+/// is read at most twice and no pass holds more than a bounded window of triangles.
+Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, double& streamSeconds, BucketStats& buckets) {
     Prepared p;
     p.samples = generateLightSamples(scene.lights, scene.options.groupSize, scene.seed);
-    std::vector<Triangle> blockers;
+    TriangleSourcePtr source = openSceneGeometry(scene);
+    AreaHistogram histogram;
     {
         ScopedTimer timer(streamSeconds);
-        TriangleSourcePtr source = openSceneGeometry(scene);
+        ProgressReporter progress("scan", source->sizeHint().value_or(0), settings.quiet);
         FiniteCheck check(scene);
-        auto keep = [&](std::span<const Triangle> chunk) {
+        auto scan = [&](std::span<const Triangle> chunk) {
             check(chunk);
-            blockers.insert(blockers.end(), chunk.begin(), chunk.end());
+            histogram.add(chunk);
+            progress.update(chunk.size());
         };
         if (scene.receivers.kind == ReceiverKind::Camera) {
-            p.receivers = rasterizeCamera(*source, scene.receivers.camera, keep);
+            p.receivers = rasterizeCamera(*source, scene.receivers.camera, scan);
         } else {
             p.receivers = loadPointReceivers(scene.receivers.pointsPath);
             std::vector<Triangle> chunk(kTriangleChunk);
-            while (size_t n = source->read(chunk)) keep(std::span<const Triangle>(chunk.data(), n));
+            while (size_t n = source->read(chunk)) scan(std::span<const Triangle>(chunk.data(), n));
         }
+        progress.done();
     }
     p.sampleSets.resize(p.receivers.size());
     for (size_t i = 0; i < p.receivers.size(); ++i) p.sampleSets[i] = uint32_t(sampleSetOf(i, p.samples.sets, scene.seed));
-    if (scene.options.sortBlockers) {
-        ScopedTimer timer(sortSeconds);
-        sortByAreaDescending(blockers);
+    p.triangleCount = histogram.count();
+
+    source->rewind();
+    if (!scene.options.sortBlockers) {  // stream order: replay the source itself
+        p.blockers = std::make_unique<PrefetchSource>(std::move(source));
+        return p;
     }
-    p.triangleCount = blockers.size();
-    p.blockerBytes = blockers.size() * sizeof(Triangle);
-    p.blockers = std::make_unique<VectorSource>(std::move(blockers), "blockers");
+    BucketOptions options;
+    options.tmpDir = settings.tmpDir;
+    options.keep = settings.keepBuckets;
+    ProgressReporter progress("bucket", p.triangleCount, settings.quiet);
+    auto set = std::make_shared<BucketSet>(writeBuckets(*source, planBucketRanges(options, &histogram), options, &buckets,
+                                                        [&](std::span<const Triangle> c) { progress.update(c.size()); }));
+    progress.done();
+    auto replay = std::make_unique<BucketReplaySource>(set, options.readBufferBytes);
+    p.replay = replay.get();
+    p.bucketBufferBytes = options.writeMemoryBytes() + options.readBufferBytes;
+    p.blockers = std::make_unique<PrefetchSource>(std::move(replay));
     return p;
 }
 
@@ -114,10 +132,11 @@ CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettin
     const auto tiles = partitionReceivers(p.receivers, all, plan.tiles);
     ProgressReporter progress("cast", p.triangleCount * tiles.size(), settings.quiet);
     std::vector<Triangle> chunk(kTriangleChunk);
-    for (const auto& tile : tiles) {
+    for (size_t t = 0; t < tiles.size(); ++t) {
+        const auto& tile = tiles[t];
         // Within a memory tile, threads work on disjoint sub-tiles (2 per thread balances load).
         PenumbraCaster caster(p.samples, p.receivers, p.sampleSets, scene.options, threads > 1 ? 2 * threads : 1, tile);
-        p.blockers->rewind();
+        if (t > 0) p.blockers->rewind();  // the first tile reads the replay the scan pass left ready
         while (size_t n = p.blockers->read(chunk)) {
             caster.cast(std::span<const Triangle>(chunk.data(), n));
             progress.update(n);
@@ -181,13 +200,15 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     demand.dumpMasks = dump;
     planMemory(demand, settings.memoryBudget);
 
-    double streamSeconds = 0, sortSeconds = 0;
-    Prepared p = prepare(scene, settings, streamSeconds, sortSeconds);
+    double streamSeconds = 0;
+    BucketStats buckets;
+    Prepared p = prepare(scene, settings, streamSeconds, buckets);
     demand.receivers = p.receivers.size();
     demand.groups = p.samples.groupCount();
     demand.umbraWords = (demand.groups + 63) / 64;
     demand.sampleBytes = p.samples.positions.size() * sizeof(glm::vec3);
-    demand.bufferBytes = p.blockerBytes;
+    // Bucket buffers, the prefetch queue and the caster's per-chunk volumes are fixed buffers.
+    demand.bufferBytes = p.bucketBufferBytes + 8 * kTriangleChunk * sizeof(Triangle) + kTriangleChunk * 1200 * scene.lights.size();
     const MemoryPlan plan = planMemory(demand, settings.memoryBudget);
 
     ReceiverResults results;
@@ -206,7 +227,6 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
             cast = castHierarchical(p, scene, settings, threads, plan, shader, results, dump ? &masks : nullptr);
         } else {
             // The ray casters need the whole scene in memory: that is their nature, not ours.
-            p.blockers->rewind();
             std::vector<Triangle> all = readAll(*p.blockers);
             ProgressReporter progress(methodName(settings.method), p.receivers.size(), settings.quiet);
             auto tick = [&](uint64_t n) { progress.update(n); };
@@ -240,7 +260,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         {"light_sample_groups", p.samples.groupCount()},
         {"blocked_relations", blocked},
         {"table2",
-         {{"sort_time_s", sortSeconds},
+         {{"sort_time_s", buckets.seconds},
           {"hierarchy_build_time_s", cast.hierarchyBuildSeconds},
           {"penumbra_cast_time_s", settings.method == Method::Hpc ? cast.castSeconds : castSeconds},
           {"samples_memory_bytes", p.receivers.bytes() + cast.receiverBytes},
@@ -260,7 +280,15 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
           {"resident_bytes", plan.residentBytes},
           {"per_receiver_bytes", plan.perReceiverBytes},
           {"minimum_budget_bytes", plan.minimumBudget}}},
-        {"stream", {{"time_s", streamSeconds}, {"blocker_bytes_in_memory", p.blockerBytes}}},
+        {"stream", {{"scan_time_s", streamSeconds}, {"triangles", p.triangleCount}}},
+        {"buckets",
+         {{"files", buckets.nonEmptyFiles},
+          {"bytes_written", buckets.bytesWritten},
+          {"bytes_read", p.replay ? p.replay->bytesRead() : 0},
+          {"bytes_per_triangle", buckets.bytesPerTriangle()},
+          {"write_mb_per_s", buckets.megabytesPerSecond()},
+          {"read_mb_per_s", p.replay && p.replay->readSeconds() > 0 ? double(p.replay->bytesRead()) / 1e6 / p.replay->readSeconds() : 0.0},
+          {"pass_time_s", buckets.seconds}}},
     };
     if (settings.method == Method::Embree)
         stats["embree"] = {{"build_time_s", embree.buildSeconds}, {"trace_time_s", embree.traceSeconds},

@@ -27,9 +27,14 @@ int64_t lattice(double floored) {
     return floored > kLimit ? int64_t(kLimit) : (floored < -kLimit ? -int64_t(kLimit) : int64_t(floored));
 }
 
-double corner(uint64_t seed, int64_t ix, int64_t iy, double dx, double dy) {
-    // Different odd multipliers keep (a, b) and (b, a) apart before the full mix.
-    uint64_t h = mix64(seed ^ (uint64_t(ix) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(iy) * 0xC2B2AE3D27D4EB4Full));
+/// Hash of one lattice row; the four corners of a cell share two of these, so a noise value
+/// costs two full mixes plus one multiply per corner.
+uint64_t rowHash(uint64_t seed, int64_t iy) { return mix64(seed ^ (uint64_t(iy) * 0xC2B2AE3D27D4EB4Full)); }
+
+/// Gradient of column @p ix in a hashed row, dotted with the offset (dx, dy). The multiply
+/// carries every input bit into the top four, which pick one of 16 directions.
+double corner(uint64_t row, int64_t ix, double dx, double dy) {
+    const uint64_t h = (row ^ (uint64_t(ix) * 0x9E3779B97F4A7C15ull)) * 0xD6E8FEB86659FD93ull;
     const double* g = kGradients[h >> 60];
     return g[0] * dx + g[1] * dy;
 }
@@ -42,8 +47,9 @@ double gradientNoise(uint64_t seed, double x, double y) {
     const double fx = std::floor(x), fy = std::floor(y);
     const int64_t ix = lattice(fx), iy = lattice(fy);
     const double tx = x - fx, ty = y - fy;
-    const double n00 = corner(seed, ix, iy, tx, ty), n10 = corner(seed, ix + 1, iy, tx - 1.0, ty);
-    const double n01 = corner(seed, ix, iy + 1, tx, ty - 1.0), n11 = corner(seed, ix + 1, iy + 1, tx - 1.0, ty - 1.0);
+    const uint64_t r0 = rowHash(seed, iy), r1 = rowHash(seed, iy + 1);
+    const double n00 = corner(r0, ix, tx, ty), n10 = corner(r0, ix + 1, tx - 1.0, ty);
+    const double n01 = corner(r1, ix, tx, ty - 1.0), n11 = corner(r1, ix + 1, tx - 1.0, ty - 1.0);
     const double u = fade(tx), v = fade(ty);
     const double a = n00 + u * (n10 - n00), b = n01 + u * (n11 - n01);
     // With unit gradients 2D gradient noise stays within +-sqrt(1/2); scale that to +-1. The clamp

@@ -71,6 +71,7 @@ public:
         : placer_{p}, inner_(std::move(inner)), per_(per) {}
 
     size_t read(std::span<Triangle> out) override {
+        if (out.empty()) return 0;  // an empty read must not look like the end of an instance
         while (instance_ < placer_.p.placement.count) {
             if (done_ == 0) current_ = placer_.instance(instance_);
             size_t n = inner_->read(out.first(size_t(std::min<uint64_t>(out.size(), per_ - done_))));

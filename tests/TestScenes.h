@@ -2,6 +2,8 @@
 // Shared builders for the casting tests: random blockers, receivers, lights, and a helper that
 // runs hierarchical penumbra casting and returns masks in the same layout as the reference.
 
+#include "TestSupport.h"
+
 #include "bake/CastOptions.h"
 #include "bake/Light.h"
 #include "bake/PenumbraCaster.h"
@@ -17,8 +19,6 @@
 #include <vector>
 
 namespace penumbra::test {
-
-inline std::string sharedData(const std::string& rel) { return std::string(PENUMBRA_SOURCE_DIR) + "/../shared/data/" + rel; }
 
 inline glm::vec3 randomIn(Rng& rng, glm::vec3 lo, glm::vec3 hi) {
     return {float(rng.uniform(lo.x, hi.x)), float(rng.uniform(lo.y, hi.y)), float(rng.uniform(lo.z, hi.z))};

@@ -20,11 +20,13 @@ namespace penumbra {
 /// then @p trianglesPerGenerator triangles are pulled through read() in kTriangleChunk chunks and
 /// discarded, rewinding whenever a small generator runs out.
 /// @return {"triangles_per_generator", "chunk", "generators": [{"name", "entry", "triangles_per_item",
-///         "results": [{"threads", "seconds", "setup_seconds", "triangles_per_second"}]}]}
+///         "results": [{"threads", "seconds", "cpu_seconds", "setup_seconds", "triangles_per_second",
+///         "triangles_per_cpu_second"}]}]}. CPU time is the whole process's, over all threads.
 /// @param only when not empty, measure only the configurations whose name contains it
 nlohmann::json benchGenerators(uint64_t trianglesPerGenerator, std::vector<int> threadCounts, const std::string& only = "");
 
-/// @brief The result of benchGenerators() as a Markdown table (million triangles per second).
+/// @brief The result of benchGenerators() as a Markdown table: million triangles per wall-clock
+/// second and per CPU second, for each thread count.
 std::string generatorBenchTable(const nlohmann::json& result);
 
 struct BenchGeneratorsOptions {
