@@ -98,7 +98,7 @@ struct PenumbraCaster::Tile {
     }
 
     /// Processes one blocker against this tile; returns whether any root box met V_L.
-    void castTriangle(const BlockerTriangle& t, const PenumbraVolume* lightVolumes) {
+    void castTriangle(const BlockerTriangle& t, const PenumbraVolume* lightVolumes, const uint8_t* lightActive) {
         reachedRoot = false;
         ReceiverHierarchy& h = hierarchy;
         if (h.nodes.empty()) return;
@@ -116,6 +116,7 @@ struct PenumbraCaster::Tile {
         for (uint32_t slot : hardReadyList) hardReady[slot] = 0;
         hardReadyList.clear();
         for (currentLight = 0; currentLight < uint32_t(samples.lightCount()); ++currentLight) {
+            if (!lightActive[currentLight]) continue;
             lightVolume = &lightVolumes[currentLight];
             groupVolumesBuilt = false;
             uint32_t g0 = samples.lightFirstGroup[currentLight], g1 = samples.lightFirstGroup[currentLight + 1];
@@ -284,6 +285,26 @@ PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& r
         }
         tiles_[t]->build(std::move(inputs));
     });
+    // Rebuilds only drop receivers, so boxes from the first build stay conservative.
+    Box receiversBox{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+    for (const auto& tile : tiles_)
+        if (!tile->hierarchy.nodes.empty()) {
+            receiversBox.lo = glm::min(receiversBox.lo, tile->hierarchy.nodes[0].lo);
+            receiversBox.hi = glm::max(receiversBox.hi, tile->hierarchy.nodes[0].hi);
+        }
+    for (const ConvexBound& bound : samples_.lightBounds) {
+        Box reach = receiversBox;
+        for (const glm::dvec3& v : bound.vertices) {
+            // Round outward so the float box still contains the double vertex.
+            glm::vec3 lo(v), hi(v);
+            for (int a = 0; a < 3; ++a) {
+                if (double(lo[a]) > v[a]) lo[a] = std::nextafter(lo[a], -INFINITY);
+                if (double(hi[a]) < v[a]) hi[a] = std::nextafter(hi[a], INFINITY);
+            }
+            reach.lo = glm::min(reach.lo, lo), reach.hi = glm::max(reach.hi, hi);
+        }
+        reach_.push_back(reach);
+    }
 }
 
 PenumbraCaster::~PenumbraCaster() = default;
@@ -291,28 +312,46 @@ PenumbraCaster::~PenumbraCaster() = default;
 void PenumbraCaster::cast(std::span<const Triangle> blockers) {
     auto t0 = std::chrono::steady_clock::now();
     const size_t n = blockers.size(), lights = size_t(samples_.lightCount());
-    std::vector<BlockerTriangle> prepared(n);
-    std::vector<PenumbraVolume> lightVolumes(n * lights);
+    if (prepared_.size() < n) {
+        prepared_.resize(n);
+        lightVolumes_.resize(n * lights);
+        lightActive_.resize(n * lights);
+    }
+    reached_.resize(tiles_.size());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& range) {
         for (size_t i = range.begin(); i != range.end(); ++i) {
-            prepared[i] = BlockerTriangle::from(blockers[i]);
-            if (!prepared[i].valid) continue;
+            const Triangle& tri = blockers[i];
+            Box box{glm::min(glm::min(tri.v[0], tri.v[1]), tri.v[2]), glm::max(glm::max(tri.v[0], tri.v[1]), tri.v[2])};
+            bool any = false;
+            for (size_t l = 0; l < lights; ++l) {
+                const Box& r = reach_[l];
+                bool overlaps = box.lo.x <= r.hi.x && box.hi.x >= r.lo.x && box.lo.y <= r.hi.y && box.hi.y >= r.lo.y &&
+                                box.lo.z <= r.hi.z && box.hi.z >= r.lo.z;
+                lightActive_[i * lights + l] = overlaps;
+                any = any || overlaps;
+            }
+            prepared_[i].valid = false;
+            if (!any) continue;  // outside every light's reach: no penumbra volume needed
+            prepared_[i] = BlockerTriangle::from(tri);
+            if (!prepared_[i].valid) continue;
             for (size_t l = 0; l < lights; ++l)
-                lightVolumes[i * lights + l] = makePenumbraVolume(samples_.lightBounds[l], prepared[i]);
+                if (lightActive_[i * lights + l])
+                    lightVolumes_[i * lights + l] = makePenumbraVolume(samples_.lightBounds[l], prepared_[i]);
         }
     });
-    std::vector<std::vector<uint8_t>> reached(tiles_.size(), std::vector<uint8_t>(n, 0));
     tbb::parallel_for(size_t(0), tiles_.size(), [&](size_t t) {
         Tile& tile = *tiles_[t];
+        std::vector<uint8_t>& reached = reached_[t];
+        reached.assign(n, 0);
         for (size_t i = 0; i < n; ++i) {
-            if (!prepared[i].valid) continue;
-            tile.castTriangle(prepared[i], &lightVolumes[i * lights]);
-            reached[t][i] = tile.reachedRoot;
+            if (!prepared_[i].valid) continue;
+            tile.castTriangle(prepared_[i], &lightVolumes_[i * lights], &lightActive_[i * lights]);
+            reached[i] = tile.reachedRoot;
         }
     });
     for (size_t i = 0; i < n; ++i) {
         bool any = false;
-        for (const auto& r : reached) any = any || r[i];
+        for (const auto& r : reached_) any = any || r[i];
         stats_.trianglesCulledAtRoot += !any;
     }
     stats_.trianglesProcessed += n;

@@ -2,7 +2,9 @@
 /// @file PenumbraCaster.h
 /// @brief Hierarchical penumbra casting (Laine & Aila 2005, Figure 3) over tiles of receivers.
 
+#include "bake/BlockingRule.h"
 #include "bake/CastOptions.h"
+#include "bake/PenumbraVolume.h"
 #include "bake/Light.h"
 #include "receivers/ReceiverSet.h"
 #include "stream/Triangle.h"
@@ -44,6 +46,15 @@ private:
     CastOptions options_;
     std::vector<std::unique_ptr<Tile>> tiles_;
     CastStats stats_;
+    /// Per light: the box around the light's bound and every receiver. A blocker can only block a
+    /// segment from a receiver to a sample if it meets their convex hull, so a blocker whose box
+    /// misses this box is culled before its penumbra volume is built.
+    std::vector<Box> reach_;
+    // Per-chunk buffers, kept to avoid reallocating them for every chunk.
+    std::vector<BlockerTriangle> prepared_;
+    std::vector<PenumbraVolume> lightVolumes_;
+    std::vector<uint8_t> lightActive_;
+    std::vector<std::vector<uint8_t>> reached_;
 };
 
 /// @brief Splits receivers into @p count spatially compact parts of near-equal size by recursive

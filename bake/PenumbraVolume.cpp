@@ -23,22 +23,19 @@ struct Builder {
         double len = glm::length(normal);
         if (!(len > 0.0) || !std::isfinite(len)) return;
         Plane p = Plane::through(normal / len, through);
-        double tol = kAccept * scale;
-        double lightLo = INFINITY, lightHi = -INFINITY, triLo = INFINITY, triHi = -INFINITY;
-        for (const glm::dvec3& v : bound.vertices) {
-            double e = p.eval(v);
-            lightLo = std::min(lightLo, e), lightHi = std::max(lightHi, e);
-        }
+        const double tol = kAccept * scale;
+        // Orientation from the triangle vertex farthest from the plane; then every vertex must
+        // agree. Most candidates fail on an early vertex, so bail out as soon as one does.
+        double far = 0.0;
         for (const glm::dvec3& v : t.v) {
             double e = p.eval(v);
-            triLo = std::min(triLo, e), triHi = std::max(triHi, e);
+            if (std::abs(e) > std::abs(far)) far = e;
         }
-        if (lightHi <= tol && triLo >= -tol) {
-        } else if (lightLo >= -tol && triHi <= tol) {
-            p = p.flipped();
-        } else {
-            return;
-        }
+        if (far < 0.0) p = p.flipped();  // triangle on the positive side
+        for (const glm::dvec3& v : t.v)
+            if (p.eval(v) < -tol) return;
+        for (const glm::dvec3& v : bound.vertices)
+            if (p.eval(v) > tol) return;
         add(p);
     }
 

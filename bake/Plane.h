@@ -9,8 +9,10 @@ namespace penumbra {
 
 /// @brief The plane dot(n, p) + d = 0; the positive side is "inside" every volume built from planes.
 struct Plane {
-    glm::dvec3 n{0.0};
-    double d = 0.0;
+    // Left uninitialised on purpose: volumes hold arrays of planes that are filled as built, and
+    // zeroing 32 planes per volume per triangle showed up in profiles.
+    glm::dvec3 n;
+    double d;
 
     double eval(const glm::dvec3& p) const { return glm::dot(n, p) + d; }
     static Plane through(const glm::dvec3& normal, const glm::dvec3& point) {

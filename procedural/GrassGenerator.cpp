@@ -38,7 +38,7 @@ struct Strata {
 
     /// A uniform point of blade @p blade's tile (two draws).
     void point(uint64_t blade, Rng& rng, double& x, double& z) const {
-        const uint64_t tile = uint64_t((unsigned __int128)blade * tiles / count);
+        const uint64_t tile = count ? uint64_t((unsigned __int128)blade * tiles / count) : 0;
         x = area.x0 + tileX * (double(tile % columns) + rng.uniform());
         z = area.z0 + tileZ * (double(tile / columns) + rng.uniform());
     }

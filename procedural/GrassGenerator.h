@@ -1,9 +1,10 @@
 #pragma once
 /// @file GrassGenerator.h
 /// @brief "grass": blades as tapered, bent triangle strips, scattered over a rectangle or a
-/// terrain. Blade b is a pure function of (parameters, seed, b) and every blade has the same
-/// number of triangles, so triangle i belongs to blade i / segments and nothing is stored: a
-/// billion blades cost no memory.
+/// terrain (stratified: consecutive blades share one of about count / 64 equal tiles, so coverage
+/// is even and the stream spatially coherent). Blade b is a pure function of (parameters, seed,
+/// b) and every blade has the same number of triangles, so triangle i belongs to blade
+/// i / segments and nothing is stored: a billion blades cost no memory.
 
 #include "procedural/Noise.h"
 #include "procedural/Placement.h"
@@ -16,8 +17,9 @@ namespace penumbra {
 /// @brief The optional clump mask: an fBm field that thins blades out into clumps and bare
 /// patches while keeping the blade count exact.
 ///
-/// Each blade draws up to `tries` candidate positions and takes the first one where the mask is
-/// at least `threshold`; if none qualifies it takes the candidate with the highest mask value.
+/// Each blade draws up to `tries` candidate positions (the first in its own placement tile, the
+/// others anywhere in the area) and takes the first one where the mask is at least `threshold`;
+/// if none qualifies it takes the candidate with the highest mask value.
 /// So the count stays exactly what was asked for, bare patches keep only a rare straggler
 /// (about bareFraction^tries of the blades), and blades near a clump's edge (mask within `edge`
 /// above the threshold) are shortened, down to 40% of their height, so clumps look rounded.

@@ -5,7 +5,6 @@
 
 #include "procedural/Generators.h"
 #include "stream/Error.h"
-#include "stream/PtriFormat.h"
 #include "stream/SourceRegistry.h"
 #include "stream/TriangleSource.h"
 
@@ -35,12 +34,12 @@ inline TriangleSourcePtr openEntry(const nlohmann::json& entry, const std::strin
 inline uint64_t streamHash(TriangleSource& source, size_t chunk = kTriangleChunk) {
     source.rewind();
     std::vector<Triangle> buffer(chunk);
-    uint32_t lo = kFnv1aBasis, hi = kFnv1aBasis ^ 0x5bd1e995u;
+    uint64_t hash = 14695981039346656037ull;  // 64-bit FNV-1a
     while (size_t n = source.read(buffer)) {
-        lo = fnv1a32(buffer.data(), n * sizeof(Triangle), lo);
-        hi = fnv1a32(buffer.data(), n * sizeof(Triangle), hi ^ uint32_t(n));
+        const auto* bytes = reinterpret_cast<const unsigned char*>(buffer.data());
+        for (size_t i = 0; i < n * sizeof(Triangle); ++i) hash = (hash ^ bytes[i]) * 1099511628211ull;
     }
-    return (uint64_t(hi) << 32) | lo;
+    return hash;
 }
 
 /// Hash of a freshly opened source with TBB limited to @p threads.
