@@ -16,7 +16,7 @@ std::string previewPath(const std::string& output) {
 }
 
 void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, const LightSamples& samples,
-                        const ReceiverResults& results) {
+                        const ReceiverResults& results, const std::string& output) {
     const int W = receivers.width, H = receivers.height;
     const size_t pixels = size_t(W) * H;
     std::vector<float> V(pixels, 0.f), A(pixels, 0.f), Z(pixels, 0.f), ER(pixels, 0.f), EG(pixels, 0.f), EB(pixels, 0.f);
@@ -37,8 +37,8 @@ void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, co
         {"penumbra:sampleSets", std::to_string(samples.sets)},
         {"penumbra:seed", std::to_string(scene.seed)},
     };
-    ensureParentDirectory(scene.output);
-    writeExr(scene.output, W, H, channels, attributes);
+    ensureParentDirectory(output);
+    writeExr(output, W, H, channels, attributes);
 
     // Preview: white Lambert under the lights plus a little ambient, exposed so that the brighter
     // lit surfaces sit near white (99th percentile of luminance).
@@ -60,7 +60,7 @@ void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, co
         glm::vec3 c = glm::vec3(ambient) + exposure * e[i];
         rgb[3 * px] = encodeSrgb(c.x), rgb[3 * px + 1] = encodeSrgb(c.y), rgb[3 * px + 2] = encodeSrgb(c.z);
     }
-    writePng8(previewPath(scene.output), W, H, 3, rgb);
+    writePng8(previewPath(output), W, H, 3, rgb);
 }
 
 }  // namespace penumbra

@@ -14,9 +14,10 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget) {
     // 32 bytes), its sample set (4) and its results (visibility 4, irradiance 12).
     const uint64_t residentPerReceiver = 32 + 4 + 16 + (d.dumpMasks ? 8ull * d.groups : 0);
     plan.residentBytes = kBaselineBytes + d.bufferBytes + d.sampleBytes + d.receivers * residentPerReceiver;
-    // The camera pass holds a z-buffer (depth + normal: 16 bytes per pixel) while the receiver
-    // set (32 bytes per covered pixel) grows; it is freed before casting starts.
-    const uint64_t passBytes = kBaselineBytes + d.bufferBytes + d.pixels * (16 + 32);
+    // The scan pass holds what the receiver kind needs (a camera's z-buffer: 16 bytes per pixel)
+    // while the receiver set (32 bytes per receiver, at most 2 per scan byte pair) grows; it is
+    // freed before casting starts.
+    const uint64_t passBytes = kBaselineBytes + d.bufferBytes + d.scanBytes * 3;
     // In a tile, per live receiver: double position 24, epsilon 8, id/set/mask slot 12, umbra
     // 1 + 8 * umbraWords, about one node per 4 receivers (32 bytes + bits), and in the worst case a
     // mask of one word per group.

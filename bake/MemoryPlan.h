@@ -12,7 +12,7 @@ namespace penumbra {
 /// @brief What the plan needs to know about a bake.
 struct MemoryDemand {
     uint64_t receivers = 0;      ///< receivers (0 before the camera pass has counted them)
-    uint64_t pixels = 0;         ///< camera image size (z-buffer of the receiver pass), 0 for points
+    uint64_t scanBytes = 0;      ///< held by the receiver kind during the scan pass (a z-buffer)
     int groups = 1;              ///< light-sample groups: mask words per receiver
     int umbraWords = 1;          ///< ceil(groups / 64)
     uint64_t sampleBytes = 0;    ///< light sample positions

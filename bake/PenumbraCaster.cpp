@@ -43,7 +43,7 @@ struct PenumbraCaster::Tile {
     uint32_t currentLight = 0;
     std::vector<PenumbraVolume> groupVolumes;
     std::vector<HardShadowVolume> hardVolumes;  // [set][sample]
-    std::vector<uint8_t> hardReady;             // [set][group]
+    std::vector<uint64_t> hardReady;            // [set][group]: bit j set once sample j's volume is built
     std::vector<uint32_t> hardReadyList;
     std::vector<ActiveGroup> stack;
     bool reachedRoot = false;
@@ -84,15 +84,21 @@ struct PenumbraCaster::Tile {
         groupVolumesBuilt = true;
     }
 
-    const HardShadowVolume* hardShadowVolumes(uint32_t set, uint32_t k) {
-        size_t slot = size_t(set) * groupCount + k;
+    /// The hard-shadow volumes of group @p k in sample set @p set, built for the samples in
+    /// @p needed that are not built yet. Per-sample laziness matters for small blockers, which
+    /// touch a few receivers (so a few sets) and a few samples of each group.
+    const HardShadowVolume* hardShadowVolumes(uint32_t set, uint32_t k, uint64_t needed) {
+        const size_t slot = size_t(set) * groupCount + k;
         const LightSampleGroup& g = samples.groups[k];
         HardShadowVolume* h = &hardVolumes[size_t(set) * samples.sampleCount + g.first];
-        if (!hardReady[slot]) {
-            for (uint32_t j = 0; j < g.count; ++j)
-                h[j] = makeHardShadowVolume(glm::dvec3(samples.position(int(set), int(g.first + j))), *tri);
-            hardReady[slot] = 1;
-            hardReadyList.push_back(uint32_t(slot));
+        uint64_t missing = needed & ~hardReady[slot];
+        if (missing) {
+            if (!hardReady[slot]) hardReadyList.push_back(uint32_t(slot));
+            hardReady[slot] |= missing;
+            for (; missing; missing &= missing - 1) {
+                const int j = __builtin_ctzll(missing);
+                h[j] = makeHardShadowVolume(glm::dvec3(samples.position(int(set), int(g.first) + j)), *tri);
+            }
         }
         return h;
     }
@@ -123,7 +129,7 @@ struct PenumbraCaster::Tile {
             if (!options.lazyVolumes) {  // optimization C off: build everything before traversal
                 buildGroupVolumes();
                 for (uint32_t set = 0; set < uint32_t(samples.sets); ++set)
-                    for (uint32_t k = g0; k < g1; ++k) hardShadowVolumes(set, k);
+                    for (uint32_t k = g0; k < g1; ++k) hardShadowVolumes(set, k, samples.groups[k].fullMask());
             }
             stack.clear();
             for (uint32_t k = g0; k < g1; ++k) stack.push_back({k, kAllPlanes});
@@ -142,6 +148,7 @@ struct PenumbraCaster::Tile {
         if (nodeIndex == 0) reachedRoot = true;
 
         const size_t begin = stack.size();
+        if (stack.capacity() < begin + (groupsEnd - groupsBegin)) stack.reserve(2 * (begin + groupCount));
         const uint64_t* nodeBits = &h.nodeGroupUmbra[size_t(nodeIndex) * umbraWords];
         for (size_t i = groupsBegin; i < groupsEnd; ++i) {  // lines 38-45
             ActiveGroup g = stack[i];
@@ -195,10 +202,11 @@ struct PenumbraCaster::Tile {
             const PenumbraVolume& v = groupVolumes[g.group];
             if (!contains(v, p, g.planes & v.all())) continue;
             const LightSampleGroup& group = samples.groups[g.group];
-            const HardShadowVolume* hard = hardShadowVolumes(set, g.group);
             const uint64_t before = mask ? mask[g.group] : 0;
             uint64_t word = before;
-            for (uint64_t todo = ~word & group.fullMask(); todo; todo &= todo - 1) {
+            const uint64_t open = ~word & group.fullMask();
+            const HardShadowVolume* hard = hardShadowVolumes(set, g.group, open);
+            for (uint64_t todo = open; todo; todo &= todo - 1) {
                 int j = __builtin_ctzll(todo);
                 ++hardTests;
                 if (blocks(hard[j], p, dist, eps)) word |= 1ull << j;

@@ -1,13 +1,12 @@
 #include "bake/Pipeline.h"
 
-#include "bake/CameraOutput.h"
 #include "bake/EmbreeCaster.h"
 #include "bake/MemoryPlan.h"
 #include "bake/PenumbraCaster.h"
+#include "bake/ReceiverKind.h"
 #include "bake/ReceiverShading.h"
 #include "bake/ReferenceCaster.h"
 #include "bucket/BucketPlan.h"
-#include "receivers/PointReceivers.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
 #include "stream/Memory.h"
@@ -54,7 +53,8 @@ private:
 /// histogram is built and every vertex is checked. Pass 2 streams the blockers into area buckets
 /// on disk; casting then replays the buckets, largest first, once per memory tile. So the source
 /// is read at most twice and no pass holds more than a bounded window of triangles.
-Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, double& streamSeconds, BucketStats& buckets) {
+Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverKind& kind, double& streamSeconds,
+                 BucketStats& buckets) {
     Prepared p;
     p.samples = generateLightSamples(scene.lights, scene.options.groupSize, scene.seed);
     TriangleSourcePtr source = openSceneGeometry(scene);
@@ -63,18 +63,15 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, double& s
         ScopedTimer timer(streamSeconds);
         ProgressReporter progress("scan", source->sizeHint().value_or(0), settings.quiet);
         FiniteCheck check(scene);
-        auto scan = [&](std::span<const Triangle> chunk) {
-            check(chunk);
-            histogram.add(chunk);
-            progress.update(chunk.size());
-        };
-        if (scene.receivers.kind == ReceiverKind::Camera) {
-            p.receivers = rasterizeCamera(*source, scene.receivers.camera, scan);
-        } else {
-            p.receivers = loadPointReceivers(scene.receivers.pointsPath);
-            std::vector<Triangle> chunk(kTriangleChunk);
-            while (size_t n = source->read(chunk)) scan(std::span<const Triangle>(chunk.data(), n));
+        std::vector<Triangle> chunk(kTriangleChunk);
+        while (size_t n = source->read(chunk)) {
+            std::span<const Triangle> part(chunk.data(), n);
+            check(part);
+            histogram.add(part);
+            kind.scan(part);
+            progress.update(n);
         }
+        p.receivers = kind.receivers();
         progress.done();
     }
     p.sampleSets.resize(p.receivers.size());
@@ -188,11 +185,11 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(threads));
     const bool dump = !settings.dumpDir.empty();
 
-    // Check before any work that the camera pass fits; the receiver count is known after it, and
+    // Check before any work that the scan pass fits; the receiver count is known after it, and
     // the full plan is checked again then, before casting.
+    std::unique_ptr<ReceiverKind> kind = makeReceiverKind(scene.receivers, scene);
     MemoryDemand demand;
-    if (scene.receivers.kind == ReceiverKind::Camera)
-        demand.pixels = uint64_t(scene.receivers.camera.width) * scene.receivers.camera.height;
+    demand.scanBytes = kind->scanBytes();
     int samplesTotal = 0;
     for (const LightDesc& l : scene.lights) samplesTotal += l.samples;
     demand.groups = (samplesTotal + scene.options.groupSize - 1) / scene.options.groupSize;
@@ -202,7 +199,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
 
     double streamSeconds = 0;
     BucketStats buckets;
-    Prepared p = prepare(scene, settings, streamSeconds, buckets);
+    Prepared p = prepare(scene, settings, *kind, streamSeconds, buckets);
     demand.receivers = p.receivers.size();
     demand.groups = p.samples.groupCount();
     demand.umbraWords = (demand.groups + 63) / 64;
@@ -239,13 +236,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         }
     }
 
-    if (scene.receivers.kind == ReceiverKind::Camera) {
-        writeCameraOutputs(scene, p.receivers, p.samples, results);
-    } else {
-        uint64_t shape[1] = {results.visibility.size()};
-        ensureParentDirectory(scene.output);
-        writeNpy(scene.output, "<f4", shape, results.visibility.data(), results.visibility.size() * sizeof(float));
-    }
+    kind->write(OutputContext{scene, p.receivers, p.samples, results, scene.output});
     if (dump) writeDump(settings.dumpDir, p, masks);
 
     uint64_t blocked = 0;

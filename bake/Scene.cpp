@@ -1,5 +1,6 @@
 #include "bake/Scene.h"
 
+#include "bake/ReceiverKind.h"
 #include "stream/Error.h"
 #include "stream/GeometryFile.h"
 #include "stream/JsonParams.h"
@@ -13,10 +14,7 @@ namespace {
 
 std::string indexed(const std::string& key, size_t i) { return key + "[" + std::to_string(i) + "]"; }
 
-std::string resolve(const std::filesystem::path& base, const std::string& p) {
-    std::filesystem::path path(p);
-    return (path.is_absolute() ? path : base / path).lexically_normal().string();
-}
+std::string resolve(const std::filesystem::path& base, const std::string& p) { return resolveScenePath(base, p); }
 
 Transform parseTransform(const JsonParams& entry) {
     Transform t;
@@ -63,28 +61,6 @@ LightDesc parseLight(const JsonParams& j) {
     j.finish();
     validateLight(l);
     return l;
-}
-
-ReceiverDesc parseReceivers(const JsonParams& j, const std::filesystem::path& base) {
-    ReceiverDesc r;
-    std::string type = j.string("type");
-    if (type == "camera") {
-        r.kind = ReceiverKind::Camera;
-        CameraDesc& c = r.camera;
-        c.where = j.where();
-        c.eye = j.vec3("eye"), c.target = j.vec3("target"), c.up = j.vec3("up", c.up);
-        c.fovDeg = j.number("fov_deg", c.fovDeg);
-        c.width = int(j.integer("width", c.width, 1, 65536));
-        c.height = int(j.integer("height", c.height, 1, 65536));
-        validateCamera(c);
-    } else if (type == "points") {
-        r.kind = ReceiverKind::Points;
-        r.pointsPath = resolve(base, j.string("path"));
-    } else {
-        fail(j.where("type"), "unknown receiver type \"{}\" (known: camera, points)", type);
-    }
-    j.finish();
-    return r;
 }
 
 void parseOptions(const JsonParams& j, SceneDesc& scene) {
@@ -148,11 +124,12 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
 
     const nlohmann::json* receivers = j.raw("receivers");
     if (!receivers) fail(j.where("receivers"), "missing required field");
-    scene.receivers = parseReceivers(JsonParams(*receivers, file, "receivers"), scene.baseDir);
+    scene.receivers = *receivers;
 
     scene.output = resolve(scene.baseDir, j.string("output", scene.output));
     if (const nlohmann::json* bake = j.raw("bake")) parseOptions(JsonParams(*bake, file, "bake"), scene);
     j.finish();
+    makeReceiverKind(scene.receivers, scene);  // validates the receivers now; the bake makes its own
     return scene;
 }
 

@@ -5,7 +5,6 @@
 
 #include "bake/CastOptions.h"
 #include "bake/Light.h"
-#include "receivers/CameraReceivers.h"
 #include "stream/Transform.h"
 #include "stream/TriangleSource.h"
 
@@ -25,21 +24,13 @@ struct GeometryDesc {
     std::string path;       ///< key path for messages, "geometry[1]"
 };
 
-enum class ReceiverKind { Camera, Points };
-
-struct ReceiverDesc {
-    ReceiverKind kind = ReceiverKind::Camera;
-    CameraDesc camera;
-    std::string pointsPath;  ///< points: .npy (float32 N x 6) or .csv, resolved against the scene
-};
-
 /// @brief A parsed scene. Paths are already resolved relative to the scene file.
 struct SceneDesc {
     std::string file;  ///< the scene file, for messages
     std::filesystem::path baseDir;
     std::vector<GeometryDesc> geometry;
     std::vector<LightDesc> lights;
-    ReceiverDesc receivers;
+    nlohmann::json receivers;  ///< the "receivers" object; ReceiverKind.h makes the kind from it
     std::string output = "out/shadows.exr";
     CastOptions options;
     uint64_t seed = 1;

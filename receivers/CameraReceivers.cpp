@@ -46,95 +46,108 @@ void validateCamera(const CameraDesc& c) {
         fail(c.where, "up is parallel to the view direction (or zero)");
 }
 
-ReceiverSet rasterizeCamera(TriangleSource& source, const CameraDesc& camera,
-                            const std::function<void(std::span<const Triangle>)>& onChunk) {
+CameraRasterizer::CameraRasterizer(const CameraDesc& camera) : camera_(camera) {
     validateCamera(camera);
-    const Basis b = basisOf(camera);
-    const int W = camera.width, H = camera.height;
-    const size_t pixels = size_t(W) * H;
-    std::vector<float> depth(pixels, std::numeric_limits<float>::infinity());
-    std::vector<glm::vec3> normal(pixels);
-    // Pixel centre directions are recomputed per covered pixel; caching a row keeps it cheap.
-    auto direction = [&](int x, int y) {
-        double sx = (2.0 * (x + 0.5) / W - 1.0) * b.tanHalf * b.aspect;
-        double sy = (1.0 - 2.0 * (y + 0.5) / H) * b.tanHalf;
-        return glm::normalize(b.forward + sx * b.right + sy * b.up);
-    };
-    const double nearZ = 1e-6;
+    Basis b = basisOf(camera);
+    right_ = b.right, up_ = b.up, forward_ = b.forward, tanHalf_ = b.tanHalf, aspect_ = b.aspect;
+    const size_t pixels = size_t(camera.width) * camera.height;
+    depth_.assign(pixels, std::numeric_limits<float>::infinity());
+    normal_.assign(pixels, glm::vec3(0.0f));
+}
 
-    std::vector<Triangle> chunk(kTriangleChunk);
-    while (size_t count = source.read(chunk)) {
-        for (size_t ti = 0; ti < count; ++ti) {
-            const Triangle& tri = chunk[ti];
-            glm::dvec3 v[3] = {glm::dvec3(tri.v[0]), glm::dvec3(tri.v[1]), glm::dvec3(tri.v[2])};
-            glm::dvec3 n = glm::cross(v[1] - v[0], v[2] - v[0]);
-            if (!(glm::length(n) > 0.0) || !std::isfinite(glm::length(n))) continue;
-            // Camera space, then clip against the near plane (at most 4 vertices remain).
-            glm::dvec3 c[3];
-            for (int i = 0; i < 3; ++i) {
-                glm::dvec3 q = v[i] - camera.eye;
-                c[i] = {glm::dot(q, b.right), glm::dot(q, b.up), glm::dot(q, b.forward)};
-            }
-            glm::dvec3 poly[4];
-            int m = 0;
-            for (int i = 0; i < 3; ++i) {
-                const glm::dvec3 &p = c[i], &q = c[(i + 1) % 3];
-                if (p.z >= nearZ) poly[m++] = p;
-                if ((p.z >= nearZ) != (q.z >= nearZ)) poly[m++] = p + (q - p) * ((nearZ - p.z) / (q.z - p.z));
-            }
-            if (m < 3) continue;
-            double sx[4], sy[4];
-            double xLo = INFINITY, xHi = -INFINITY, yLo = INFINITY, yHi = -INFINITY;
-            for (int i = 0; i < m; ++i) {
-                sx[i] = (poly[i].x / poly[i].z / (b.tanHalf * b.aspect) + 1.0) * 0.5 * W;
-                sy[i] = (1.0 - poly[i].y / poly[i].z / b.tanHalf) * 0.5 * H;
-                xLo = std::min(xLo, sx[i]), xHi = std::max(xHi, sx[i]);
-                yLo = std::min(yLo, sy[i]), yHi = std::max(yHi, sy[i]);
-            }
-            int x0 = std::max(0, int(std::ceil(xLo - 0.5))), x1 = std::min(W - 1, int(std::floor(xHi - 0.5)));
-            int y0 = std::max(0, int(std::ceil(yLo - 0.5))), y1 = std::min(H - 1, int(std::floor(yHi - 0.5)));
-            if (x0 > x1 || y0 > y1) continue;
-            double area = 0;
-            for (int i = 0; i < m; ++i) area += sx[i] * sy[(i + 1) % m] - sx[(i + 1) % m] * sy[i];
-            if (area == 0) continue;
-            double orient = area > 0 ? 1.0 : -1.0;
-            double planeD = glm::dot(n, v[0] - camera.eye);
-            for (int y = y0; y <= y1; ++y) {
-                double py = y + 0.5;
-                for (int x = x0; x <= x1; ++x) {
-                    double px = x + 0.5;
-                    bool inside = true;
-                    for (int i = 0; i < m && inside; ++i) {
-                        int j = (i + 1) % m;
-                        inside = orient * ((sx[j] - sx[i]) * (py - sy[i]) - (sy[j] - sy[i]) * (px - sx[i])) >= 0;
-                    }
-                    if (!inside) continue;
-                    glm::dvec3 d = direction(x, y);
-                    double denom = glm::dot(n, d);
-                    if (denom == 0.0) continue;
-                    double t = planeD / denom;
-                    size_t p = size_t(y) * W + x;
-                    if (!(t > 0.0) || !(float(t) < depth[p])) continue;
-                    depth[p] = float(t);
-                    normal[p] = glm::vec3(glm::normalize(denom > 0 ? -n : n));
+glm::dvec3 CameraRasterizer::direction(int x, int y) const {
+    double sx = (2.0 * (x + 0.5) / camera_.width - 1.0) * tanHalf_ * aspect_;
+    double sy = (1.0 - 2.0 * (y + 0.5) / camera_.height) * tanHalf_;
+    return glm::normalize(forward_ + sx * right_ + sy * up_);
+}
+
+void CameraRasterizer::add(std::span<const Triangle> chunk) {
+    const int W = camera_.width, H = camera_.height;
+    const double nearZ = 1e-6;
+    for (const Triangle& tri : chunk) {
+        glm::dvec3 v[3] = {glm::dvec3(tri.v[0]), glm::dvec3(tri.v[1]), glm::dvec3(tri.v[2])};
+        glm::dvec3 n = glm::cross(v[1] - v[0], v[2] - v[0]);
+        if (!(glm::length(n) > 0.0) || !std::isfinite(glm::length(n))) continue;
+        // Camera space, then clip against the near plane (at most 4 vertices remain).
+        glm::dvec3 c[3];
+        for (int i = 0; i < 3; ++i) {
+            glm::dvec3 q = v[i] - camera_.eye;
+            c[i] = {glm::dot(q, right_), glm::dot(q, up_), glm::dot(q, forward_)};
+        }
+        glm::dvec3 poly[4];
+        int m = 0;
+        for (int i = 0; i < 3; ++i) {
+            const glm::dvec3 &p = c[i], &q = c[(i + 1) % 3];
+            if (p.z >= nearZ) poly[m++] = p;
+            if ((p.z >= nearZ) != (q.z >= nearZ)) poly[m++] = p + (q - p) * ((nearZ - p.z) / (q.z - p.z));
+        }
+        if (m < 3) continue;
+        double sx[4], sy[4];
+        double xLo = INFINITY, xHi = -INFINITY, yLo = INFINITY, yHi = -INFINITY;
+        for (int i = 0; i < m; ++i) {
+            sx[i] = (poly[i].x / poly[i].z / (tanHalf_ * aspect_) + 1.0) * 0.5 * W;
+            sy[i] = (1.0 - poly[i].y / poly[i].z / tanHalf_) * 0.5 * H;
+            xLo = std::min(xLo, sx[i]), xHi = std::max(xHi, sx[i]);
+            yLo = std::min(yLo, sy[i]), yHi = std::max(yHi, sy[i]);
+        }
+        int x0 = std::max(0, int(std::ceil(xLo - 0.5))), x1 = std::min(W - 1, int(std::floor(xHi - 0.5)));
+        int y0 = std::max(0, int(std::ceil(yLo - 0.5))), y1 = std::min(H - 1, int(std::floor(yHi - 0.5)));
+        if (x0 > x1 || y0 > y1) continue;
+        double area = 0;
+        for (int i = 0; i < m; ++i) area += sx[i] * sy[(i + 1) % m] - sx[(i + 1) % m] * sy[i];
+        if (area == 0) continue;
+        double orient = area > 0 ? 1.0 : -1.0;
+        double planeD = glm::dot(n, v[0] - camera_.eye);
+        for (int y = y0; y <= y1; ++y) {
+            double py = y + 0.5;
+            for (int x = x0; x <= x1; ++x) {
+                double px = x + 0.5;
+                bool inside = true;
+                for (int i = 0; i < m && inside; ++i) {
+                    int j = (i + 1) % m;
+                    inside = orient * ((sx[j] - sx[i]) * (py - sy[i]) - (sy[j] - sy[i]) * (px - sx[i])) >= 0;
                 }
+                if (!inside) continue;
+                glm::dvec3 d = direction(x, y);
+                double denom = glm::dot(n, d);
+                if (denom == 0.0) continue;
+                double t = planeD / denom;
+                size_t p = size_t(y) * W + x;
+                if (!(t > 0.0) || !(float(t) < depth_[p])) continue;
+                depth_[p] = float(t);
+                normal_[p] = glm::vec3(glm::normalize(denom > 0 ? -n : n));
             }
         }
-        if (onChunk) onChunk(std::span<const Triangle>(chunk.data(), count));
     }
+}
 
+ReceiverSet CameraRasterizer::finish() {
+    const int W = camera_.width, H = camera_.height;
     ReceiverSet set;
     set.width = W, set.height = H;
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
             size_t p = size_t(y) * W + x;
-            if (!std::isfinite(depth[p])) continue;
-            set.position.push_back(glm::vec3(camera.eye + double(depth[p]) * direction(x, y)));
-            set.normal.push_back(normal[p]);
+            if (!std::isfinite(depth_[p])) continue;
+            set.position.push_back(glm::vec3(camera_.eye + double(depth_[p]) * direction(x, y)));
+            set.normal.push_back(normal_[p]);
             set.pixel.push_back(uint32_t(p));
-            set.depth.push_back(depth[p]);
+            set.depth.push_back(depth_[p]);
         }
+    depth_ = {}, normal_ = {};
     return set;
+}
+
+ReceiverSet rasterizeCamera(TriangleSource& source, const CameraDesc& camera,
+                            const std::function<void(std::span<const Triangle>)>& onChunk) {
+    CameraRasterizer raster(camera);
+    std::vector<Triangle> chunk(kTriangleChunk);
+    while (size_t count = source.read(chunk)) {
+        std::span<const Triangle> part(chunk.data(), count);
+        raster.add(part);
+        if (onChunk) onChunk(part);
+    }
+    return raster.finish();
 }
 
 }  // namespace penumbra

@@ -27,6 +27,28 @@ struct CameraDesc {
 /// @brief Checks the camera; throws InputError naming `where` and the bad value.
 void validateCamera(const CameraDesc& camera);
 
+/// @brief The z-buffer pass as an object that is fed chunks, so that it can share a pass over the
+/// stream with other work (the area histogram). Holds 16 bytes per pixel until finish().
+class CameraRasterizer {
+public:
+    /// @throw InputError when the camera is invalid (validateCamera()).
+    explicit CameraRasterizer(const CameraDesc& camera);
+    /// Rasterizes the chunk; triangles are depth-tested in the order given.
+    void add(std::span<const Triangle> chunk);
+    /// One receiver per covered pixel, in scanline order. Call once.
+    ReceiverSet finish();
+    /// Bytes per pixel held while rasterizing.
+    static constexpr uint64_t kBytesPerPixel = 16;
+
+private:
+    glm::dvec3 direction(int x, int y) const;
+    CameraDesc camera_;
+    glm::dvec3 right_, up_, forward_;
+    double tanHalf_, aspect_;
+    std::vector<float> depth_;
+    std::vector<glm::vec3> normal_;
+};
+
 /// @brief Rasterizes every triangle of @p source (one pass, streamed) and returns one receiver per
 /// covered pixel, in scanline order, at the nearest surface along the pixel's centre ray. The
 /// normal is the geometric normal of the visible triangle, turned to face the camera.

@@ -16,7 +16,7 @@ using namespace penumbra::test;
 
 TEST_CASE("no budget means one tile; a tight budget means more tiles", "[memory]") {
     MemoryDemand d;
-    d.receivers = 1'000'000, d.pixels = 1'000'000, d.groups = 4, d.umbraWords = 1;
+    d.receivers = 1'000'000, d.scanBytes = 16'000'000, d.groups = 4, d.umbraWords = 1;
     MemoryPlan unlimited = planMemory(d, 0);
     CHECK(unlimited.tiles == 1);
     const uint64_t oneTileBudget = unlimited.residentBytes + d.receivers * unlimited.perReceiverBytes;
@@ -30,7 +30,7 @@ TEST_CASE("no budget means one tile; a tight budget means more tiles", "[memory]
 
 TEST_CASE("a budget below one smallest tile names the smallest budget that works", "[memory]") {
     MemoryDemand d;
-    d.receivers = 2'000'000, d.pixels = 2'000'000, d.groups = 16, d.umbraWords = 1;
+    d.receivers = 2'000'000, d.scanBytes = 32'000'000, d.groups = 16, d.umbraWords = 1;
     MemoryPlan p = planMemory(d, 0);
     std::string message;
     try {

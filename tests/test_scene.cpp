@@ -39,7 +39,7 @@ TEST_CASE("a minimal scene parses with defaults and relative paths", "[scene]") 
     REQUIRE(s.lights.size() == 1);
     CHECK(s.lights[0].samples == 256);
     CHECK(s.lights[0].sampleSets == 8);
-    CHECK(s.receivers.camera.width == 640);
+    CHECK(s.receivers.at("type") == "camera");
     CHECK(s.options.umbraBits);
     CHECK(s.geometry[0].type == "grid");
     CHECK_FALSE(s.geometry[0].params.contains("type"));

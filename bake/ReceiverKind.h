@@ -1,0 +1,70 @@
+#pragma once
+/// @file ReceiverKind.h
+/// @brief The extension point for receiver types (camera, points, lightmap, vertices, volume):
+/// where a bake's receivers come from and what it writes for them.
+///
+/// A kind is made from the scene's "receivers" object by a registered factory. The pipeline then
+/// (1) feeds it every chunk of the scene stream during the scan pass (camera receivers rasterize
+/// there; kinds that do not need the stream ignore it), (2) asks it for the receivers, and after
+/// casting (3) hands it the per-receiver results to write.
+
+#include "bake/Light.h"
+#include "bake/ReceiverShading.h"
+#include "receivers/ReceiverSet.h"
+#include "stream/JsonParams.h"
+#include "stream/Triangle.h"
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace penumbra {
+
+struct SceneDesc;
+
+/// @brief What a kind's writer gets.
+struct OutputContext {
+    const SceneDesc& scene;
+    const ReceiverSet& receivers;
+    const LightSamples& samples;
+    const ReceiverResults& results;
+    std::string output;  ///< the output path (scene "output" or -o)
+};
+
+class ReceiverKind {
+public:
+    virtual ~ReceiverKind() = default;
+    /// Bytes held during the scan pass (a z-buffer, say), for the memory plan.
+    virtual uint64_t scanBytes() const { return 0; }
+    /// Every chunk of the scene stream, in stream order, during the scan pass.
+    virtual void scan(std::span<const Triangle> chunk) {}
+    /// The receivers, after the scan pass. Called once.
+    virtual ReceiverSet receivers() = 0;
+    /// Writes the outputs. Every file goes through AtomicFile (no partial outputs).
+    virtual void write(const OutputContext& context) = 0;
+};
+
+/// @brief Everything a factory gets: the "receivers" object (strict: finish() is called by the
+/// registry after the factory returns) and the scene (its folder, geometry list, lights).
+using ReceiverKindFactory = std::function<std::unique_ptr<ReceiverKind>(const JsonParams& params, const SceneDesc& scene)>;
+
+/// @brief Registers (or replaces) receiver type @p type.
+void registerReceiverKind(const std::string& type, ReceiverKindFactory factory);
+
+/// @brief Makes the kind named by the object's "type" key.
+/// @throw InputError naming the key for an unknown type or bad parameters.
+std::unique_ptr<ReceiverKind> makeReceiverKind(const nlohmann::json& receivers, const SceneDesc& scene);
+
+/// @brief Registers the kinds built into bake/ ("camera", "points"). Idempotent; called by
+/// makeReceiverKind itself, so only other stages' kinds need registering explicitly.
+void registerBuiltinReceiverKinds();
+
+/// A path from a scene file resolved against the scene's folder.
+std::string resolveScenePath(const std::filesystem::path& baseDir, const std::string& path);
+
+}  // namespace penumbra
