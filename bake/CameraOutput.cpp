@@ -15,8 +15,42 @@ std::string previewPath(const std::string& output) {
     return std::filesystem::path(output).replace_extension(".png").string();
 }
 
+std::vector<ExrAttribute> cameraAttributes(const SceneDesc& scene, const LightSamples& samples) {
+    std::vector<ExrAttribute> a = {
+        {"penumbra:lights", std::to_string(scene.lights.size())},
+        {"penumbra:samples", std::to_string(samples.sampleCount)},
+        {"penumbra:sampleSets", std::to_string(samples.sets)},
+        {"penumbra:seed", std::to_string(scene.seed)},
+        {"penumbra:groupSize", std::to_string(scene.options.groupSize)},
+    };
+    static const char* typeNames[] = {"rect", "disk", "sphere", "polygon", "sun"};
+    for (size_t i = 0; i < scene.lights.size(); ++i) {
+        const LightDesc& l = scene.lights[i];
+        std::string text = fmt::format("type={} samples={} sample_sets={}", typeNames[int(l.type)], l.samples, l.sampleSets);
+        if (l.type == LightType::Sun)
+            text += fmt::format(" direction=[{},{},{}] angular_diameter_deg={} irradiance=[{},{},{}]", l.direction.x,
+                                l.direction.y, l.direction.z, l.angularDiameterDeg, l.irradiance.x, l.irradiance.y,
+                                l.irradiance.z);
+        else
+            text += fmt::format(" center=[{},{},{}] area={} radiance=[{},{},{}]", l.center.x, l.center.y, l.center.z,
+                                l.area(), l.radiance.x, l.radiance.y, l.radiance.z);
+        a.push_back({fmt::format("penumbra:light{}", i), text});
+    }
+    return a;
+}
+
+glm::vec3 shadedIrradiance(const ReceiverSet& receivers, const ReceiverResults& results, size_t r,
+                           const VertexBend* smooth) {
+    if (!smooth) return results.irradiance[r];
+    glm::dvec3 sum(0.0);
+    for (int l = 0; l < results.lights; ++l)
+        sum += glm::dvec3(results.irradianceOf(r, l)) *
+               smooth->factor(r, glm::dvec3(receivers.position[r]), glm::dvec3(receivers.normal[r]), l);
+    return glm::vec3(sum);
+}
+
 void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, const LightSamples& samples,
-                        const ReceiverResults& results, const std::string& output) {
+                        const ReceiverResults& results, const std::string& output, const VertexBend* smooth) {
     const int W = receivers.width, H = receivers.height;
     const size_t pixels = size_t(W) * H;
     std::vector<float> V(pixels, 0.f), A(pixels, 0.f), Z(pixels, 0.f), ER(pixels, 0.f), EG(pixels, 0.f), EB(pixels, 0.f);
@@ -28,22 +62,32 @@ void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, co
         ER[px] = e[i].x, EG[px] = e[i].y, EB[px] = e[i].z;
         NX[px] = receivers.normal[i].x, NY[px] = receivers.normal[i].y, NZ[px] = receivers.normal[i].z;
     }
-    ExrChannel channels[] = {{"V", V.data()},   {"A", A.data()},    {"Z", Z.data()},    {"E.R", ER.data()}, {"E.G", EG.data()},
-                             {"E.B", EB.data()}, {"N.X", NX.data()}, {"N.Y", NY.data()}, {"N.Z", NZ.data()}};
-    int sampleCount = samples.sampleCount;
-    ExrAttribute attributes[] = {
-        {"penumbra:lights", std::to_string(scene.lights.size())},
-        {"penumbra:samples", std::to_string(sampleCount)},
-        {"penumbra:sampleSets", std::to_string(samples.sets)},
-        {"penumbra:seed", std::to_string(scene.seed)},
-    };
+    std::vector<ExrChannel> channels = {{"V", V.data()},   {"A", A.data()},    {"Z", Z.data()},
+                                        {"E.R", ER.data()}, {"E.G", EG.data()}, {"E.B", EB.data()},
+                                        {"N.X", NX.data()}, {"N.Y", NY.data()}, {"N.Z", NZ.data()}};
+    // Several lights: each gets its own layer, "light<i>.V" and "light<i>.E.R/G/B".
+    const int lightCount = results.lights;
+    std::vector<std::vector<float>> perLight(lightCount > 1 ? size_t(lightCount) * 4 : 0, std::vector<float>(pixels, 0.f));
+    std::vector<std::string> names;
+    for (int l = 0; l < lightCount && lightCount > 1; ++l) {
+        for (size_t i = 0; i < receivers.size(); ++i) {
+            uint32_t px = receivers.pixel[i];
+            glm::vec3 el = results.irradianceOf(i, l);
+            perLight[4 * l][px] = results.visibilityOf(i, l);
+            perLight[4 * l + 1][px] = el.x, perLight[4 * l + 2][px] = el.y, perLight[4 * l + 3][px] = el.z;
+        }
+        for (const char* c : {"V", "E.R", "E.G", "E.B"}) names.push_back(fmt::format("light{}.{}", l, c));
+    }
+    for (size_t c = 0; c < perLight.size(); ++c) channels.push_back({names[c], perLight[c].data()});
     ensureParentDirectory(output);
-    writeExr(output, W, H, channels, attributes);
+    writeExr(output, W, H, channels, cameraAttributes(scene, samples));
 
     // Preview: white Lambert under the lights plus a little ambient, exposed so that the brighter
     // lit surfaces sit near white (99th percentile of luminance).
+    std::vector<glm::vec3> shaded(receivers.size());
+    for (size_t i = 0; i < receivers.size(); ++i) shaded[i] = shadedIrradiance(receivers, results, i, smooth);
     std::vector<float> sorted;
-    for (const glm::vec3& x : e) sorted.push_back(0.2126f * x.x + 0.7152f * x.y + 0.0722f * x.z);
+    for (const glm::vec3& x : shaded) sorted.push_back(0.2126f * x.x + 0.7152f * x.y + 0.0722f * x.z);
     float white = 1.f;
     if (!sorted.empty()) {
         size_t q = std::min(sorted.size() - 1, size_t(0.99 * double(sorted.size())));
@@ -57,7 +101,7 @@ void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, co
     }
     for (size_t i = 0; i < receivers.size(); ++i) {
         uint32_t px = receivers.pixel[i];
-        glm::vec3 c = glm::vec3(ambient) + exposure * e[i];
+        glm::vec3 c = glm::vec3(ambient) + exposure * shaded[i];
         rgb[3 * px] = encodeSrgb(c.x), rgb[3 * px + 1] = encodeSrgb(c.y), rgb[3 * px + 2] = encodeSrgb(c.z);
     }
     writePng8(previewPath(output), W, H, 3, rgb);

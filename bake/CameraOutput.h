@@ -2,9 +2,11 @@
 /// @file CameraOutput.h
 /// @brief What a camera bake writes: a multi-channel OpenEXR and a shaded PNG preview.
 
+#include "bake/ImageWriters.h"
 #include "bake/Light.h"
 #include "bake/Scene.h"
 #include "bake/ReceiverShading.h"
+#include "bake/SmoothShading.h"
 #include "receivers/ReceiverSet.h"
 
 #include <span>
@@ -15,9 +17,20 @@ namespace penumbra {
 /// @brief The PNG preview path that goes with an output path: "out/a.exr" -> "out/a.png".
 std::string previewPath(const std::string& output);
 
+/// @brief The EXR header attributes describing the lights and sample settings
+/// ("penumbra:light0" = "type=rect samples=256 ...", "penumbra:samples", ...).
+std::vector<ExrAttribute> cameraAttributes(const SceneDesc& scene, const LightSamples& samples);
+
 /// @brief Writes @p output (EXR: V, E.R/E.G/E.B, Z, N.X/N.Y/N.Z, A) and its PNG preview.
 /// Pixels without a receiver have A = 0 and V = 0.
+/// @param smooth when given, the preview's irradiance uses smooth coherent shading (SmoothShading.h);
+/// the EXR's E channels always hold the plain Heckbert-Herf irradiance.
 void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, const LightSamples& samples,
-                        const ReceiverResults& results, const std::string& output);
+                        const ReceiverResults& results, const std::string& output, const VertexBend* smooth = nullptr);
+
+/// @brief The irradiance a shaded preview shows for receiver @p r: the baked irradiance, or with
+/// @p smooth each light's irradiance scaled by its smooth-shading factor.
+glm::vec3 shadedIrradiance(const ReceiverSet& receivers, const ReceiverResults& results, size_t r,
+                           const VertexBend* smooth);
 
 }  // namespace penumbra

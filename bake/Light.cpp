@@ -40,6 +40,7 @@ Frame planarFrame(const LightDesc& l) {
             f.u = glm::normalize(l.u);
             break;
         case LightType::Disk:
+        case LightType::Sun:
             f.origin = l.center;
             f.n = glm::normalize(l.normal);
             f.u = anyPerpendicular(f.n);
@@ -80,7 +81,8 @@ std::vector<int> gridDims(int n, int dims) {
 glm::dvec3 mapCanonical(const LightDesc& l, const Frame& f, const glm::dvec3& c) {
     switch (l.type) {
         case LightType::Rect: return l.center + (c.x - 0.5) * l.u + (c.y - 0.5) * l.v;
-        case LightType::Disk: {  // Shirley-Chiu concentric map keeps strata compact
+        case LightType::Disk:
+        case LightType::Sun: {  // Shirley-Chiu concentric map keeps strata compact
             double a = 2 * c.x - 1, b = 2 * c.y - 1, r, phi;
             if (a == 0 && b == 0) return l.center;
             if (std::abs(a) > std::abs(b)) r = a, phi = glm::quarter_pi<double>() * (b / a);
@@ -136,7 +138,8 @@ void groupStrata(std::vector<int>& order, const std::vector<glm::dvec3>& centers
 double LightDesc::area() const {
     switch (type) {
         case LightType::Rect: return glm::length(glm::cross(u, v));
-        case LightType::Disk: return glm::pi<double>() * radius * radius;
+        case LightType::Disk:
+        case LightType::Sun: return glm::pi<double>() * radius * radius;
         case LightType::Sphere: return 4.0 * glm::pi<double>() * radius * radius;
         case LightType::Polygon: return 0.5 * glm::length(polygonNormal(polygon));
     }
@@ -155,6 +158,13 @@ void validateLight(const LightDesc& l) {
                 fail(l.where, "zero-area light: u x v is zero (u=[{},{},{}], v=[{},{},{}])", l.u.x, l.u.y, l.u.z,
                      l.v.x, l.v.y, l.v.z);
             break;
+        case LightType::Sun:
+            if (!(glm::length(l.direction) > 0) || !finite(l.direction))
+                fail(l.where, "direction must be a finite non-zero vector");
+            if (!(l.angularDiameterDeg > 0 && l.angularDiameterDeg <= 20))
+                fail(l.where, "angular_diameter_deg must be in (0, 20], got {}", l.angularDiameterDeg);
+            if (!l.placed) break;
+            [[fallthrough]];
         case LightType::Disk:
             if (!(glm::length(l.normal) > 0)) fail(l.where, "normal is the zero vector");
             [[fallthrough]];
@@ -195,6 +205,8 @@ LightSamples generateLightSamples(const std::vector<LightDesc>& lights, int grou
     for (size_t li = 0; li < lights.size(); ++li) {
         const LightDesc& l = lights[li];
         validateLight(l);
+        if (l.type == LightType::Sun && !l.placed)
+            throw InputError(l.where + ": sun light was not placed before sampling (placeSuns)");
         bool volumetric = l.type == LightType::Sphere;
         Frame frame = volumetric ? Frame{} : planarFrame(l);
         std::vector<int> dims = gridDims(l.samples, volumetric ? 3 : 2);

@@ -12,7 +12,8 @@
 
 namespace penumbra {
 
-enum class LightType { Rect, Disk, Sphere, Polygon };
+/// Sun: a directional light, realized as a far disk before sampling (see placeSuns in SunLight.h).
+enum class LightType { Rect, Disk, Sphere, Polygon, Sun };
 
 /// @brief A light as described in the scene file.
 struct LightDesc {
@@ -23,6 +24,10 @@ struct LightDesc {
     double radius = 0.5;                ///< disk and sphere
     std::vector<glm::dvec3> polygon;    ///< polygon: convex, planar, in order
     glm::dvec3 radiance{1.0};           ///< RGB radiance (W / (m^2 sr)), used by shading
+    glm::dvec3 direction{0, -1, 0};     ///< sun: direction the light travels (sun -> scene)
+    double angularDiameterDeg = 0.53;   ///< sun: apparent diameter of its disk
+    glm::dvec3 irradiance{1.0};         ///< sun: RGB irradiance (W/m^2) on a surface facing it
+    bool placed = false;                ///< sun: center/normal/radius set by placeSuns()
     int samples = 256;
     int sampleSets = 8;
     std::string where = "light";  ///< "scene.json: lights[0]", for messages
@@ -64,6 +69,8 @@ void validateLight(const LightDesc& light);
 
 /// @brief Stratified, jittered samples for every light, @p groupSize (<= 64) per group.
 /// Deterministic in @p seed. Sets beyond a light's own sampleSets repeat its sets cyclically.
+/// Sun lights must have been placed (placeSuns()); they are sampled as the disk they became.
+/// @throw InputError for an invalid light or an unplaced sun.
 LightSamples generateLightSamples(const std::vector<LightDesc>& lights, int groupSize, uint64_t seed);
 
 /// @brief The sample set a receiver uses: a hash of its index, so it is independent of tiling.

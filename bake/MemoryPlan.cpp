@@ -14,16 +14,18 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget) {
     // 32 bytes), its sample set (4) and its results (visibility 4, irradiance 12).
     const uint64_t residentPerReceiver = 32 + 4 + 16 + (d.dumpMasks ? 8ull * d.groups : 0);
     plan.residentBytes = kBaselineBytes + d.bufferBytes + d.sampleBytes + d.receivers * residentPerReceiver;
-    // The scan pass holds what the receiver kind needs (a camera's z-buffer: 16 bytes per pixel)
-    // while the receiver set (32 bytes per receiver, at most 2 per scan byte pair) grows; it is
-    // freed before casting starts.
-    const uint64_t passBytes = kBaselineBytes + d.bufferBytes + d.scanBytes * 3;
+    // The scan pass holds what the receiver kind needs (a camera's z-buffer and the receiver set
+    // it makes, as the kind reports); that is freed before casting starts.
+    const uint64_t passBytes = kBaselineBytes + d.bufferBytes + d.scanBytes;
     // In a tile, per live receiver: double position 24, epsilon 8, id/set/mask slot 12, umbra
     // 1 + 8 * umbraWords, about one node per 4 receivers (32 bytes + bits), and in the worst case a
-    // mask of one word per group.
-    plan.perReceiverBytes = 24 + 8 + 12 + 1 + 8ull * d.umbraWords + (32 + 1 + 8ull * d.umbraWords) / 4 + 8ull * d.groups;
+    // mask of one word per group. While a tile's hierarchy is built, its inputs (40 bytes), the
+    // build order (4) and one permuted array copy (24) exist on top.
+    plan.perReceiverBytes = 24 + 8 + 12 + 1 + 8ull * d.umbraWords + (32 + 1 + 8ull * d.umbraWords) / 4 + 8ull * d.groups +
+                            40 + 4 + 24;
     const uint64_t smallestTile = std::min<uint64_t>(std::max<uint64_t>(d.receivers, 1), kMinimumTileReceivers);
-    plan.minimumBudget = std::max(passBytes, plan.residentBytes + smallestTile * plan.perReceiverBytes);
+    const uint64_t outputPhase = plan.residentBytes + d.outputBytes;
+    plan.minimumBudget = std::max({passBytes, outputPhase, plan.residentBytes + smallestTile * plan.perReceiverBytes});
     if (budget == 0) return plan;
     if (budget < plan.minimumBudget)
         throw InputError(fmt::format("--memory-budget {} is too small for {} receivers with {} mask words each; at least {} is needed",

@@ -12,7 +12,8 @@ namespace penumbra {
 /// @brief What the plan needs to know about a bake.
 struct MemoryDemand {
     uint64_t receivers = 0;      ///< receivers (0 before the camera pass has counted them)
-    uint64_t scanBytes = 0;      ///< held by the receiver kind during the scan pass (a z-buffer)
+    uint64_t scanBytes = 0;      ///< held by the receiver kind during the scan pass (z-buffer + receiver set)
+    uint64_t outputBytes = 0;    ///< held by the receiver kind while writing its outputs
     int groups = 1;              ///< light-sample groups: mask words per receiver
     int umbraWords = 1;          ///< ceil(groups / 64)
     uint64_t sampleBytes = 0;    ///< light sample positions

@@ -6,6 +6,7 @@
 #include "bake/ReceiverKind.h"
 #include "bake/ReceiverShading.h"
 #include "bake/ReferenceCaster.h"
+#include "bake/SunLight.h"
 #include "bucket/BucketPlan.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
@@ -24,6 +25,7 @@ namespace {
 
 /// Everything the casting stage needs, gathered by the streaming pass.
 struct Prepared {
+    std::vector<LightDesc> lights;  ///< the scene's lights with suns placed (as sampled)
     LightSamples samples;
     ReceiverSet receivers;
     std::vector<uint32_t> sampleSets;
@@ -33,20 +35,29 @@ struct Prepared {
     uint64_t bucketBufferBytes = 0;
 };
 
-/// Rejects NaN/inf vertices as they stream by, naming the triangle's position in the stream.
+/// Rejects NaN/inf vertices as they stream by, naming the triangle's position in the stream, and
+/// grows the scene's bounding box (a sun is placed beyond it).
 class FiniteCheck {
 public:
     explicit FiniteCheck(const SceneDesc& scene) : scene_(scene) {}
     void operator()(std::span<const Triangle> chunk) {
-        for (size_t i = 0; i < chunk.size(); ++i)
+        for (size_t i = 0; i < chunk.size(); ++i) {
             if (!isFinite(chunk[i]))
                 fail(scene_.file, "geometry triangle {} has a non-finite (NaN or infinite) vertex", seen_ + i);
+            for (const glm::vec3& v : chunk[i].v) lo_ = glm::min(lo_, v), hi_ = glm::max(hi_, v);
+        }
         seen_ += chunk.size();
+    }
+    SceneBox box() const {
+        SceneBox b;
+        if (seen_) b.add(glm::dvec3(lo_)), b.add(glm::dvec3(hi_));
+        return b;
     }
 
 private:
     const SceneDesc& scene_;
     uint64_t seen_ = 0;
+    glm::vec3 lo_{INFINITY}, hi_{-INFINITY};
 };
 
 /// Pass 1 over the stream: camera receivers are rasterized (or points loaded) while the area
@@ -56,7 +67,6 @@ private:
 Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverKind& kind, double& streamSeconds,
                  BucketStats& buckets) {
     Prepared p;
-    p.samples = generateLightSamples(scene.lights, scene.options.groupSize, scene.seed);
     TriangleSourcePtr source = openSceneGeometry(scene);
     AreaHistogram histogram;
     {
@@ -73,11 +83,21 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
         }
         p.receivers = kind.receivers();
         progress.done();
+        // Samples are made once the scene's extent is known: a sun is placed beyond it.
+        SceneBox box = check.box();
+        for (const glm::vec3& r : p.receivers.position) box.add(glm::dvec3(r));
+        p.lights = placeSuns(scene.lights, box.lo, box.hi);
+        p.samples = generateLightSamples(p.lights, scene.options.groupSize, scene.seed);
     }
     p.sampleSets.resize(p.receivers.size());
     for (size_t i = 0; i < p.receivers.size(); ++i) p.sampleSets[i] = uint32_t(sampleSetOf(i, p.samples.sets, scene.seed));
     p.triangleCount = histogram.count();
 
+    if (kind.wantsRescan()) {  // only when the receivers ask for it: an extra read of the source
+        source->rewind();
+        std::vector<Triangle> chunk(kTriangleChunk);
+        while (size_t n = source->read(chunk)) kind.rescan(std::span<const Triangle>(chunk.data(), n));
+    }
     source->rewind();
     if (!scene.options.sortBlockers) {  // stream order: replay the source itself
         p.blockers = std::make_unique<PrefetchSource>(std::move(source));
@@ -201,6 +221,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     BucketStats buckets;
     Prepared p = prepare(scene, settings, *kind, streamSeconds, buckets);
     demand.receivers = p.receivers.size();
+    demand.outputBytes = kind->outputBytes(p.receivers.size());
     demand.groups = p.samples.groupCount();
     demand.umbraWords = (demand.groups + 63) / 64;
     demand.sampleBytes = p.samples.positions.size() * sizeof(glm::vec3);
@@ -209,9 +230,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     const MemoryPlan plan = planMemory(demand, settings.memoryBudget);
 
     ReceiverResults results;
-    results.visibility.resize(p.receivers.size());
-    results.irradiance.resize(p.receivers.size());
-    ReceiverShader shader(scene.lights, p.samples, p.receivers, p.sampleSets);
+    results.resize(p.receivers.size(), int(p.lights.size()));
+    ReceiverShader shader(p.lights, p.samples, p.receivers, p.sampleSets);
     VisibilityMasks masks;
     if (dump || settings.method != Method::Hpc) masks = VisibilityMasks(p.receivers.size(), p.samples.groupCount());
 

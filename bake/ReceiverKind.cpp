@@ -1,7 +1,10 @@
 #include "bake/ReceiverKind.h"
 
-#include "bake/CameraOutput.h"
+#include "bake/CameraKind.h"
+#include "bake/LightmapKind.h"
 #include "bake/Scene.h"
+#include "bake/VertexColorKind.h"
+#include "bake/VolumeKind.h"
 #include "receivers/CameraReceivers.h"
 #include "receivers/PointReceivers.h"
 #include "stream/AtomicFile.h"
@@ -22,27 +25,6 @@ std::map<std::string, ReceiverKindFactory>& registry() {
     static std::map<std::string, ReceiverKindFactory> kinds;
     return kinds;
 }
-
-/// Camera receivers: a z-buffer pass over the scene stream; EXR + PNG preview.
-class CameraKind final : public ReceiverKind {
-public:
-    explicit CameraKind(const CameraDesc& camera) : camera_(camera) { validateCamera(camera); }
-    uint64_t scanBytes() const override {
-        return uint64_t(camera_.width) * camera_.height * CameraRasterizer::kBytesPerPixel;
-    }
-    void scan(std::span<const Triangle> chunk) override { raster().add(chunk); }
-    ReceiverSet receivers() override { return raster().finish(); }
-    void write(const OutputContext& c) override { writeCameraOutputs(c.scene, c.receivers, c.samples, c.results, c.output); }
-
-private:
-    // The z-buffer is allocated when the scan starts, not when the scene is validated.
-    CameraRasterizer& raster() {
-        if (!raster_) raster_.emplace(camera_);
-        return *raster_;
-    }
-    CameraDesc camera_;
-    std::optional<CameraRasterizer> raster_;
-};
 
 /// Point receivers from a file; a .npy of visible fractions.
 class PointsKind final : public ReceiverKind {
@@ -74,18 +56,13 @@ void registerReceiverKind(const std::string& type, ReceiverKindFactory factory) 
 void registerBuiltinReceiverKinds() {
     static std::once_flag once;
     std::call_once(once, [] {
-        registerReceiverKind("camera", [](const JsonParams& j, const SceneDesc&) {
-            CameraDesc c;
-            c.where = j.where();
-            c.eye = j.vec3("eye"), c.target = j.vec3("target"), c.up = j.vec3("up", c.up);
-            c.fovDeg = j.number("fov_deg", c.fovDeg);
-            c.width = int(j.integer("width", c.width, 1, 65536));
-            c.height = int(j.integer("height", c.height, 1, 65536));
-            return std::make_unique<CameraKind>(c);
-        });
+        registerReceiverKind("camera", makeCameraKind);
         registerReceiverKind("points", [](const JsonParams& j, const SceneDesc& scene) {
             return std::make_unique<PointsKind>(resolveScenePath(scene.baseDir, j.string("path")));
         });
+        registerVertexColorKind();
+        registerVolumeKind();
+        registerLightmapReceiverKind();
     });
 }
 

@@ -39,12 +39,20 @@ struct OutputContext {
 class ReceiverKind {
 public:
     virtual ~ReceiverKind() = default;
-    /// Bytes held during the scan pass (a z-buffer, say), for the memory plan.
+    /// Bytes held during the scan pass (a z-buffer, say, and the receiver set being made), for the
+    /// memory plan.
     virtual uint64_t scanBytes() const { return 0; }
+    /// Bytes held while writing outputs for @p receivers receivers, for the memory plan.
+    virtual uint64_t outputBytes(uint64_t receivers) const { return 0; }
     /// Every chunk of the scene stream, in stream order, during the scan pass.
     virtual void scan(std::span<const Triangle> chunk) {}
     /// The receivers, after the scan pass. Called once.
     virtual ReceiverSet receivers() = 0;
+    /// True when the kind needs one more pass over the scene stream after receivers() (camera
+    /// smooth shading gathers the faces around its visible vertices); the pipeline then calls
+    /// rescan() with every chunk, in stream order, before casting.
+    virtual bool wantsRescan() const { return false; }
+    virtual void rescan(std::span<const Triangle> chunk) {}
     /// Writes the outputs. Every file goes through AtomicFile (no partial outputs).
     virtual void write(const OutputContext& context) = 0;
 };

@@ -17,15 +17,39 @@ namespace penumbra {
 /// @brief Per-receiver results of a bake.
 struct ReceiverResults {
     std::vector<float> visibility;       ///< unblocked samples / K, all lights together
-    std::vector<glm::vec3> irradiance;   ///< RGB, W/m^2 for radiance in W/(m^2 sr)
+    std::vector<glm::vec3> irradiance;   ///< RGB, W/m^2 for radiance in W/(m^2 sr), all lights summed
+    /// With more than one light: each light's own visible fraction and irradiance, receiver-major
+    /// (entry r * lights + l). Empty with a single light, where they equal the totals.
+    int lights = 1;
+    std::vector<float> lightVisibility;
+    std::vector<glm::vec3> lightIrradiance;
+
+    /// @brief Sizes the arrays for @p receivers receivers and @p lightCount lights.
+    void resize(size_t receivers, int lightCount) {
+        lights = lightCount;
+        visibility.assign(receivers, 0.f);
+        irradiance.assign(receivers, glm::vec3(0.f));
+        lightVisibility.assign(lightCount > 1 ? receivers * size_t(lightCount) : 0, 0.f);
+        lightIrradiance.assign(lightCount > 1 ? receivers * size_t(lightCount) : 0, glm::vec3(0.f));
+    }
+    float visibilityOf(size_t r, int light) const { return lights > 1 ? lightVisibility[r * lights + light] : visibility[r]; }
+    glm::vec3 irradianceOf(size_t r, int light) const {
+        return lights > 1 ? lightIrradiance[r * lights + light] : irradiance[r];
+    }
 };
+
+/// @brief Radiance of a light given by its emitted power (W, RGB): P / (pi A) for one-sided
+/// planar emitters (rect, disk, polygon) and P / (4 pi^2 r^2) for a sphere (a Lambertian sphere
+/// surface). Throws InputError for a sun (suns take irradiance or radiance).
+glm::dvec3 radianceFromPower(const LightDesc& light, const glm::dvec3& power);
 
 class ReceiverShader {
 public:
+    /// @param lights the lights as sampled (suns placed); their order is the samples' light order.
     ReceiverShader(const std::vector<LightDesc>& lights, const LightSamples& samples, const ReceiverSet& receivers,
                    std::span<const uint32_t> sampleSets);
 
-    /// @brief Visible fraction and irradiance of receiver @p r.
+    /// @brief Visible fraction and irradiance of receiver @p r, in total and per light.
     /// @param groupWords one word per group (bit set = blocked), or nullptr when nothing is blocked
     /// @param fullUmbra every sample blocked (groupWords is ignored)
     void shade(uint32_t r, const uint64_t* groupWords, bool fullUmbra, ReceiverResults& out) const;
@@ -33,7 +57,9 @@ public:
 private:
     struct PerLight {
         glm::dvec3 normal;  ///< emitting side; zero for volumetric lights (no emitter cosine)
-        glm::dvec3 weight;  ///< radiance x area per sample
+        glm::dvec3 weight;  ///< radiance x area per sample; for a sun, irradiance per sample
+        bool sun = false;   ///< directional: weight x cos(receiver) only, no 1/r^2
+        int samples = 1;
     };
     const LightSamples& samples_;
     const ReceiverSet& receivers_;

@@ -1,11 +1,14 @@
 #include "bake/Scene.h"
 
 #include "bake/ReceiverKind.h"
+#include "bake/ReceiverShading.h"
+#include "bake/SunLight.h"
 #include "stream/Error.h"
 #include "stream/GeometryFile.h"
 #include "stream/JsonParams.h"
 #include "stream/SourceRegistry.h"
 
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -30,6 +33,15 @@ Transform parseTransform(const JsonParams& entry) {
     return t;
 }
 
+/// An RGB value given as [r, g, b] or as one number for grey; must be finite and non-negative.
+glm::dvec3 colour(const JsonParams& j, const std::string& key, const glm::dvec3& fallback) {
+    const nlohmann::json* raw = j.raw(key);
+    glm::dvec3 c = raw && raw->is_number() ? glm::dvec3(j.number(key)) : j.vec3(key, fallback);
+    for (int i = 0; i < 3; ++i)
+        if (!(c[i] >= 0) || !std::isfinite(c[i])) fail(j.where(key), "must be finite and non-negative");
+    return c;
+}
+
 LightDesc parseLight(const JsonParams& j) {
     LightDesc l;
     l.where = j.where();
@@ -52,14 +64,28 @@ LightDesc parseLight(const JsonParams& j) {
             nlohmann::json wrapper = {{"p", (*pts)[i]}};
             l.polygon.push_back(JsonParams(wrapper, j.file(), j.path(indexed("vertices", i))).vec3("p"));
         }
+    } else if (type == "sun") {
+        l.type = LightType::Sun;
+        l.direction = j.vec3("direction");
+        l.angularDiameterDeg = j.number("angular_diameter_deg", l.angularDiameterDeg);
+        if (j.has("irradiance") && j.has("radiance"))
+            fail(j.where("irradiance"), "give either \"irradiance\" or \"radiance\", not both");
+        if (j.has("radiance")) l.irradiance = sunIrradianceFromRadiance(j.vec3("radiance"), l.angularDiameterDeg);
+        else l.irradiance = colour(j, "irradiance", l.irradiance);
     } else {
-        fail(j.where("type"), "unknown light type \"{}\" (known: rect, disk, sphere, polygon)", type);
+        fail(j.where("type"), "unknown light type \"{}\" (known: rect, disk, sphere, polygon, sun)", type);
     }
-    l.radiance = j.vec3("radiance", l.radiance);
+    if (l.type != LightType::Sun) {
+        if (j.has("power") && j.has("radiance")) fail(j.where("power"), "give either \"power\" or \"radiance\", not both");
+        l.radiance = colour(j, "radiance", l.radiance);
+    }
     l.samples = int(j.integer("samples", l.samples, 1, 65536));
     l.sampleSets = int(j.integer("sample_sets", l.sampleSets, 1, 256));
-    j.finish();
     validateLight(l);
+    // Power needs the light's area, so it is converted after the shape is known to be valid.
+    if (l.type == LightType::Sun && j.has("power")) fail(j.where("power"), "a sun takes \"irradiance\" or \"radiance\", not \"power\"");
+    if (j.has("power")) l.radiance = radianceFromPower(l, colour(j, "power", glm::dvec3(0.0)));
+    j.finish();
     return l;
 }
 
@@ -80,6 +106,7 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
     o.epsilon = j.number("epsilon", o.epsilon);
     if (!(o.epsilon >= 0)) fail(j.where("epsilon"), "must not be negative, got {}", o.epsilon);
     scene.seed = uint64_t(j.integer("seed", int64_t(scene.seed), 0, INT64_MAX));
+    scene.smoothShading = j.boolean("smooth_shading", scene.smoothShading);
     j.finish();
 }
 

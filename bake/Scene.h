@@ -34,6 +34,9 @@ struct SceneDesc {
     std::string output = "out/shadows.exr";
     CastOptions options;
     uint64_t seed = 1;
+    /// bake.smooth_shading: smooth coherent shading in the camera preview. Off by default: its
+    /// per-pixel triangles (36 bytes) would dominate the scan pass of the memory plan.
+    bool smoothShading = false;
 };
 
 /// @brief Reads and validates a scene file.

@@ -18,12 +18,12 @@ constexpr int kFaces[12][3] = {{0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}, {0, 1
 
 class BoxSource final : public ItemSource {
 public:
-    BoxSource(std::vector<Box> boxes, const std::string& name)
+    BoxSource(std::vector<BoxShape> boxes, const std::string& name)
         : ItemSource(name, boxes.size(), 12), boxes_(std::move(boxes)) {}
 
 protected:
     void item(uint64_t index, Triangle* out) const override {
-        const Box& b = boxes_[index];
+        const BoxShape& b = boxes_[index];
         glm::vec3 corner[8];
         for (int c = 0; c < 8; ++c)
             corner[c] = glm::vec3(float(c & 1 ? b.hi.x : b.lo.x), float(c & 2 ? b.hi.y : b.lo.y), float(c & 4 ? b.hi.z : b.lo.z));
@@ -31,15 +31,15 @@ protected:
     }
 
 private:
-    std::vector<Box> boxes_;
+    std::vector<BoxShape> boxes_;
 };
 
-Box box(double x0, double y0, double z0, double x1, double y1, double z1) { return {{x0, y0, z0}, {x1, y1, z1}}; }
+BoxShape box(double x0, double y0, double z0, double x1, double y1, double z1) { return {{x0, y0, z0}, {x1, y1, z1}}; }
 
 }  // namespace
 
-std::vector<Box> colonnadeBoxes(const ColonnadeParams& p) {
-    std::vector<Box> boxes;
+std::vector<BoxShape> colonnadeBoxes(const ColonnadeParams& p) {
+    std::vector<BoxShape> boxes;
     const double hx = 0.5 * p.courtyard.x, hz = 0.5 * p.courtyard.y, cw = 0.5 * p.columnWidth;
     const double ox = hx + p.gallery, oz = hz + p.gallery;  // inner face of the outer wall
     const glm::dvec3 c = p.center;
@@ -75,20 +75,20 @@ std::vector<Box> colonnadeBoxes(const ColonnadeParams& p) {
     return boxes;
 }
 
-std::vector<Box> parseBoxes(const SourceRequest& request) {
+std::vector<BoxShape> parseBoxes(const SourceRequest& request) {
     JsonParams j(request.params, request.file, request.path);
     const nlohmann::json* list = j.raw("boxes");
     j.finish();
     if (!list) fail(j.where("boxes"), "missing required field");
     if (!list->is_array()) fail(j.where("boxes"), "expected an array of [[x0, y0, z0], [x1, y1, z1]] boxes");
-    std::vector<Box> boxes;
+    std::vector<BoxShape> boxes;
     for (size_t i = 0; i < list->size(); ++i) {
         nlohmann::json wrapper = {{"lo", (*list)[i].is_array() && (*list)[i].size() == 2 ? (*list)[i][0] : nlohmann::json()},
                                   {"hi", (*list)[i].is_array() && (*list)[i].size() == 2 ? (*list)[i][1] : nlohmann::json()}};
         const std::string key = "boxes[" + std::to_string(i) + "]";
         if (wrapper["lo"].is_null()) fail(j.where(key), "expected [[x0, y0, z0], [x1, y1, z1]], got {}", (*list)[i].dump());
         JsonParams b(wrapper, j.file(), j.path(key));
-        Box bx{b.vec3("lo"), b.vec3("hi")};
+        BoxShape bx{b.vec3("lo"), b.vec3("hi")};
         if (!(bx.lo.x < bx.hi.x && bx.lo.y < bx.hi.y && bx.lo.z < bx.hi.z))
             fail(j.where(key), "box is empty: need x0 < x1, y0 < y1 and z0 < z1");
         for (int a = 0; a < 3; ++a)
@@ -129,7 +129,7 @@ ColonnadeParams parseColonnadeParams(const SourceRequest& request) {
     return p;
 }
 
-TriangleSourcePtr makeBoxSource(std::vector<Box> boxes, const std::string& name) {
+TriangleSourcePtr makeBoxSource(std::vector<BoxShape> boxes, const std::string& name) {
     return std::make_unique<BoxSource>(std::move(boxes), name);
 }
 

@@ -14,7 +14,7 @@
 namespace penumbra {
 
 /// An axis-aligned box, lo < hi on every axis (world units).
-struct Box {
+struct BoxShape {
     glm::dvec3 lo, hi;
 };
 
@@ -32,13 +32,13 @@ struct ColonnadeParams {
 };
 
 /// The boxes of a colonnade, in a fixed order (storeys bottom up, then wall, then floor).
-std::vector<Box> colonnadeBoxes(const ColonnadeParams& p);
+std::vector<BoxShape> colonnadeBoxes(const ColonnadeParams& p);
 
 /// @brief Parse "boxes" / "colonnade". @throw InputError naming the bad key.
-std::vector<Box> parseBoxes(const SourceRequest& request);
+std::vector<BoxShape> parseBoxes(const SourceRequest& request);
 ColonnadeParams parseColonnadeParams(const SourceRequest& request);
 
 /// @brief Streams 12 triangles per box, in order.
-TriangleSourcePtr makeBoxSource(std::vector<Box> boxes, const std::string& name = "boxes");
+TriangleSourcePtr makeBoxSource(std::vector<BoxShape> boxes, const std::string& name = "boxes");
 
 }  // namespace penumbra

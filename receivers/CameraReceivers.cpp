@@ -116,6 +116,7 @@ void CameraRasterizer::add(std::span<const Triangle> chunk) {
                 if (!(t > 0.0) || !(float(t) < depth_[p])) continue;
                 depth_[p] = float(t);
                 normal_[p] = glm::vec3(glm::normalize(denom > 0 ? -n : n));
+                if (!triangle_.empty()) triangle_[p] = {tri.v[0], tri.v[1], tri.v[2]};
             }
         }
     }
@@ -133,8 +134,9 @@ ReceiverSet CameraRasterizer::finish() {
             set.normal.push_back(normal_[p]);
             set.pixel.push_back(uint32_t(p));
             set.depth.push_back(depth_[p]);
+            if (!triangle_.empty()) winners_.push_back(triangle_[p]);
         }
-    depth_ = {}, normal_ = {};
+    depth_ = {}, normal_ = {}, triangle_ = {};
     return set;
 }
 

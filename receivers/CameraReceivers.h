@@ -8,6 +8,7 @@
 
 #include <glm/vec3.hpp>
 
+#include <array>
 #include <functional>
 #include <string>
 
@@ -35,8 +36,13 @@ public:
     explicit CameraRasterizer(const CameraDesc& camera);
     /// Rasterizes the chunk; triangles are depth-tested in the order given.
     void add(std::span<const Triangle> chunk);
+    /// Also keep, per pixel, the vertices of the triangle that wins it (36 more bytes per pixel),
+    /// for shading that needs the visible triangle (smooth coherent shading). Call before add().
+    void recordTriangles() { triangle_.assign(depth_.size(), {}); }
     /// One receiver per covered pixel, in scanline order. Call once.
     ReceiverSet finish();
+    /// After finish() with recordTriangles(): each receiver's triangle, in receiver order.
+    std::vector<std::array<glm::vec3, 3>> takeTriangles() { return std::move(winners_); }
     /// Bytes per pixel held while rasterizing.
     static constexpr uint64_t kBytesPerPixel = 16;
 
@@ -47,6 +53,7 @@ private:
     double tanHalf_, aspect_;
     std::vector<float> depth_;
     std::vector<glm::vec3> normal_;
+    std::vector<std::array<glm::vec3, 3>> triangle_, winners_;
 };
 
 /// @brief Rasterizes every triangle of @p source (one pass, streamed) and returns one receiver per

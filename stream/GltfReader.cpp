@@ -1,6 +1,7 @@
 #include "stream/GltfReader.h"
 
 #include "stream/Error.h"
+#include "stream/GltfModel.h"
 
 #include <tiny_gltf.h>
 
@@ -28,17 +29,7 @@ namespace penumbra {
 
 namespace {
 
-/// Accessor elements as the reader needs them, after validation: element i starts at
-/// data + i * stride and all count elements lie inside the buffer.
-struct AccessorView {
-    const unsigned char* data = nullptr;  // null when the accessor has no bufferView: all zeros
-    size_t stride = 0;
-    size_t count = 0;
-    int componentType = 0;
-    int components = 0;
-    bool normalized = false;
-    bool sparse = false;
-};
+using AccessorView = GltfAccessorView;
 
 /// A triangle-mode primitive whose indices have all been checked against its vertex count.
 struct PrimitiveGeometry {
@@ -222,6 +213,67 @@ void loadModel(const std::string& path, tinygltf::Model& model) {
     }
 }
 
+void checkBufferViews(const std::string& path, const tinygltf::Model& model) {
+    for (size_t i = 0; i < model.bufferViews.size(); ++i) {
+        const tinygltf::BufferView& view = model.bufferViews[i];
+        if (view.buffer < 0 || size_t(view.buffer) >= model.buffers.size())
+            fail(path, "bufferView {} refers to buffer {} (file has {})", i, view.buffer, model.buffers.size());
+        size_t bufferBytes = model.buffers[size_t(view.buffer)].data.size();
+        uint64_t end = 0;
+        if (__builtin_add_overflow(uint64_t(view.byteOffset), uint64_t(view.byteLength), &end) || end > bufferBytes)
+            fail(path, "bufferView {} (bytes {}..+{}) lies outside buffer {} ({} bytes)", i, view.byteOffset,
+                 view.byteLength, view.buffer, bufferBytes);
+    }
+}
+
+std::vector<AccessorView> checkAccessorsOf(const std::string& path, const tinygltf::Model& model) {
+    checkBufferViews(path, model);
+    std::vector<AccessorView> accessors(model.accessors.size());
+    for (size_t i = 0; i < model.accessors.size(); ++i) {
+        const tinygltf::Accessor& a = model.accessors[i];
+        AccessorView& v = accessors[i];
+        size_t componentSize = componentBytes(a.componentType);
+        v.components = componentsIn(a.type);
+        if (componentSize == 0) fail(path, "accessor {} has invalid componentType {}", i, a.componentType);
+        if (v.components == 0) fail(path, "accessor {} has invalid type {}", i, a.type);
+        v.componentType = a.componentType;
+        v.normalized = a.normalized;
+        v.count = a.count;
+        v.sparse = a.sparse.isSparse;
+        size_t elementSize = componentSize * size_t(v.components);
+        if (a.bufferView < 0) {
+            // No bufferView: the spec defines the elements as zeros (before sparse substitution).
+            if (a.bufferView != -1) fail(path, "accessor {} refers to bufferView {}", i, a.bufferView);
+            continue;
+        }
+        if (size_t(a.bufferView) >= model.bufferViews.size())
+            fail(path, "accessor {} refers to bufferView {} (file has {})", i, a.bufferView,
+                 model.bufferViews.size());
+        const tinygltf::BufferView& view = model.bufferViews[size_t(a.bufferView)];
+        v.stride = view.byteStride == 0 ? elementSize : view.byteStride;
+        if (v.stride < elementSize)
+            fail(path, "accessor {}: bufferView {} byteStride {} is smaller than the {}-byte element", i,
+                 a.bufferView, view.byteStride, elementSize);
+        if (a.count > 0) {
+            // byteOffset + stride * (count - 1) + elementSize, with every step overflow-checked:
+            // the operands come straight from the JSON.
+            uint64_t needed = 0;
+            bool overflow = __builtin_mul_overflow(uint64_t(v.stride), uint64_t(a.count - 1), &needed) ||
+                            __builtin_add_overflow(needed, uint64_t(a.byteOffset), &needed) ||
+                            __builtin_add_overflow(needed, uint64_t(elementSize), &needed);
+            if (overflow || needed > view.byteLength) {
+                if (overflow)
+                    fail(path, "accessor {} reads past the end of bufferView {} (needs more than 2^64 bytes, has {})",
+                         i, a.bufferView, view.byteLength);
+                fail(path, "accessor {} reads past the end of bufferView {} (needs {} bytes, has {})", i,
+                     a.bufferView, needed, view.byteLength);
+            }
+        }
+        v.data = model.buffers[size_t(view.buffer)].data.data() + view.byteOffset + a.byteOffset;
+    }
+    return accessors;
+}
+
 class GltfSource final : public TriangleSource {
 public:
     explicit GltfSource(std::string path);
@@ -232,12 +284,9 @@ public:
     std::optional<uint64_t> sizeHint() const override { return triangleCount_; }
 
 private:
-    void checkBufferViews() const;
-    void checkAccessors();
     void checkMeshes();
     void checkIndices(const PrimitiveGeometry& g, int indexAccessor) const;
     void placeScene();
-    glm::dmat4 localMatrix(int node) const;
     Triangle triangle(const Draw& draw, uint64_t t) const;
 
     std::string path_;
@@ -253,69 +302,9 @@ private:
 
 GltfSource::GltfSource(std::string path) : path_(std::move(path)) {
     loadModel(path_, model_);
-    checkBufferViews();
-    checkAccessors();
+    accessors_ = checkAccessorsOf(path_, model_);
     checkMeshes();
     placeScene();
-}
-
-void GltfSource::checkBufferViews() const {
-    for (size_t i = 0; i < model_.bufferViews.size(); ++i) {
-        const tinygltf::BufferView& view = model_.bufferViews[i];
-        if (view.buffer < 0 || size_t(view.buffer) >= model_.buffers.size())
-            fail(path_, "bufferView {} refers to buffer {} (file has {})", i, view.buffer, model_.buffers.size());
-        size_t bufferBytes = model_.buffers[size_t(view.buffer)].data.size();
-        uint64_t end = 0;
-        if (__builtin_add_overflow(uint64_t(view.byteOffset), uint64_t(view.byteLength), &end) || end > bufferBytes)
-            fail(path_, "bufferView {} (bytes {}..+{}) lies outside buffer {} ({} bytes)", i, view.byteOffset,
-                 view.byteLength, view.buffer, bufferBytes);
-    }
-}
-
-void GltfSource::checkAccessors() {
-    accessors_.resize(model_.accessors.size());
-    for (size_t i = 0; i < model_.accessors.size(); ++i) {
-        const tinygltf::Accessor& a = model_.accessors[i];
-        AccessorView& v = accessors_[i];
-        size_t componentSize = componentBytes(a.componentType);
-        v.components = componentsIn(a.type);
-        if (componentSize == 0) fail(path_, "accessor {} has invalid componentType {}", i, a.componentType);
-        if (v.components == 0) fail(path_, "accessor {} has invalid type {}", i, a.type);
-        v.componentType = a.componentType;
-        v.normalized = a.normalized;
-        v.count = a.count;
-        v.sparse = a.sparse.isSparse;
-        size_t elementSize = componentSize * size_t(v.components);
-        if (a.bufferView < 0) {
-            // No bufferView: the spec defines the elements as zeros (before sparse substitution).
-            if (a.bufferView != -1) fail(path_, "accessor {} refers to bufferView {}", i, a.bufferView);
-            continue;
-        }
-        if (size_t(a.bufferView) >= model_.bufferViews.size())
-            fail(path_, "accessor {} refers to bufferView {} (file has {})", i, a.bufferView,
-                 model_.bufferViews.size());
-        const tinygltf::BufferView& view = model_.bufferViews[size_t(a.bufferView)];
-        v.stride = view.byteStride == 0 ? elementSize : view.byteStride;
-        if (v.stride < elementSize)
-            fail(path_, "accessor {}: bufferView {} byteStride {} is smaller than the {}-byte element", i,
-                 a.bufferView, view.byteStride, elementSize);
-        if (a.count > 0) {
-            // byteOffset + stride * (count - 1) + elementSize, with every step overflow-checked:
-            // the operands come straight from the JSON.
-            uint64_t needed = 0;
-            bool overflow = __builtin_mul_overflow(uint64_t(v.stride), uint64_t(a.count - 1), &needed) ||
-                            __builtin_add_overflow(needed, uint64_t(a.byteOffset), &needed) ||
-                            __builtin_add_overflow(needed, uint64_t(elementSize), &needed);
-            if (overflow || needed > view.byteLength) {
-                if (overflow)
-                    fail(path_, "accessor {} reads past the end of bufferView {} (needs more than 2^64 bytes, has {})",
-                         i, a.bufferView, view.byteLength);
-                fail(path_, "accessor {} reads past the end of bufferView {} (needs {} bytes, has {})", i,
-                     a.bufferView, needed, view.byteLength);
-            }
-        }
-        v.data = model_.buffers[size_t(view.buffer)].data.data() + view.byteOffset + a.byteOffset;
-    }
 }
 
 void GltfSource::checkMeshes() {
@@ -425,12 +414,13 @@ void GltfSource::checkIndices(const PrimitiveGeometry& g, int indexAccessor) con
     }
 }
 
-/// Reads one position, decoding KHR_mesh_quantization integer and normalized forms.
-glm::vec3 readPosition(const AccessorView& v, uint64_t i) {
-    glm::vec3 p(0.0f);
+/// Reads one element (up to 4 components), decoding KHR_mesh_quantization integer and
+/// normalized forms.
+glm::vec4 readElement(const AccessorView& v, uint64_t i) {
+    glm::vec4 p(0.0f);
     if (!v.data) return p;
     const unsigned char* at = v.data + i * v.stride;
-    for (int c = 0; c < 3; ++c) {
+    for (int c = 0; c < std::min(v.components, 4); ++c) {
         switch (v.componentType) {
         case TINYGLTF_COMPONENT_TYPE_FLOAT: std::memcpy(&p[c], at + 4 * c, 4); break;
         case TINYGLTF_COMPONENT_TYPE_BYTE: {
@@ -456,13 +446,15 @@ glm::vec3 readPosition(const AccessorView& v, uint64_t i) {
     return p;
 }
 
-glm::dmat4 GltfSource::localMatrix(int index) const {
-    const tinygltf::Node& node = model_.nodes[size_t(index)];
+glm::vec3 readPosition(const AccessorView& v, uint64_t i) { return glm::vec3(readElement(v, i)); }
+
+glm::dmat4 localMatrix(const std::string& path, const tinygltf::Model& model, int index) {
+    const tinygltf::Node& node = model.nodes[size_t(index)];
     auto check = [&](const std::vector<double>& values, size_t expected, const char* what) {
         if (!values.empty() && values.size() != expected)
-            fail(path_, "node {} {} has {} values (needs {})", index, what, values.size(), expected);
+            fail(path, "node {} {} has {} values (needs {})", index, what, values.size(), expected);
         for (double x : values)
-            if (!std::isfinite(x)) fail(path_, "node {} {} is not finite", index, what);
+            if (!std::isfinite(x)) fail(path, "node {} {} is not finite", index, what);
         return !values.empty();
     };
     if (check(node.matrix, 16, "matrix")) return glm::make_mat4(node.matrix.data());  // both column-major
@@ -477,31 +469,31 @@ glm::dmat4 GltfSource::localMatrix(int index) const {
     return m;
 }
 
-void GltfSource::placeScene() {
-    const size_t nodeCount = model_.nodes.size();
+std::vector<GltfMeshNode> walkScene(const std::string& path, const tinygltf::Model& model) {
+    const size_t nodeCount = model.nodes.size();
     for (size_t n = 0; n < nodeCount; ++n) {
-        const tinygltf::Node& node = model_.nodes[n];
-        if (node.mesh < -1 || node.mesh >= int(model_.meshes.size()))
-            fail(path_, "node {} refers to mesh {} (file has {})", n, node.mesh, model_.meshes.size());
+        const tinygltf::Node& node = model.nodes[n];
+        if (node.mesh < -1 || node.mesh >= int(model.meshes.size()))
+            fail(path, "node {} refers to mesh {} (file has {})", n, node.mesh, model.meshes.size());
         for (int child : node.children)
             if (child < 0 || size_t(child) >= nodeCount)
-                fail(path_, "node {} has child {} (file has {} nodes)", n, child, nodeCount);
+                fail(path, "node {} has child {} (file has {} nodes)", n, child, nodeCount);
     }
 
     std::vector<int> roots;
-    int scene = model_.defaultScene;
-    if (scene >= 0 && size_t(scene) >= model_.scenes.size())
-        fail(path_, "default scene {} does not exist (file has {})", scene, model_.scenes.size());
-    if (scene < 0 && !model_.scenes.empty()) scene = 0;
+    int scene = model.defaultScene;
+    if (scene >= 0 && size_t(scene) >= model.scenes.size())
+        fail(path, "default scene {} does not exist (file has {})", scene, model.scenes.size());
+    if (scene < 0 && !model.scenes.empty()) scene = 0;
     if (scene >= 0) {
-        roots = model_.scenes[size_t(scene)].nodes;
+        roots = model.scenes[size_t(scene)].nodes;
         for (int root : roots)
             if (root < 0 || size_t(root) >= nodeCount)
-                fail(path_, "scene {} refers to node {} (file has {})", scene, root, nodeCount);
+                fail(path, "scene {} refers to node {} (file has {})", scene, root, nodeCount);
     } else {
         // No scenes: every node that is nobody's child is a root.
         std::vector<bool> isChild(nodeCount, false);
-        for (const auto& node : model_.nodes)
+        for (const auto& node : model.nodes)
             for (int child : node.children) isChild[size_t(child)] = true;
         for (size_t n = 0; n < nodeCount; ++n)
             if (!isChild[n]) roots.push_back(int(n));
@@ -510,28 +502,34 @@ void GltfSource::placeScene() {
     // Iterative depth-first walk. glTF requires the hierarchy to be a forest; reaching a node
     // twice means a cycle (infinite recursion) or a shared child (exponential instancing), both
     // rejected.
+    std::vector<GltfMeshNode> placed;
     std::vector<bool> reached(nodeCount, false);
     std::vector<std::pair<int, glm::dmat4>> stack;
     for (auto r = roots.rbegin(); r != roots.rend(); ++r) stack.emplace_back(*r, glm::dmat4(1.0));
     while (!stack.empty()) {
         auto [n, parent] = stack.back();
         stack.pop_back();
-        if (reached[size_t(n)]) fail(path_, "node {} is reached twice (the node hierarchy must be a tree)", n);
+        if (reached[size_t(n)]) fail(path, "node {} is reached twice (the node hierarchy must be a tree)", n);
         reached[size_t(n)] = true;
-        glm::dmat4 world = parent * localMatrix(n);
-        const tinygltf::Node& node = model_.nodes[size_t(n)];
-        if (node.mesh >= 0) {
-            for (size_t g : meshGeometries_[size_t(node.mesh)]) {
-                Draw draw;
-                draw.geometry = g, draw.world = world, draw.node = n;
-                draw.identity = world == glm::dmat4(1.0);
-                draw.mirrored = glm::determinant(glm::dmat3(world)) < 0.0;
-                if (geometries_[g].triangles == 0) continue;
-                triangleCount_ += geometries_[g].triangles;
-                draws_.push_back(draw);
-            }
-        }
+        glm::dmat4 world = parent * localMatrix(path, model, n);
+        const tinygltf::Node& node = model.nodes[size_t(n)];
+        if (node.mesh >= 0) placed.push_back({n, node.mesh, world});
         for (auto c = node.children.rbegin(); c != node.children.rend(); ++c) stack.emplace_back(*c, world);
+    }
+    return placed;
+}
+
+void GltfSource::placeScene() {
+    for (const GltfMeshNode& placed : walkScene(path_, model_)) {
+        for (size_t g : meshGeometries_[size_t(placed.mesh)]) {
+            Draw draw;
+            draw.geometry = g, draw.world = placed.world, draw.node = placed.node;
+            draw.identity = placed.world == glm::dmat4(1.0);
+            draw.mirrored = glm::determinant(glm::dmat3(placed.world)) < 0.0;
+            if (geometries_[g].triangles == 0) continue;
+            triangleCount_ += geometries_[g].triangles;
+            draws_.push_back(draw);
+        }
     }
 }
 
@@ -575,5 +573,19 @@ size_t GltfSource::read(std::span<Triangle> out) {
 }  // namespace
 
 TriangleSourcePtr openGltf(const std::string& path) { return std::make_unique<GltfSource>(path); }
+
+void loadGltfModel(const std::string& path, tinygltf::Model& model) { loadModel(path, model); }
+
+std::vector<GltfAccessorView> checkGltfAccessors(const std::string& path, const tinygltf::Model& model) {
+    return checkAccessorsOf(path, model);
+}
+
+uint32_t readGltfIndex(const GltfAccessorView& view, uint64_t i) { return readIndex(view, i); }
+
+glm::vec4 readGltfElement(const GltfAccessorView& view, uint64_t i) { return readElement(view, i); }
+
+std::vector<GltfMeshNode> walkGltfScene(const std::string& path, const tinygltf::Model& model) {
+    return walkScene(path, model);
+}
 
 }  // namespace penumbra

@@ -47,7 +47,7 @@ TEST_CASE("a tiled bake under --memory-budget is bit-identical to an untiled one
     std::ofstream(dir / "scene.json") << R"({
       "geometry": [{"type": "grid", "cells": 6, "levels": 2, "size": 2, "floor_size": 5}],
       "lights": [{"type": "rect", "center": [0,4,0], "u": [1,0,0], "v": [0,0,1], "samples": 64, "sample_sets": 4}],
-      "receivers": {"type": "camera", "eye": [0,4,5], "target": [0,0.5,0], "width": 200, "height": 150},
+      "receivers": {"type": "camera", "eye": [0,4,5], "target": [0,0.5,0], "width": 400, "height": 300},
       "output": "out/a.exr"})";
     RunResult whole = runPenumbra("bake " + (dir / "scene.json") + " -q --dump " + (dir / "whole") + " --stats " + (dir / "whole.json"));
     REQUIRE(whole.exitCode == 0);
@@ -62,9 +62,12 @@ TEST_CASE("a tiled bake under --memory-budget is bit-identical to an untiled one
     INFO(tiled.err);
     REQUIRE(tiled.exitCode == 0);
     auto tiledStats = nlohmann::json::parse(slurp(dir / "tiled.json"));
-    CHECK(tiledStats["memory_plan"]["tiles"].get<int>() >= 3);
+    const int tiles = tiledStats["memory_plan"]["tiles"];
+    CHECK(tiles >= 2);
     CHECK(tiledStats["table2"]["peak_hierarchy_memory_bytes"].get<uint64_t>() <
-          stats["table2"]["peak_hierarchy_memory_bytes"].get<uint64_t>() / 2);
+          stats["table2"]["peak_hierarchy_memory_bytes"].get<uint64_t>() * 3 / (2 * tiles));
+    // The plan is honest: the tiled bake's peak RSS stays within the budget it was given.
+    CHECK(tiledStats["counters"]["peak_rss_bytes"].get<uint64_t>() <= budget);
     CHECK(readNpy(dir / "tiled/masks.npy").data == readNpy(dir / "whole/masks.npy").data);
     CHECK(slurp(dir / "b.exr") == slurp(dir / "out/a.exr"));
 

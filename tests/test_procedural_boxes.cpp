@@ -38,7 +38,7 @@ TEST_CASE("colonnade: columns, gallery slabs, wall and floor as documented", "[p
     nlohmann::json params = e;
     params.erase("type");
     ColonnadeParams p = parseColonnadeParams(SourceRequest{params, "scene.json", "geometry[0]", "."});
-    std::vector<Box> boxes = colonnadeBoxes(p);
+    std::vector<BoxShape> boxes = colonnadeBoxes(p);
     // Per storey 2 x 7 + 2 x 3 columns and 4 slabs; 4 walls; 1 floor.
     CHECK(boxes.size() == 2u * (14 + 6 + 4) + 4 + 1);
     TriangleSourcePtr source = openEntry(e);
@@ -52,7 +52,7 @@ TEST_CASE("colonnade: columns, gallery slabs, wall and floor as documented", "[p
     CHECK(s.lo.y == Approx(-0.1));
     CHECK(s.hi.y == Approx(6));
     // The courtyard itself stays open to the sky: no box covers its middle above the floor.
-    for (const Box& b : boxes)
+    for (const BoxShape& b : boxes)
         if (b.hi.y > 0) CHECK_FALSE((b.lo.x < 1 && b.hi.x > 1 && b.lo.z < -1 && b.hi.z > -1));
     CHECK(openEntry({{"type", "colonnade"}, {"wall", 0}, {"floor", false}, {"storeys", 1}})->sizeHint() ==
           12u * (2 * 9 + 2 * 4 + 4));

@@ -23,7 +23,9 @@ namespace penumbra {
 ///         "results": [{"threads", "seconds", "cpu_seconds", "setup_seconds", "triangles_per_second",
 ///         "triangles_per_cpu_second"}]}]}. CPU time is the whole process's, over all threads.
 /// @param only when not empty, measure only the configurations whose name contains it
-nlohmann::json benchGenerators(uint64_t trianglesPerGenerator, std::vector<int> threadCounts, const std::string& only = "");
+/// @param repeat runs per configuration and thread count; the fastest is reported
+nlohmann::json benchGenerators(uint64_t trianglesPerGenerator, std::vector<int> threadCounts, const std::string& only = "",
+                               int repeat = 1);
 
 /// @brief The result of benchGenerators() as a Markdown table: million triangles per wall-clock
 /// second and per CPU second, for each thread count.
@@ -34,6 +36,7 @@ struct BenchGeneratorsOptions {
     std::vector<int> threads{1, 2};
     std::string jsonPath;  ///< also write the JSON result here when not empty
     std::string only;      ///< substring filter on configuration names
+    int repeat = 1;        ///< runs per measurement, best reported
 };
 
 /// @brief Adds `bench generators` under @p bench (the `bench` subcommand). @return the new subcommand.

@@ -7,6 +7,7 @@
 
 #include "bake/Pipeline.h"
 #include "bake/Scene.h"
+#include "bake/VolumeKind.h"
 #include "procedural/Generators.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
@@ -88,6 +89,15 @@ int main(int argc, char** argv) {
     convert->add_option("input", convertIn)->required();
     convert->add_option("output", convertOut)->required();
 
+    std::string sliceIn, sliceOut, sliceGrid = "visibility", sliceAxis = "y";
+    double sliceAt = 0;
+    CLI::App* slice = app.add_subcommand("vdb-slice", "render an axis-aligned slice of a .vdb float grid to a PNG");
+    slice->add_option("input", sliceIn)->required();
+    slice->add_option("output", sliceOut)->required();
+    slice->add_option("--axis", sliceAxis, "x, y or z")->check(CLI::IsMember({"x", "y", "z"}));
+    slice->add_option("--at", sliceAt, "world coordinate of the slice along the axis");
+    slice->add_option("--grid", sliceGrid, "float grid name");
+
     GenerateOptions generateOptions;
     CLI::App* generate = addGenerateCommand(app, generateOptions);
 
@@ -139,6 +149,8 @@ int main(int argc, char** argv) {
             runGenerate(generateOptions);
         } else if (*benchGenerators) {
             runBenchGenerators(benchGeneratorsOptions);
+        } else if (*slice) {
+            writeVolumeSlicePng(sliceIn, sliceOut, sliceGrid, sliceAxis[0], sliceAt);
         } else if (*convert) {
             TriangleSourcePtr source = openGeometryFile(convertIn);
             convertGeometry(*source, convertOut);

@@ -1,0 +1,232 @@
+#include "bake/LightmapKind.h"
+
+#include "bake/ImageWriters.h"
+#include "bake/ReceiverKind.h"
+#include "bake/Scene.h"
+#include "receivers/LightmapReceivers.h"
+#include "stream/AtomicFile.h"
+#include "stream/Error.h"
+#include "stream/IndexedMesh.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+#include <set>
+
+namespace penumbra {
+namespace {
+
+constexpr int64_t kMaxSide = 16384;  // 1 GiB of float channels per map is already generous
+
+/// One lightmap to bake: a mesh, its size, and after the scan its texel layout.
+struct Lightmap {
+    IndexedMesh mesh;
+    std::string source;  ///< the file, for messages and the EXR header
+    std::string label;   ///< for messages: the file, plus the mesh name when the file has several
+    std::string name;    ///< output suffix: out/lightmap-NAME.exr
+    int width = 0, height = 0;
+    size_t first = 0;    ///< index of its first receiver in the kind's ReceiverSet
+    LightmapLayout layout;
+};
+
+/// A name safe in a file name: letters, digits, '-', '_' and '.' are kept, the rest become '_'.
+std::string fileSafe(const std::string& name) {
+    std::string safe;
+    for (char c : name) safe += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.' ? c : '_';
+    return safe.empty() || safe[0] == '.' ? "_" + safe : safe;
+}
+
+/// out/lightmap.exr -> out/lightmap-NAME.exr (or .png).
+std::string derivedPath(const std::string& output, const std::string& name, const char* extension) {
+    std::filesystem::path path(output);
+    std::string stem = path.stem().string();
+    return (path.parent_path() / (stem + "-" + name + extension)).string();
+}
+
+class LightmapKind final : public ReceiverKind {
+public:
+    LightmapKind(std::vector<Lightmap> maps, int padding) : maps_(std::move(maps)), padding_(padding) {}
+
+    ReceiverSet receivers() override {
+        ReceiverSet all;
+        for (Lightmap& map : maps_) {
+            map.layout = rasterizeLightmap(map.mesh, map.width, map.height);
+            map.mesh = IndexedMesh{};  // the layout is all the writer needs
+            if (map.layout.overlapping > 0)
+                fmt::print(stderr, "penumbra: warning: {}: {} texels covered by more than one triangle (overlapping UVs)\n",
+                           map.label, map.layout.overlapping);
+            map.first = all.size();
+            ReceiverSet& set = map.layout.receivers;
+            all.position.insert(all.position.end(), set.position.begin(), set.position.end());
+            all.normal.insert(all.normal.end(), set.normal.begin(), set.normal.end());
+            set = ReceiverSet{};
+        }
+        return all;
+    }
+
+    void write(const OutputContext& c) override {
+        for (const Lightmap& map : maps_) writeMap(c, map);
+    }
+
+private:
+    void writeMap(const OutputContext& c, const Lightmap& map) const {
+        const LightmapLayout& layout = map.layout;
+        const size_t texels = size_t(map.width) * map.height;
+        std::vector<float> V(texels, 0.f), ER(texels, 0.f), EG(texels, 0.f), EB(texels, 0.f);
+        std::vector<uint8_t> filled(texels, 0);
+        for (size_t k = 0; k < layout.texel.size(); ++k) {
+            const size_t r = map.first + k, t = layout.texel[k];
+            const glm::vec3& e = c.results.irradiance[r];
+            V[t] = c.results.visibility[r], ER[t] = e.x, EG[t] = e.y, EB[t] = e.z;
+            filled[t] = 1;
+        }
+        // Dilation gives bilinear lookups across UV seams baked values instead of black; A keeps
+        // the true coverage, so an engine can still tell surface from padding.
+        std::vector<float>* dilated[] = {&V, &ER, &EG, &EB};
+        dilateLightmap(dilated, filled, map.width, map.height, padding_);
+
+        ExrChannel channels[] = {{"V", V.data()}, {"E.R", ER.data()}, {"E.G", EG.data()}, {"E.B", EB.data()},
+                                 {"A", layout.coverage.data()}};
+        ExrAttribute attributes[] = {
+            {"penumbra:receivers", "lightmap"},
+            {"penumbra:mesh", map.source},
+            {"penumbra:meshName", map.name},
+            {"penumbra:padding", std::to_string(padding_)},
+            {"penumbra:texels", std::to_string(layout.texel.size())},
+            {"penumbra:lights", std::to_string(c.scene.lights.size())},
+            {"penumbra:samples", std::to_string(c.samples.sampleCount)},
+            {"penumbra:sampleSets", std::to_string(c.samples.sets)},
+            {"penumbra:seed", std::to_string(c.scene.seed)},
+        };
+        const std::string exr = derivedPath(c.output, map.name, ".exr");
+        ensureParentDirectory(exr);
+        writeExr(exr, map.width, map.height, channels, attributes);
+        writePreview(derivedPath(c.output, map.name, ".png"), map, ER, EG, EB, filled);
+    }
+
+    /// The irradiance, exposed so that the 99th percentile of the baked texels' luminance sits
+    /// near white; texels with no value (beyond the padding) are a neutral dark grey.
+    void writePreview(const std::string& path, const Lightmap& map, const std::vector<float>& r,
+                      const std::vector<float>& g, const std::vector<float>& b, const std::vector<uint8_t>& filled) const {
+        std::vector<float> luminance;
+        for (uint32_t t : map.layout.texel) luminance.push_back(0.2126f * r[t] + 0.7152f * g[t] + 0.0722f * b[t]);
+        float white = 1.f;
+        if (!luminance.empty()) {
+            size_t q = std::min(luminance.size() - 1, size_t(0.99 * double(luminance.size())));
+            std::nth_element(luminance.begin(), luminance.begin() + q, luminance.end());
+            white = luminance[q] > 0 ? luminance[q] : 1.f;
+        }
+        const float exposure = 0.92f / white;
+        const size_t texels = filled.size();
+        std::vector<uint8_t> rgb(texels * 3);
+        for (size_t t = 0; t < texels; ++t) {
+            if (!filled[t]) {
+                rgb[3 * t] = rgb[3 * t + 1] = rgb[3 * t + 2] = encodeSrgb(0.02f);
+                continue;
+            }
+            rgb[3 * t] = encodeSrgb(exposure * r[t]);
+            rgb[3 * t + 1] = encodeSrgb(exposure * g[t]);
+            rgb[3 * t + 2] = encodeSrgb(exposure * b[t]);
+        }
+        writePng8(path, map.width, map.height, 3, rgb);
+    }
+
+    std::vector<Lightmap> maps_;
+    int padding_;
+};
+
+/// The file behind geometry entry @p index, which must be an obj/gltf/glb file.
+std::string meshFile(const JsonParams& j, const SceneDesc& scene, size_t slot, int64_t index) {
+    const std::string key = fmt::format("meshes[{}]", slot);
+    if (index < 0 || size_t(index) >= scene.geometry.size())
+        fail(j.where(key), "geometry index {} out of range (the scene has {} geometry entries)", index,
+             scene.geometry.size());
+    const GeometryDesc& g = scene.geometry[size_t(index)];
+    const nlohmann::json* path = g.params.is_object() && g.params.contains("path") ? &g.params["path"] : nullptr;
+    if (!path || !path->is_string())
+        fail(j.where(key), "{} is a \"{}\" entry, not a mesh file (obj, gltf or glb)", g.path, g.type);
+    std::string file = resolveScenePath(scene.baseDir, path->get<std::string>());
+    std::string ext = std::filesystem::path(file).extension().string();
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (ext != ".obj" && ext != ".gltf" && ext != ".glb")
+        fail(j.where(key), "{} ({}) is not an obj, gltf or glb file", g.path, file);
+    return file;
+}
+
+std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneDesc& scene) {
+    const nlohmann::json* meshes = j.raw("meshes");
+    if (!meshes) fail(j.where("meshes"), "missing required field");
+    if (!meshes->is_array() || meshes->empty())
+        fail(j.where("meshes"), "expected a non-empty array of geometry indices");
+
+    // Size: a fixed resolution, or a texel density (exactly one of them).
+    int64_t width = 256, height = 256;
+    double density = 0;
+    const nlohmann::json* resolution = j.raw("resolution");
+    const nlohmann::json* perUnit = j.raw("texels_per_unit");
+    if (resolution && resolution->is_null()) resolution = nullptr;
+    if (perUnit && perUnit->is_null()) perUnit = nullptr;
+    if (resolution && perUnit) fail(j.where("texels_per_unit"), "give either resolution or texels_per_unit, not both");
+    if (resolution) {
+        auto side = [&](const nlohmann::json& x) {
+            if (!x.is_number_integer() || x.get<int64_t>() < 1 || x.get<int64_t>() > kMaxSide)
+                fail(j.where("resolution"), "expected an integer in [1, {}] or [width, height] of such, got {}",
+                     kMaxSide, resolution->dump());
+            return x.get<int64_t>();
+        };
+        if (resolution->is_array() && resolution->size() == 2) width = side((*resolution)[0]), height = side((*resolution)[1]);
+        else width = height = side(*resolution);
+    }
+    if (perUnit) {
+        density = perUnit->is_number() ? perUnit->get<double>() : 0.0;
+        if (!(density > 0) || !std::isfinite(density))
+            fail(j.where("texels_per_unit"), "expected a positive number, got {}", perUnit->dump());
+    }
+    const int padding = int(j.integer("padding", 4, 0, 1024));
+
+    std::vector<Lightmap> maps;
+    std::set<std::string> names;
+    for (size_t slot = 0; slot < meshes->size(); ++slot) {
+        const std::string key = fmt::format("meshes[{}]", slot);
+        const nlohmann::json& entry = (*meshes)[slot];
+        if (!entry.is_number_integer()) fail(j.where(key), "expected a geometry index, got {}", entry.dump());
+        const int64_t index = entry.get<int64_t>();
+        const std::string file = meshFile(j, scene, slot, index);
+        std::vector<IndexedMesh> loaded = loadIndexedMeshes(file, scene.geometry[size_t(index)].transform.matrix());
+        if (loaded.empty()) fail(j.where(key), "{} has no triangle meshes", file);
+        for (size_t m = 0; m < loaded.size(); ++m) {
+            Lightmap map;
+            map.source = file;
+            map.label = loaded.size() == 1 ? file : fmt::format("{} (mesh \"{}\")", file, loaded[m].name);
+            if (!lightmapUvs(loaded[m]))
+                fail(j.where(key), "{} has no texture coordinates (needs OBJ vt, or glTF TEXCOORD_0/TEXCOORD_1)", map.label);
+            map.width = int(width), map.height = int(height);
+            if (perUnit) {
+                int64_t side = lightmapSideForDensity(loaded[m], density);
+                if (side == 0) fail(j.where(key), "{}: every UV triangle is degenerate", map.label);
+                if (side > kMaxSide)
+                    fail(j.where("texels_per_unit"), "{} gives {} a {}x{} lightmap (at most {})", density, map.label,
+                         side, side, kMaxSide);
+                map.width = map.height = int(side);
+            }
+            // The mesh's own name when it has one, else its position in "meshes".
+            std::string base = loaded[m].name.empty() ? std::to_string(index) : fileSafe(loaded[m].name);
+            if (loaded[m].name.empty() && loaded.size() > 1) base += "-" + std::to_string(m);
+            std::string name = base;
+            for (int n = 2; names.count(name); ++n) name = base + "-" + std::to_string(n);
+            names.insert(name);
+            map.name = name;
+            map.mesh = std::move(loaded[m]);
+            maps.push_back(std::move(map));
+        }
+    }
+    return std::make_unique<LightmapKind>(std::move(maps), padding);
+}
+
+}  // namespace
+
+void registerLightmapReceiverKind() { registerReceiverKind("lightmap", &makeLightmapKind); }
+
+}  // namespace penumbra

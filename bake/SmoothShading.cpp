@@ -1,0 +1,110 @@
+#include "bake/SmoothShading.h"
+
+#include "stream/Triangle.h"
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <numeric>
+
+namespace penumbra {
+
+glm::dvec3 LightDirection::at(const glm::dvec3& p) const {
+    if (glm::dot(towardLight, towardLight) > 0) return towardLight;
+    glm::dvec3 d = point - p;
+    double len = glm::length(d);
+    return len > 0 ? d / len : glm::dvec3(0.0);
+}
+
+std::vector<LightDirection> lightDirections(const std::vector<LightDesc>& lights) {
+    std::vector<LightDirection> out;
+    for (const LightDesc& l : lights) {
+        LightDirection d;
+        if (l.type == LightType::Sun) d.towardLight = -glm::normalize(l.direction);
+        else if (l.type == LightType::Polygon)
+            d.point = std::accumulate(l.polygon.begin(), l.polygon.end(), glm::dvec3(0.0)) / double(l.polygon.size());
+        else d.point = l.center;
+        out.push_back(d);
+    }
+    return out;
+}
+
+double smoothShadingFactor(double lf, double lbend) {
+    if (!(lf > 1e-9)) return 0.0;
+    double alpha = std::clamp(3.0 * lbend, 0.0, 1.0);
+    double s = alpha * lf + (1.0 - alpha) * lbend;
+    return std::clamp(s / lf, 0.0, 1.0);
+}
+
+size_t VertexBend::KeyHash::operator()(const Key& k) const {
+    uint64_t h = (uint64_t(k.x) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(k.y) * 0xC2B2AE3D27D4EB4Full) ^
+                 (uint64_t(k.z) * 0x165667B19E3779F9ull);
+    return size_t(h ^ (h >> 29));
+}
+
+VertexBend::Key VertexBend::keyOf(const glm::vec3& p) {
+    // +0 and -0 are the same vertex.
+    auto bits = [](float f) { return std::bit_cast<uint32_t>(f == 0.f ? 0.f : f); };
+    return {bits(p.x), bits(p.y), bits(p.z)};
+}
+
+VertexBend::VertexBend(std::vector<std::array<glm::vec3, 3>> triangles, std::span<const glm::vec3> normals,
+                       std::vector<LightDirection> lights)
+    : triangles_(std::move(triangles)), lights_(std::move(lights)) {
+    const size_t L = lights_.size();
+    for (size_t r = 0; r < triangles_.size(); ++r) {
+        const auto& t = triangles_[r];
+        glm::dvec3 n = glm::cross(glm::dvec3(t[1] - t[0]), glm::dvec3(t[2] - t[0]));
+        float sign = glm::dot(n, glm::dvec3(normals[r])) < 0 ? -1.f : 1.f;
+        for (const glm::vec3& v : t) {
+            auto [it, inserted] = index_.try_emplace(keyOf(v), uint32_t(sign_.size()));
+            if (!inserted) continue;
+            sign_.push_back(sign);
+            bend_.insert(bend_.end(), L, 1.f);
+        }
+    }
+}
+
+void VertexBend::add(std::span<const Triangle> chunk) {
+    const size_t L = lights_.size();
+    for (const Triangle& tri : chunk) {
+        glm::dvec3 n = glm::cross(glm::dvec3(tri.v[1] - tri.v[0]), glm::dvec3(tri.v[2] - tri.v[0]));
+        double len = glm::length(n);
+        if (!(len > 0) || !std::isfinite(len)) continue;
+        n /= len;
+        for (const glm::vec3& v : tri.v) {
+            auto it = index_.find(keyOf(v));
+            if (it == index_.end()) continue;
+            const uint32_t slot = it->second;
+            for (size_t l = 0; l < L; ++l) {
+                double d = sign_[slot] * glm::dot(lights_[l].at(glm::dvec3(v)), n);
+                bend_[slot * L + l] = std::min(bend_[slot * L + l], float(d));
+            }
+        }
+    }
+}
+
+double VertexBend::factor(size_t r, const glm::dvec3& position, const glm::dvec3& normal, int light) const {
+    const auto& t = triangles_[r];
+    const size_t L = lights_.size();
+    // Barycentric coordinates of the receiver in its triangle (it lies in the triangle's plane).
+    glm::dvec3 a(t[0]), e1 = glm::dvec3(t[1]) - a, e2 = glm::dvec3(t[2]) - a, q = position - a;
+    double d11 = glm::dot(e1, e1), d12 = glm::dot(e1, e2), d22 = glm::dot(e2, e2);
+    double q1 = glm::dot(q, e1), q2 = glm::dot(q, e2), det = d11 * d22 - d12 * d12;
+    double b1 = det > 0 ? std::clamp((d22 * q1 - d12 * q2) / det, 0.0, 1.0) : 1.0 / 3;
+    double b2 = det > 0 ? std::clamp((d11 * q2 - d12 * q1) / det, 0.0, 1.0 - b1) : 1.0 / 3;
+    double w[3] = {1.0 - b1 - b2, b1, b2};
+    double bend = 0;
+    for (int i = 0; i < 3; ++i) bend += w[i] * bend_[index_.at(keyOf(t[i])) * L + size_t(light)];
+    double lf = glm::dot(lights_[size_t(light)].at(position), normal);
+    return smoothShadingFactor(lf, bend);
+}
+
+uint64_t VertexBend::bytes() const {
+    return triangles_.size() * sizeof(triangles_[0]) + index_.size() * (sizeof(Key) + sizeof(uint32_t) + 16) +
+           sign_.size() * sizeof(float) + bend_.size() * sizeof(float);
+}
+
+}  // namespace penumbra

@@ -1,0 +1,53 @@
+#pragma once
+/// @file IndexedMesh.h
+/// @brief Indexed triangle meshes with their vertex attributes (normals, texture coordinates),
+/// for receiver kinds that live on the surface of a mesh (lightmaps).
+///
+/// The blocker stream (ObjReader.h, GltfReader.h) only ever needs positions and never holds a
+/// mesh; receivers on a mesh need its connectivity and attributes, so the meshes named as
+/// receivers are loaded whole, here.
+///
+/// UV convention: texture coordinates follow glTF, (0, 0) at the top-left of the image and v
+/// growing downwards. OBJ `vt` has v growing upwards, so OBJ coordinates are stored as
+/// (u, 1 - v); an OBJ and a glTF exported from the same model then give the same layout.
+
+#include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace penumbra {
+
+/// @brief One mesh: per-vertex attributes (an attribute array is either empty, meaning the mesh
+/// does not have it, or holds one entry per position) and a triangle list.
+struct IndexedMesh {
+    std::vector<glm::vec3> position;  ///< world space (the load transform applied)
+    std::vector<glm::vec3> normal;    ///< shading normals, unit length, world space; may be empty
+    std::vector<glm::vec2> uv0;       ///< OBJ vt or glTF TEXCOORD_0; may be empty
+    std::vector<glm::vec2> uv1;       ///< glTF TEXCOORD_1; may be empty
+    std::vector<uint32_t> indices;    ///< three per triangle, counter-clockwise front faces
+    std::string name;                 ///< glTF mesh (or node) name; the file's stem for OBJ
+
+    size_t triangleCount() const { return indices.size() / 3; }
+};
+
+/// @brief Loads every mesh of an OBJ (one mesh), .gltf or .glb file (one mesh per node that
+/// draws one, all its triangle primitives merged).
+///
+/// OBJ: `v`, `vt`, `vn` and `f` with any corner form; polygons are fan-triangulated; corners
+/// with distinct (v, vt, vn) triples become distinct vertices. A mesh has uv0 (normals) only when
+/// every face corner names a `vt` (`vn`). glTF: POSITION, NORMAL, TEXCOORD_0, TEXCOORD_1 and
+/// indices of TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN primitives, with node transforms; an
+/// attribute is kept only when every primitive of the mesh has it. Mirroring transforms reverse
+/// the winding so front faces stay front faces.
+/// @param path the file (told apart by extension: .obj, else glTF by content)
+/// @param transform applied to positions (as points) and normals (inverse transpose)
+/// @throw InputError naming the file for malformed input: bad numbers or indices
+///        (`mesh.obj:12: face index 40 out of range (38 vertices)`), out-of-bounds or mistyped
+///        accessors, attribute counts that differ from POSITION, non-finite values.
+std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::mat4& transform);
+
+}  // namespace penumbra

@@ -1,0 +1,139 @@
+// Camera outputs: smooth coherent shading keeps light off faces turned away from it, and a camera
+// bake with several lights writes per-light EXR layers and light/sample attributes.
+
+#include "TestScenes.h"
+
+#include "bake/CameraOutput.h"
+#include "bake/ImageWriters.h"
+#include "bake/Pipeline.h"
+#include "bake/ReceiverShading.h"
+#include "bake/Scene.h"
+#include "bake/SmoothShading.h"
+#include "receivers/CameraReceivers.h"
+
+#include <catch2/catch.hpp>
+
+#include <glm/geometric.hpp>
+
+#include <fstream>
+#include <map>
+
+using namespace penumbra;
+using namespace penumbra::test;
+
+namespace {
+
+/// A unit icosphere (outward winding), subdivided @p levels times.
+std::vector<Triangle> icosphere(int levels, glm::vec3 center, float radius) {
+    const float t = (1.f + std::sqrt(5.f)) / 2.f;
+    std::vector<glm::vec3> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+                                {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+    for (auto& p : v) p = glm::normalize(p);
+    std::vector<glm::ivec3> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                                 {11, 10, 2}, {10, 7, 6}, {7, 1, 8},   {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+                                 {3, 8, 9},  {4, 9, 5},  {2, 4, 11},  {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+    for (int l = 0; l < levels; ++l) {
+        std::map<std::pair<int, int>, int> mid;
+        auto midpoint = [&](int a, int b) {
+            auto key = std::minmax(a, b);
+            auto it = mid.find(key);
+            if (it != mid.end()) return it->second;
+            v.push_back(glm::normalize(v[a] + v[b]));
+            return mid[key] = int(v.size()) - 1;
+        };
+        std::vector<glm::ivec3> next;
+        for (auto tri : f) {
+            int a = midpoint(tri.x, tri.y), b = midpoint(tri.y, tri.z), c = midpoint(tri.z, tri.x);
+            next.insert(next.end(), {{tri.x, a, c}, {tri.y, b, a}, {tri.z, c, b}, {a, b, c}});
+        }
+        f = next;
+    }
+    std::vector<Triangle> out;
+    for (auto tri : f) out.push_back({{center + radius * v[tri.x], center + radius * v[tri.y], center + radius * v[tri.z]}, 0});
+    return out;
+}
+
+}  // namespace
+
+TEST_CASE("smooth shading leaves no energy on faces turned away from the light", "[shading][camera]") {
+    // A large rect light at the side: its far edge still reaches faces whose normals point away
+    // from its centre, which is the leak smooth coherent shading removes.
+    std::vector<Triangle> sphere = icosphere(1, {0, 0, 0}, 1.f);
+    LightDesc light = rectLight({4, 0, 0}, {0, 0, 6}, {0, 6, 0}, 256, 1);  // u x v = -x: faces the sphere
+    CameraDesc cam;
+    cam.eye = {0, 0.5, 5}, cam.target = {0, 0, 0}, cam.width = 96, cam.height = 96, cam.fovDeg = 35;
+    CameraRasterizer raster(cam);
+    raster.recordTriangles();
+    raster.add(sphere);
+    ReceiverSet receivers = raster.finish();
+    REQUIRE(receivers.size() > 1000);
+    VertexBend bend(raster.takeTriangles(), receivers.normal, lightDirections({light}));
+    bend.add(sphere);
+
+    LightSamples samples = generateLightSamples({light}, 64, 3);
+    std::vector<uint32_t> sets = assignSets(receivers, samples.sets);
+    ReceiverShader shader({light}, samples, receivers, sets);
+    ReceiverResults results;
+    results.resize(receivers.size(), 1);
+    for (uint32_t r = 0; r < receivers.size(); ++r) shader.shade(r, nullptr, false, results);
+
+    double leak = 0;
+    int backFacing = 0, kept = 0;
+    for (size_t r = 0; r < receivers.size(); ++r) {
+        glm::dvec3 p(receivers.position[r]), n(receivers.normal[r]);
+        glm::dvec3 l = glm::normalize(light.center - p);
+        glm::vec3 smooth = shadedIrradiance(receivers, results, r, &bend);
+        if (glm::dot(n, l) <= 0) {
+            ++backFacing;
+            leak += results.irradiance[r].x;
+            CHECK(smooth.x == 0.f);
+        } else if (glm::dot(n, l) > 0.6) {  // well inside the lit side: unchanged
+            kept += smooth.x == Approx(results.irradiance[r].x);
+        }
+        CHECK(smooth.x <= results.irradiance[r].x * 1.000001f);
+    }
+    CHECK(backFacing > 100);
+    CHECK(leak > 0);  // without smooth shading the back faces do get light
+    CHECK(kept > 50);
+}
+
+TEST_CASE("a camera bake with two lights writes per-light layers and light attributes", "[camera][radiometry]") {
+    ScratchDir dir("camera");
+    {
+        std::ofstream obj(dir / "scene.obj");
+        obj << "v -3 0 -3\nv 3 0 -3\nv 3 0 3\nv -3 0 3\nf 1 3 2\nf 1 4 3\n";  // floor, facing up
+        obj << "v -0.5 1 -0.5\nv 0.5 1 -0.5\nv 0.5 1 0.5\nv -0.5 1 0.5\nf 5 7 6\nf 5 8 7\n";  // a blocker
+    }
+    nlohmann::json scene = {
+        {"geometry", {{{"type", "obj"}, {"path", "scene.obj"}}}},
+        {"lights",
+         {{{"type", "rect"}, {"center", {0, 3, 0}}, {"u", {1, 0, 0}}, {"v", {0, 0, 1}}, {"power", 10}, {"samples", 64}},
+          {{"type", "sun"}, {"direction", {-0.3, -1, 0.1}}, {"irradiance", {100, 90, 80}}, {"samples", 64}}}},
+        {"receivers", {{"type", "camera"}, {"eye", {0, 6, 4}}, {"target", {0, 0, 0}}, {"width", 40}, {"height", 30}}},
+        {"output", "out/cam.exr"},
+        {"bake", {{"smooth_shading", true}}},
+    };
+    registerFileSourceTypes();
+    SceneDesc desc = parseScene(scene, dir / "scene.json");
+    BakeSettings settings;
+    settings.quiet = true;
+    runBake(desc, settings);
+    ExrImage img = readExr(dir / "out/cam.exr");
+    for (const char* c : {"V", "A", "Z", "E.R", "E.G", "E.B", "N.X", "N.Y", "N.Z", "light0.V", "light0.E.R", "light0.E.G",
+                          "light0.E.B", "light1.V", "light1.E.R", "light1.E.G", "light1.E.B"})
+        CHECK(img.channels.count(c) == 1);
+    CHECK(img.attributes["penumbra:lights"] == "2");
+    CHECK(img.attributes["penumbra:light1"].find("type=sun") != std::string::npos);
+    CHECK(img.attributes["penumbra:light0"].find("radiance=") != std::string::npos);
+    CHECK(std::filesystem::exists(dir / "out/cam.png"));
+    int shadowed = 0;
+    for (size_t px = 0; px < img.channels["V"].size(); ++px) {
+        if (img.channels["A"][px] == 0) continue;
+        float sumE = img.channels["light0.E.R"][px] + img.channels["light1.E.R"][px];
+        CHECK(sumE == Approx(img.channels["E.R"][px]).epsilon(1e-4).margin(1e-4));
+        // V counts all samples: equal counts per light, so it is the mean of the two.
+        CHECK(0.5f * (img.channels["light0.V"][px] + img.channels["light1.V"][px]) == Approx(img.channels["V"][px]));
+        shadowed += img.channels["light1.V"][px] < 1;
+    }
+    CHECK(shadowed > 0);
+}

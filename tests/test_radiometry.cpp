@@ -1,0 +1,201 @@
+// Radiometry: irradiance against Lambert's polygon form factor, a straight edge's penumbra
+// against its analytic visible fraction, power-to-radiance, and the sun light (placement,
+// irradiance, and bit-exact hpc vs reference casting).
+
+#include "TestScenes.h"
+
+#include "bake/ReceiverShading.h"
+#include "bake/ReferenceCaster.h"
+#include "bake/SunLight.h"
+
+#include <catch2/catch.hpp>
+
+#include <glm/gtc/constants.hpp>
+#include <glm/trigonometric.hpp>
+
+#include <cmath>
+
+using namespace penumbra;
+using namespace penumbra::test;
+
+namespace {
+
+/// Lambert's formula for the irradiance at p (normal n) from a uniform Lambertian polygon of
+/// radiance L wholly above p's horizon: E = L/2 * |sum_i angle_i * (n . gamma_i)|, gamma_i the unit
+/// normal of the plane through p and edge i.
+double lambertIrradiance(const std::vector<glm::dvec3>& poly, glm::dvec3 p, glm::dvec3 n, double L) {
+    double sum = 0;
+    for (size_t i = 0; i < poly.size(); ++i) {
+        glm::dvec3 a = glm::normalize(poly[i] - p), b = glm::normalize(poly[(i + 1) % poly.size()] - p);
+        double angle = std::acos(std::clamp(glm::dot(a, b), -1.0, 1.0));
+        sum += angle * glm::dot(n, glm::normalize(glm::cross(a, b)));
+    }
+    return 0.5 * L * std::abs(sum);
+}
+
+ReceiverResults shadeUnoccluded(const std::vector<LightDesc>& lights, const ReceiverSet& receivers) {
+    LightSamples samples = generateLightSamples(lights, 64, 11);
+    std::vector<uint32_t> sets = assignSets(receivers, samples.sets);
+    ReceiverShader shader(lights, samples, receivers, sets);
+    ReceiverResults out;
+    out.resize(receivers.size(), int(lights.size()));
+    for (uint32_t r = 0; r < receivers.size(); ++r) shader.shade(r, nullptr, false, out);
+    return out;
+}
+
+LightDesc sun(glm::dvec3 direction, double diameterDeg, int samples = 64) {
+    LightDesc l;
+    l.type = LightType::Sun, l.direction = direction, l.angularDiameterDeg = diameterDeg;
+    l.irradiance = {1000, 900, 800}, l.samples = samples, l.sampleSets = 4, l.where = "sun";
+    return l;
+}
+
+}  // namespace
+
+TEST_CASE("unoccluded irradiance from a rect light matches Lambert's form factor", "[radiometry]") {
+    LightDesc rect = rectLight({0, 3, 0}, {1.2, 0, 0}, {0, 0, 0.8}, 1024, 1);
+    rect.radiance = {2.0, 1.0, 0.5};
+    std::vector<glm::dvec3> corners;
+    for (auto [a, b] : {std::pair{-0.5, -0.5}, {0.5, -0.5}, {0.5, 0.5}, {-0.5, 0.5}})
+        corners.push_back(rect.center + a * rect.u + b * rect.v);
+    ReceiverSet receivers;
+    // Positions below the light, at several heights and offsets; tilts keep the light above the horizon.
+    for (glm::dvec3 p : {glm::dvec3(0, 0, 0), {0.7, 1, -0.4}, {-1.5, 0.5, 0.3}, {0.2, 2, 0.1}})
+        for (glm::dvec3 n : {glm::dvec3(0, 1, 0), {0.3, 1, 0}, {-0.2, 1, 0.4}, {0, 1, -0.5}}) {
+            receivers.position.push_back(glm::vec3(p));
+            receivers.normal.push_back(glm::vec3(glm::normalize(n)));
+        }
+    ReceiverResults out = shadeUnoccluded({rect}, receivers);
+    for (size_t i = 0; i < receivers.size(); ++i) {
+        glm::dvec3 p(receivers.position[i]), n(receivers.normal[i]);
+        for (int c = 0; c < 3; ++c) {
+            double expected = lambertIrradiance(corners, p, n, rect.radiance[c]);
+            INFO("receiver " << i << " channel " << c << ": " << out.irradiance[i][c] << " vs " << expected);
+            CHECK(std::abs(out.irradiance[i][c] - expected) <= 0.005 * expected);
+        }
+        CHECK(out.visibility[i] == 1.f);
+    }
+}
+
+TEST_CASE("a straight occluder edge gives the analytic penumbra profile", "[radiometry]") {
+    // Light spans x in [-0.5, 0.5] at height H; a half-plane blocker covers x < 0 at height h.
+    const double H = 4, h = 2, w = 1;
+    LightDesc rect = rectLight({0, H, 0}, {w, 0, 0}, {0, 0, 0.6}, 1024, 1);
+    std::vector<Triangle> blocker;
+    addQuad(blocker, {-50, float(h), -50}, {0, float(h), -50}, {0, float(h), 50}, {-50, float(h), 50});
+    ReceiverSet receivers;
+    for (int i = 0; i <= 60; ++i) {
+        receivers.position.push_back({float(-1.5 + 3.0 * i / 60), 0.f, 0.f});
+        receivers.normal.push_back({0, 1, 0});
+    }
+    LightSamples samples = generateLightSamples({rect}, 64, 5);
+    std::vector<uint32_t> sets = assignSets(receivers, samples.sets);
+    VisibilityMasks masks = castReference(samples, receivers, sets, blocker, CastOptions{}.epsilon);
+    ReceiverShader shader({rect}, samples, receivers, sets);
+    ReceiverResults out;
+    out.resize(receivers.size(), 1);
+    bool sawPenumbra = false;
+    for (uint32_t r = 0; r < receivers.size(); ++r) {
+        shader.shade(r, masks.row(r), false, out);
+        double x = receivers.position[r].x;
+        // Visible iff the ray to light point lx crosses y = h at x >= 0: lx >= -x (H - h) / h.
+        double expected = std::clamp((w / 2 + x * (H - h) / h) / w, 0.0, 1.0);
+        sawPenumbra |= expected > 0.1 && expected < 0.9;
+        INFO("x = " << x);
+        // Stratified samples: at most one column of 32 strata straddles the edge.
+        CHECK(std::abs(out.visibility[r] - expected) <= 1.0 / 32 + 1e-6);
+    }
+    CHECK(sawPenumbra);
+}
+
+TEST_CASE("several lights give per-light visibility and irradiance that sum to the totals", "[radiometry]") {
+    LightDesc a = rectLight({-1, 3, 0}, {1, 0, 0}, {0, 0, 1}, 256, 2);
+    LightDesc b = rectLight({2, 2, 0}, {0.5, 0, 0}, {0, 0, 0.5}, 64, 2);
+    b.radiance = {0, 3, 0};
+    ReceiverSet receivers = randomReceivers(3, 50, {-2, -1, -2}, {2, 0, 2});
+    ReceiverResults out = shadeUnoccluded({a, b}, receivers);
+    REQUIRE(out.lightVisibility.size() == 100);
+    for (size_t r = 0; r < receivers.size(); ++r) {
+        glm::vec3 sum = out.irradianceOf(r, 0) + out.irradianceOf(r, 1);
+        CHECK(std::abs(sum.y - out.irradiance[r].y) <= 1e-5f * (1 + out.irradiance[r].y));
+        CHECK(out.irradianceOf(r, 0).y == Approx(out.irradianceOf(r, 0).x));
+        CHECK(out.irradianceOf(r, 1).x == 0.f);
+        CHECK(out.visibilityOf(r, 0) == 1.f);
+        CHECK(out.visibilityOf(r, 1) == 1.f);
+    }
+}
+
+TEST_CASE("power converts to radiance by the emitter's area", "[radiometry]") {
+    LightDesc rect = rectLight({0, 3, 0}, {2, 0, 0}, {0, 0, 0.5}, 16, 1);
+    glm::dvec3 L = radianceFromPower(rect, glm::dvec3(glm::pi<double>()));
+    CHECK(L.x == Approx(1.0));
+    LightDesc sphere;
+    sphere.type = LightType::Sphere, sphere.radius = 0.5;
+    CHECK(radianceFromPower(sphere, glm::dvec3(4 * glm::pi<double>() * glm::pi<double>() * 0.25)).y == Approx(1.0));
+    CHECK_THROWS_AS(radianceFromPower(sun({0, -1, 0}, 0.53), glm::dvec3(1)), InputError);
+}
+
+TEST_CASE("a sun is placed as a far disk and gives irradiance x cos", "[sun][radiometry]") {
+    LightDesc s = sun({0.3, -1, 0.2}, 0.53, 256);
+    CHECK_THROWS_WITH(generateLightSamples({s}, 64, 1), Catch::Contains("not placed"));
+    std::vector<LightDesc> placed = placeSuns({s}, {-2, 0, -2}, {2, 1, 2});
+    const LightDesc& d = placed[0];
+    glm::dvec3 dir = glm::normalize(s.direction);
+    double distance = glm::length(d.center - glm::dvec3(0, 0.5, 0));
+    CHECK(distance == Approx(kSunDistanceFactor * std::sqrt(33.0)));
+    CHECK(glm::dot(glm::normalize(glm::dvec3(0, 0.5, 0) - d.center), dir) == Approx(1.0));
+    CHECK(std::atan(d.radius / distance) * 2 == Approx(0.53 * glm::pi<double>() / 180));
+
+    ReceiverSet receivers;
+    for (glm::dvec3 n : {glm::dvec3(0, 1, 0), -dir, {1, 0.2, 0}, {0, 0.5, 1}}) {
+        receivers.position.push_back({0.5f, 0.f, -0.3f});
+        receivers.normal.push_back(glm::vec3(glm::normalize(n)));
+    }
+    ReceiverResults out = shadeUnoccluded(placed, receivers);
+    for (size_t r = 0; r < receivers.size(); ++r) {
+        double c = std::max(0.0, glm::dot(glm::dvec3(receivers.normal[r]), -dir));
+        INFO("receiver " << r);
+        CHECK(out.irradiance[r].x == Approx(1000 * c).margin(1e-3).epsilon(1e-4));
+        CHECK(out.irradiance[r].z == Approx(800 * c).margin(1e-3).epsilon(1e-4));
+    }
+    // Radiance given instead: irradiance = L * pi * sin^2(half angle).
+    double half = 0.5 * glm::radians(0.53);
+    CHECK(sunIrradianceFromRadiance(glm::dvec3(1), 0.53).x == Approx(glm::pi<double>() * std::sin(half) * std::sin(half)));
+}
+
+TEST_CASE("sun shadows from hpc match the reference bit for bit", "[sun][hpc][exact]") {
+    std::vector<Triangle> tris = triangleSoup(21, 50, {-2, 0.5f, -2}, {2, 2.5f, 2}, 1.0f);
+    std::vector<Triangle> floor;
+    addQuad(floor, {-4, 0, -4}, {4, 0, -4}, {4, 0, 4}, {-4, 0, 4});
+    ReceiverSet receivers;
+    addReceiversOnTriangles(receivers, floor, 22, 400);
+    addReceiversOnTriangles(receivers, tris, 23, 2);
+    tris.insert(tris.end(), floor.begin(), floor.end());
+    SceneBox box;
+    for (const Triangle& t : tris)
+        for (const glm::vec3& v : t.v) box.add(glm::dvec3(v));
+    for (double diameter : {0.53, 6.0}) {
+        std::vector<LightDesc> lights = placeSuns({sun({0.4, -1, 0.25}, diameter, 128)}, box.lo, box.hi);
+        LightSamples samples = generateLightSamples(lights, 64, 7);
+        std::vector<uint32_t> sets = assignSets(receivers, samples.sets);
+        VisibilityMasks reference = castReference(samples, receivers, sets, tris, CastOptions{}.epsilon);
+        INFO("diameter " << diameter << ": " << reference.blockedCount() << " blocked");
+        REQUIRE(reference.blockedCount() > 0);
+        REQUIRE(reference.blockedCount() < uint64_t(receivers.size()) * samples.sampleCount);
+        // Some receivers must be in partial shadow, or the penumbra volumes prove little.
+        ReceiverShader shader(lights, samples, receivers, sets);
+        ReceiverResults out;
+        out.resize(receivers.size(), 1);
+        int partial = 0;
+        for (uint32_t r = 0; r < receivers.size(); ++r) {
+            shader.shade(r, reference.row(r), false, out);
+            partial += out.visibility[r] > 0 && out.visibility[r] < 1;
+        }
+        CHECK(partial > 0);
+        for (const auto& [name, options] : optionVariants()) {
+            INFO(name);
+            VisibilityMasks hpc = castHpc(samples, receivers, sets, tris, options, 2);
+            CHECK(hpc.words == reference.words);
+        }
+    }
+}
