@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One entry point for a fresh Debian 12 machine:
-#   ./setup.sh bake   install dependencies, build, bake examples/default.json to out/default.{exr,png}
+#   ./setup.sh bake   install dependencies, build, bake examples/grids.json (the default scene) to out/default.{exr,png}
 #   ./setup.sh test   install dependencies, build, run the whole test suite
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -40,7 +40,7 @@ fi
 case "$mode" in
   bake)
     mkdir -p out
-    "$build/penumbra" bake examples/default.json -o out/default.exr --stats out/default-stats.json
+    "$build/penumbra" bake examples/grids.json -o out/default.exr --stats out/default-stats.json
     echo "setup: wrote out/default.exr and out/default.png" >&2 ;;
   test)
     cd "$build" && ctest --output-on-failure --timeout 1200 ;;

@@ -20,7 +20,7 @@ public:
         // The z-buffer (plus the triangle per pixel for smooth shading) and, at the end of the
         // pass, the receiver set made from it (32 bytes per covered pixel).
         uint64_t perPixel = CameraRasterizer::kBytesPerPixel + (smooth_ ? sizeof(std::array<glm::vec3, 3>) : 0) + 32;
-        return uint64_t(camera_.width) * camera_.height * perPixel;
+        return uint64_t(camera_.width) * camera_.height * camera_.layers * perPixel;
     }
     uint64_t outputBytes(uint64_t) const override {
         // Float channels and the RGB preview per pixel (per-light layers add more), plus
@@ -67,6 +67,7 @@ std::unique_ptr<ReceiverKind> makeCameraKind(const JsonParams& j, const SceneDes
     c.fovDeg = j.number("fov_deg", c.fovDeg);
     c.width = int(j.integer("width", c.width, 1, 65536));
     c.height = int(j.integer("height", c.height, 1, 65536));
+    c.layers = int(j.integer("layers", c.layers, 1, 16));
     return std::make_unique<CameraKind>(c, scene);
 }
 

@@ -56,8 +56,20 @@ void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, co
     std::vector<float> V(pixels, 0.f), A(pixels, 0.f), Z(pixels, 0.f), ER(pixels, 0.f), EG(pixels, 0.f), EB(pixels, 0.f);
     std::vector<float> NX(pixels, 0.f), NY(pixels, 0.f), NZ(pixels, 0.f);
     const std::vector<glm::vec3>& e = results.irradiance;
+    // Deep cameras: receivers of layer k >= 1 (pixel >= k * W * H) go to "layer<k>.*" channels.
+    size_t layers = 1;
+    for (uint32_t px : receivers.pixel) layers = std::max(layers, size_t(px / pixels) + 1);
+    std::vector<std::vector<float>> deep((layers - 1) * 9, std::vector<float>(pixels, 0.f));
     for (size_t i = 0; i < receivers.size(); ++i) {
-        uint32_t px = receivers.pixel[i];
+        const size_t layer = receivers.pixel[i] / pixels, px = receivers.pixel[i] % pixels;
+        if (layer > 0) {
+            float* d[9];
+            for (int c = 0; c < 9; ++c) d[c] = deep[(layer - 1) * 9 + c].data();
+            float values[9] = {results.visibility[i], 1.f, receivers.depth[i], e[i].x, e[i].y, e[i].z,
+                               receivers.normal[i].x, receivers.normal[i].y, receivers.normal[i].z};
+            for (int c = 0; c < 9; ++c) d[c][px] = values[c];
+            continue;
+        }
         V[px] = results.visibility[i], A[px] = 1.f, Z[px] = receivers.depth[i];
         ER[px] = e[i].x, EG[px] = e[i].y, EB[px] = e[i].z;
         NX[px] = receivers.normal[i].x, NY[px] = receivers.normal[i].y, NZ[px] = receivers.normal[i].z;
@@ -65,12 +77,20 @@ void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, co
     std::vector<ExrChannel> channels = {{"V", V.data()},   {"A", A.data()},    {"Z", Z.data()},
                                         {"E.R", ER.data()}, {"E.G", EG.data()}, {"E.B", EB.data()},
                                         {"N.X", NX.data()}, {"N.Y", NY.data()}, {"N.Z", NZ.data()}};
+    std::vector<std::string> deepNames;
+    for (size_t layer = 1; layer < layers; ++layer)
+        for (const char* c : {"V", "A", "Z", "E.R", "E.G", "E.B", "N.X", "N.Y", "N.Z"})
+            deepNames.push_back(fmt::format("layer{}.{}", layer, c));
+    for (size_t c = 0; c < deep.size(); ++c) channels.push_back({deepNames[c], deep[c].data()});
+    // The per-light layers and the preview show the nearest surface (layer 0, listed first).
+    size_t front = 0;
+    while (front < receivers.size() && receivers.pixel[front] < pixels) ++front;
     // Several lights: each gets its own layer, "light<i>.V" and "light<i>.E.R/G/B".
     const int lightCount = results.lights;
     std::vector<std::vector<float>> perLight(lightCount > 1 ? size_t(lightCount) * 4 : 0, std::vector<float>(pixels, 0.f));
     std::vector<std::string> names;
     for (int l = 0; l < lightCount && lightCount > 1; ++l) {
-        for (size_t i = 0; i < receivers.size(); ++i) {
+        for (size_t i = 0; i < front; ++i) {
             uint32_t px = receivers.pixel[i];
             glm::vec3 el = results.irradianceOf(i, l);
             perLight[4 * l][px] = results.visibilityOf(i, l);
@@ -84,8 +104,8 @@ void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, co
 
     // Preview: white Lambert under the lights plus a little ambient, exposed so that the brighter
     // lit surfaces sit near white (99th percentile of luminance).
-    std::vector<glm::vec3> shaded(receivers.size());
-    for (size_t i = 0; i < receivers.size(); ++i) shaded[i] = shadedIrradiance(receivers, results, i, smooth);
+    std::vector<glm::vec3> shaded(front);
+    for (size_t i = 0; i < front; ++i) shaded[i] = shadedIrradiance(receivers, results, i, smooth);
     std::vector<float> sorted;
     for (const glm::vec3& x : shaded) sorted.push_back(0.2126f * x.x + 0.7152f * x.y + 0.0722f * x.z);
     float white = 1.f;
@@ -99,7 +119,7 @@ void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, co
     for (size_t px = 0; px < pixels; ++px) {  // background: a neutral dark grey
         rgb[3 * px] = rgb[3 * px + 1] = rgb[3 * px + 2] = encodeSrgb(0.02f);
     }
-    for (size_t i = 0; i < receivers.size(); ++i) {
+    for (size_t i = 0; i < front; ++i) {
         uint32_t px = receivers.pixel[i];
         glm::vec3 c = glm::vec3(ambient) + exposure * shaded[i];
         rgb[3 * px] = encodeSrgb(c.x), rgb[3 * px + 1] = encodeSrgb(c.y), rgb[3 * px + 2] = encodeSrgb(c.z);

@@ -93,13 +93,13 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     for (size_t i = 0; i < p.receivers.size(); ++i) p.sampleSets[i] = uint32_t(sampleSetOf(i, p.samples.sets, scene.seed));
     p.triangleCount = histogram.count();
 
-    if (kind.wantsRescan()) {  // only when the receivers ask for it: an extra read of the source
-        source->rewind();
-        std::vector<Triangle> chunk(kTriangleChunk);
-        while (size_t n = source->read(chunk)) kind.rescan(std::span<const Triangle>(chunk.data(), n));
-    }
     source->rewind();
     if (!scene.options.sortBlockers) {  // stream order: replay the source itself
+        if (kind.wantsRescan()) {  // no bucket pass to ride along with: a read of its own
+            std::vector<Triangle> chunk(kTriangleChunk);
+            while (size_t n = source->read(chunk)) kind.rescan(std::span<const Triangle>(chunk.data(), n));
+            source->rewind();
+        }
         p.blockers = std::make_unique<PrefetchSource>(std::move(source));
         return p;
     }
@@ -107,8 +107,14 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     options.tmpDir = settings.tmpDir;
     options.keep = settings.keepBuckets;
     ProgressReporter progress("bucket", p.triangleCount, settings.quiet);
+    // A receiver kind that wants a second look at the geometry (smooth shading) gets it during
+    // the bucket pass, so the source is still read only twice.
+    const bool rescan = kind.wantsRescan();
     auto set = std::make_shared<BucketSet>(writeBuckets(*source, planBucketRanges(options, &histogram), options, &buckets,
-                                                        [&](std::span<const Triangle> c) { progress.update(c.size()); }));
+                                                        [&](std::span<const Triangle> c) {
+                                                            if (rescan) kind.rescan(c);
+                                                            progress.update(c.size());
+                                                        }));
     progress.done();
     auto replay = std::make_unique<BucketReplaySource>(set, options.readBufferBytes);
     p.replay = replay.get();

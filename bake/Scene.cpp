@@ -19,20 +19,6 @@ std::string indexed(const std::string& key, size_t i) { return key + "[" + std::
 
 std::string resolve(const std::filesystem::path& base, const std::string& p) { return resolveScenePath(base, p); }
 
-Transform parseTransform(const JsonParams& entry) {
-    Transform t;
-    const nlohmann::json* raw = entry.raw("transform");
-    if (!raw) return t;
-    JsonParams j(*raw, entry.file(), entry.path("transform"));
-    double scale = j.number("scale", 1.0);
-    if (!(scale != 0.0)) fail(j.where("scale"), "must not be zero");
-    t.scale = float(scale);
-    t.rotateDeg = glm::vec3(j.vec3("rotate_deg", glm::dvec3(0.0)));
-    t.translate = glm::vec3(j.vec3("translate", glm::dvec3(0.0)));
-    j.finish();
-    return t;
-}
-
 /// An RGB value given as [r, g, b] or as one number for grey; must be finite and non-negative.
 glm::dvec3 colour(const JsonParams& j, const std::string& key, const glm::dvec3& fallback) {
     const nlohmann::json* raw = j.raw(key);

@@ -106,21 +106,6 @@ private:
     Placer::Instance current_{};
 };
 
-/// A nested entry's optional "transform", read like the scene loader reads top-level ones.
-Transform parseNestedTransform(const JsonParams& entry) {
-    Transform t;
-    const nlohmann::json* raw = entry.raw("transform");
-    if (!raw) return t;
-    JsonParams j(*raw, entry.file(), entry.path("transform"));
-    const double scale = j.number("scale", 1.0);
-    if (!(scale != 0.0)) fail(j.where("scale"), "must not be zero");
-    t.scale = float(scale);
-    t.rotateDeg = glm::vec3(j.vec3("rotate_deg", glm::dvec3(0.0)));
-    t.translate = glm::vec3(j.vec3("translate", glm::dvec3(0.0)));
-    j.finish();
-    return t;
-}
-
 }  // namespace
 
 TriangleSourcePtr makeScatterSource(const ScatterParams& params, TriangleSourcePtr source, const std::string& where) {
@@ -167,7 +152,7 @@ TriangleSourcePtr openScatterSource(const SourceRequest& request) {
 
     JsonParams s(*inline_, j.file(), j.path("source"));
     const std::string type = s.string("type");
-    const Transform transform = parseNestedTransform(s);
+    const Transform transform = parseTransform(s);
     nlohmann::json params = *inline_;
     params.erase("type");
     params.erase("transform");

@@ -42,6 +42,9 @@ void validateCamera(const CameraDesc& c) {
     if (!(c.fovDeg > 0.0 && c.fovDeg < 180.0)) fail(c.where, "fov_deg must be in (0, 180), got {}", c.fovDeg);
     glm::dvec3 f = c.target - c.eye;
     if (!(glm::length(f) > 0.0)) fail(c.where, "eye and target are the same point");
+    if (c.layers < 1 || c.layers > 16) fail(c.where, "layers must be in 1..16, got {}", c.layers);
+    if (uint64_t(c.width) * c.height * c.layers >= (1ull << 32))
+        fail(c.where, "width x height x layers must be below 2^32, got {}x{}x{}", c.width, c.height, c.layers);
     if (!(glm::length(glm::cross(f, c.up)) > 1e-12 * glm::length(f) * glm::length(c.up)))
         fail(c.where, "up is parallel to the view direction (or zero)");
 }
@@ -50,7 +53,7 @@ CameraRasterizer::CameraRasterizer(const CameraDesc& camera) : camera_(camera) {
     validateCamera(camera);
     Basis b = basisOf(camera);
     right_ = b.right, up_ = b.up, forward_ = b.forward, tanHalf_ = b.tanHalf, aspect_ = b.aspect;
-    const size_t pixels = size_t(camera.width) * camera.height;
+    const size_t pixels = size_t(camera.width) * camera.height * camera.layers;
     depth_.assign(pixels, std::numeric_limits<float>::infinity());
     normal_.assign(pixels, glm::vec3(0.0f));
 }
@@ -112,11 +115,21 @@ void CameraRasterizer::add(std::span<const Triangle> chunk) {
                 double denom = glm::dot(n, d);
                 if (denom == 0.0) continue;
                 double t = planeD / denom;
-                size_t p = size_t(y) * W + x;
-                if (!(t > 0.0) || !(float(t) < depth_[p])) continue;
-                depth_[p] = float(t);
-                normal_[p] = glm::vec3(glm::normalize(denom > 0 ? -n : n));
-                if (!triangle_.empty()) triangle_[p] = {tri.v[0], tri.v[1], tri.v[2]};
+                if (!(t > 0.0)) continue;
+                // Slots of a pixel hold its nearest distinct depths, ascending; a depth equal to
+                // one already kept is the same surface again, and the earlier triangle keeps it.
+                const size_t L = size_t(camera_.layers), base = (size_t(y) * W + x) * L;
+                const float ft = float(t);
+                size_t k = 0;
+                while (k < L && !(ft < depth_[base + k])) ++k;
+                if (k == L || (k > 0 && depth_[base + k - 1] == ft)) continue;
+                for (size_t j = L - 1; j > k; --j) {
+                    depth_[base + j] = depth_[base + j - 1], normal_[base + j] = normal_[base + j - 1];
+                    if (!triangle_.empty()) triangle_[base + j] = triangle_[base + j - 1];
+                }
+                depth_[base + k] = ft;
+                normal_[base + k] = glm::vec3(glm::normalize(denom > 0 ? -n : n));
+                if (!triangle_.empty()) triangle_[base + k] = {tri.v[0], tri.v[1], tri.v[2]};
             }
         }
     }
@@ -126,16 +139,18 @@ ReceiverSet CameraRasterizer::finish() {
     const int W = camera_.width, H = camera_.height;
     ReceiverSet set;
     set.width = W, set.height = H;
-    for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-            size_t p = size_t(y) * W + x;
-            if (!std::isfinite(depth_[p])) continue;
-            set.position.push_back(glm::vec3(camera_.eye + double(depth_[p]) * direction(x, y)));
-            set.normal.push_back(normal_[p]);
-            set.pixel.push_back(uint32_t(p));
-            set.depth.push_back(depth_[p]);
-            if (!triangle_.empty()) winners_.push_back(triangle_[p]);
-        }
+    const size_t L = size_t(camera_.layers);
+    for (size_t layer = 0; layer < L; ++layer)
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) {
+                size_t p = size_t(y) * W + x, slot = p * L + layer;
+                if (!std::isfinite(depth_[slot])) continue;
+                set.position.push_back(glm::vec3(camera_.eye + double(depth_[slot]) * direction(x, y)));
+                set.normal.push_back(normal_[slot]);
+                set.pixel.push_back(uint32_t(layer * size_t(W) * H + p));
+                set.depth.push_back(depth_[slot]);
+                if (!triangle_.empty()) winners_.push_back(triangle_[slot]);
+            }
     depth_ = {}, normal_ = {}, triangle_ = {};
     return set;
 }

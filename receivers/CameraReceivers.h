@@ -19,6 +19,9 @@ struct CameraDesc {
     glm::dvec3 eye{0, 3, 8}, target{0.0}, up{0, 1, 0};
     double fovDeg = 45.0;
     int width = 640, height = 480;
+    /// Deep option: receivers at the nearest `layers` distinct depths per pixel (1..16). Layer k's
+    /// receivers have pixel = k * width * height + y * width + x.
+    int layers = 1;
     std::string where = "receivers";
 
     /// Unit direction of the ray through the centre of pixel (x, y); y grows downwards.
@@ -39,7 +42,7 @@ public:
     /// Also keep, per pixel, the vertices of the triangle that wins it (36 more bytes per pixel),
     /// for shading that needs the visible triangle (smooth coherent shading). Call before add().
     void recordTriangles() { triangle_.assign(depth_.size(), {}); }
-    /// One receiver per covered pixel, in scanline order. Call once.
+    /// One receiver per covered pixel and layer: layer 0 in scanline order, then layer 1... Call once.
     ReceiverSet finish();
     /// After finish() with recordTriangles(): each receiver's triangle, in receiver order.
     std::vector<std::array<glm::vec3, 3>> takeTriangles() { return std::move(winners_); }

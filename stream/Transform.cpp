@@ -78,4 +78,18 @@ size_t TransformedSource::read(std::span<Triangle> out) {
     return n;
 }
 
+Transform parseTransform(const JsonParams& entry) {
+    Transform t;
+    const nlohmann::json* raw = entry.raw("transform");
+    if (!raw) return t;
+    JsonParams j(*raw, entry.file(), entry.path("transform"));
+    const double scale = j.number("scale", 1.0);
+    if (!(scale != 0.0)) fail(j.where("scale"), "must not be zero");
+    t.scale = float(scale);
+    t.rotateDeg = glm::vec3(j.vec3("rotate_deg", glm::dvec3(0.0)));
+    t.translate = glm::vec3(j.vec3("translate", glm::dvec3(0.0)));
+    j.finish();
+    return t;
+}
+
 }  // namespace penumbra

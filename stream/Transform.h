@@ -3,6 +3,7 @@
 /// @brief Placing geometry in the world: a scale/rotate/translate description and a source
 /// adapter that applies a matrix to every vertex streaming through it.
 
+#include "stream/JsonParams.h"
 #include "stream/TriangleSource.h"
 
 #include <glm/mat4x4.hpp>
@@ -23,6 +24,11 @@ struct Transform {
     /// True when matrix() is the identity.
     bool isIdentity() const;
 };
+
+/// @brief Reads the optional "transform" object of a geometry entry ({"scale", "rotate_deg",
+/// "translate"}); the identity when absent.
+/// @throw InputError naming the key (zero scale, wrong type, unknown key).
+Transform parseTransform(const JsonParams& entry);
 
 /// @brief Streams another source with a matrix applied to every vertex (p' = M * (p, 1)).
 ///

@@ -29,7 +29,6 @@
 #include <string>
 #include <vector>
 
-extern char** environ;
 
 using namespace penumbra::test;
 namespace fs = std::filesystem;
@@ -44,52 +43,7 @@ namespace {
 /// RLIMIT_FSIZE and SIGXFSZ ignored (so an oversize write fails with EFBIG instead of killing).
 /// Returns the wait status; the child's stdout+stderr go to @p output.
 int runHelper(const std::string& tag, const std::string& dir, rlim_t fileSizeLimit, std::string& output) {
-    char exe[4096];
-    ssize_t n = ::readlink("/proc/self/exe", exe, sizeof exe - 1);
-    REQUIRE(n > 0);
-    exe[n] = '\0';
-
-    // Everything the child needs is built before fork(): between fork and exec only
-    // async-signal-safe calls are allowed, as other threads (TBB, OpenEXR) may hold locks.
-    std::vector<std::string> envStrings;
-    for (char** e = environ; *e; ++e)
-        if (std::strncmp(*e, "PENUMBRA_IO_HELPER_DIR=", 23) != 0) envStrings.emplace_back(*e);
-    envStrings.push_back("PENUMBRA_IO_HELPER_DIR=" + dir);
-    std::vector<char*> envp;
-    for (auto& s : envStrings) envp.push_back(s.data());
-    envp.push_back(nullptr);
-    std::string tagArg = tag, colour = "--use-colour", no = "no";
-    std::vector<char*> argv = {exe, tagArg.data(), colour.data(), no.data(), nullptr};
-
-    int pipeFds[2];
-    REQUIRE(::pipe(pipeFds) == 0);
-    pid_t pid = ::fork();
-    REQUIRE(pid >= 0);
-    if (pid == 0) {
-        ::dup2(pipeFds[1], STDOUT_FILENO);
-        ::dup2(pipeFds[1], STDERR_FILENO);
-        ::close(pipeFds[0]);
-        ::close(pipeFds[1]);
-        if (fileSizeLimit > 0) {
-            ::signal(SIGXFSZ, SIG_IGN);
-            struct rlimit limit = {fileSizeLimit, fileSizeLimit};
-            if (::setrlimit(RLIMIT_FSIZE, &limit) != 0) ::_exit(120);
-        }
-        ::execve(exe, argv.data(), envp.data());
-        ::_exit(121);
-    }
-    ::close(pipeFds[1]);
-    char buf[4096];
-    for (;;) {
-        ssize_t got = ::read(pipeFds[0], buf, sizeof buf);
-        if (got < 0 && errno == EINTR) continue;
-        if (got <= 0) break;
-        output.append(buf, static_cast<size_t>(got));
-    }
-    ::close(pipeFds[0]);
-    int status = 0;
-    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
-    return status;
+    return runSelfAsChild(tag, "PENUMBRA_IO_HELPER_DIR", dir, fileSizeLimit, output);
 }
 
 const char* helperDir() { return std::getenv("PENUMBRA_IO_HELPER_DIR"); }

@@ -14,6 +14,8 @@
 #include "stream/Random.h"
 #include "stream/TriangleSource.h"
 
+#include "TestSupport.h"
+
 #include <catch2/catch.hpp>
 
 #include <signal.h>
@@ -31,33 +33,12 @@
 #include <string>
 #include <vector>
 
-extern char** environ;
 
 namespace fs = std::filesystem;
+using namespace penumbra::test;
 using namespace penumbra;
 
 namespace {
-
-/// A fresh directory under the system temp dir, removed with everything in it.
-struct ScratchDir {
-    fs::path path;
-    ScratchDir() {
-        std::string pattern = (fs::temp_directory_path() / "penumbra-bucket-test-XXXXXX").string();
-        REQUIRE(::mkdtemp(pattern.data()) != nullptr);
-        path = pattern;
-    }
-    ~ScratchDir() {
-        std::error_code ec;
-        fs::remove_all(path, ec);
-    }
-    /// Entries whose name starts with @p prefix, recursively.
-    std::vector<std::string> find(const std::string& prefix) const {
-        std::vector<std::string> out;
-        for (const auto& e : fs::recursive_directory_iterator(path))
-            if (e.path().filename().string().rfind(prefix, 0) == 0) out.push_back(e.path().string());
-        return out;
-    }
-};
 
 /// Triangle @p i of a deterministic stream: edge lengths over ~12 octaves (areas over ~24), every
 /// 7th alpha-matte, and the index in the upper flag bits so identity and order can be checked.
@@ -128,15 +109,6 @@ size_t openDescriptors() {
     return n;
 }
 
-std::string errorOf(const std::function<void()>& action) {
-    try {
-        action();
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "(no InputError thrown)";
-}
-
 // --- child processes ------------------------------------------------------------------------
 
 const char* helperDir() { return std::getenv("PENUMBRA_BUCKET_HELPER_DIR"); }
@@ -145,50 +117,7 @@ const char* helperDir() { return std::getenv("PENUMBRA_BUCKET_HELPER_DIR"); }
 /// if @p fileSizeLimit > 0, that RLIMIT_FSIZE with SIGXFSZ ignored (so an oversize write fails
 /// with EFBIG, exactly as under `prlimit --fsize`). Returns the wait status; output in @p output.
 int runHelper(const std::string& tag, const std::string& dir, rlim_t fileSizeLimit, std::string& output) {
-    char exe[4096];
-    ssize_t len = ::readlink("/proc/self/exe", exe, sizeof exe - 1);
-    REQUIRE(len > 0);
-    exe[len] = '\0';
-    // Built before fork(): only async-signal-safe calls may run between fork and exec.
-    std::vector<std::string> envStrings;
-    for (char** e = environ; *e; ++e)
-        if (std::strncmp(*e, "PENUMBRA_BUCKET_HELPER_DIR=", 27) != 0) envStrings.emplace_back(*e);
-    envStrings.push_back("PENUMBRA_BUCKET_HELPER_DIR=" + dir);
-    std::vector<char*> envp;
-    for (auto& s : envStrings) envp.push_back(s.data());
-    envp.push_back(nullptr);
-    std::string tagArg = tag, colour = "--use-colour", no = "no";
-    std::vector<char*> argv = {exe, tagArg.data(), colour.data(), no.data(), nullptr};
-
-    int fds[2];
-    REQUIRE(::pipe(fds) == 0);
-    pid_t pid = ::fork();
-    REQUIRE(pid >= 0);
-    if (pid == 0) {
-        ::dup2(fds[1], STDOUT_FILENO);
-        ::dup2(fds[1], STDERR_FILENO);
-        ::close(fds[0]);
-        ::close(fds[1]);
-        if (fileSizeLimit > 0) {
-            ::signal(SIGXFSZ, SIG_IGN);
-            struct rlimit limit = {fileSizeLimit, fileSizeLimit};
-            if (::setrlimit(RLIMIT_FSIZE, &limit) != 0) ::_exit(120);
-        }
-        ::execve(exe, argv.data(), envp.data());
-        ::_exit(121);
-    }
-    ::close(fds[1]);
-    char buf[4096];
-    for (;;) {
-        ssize_t got = ::read(fds[0], buf, sizeof buf);
-        if (got < 0 && errno == EINTR) continue;
-        if (got <= 0) break;
-        output.append(buf, size_t(got));
-    }
-    ::close(fds[0]);
-    int status = 0;
-    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
-    return status;
+    return runSelfAsChild(tag, "PENUMBRA_BUCKET_HELPER_DIR", dir, fileSizeLimit, output);
 }
 
 }  // namespace

@@ -137,3 +137,38 @@ TEST_CASE("a camera bake with two lights writes per-light layers and light attri
     }
     CHECK(shadowed > 0);
 }
+
+TEST_CASE("a deep camera keeps the nearest distinct surfaces per pixel as extra EXR layers", "[camera]") {
+    // Three parallel quads facing the camera at z = 0, -1, -2, viewed head-on.
+    std::vector<Triangle> tris;
+    for (float z : {0.f, -1.f, -2.f}) addQuad(tris, {-5, -5, z}, {5, -5, z}, {5, 5, z}, {-5, 5, z});
+    tris.push_back(tris[0]);  // the same surface again is not a new layer
+    CameraDesc cam;
+    cam.eye = {0, 0, 5}, cam.target = {0, 0, 0}, cam.width = 8, cam.height = 6, cam.layers = 2;
+    CameraRasterizer raster(cam);
+    raster.add(tris);
+    ReceiverSet r = raster.finish();
+    REQUIRE(r.size() == 2 * 48);
+    for (size_t i = 0; i < r.size(); ++i) {
+        const bool second = r.pixel[i] >= 48;
+        CHECK(r.position[i].z == Approx(second ? -1.f : 0.f).margin(1e-5));
+    }
+    ScratchDir dir("deep");
+    SceneDesc scene;
+    scene.lights = {rectLight({0, 0, 4}, {1, 0, 0}, {0, 1, 0}, 16, 1)};
+    LightSamples samples = generateLightSamples(scene.lights, 64, 1);
+    ReceiverResults results;
+    results.resize(r.size(), 1);
+    for (size_t i = 0; i < r.size(); ++i) results.visibility[i] = i < 48 ? 1.f : 0.25f;
+    writeCameraOutputs(scene, r, samples, results, dir / "deep.exr");
+    ExrImage img = readExr(dir / "deep.exr");
+    REQUIRE(img.channels.count("layer1.V") == 1);
+    REQUIRE(img.channels.count("layer1.Z") == 1);
+    CHECK(img.channels.count("layer2.V") == 0);
+    CHECK(img.channels["V"][10] == 1.f);
+    CHECK(img.channels["layer1.V"][10] == 0.25f);
+    CHECK(img.channels["layer1.Z"][10] > img.channels["Z"][10]);
+    CameraDesc bad = cam;
+    bad.layers = 17;
+    CHECK_THROWS_WITH(validateCamera(bad), Catch::Contains("layers"));
+}
