@@ -22,10 +22,12 @@ public:
         uint64_t perPixel = CameraRasterizer::kBytesPerPixel + (smooth_ ? sizeof(std::array<glm::vec3, 3>) : 0) + 32;
         return uint64_t(camera_.width) * camera_.height * camera_.layers * perPixel;
     }
-    uint64_t outputBytes(uint64_t) const override {
-        // Float channels and the RGB preview per pixel (per-light layers add more), plus
-        // OpenEXR's scanline-block compression buffers.
-        return uint64_t(camera_.width) * camera_.height * (9 * 4 + 3) + (2ull << 20);
+    uint64_t outputBytes(uint64_t receivers) const override {
+        // Nine full-frame float channels (more with per-light or deep layers), the RGB preview and
+        // stb's in-memory PNG encoding of it (filtered rows and zlib output, about twice the
+        // image), the luminance copy the exposure is sorted from, and OpenEXR's block buffers.
+        const uint64_t pixels = uint64_t(camera_.width) * camera_.height;
+        return pixels * (9 * 4 * uint64_t(camera_.layers) + 3 + 2 * 3) + receivers * 4 + (2ull << 20);
     }
     void scan(std::span<const Triangle> chunk) override { raster().add(chunk); }
     ReceiverSet receivers() override {

@@ -89,6 +89,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
         p.lights = placeSuns(scene.lights, box.lo, box.hi);
         p.samples = generateLightSamples(p.lights, scene.options.groupSize, scene.seed);
     }
+    returnFreedMemory();  // the z-buffer is gone; keep it from inflating the casting phase's RSS
     p.sampleSets.resize(p.receivers.size());
     for (size_t i = 0; i < p.receivers.size(); ++i) p.sampleSets[i] = uint32_t(sampleSetOf(i, p.samples.sets, scene.seed));
     p.triangleCount = histogram.count();
@@ -171,6 +172,9 @@ CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettin
                     dumpMasks->row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
         });
         CastStats s = caster.stats();
+        // Tile hierarchies are built on worker threads, in their malloc arenas; hand the freed
+        // memory back before the next tile, or arenas keep it and RSS creeps past the plan.
+        returnFreedMemory();
         total.hierarchyBuildSeconds += s.hierarchyBuildSeconds;
         total.castSeconds += s.castSeconds;
         total.trianglesProcessed += s.trianglesProcessed;

@@ -140,6 +140,12 @@ ReceiverSet CameraRasterizer::finish() {
     ReceiverSet set;
     set.width = W, set.height = H;
     const size_t L = size_t(camera_.layers);
+    // Exact sizes up front: growing four vectors by doubling next to the z-buffer would briefly
+    // need two to three times the receiver set, and that, not casting, set the peak RSS of
+    // large bakes.
+    const size_t covered = size_t(std::count_if(depth_.begin(), depth_.end(), [](float d) { return std::isfinite(d); }));
+    set.position.reserve(covered), set.normal.reserve(covered), set.pixel.reserve(covered), set.depth.reserve(covered);
+    if (!triangle_.empty()) winners_.reserve(covered);
     for (size_t layer = 0; layer < L; ++layer)
         for (int y = 0; y < H; ++y)
             for (int x = 0; x < W; ++x) {

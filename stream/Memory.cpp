@@ -1,5 +1,7 @@
 #include "stream/Memory.h"
 
+#include <malloc.h>
+
 #include "stream/Error.h"
 
 #include <sys/resource.h>
@@ -105,5 +107,7 @@ std::string formatBytes(uint64_t bytes) {
     if (v < 100) return fmt::format("{:.1f} {}", v, kUnits[u]);
     return fmt::format("{:.0f} {}", v, kUnits[u]);
 }
+
+void returnFreedMemory() { ::malloc_trim(0); }
 
 }  // namespace penumbra

@@ -13,6 +13,10 @@ uint64_t peakRssBytes();
 /// @brief Current resident set size in bytes (/proc/self/statm); 0 when unavailable.
 uint64_t currentRssBytes();
 
+/// @brief Returns freed heap memory to the operating system (glibc keeps it per thread arena
+/// otherwise), so that a phase's peak does not carry into the next. Cheap; call between phases.
+void returnFreedMemory();
+
 /// @brief Parses a byte size such as "1000", "512k", "256M", "1G", "1.5GiB" or "2 GB".
 ///
 /// Units are case-insensitive and all binary: k/K/KB/KiB = 1024, M/MB/MiB = 1024^2,
