@@ -1,5 +1,7 @@
 #include "procedural/BoxesGenerator.h"
 
+#include "procedural/BoxFaces.h"
+
 #include "procedural/IndexedSource.h"
 #include "stream/Error.h"
 #include "stream/JsonParams.h"
@@ -10,11 +12,6 @@
 
 namespace penumbra {
 namespace {
-
-// Corner c of a box has x from bit 0, y from bit 1, z from bit 2. Two triangles per face, wound
-// counter-clockwise seen from outside: -x, +x, -y, +y, -z, +z.
-constexpr int kFaces[12][3] = {{0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}, {0, 1, 5}, {0, 5, 4},
-                               {2, 6, 7}, {2, 7, 3}, {0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}};
 
 class BoxSource final : public ItemSource {
 public:
@@ -27,7 +24,7 @@ protected:
         glm::vec3 corner[8];
         for (int c = 0; c < 8; ++c)
             corner[c] = glm::vec3(float(c & 1 ? b.hi.x : b.lo.x), float(c & 2 ? b.hi.y : b.lo.y), float(c & 4 ? b.hi.z : b.lo.z));
-        for (int t = 0; t < 12; ++t) out[t] = Triangle{{corner[kFaces[t][0]], corner[kFaces[t][1]], corner[kFaces[t][2]]}, 0};
+        for (int t = 0; t < 12; ++t) out[t] = Triangle{{corner[kBoxFaceTriangles[t][0]], corner[kBoxFaceTriangles[t][1]], corner[kBoxFaceTriangles[t][2]]}, 0};
     }
 
 private:

@@ -1,5 +1,7 @@
 #include "procedural/GridGenerator.h"
 
+#include "procedural/BoxFaces.h"
+
 #include "procedural/IndexedSource.h"
 #include "stream/Error.h"
 #include "stream/JsonParams.h"
@@ -10,10 +12,6 @@
 
 namespace penumbra {
 namespace {
-
-// Box corners are bit-indexed (x: bit 0, y: bit 1, z: bit 2); two triangles per face.
-constexpr int kBoxTriangles[12][3] = {{0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}, {0, 1, 5}, {0, 5, 4},
-                                      {2, 6, 7}, {2, 7, 3}, {0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}};
 
 class GridSource final : public IndexedSource {
 public:
@@ -66,7 +64,7 @@ protected:
         }
         const double y0 = y - 0.5 * p_.thickness, y1 = y + 0.5 * p_.thickness;
         auto corner = [&](int c) { return place(c & 1 ? x1 : x0, c & 2 ? y1 : y0, c & 4 ? z1 : z0); };
-        out.v = {corner(kBoxTriangles[t][0]), corner(kBoxTriangles[t][1]), corner(kBoxTriangles[t][2])};
+        out.v = {corner(kBoxFaceTriangles[t][0]), corner(kBoxFaceTriangles[t][1]), corner(kBoxFaceTriangles[t][2])};
     }
 
 private:

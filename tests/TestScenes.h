@@ -7,12 +7,14 @@
 #include "bake/CastOptions.h"
 #include "bake/Light.h"
 #include "bake/PenumbraCaster.h"
+#include "bake/ReferenceCaster.h"
 #include "bake/VisibilityMasks.h"
 #include "bucket/AreaSort.h"
 #include "receivers/ReceiverSet.h"
 #include "stream/Random.h"
 #include "stream/Triangle.h"
 
+#include <catch2/catch.hpp>
 #include <glm/geometric.hpp>
 
 #include <string>
@@ -119,6 +121,27 @@ inline std::vector<std::pair<std::string, CastOptions>> optionVariants() {
         o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = false;
     });
     return v;
+}
+
+/// Hierarchical penumbra casting with every optimization variant and tile counts 1 and 3 must
+/// give masks bit-identical to the reference ray caster. The scene must have both blocked and
+/// unblocked relations: one where nothing (or everything) is blocked proves little.
+inline void requireMatchesReference(const std::string& scene, const std::vector<LightDesc>& lights,
+                                    const ReceiverSet& receivers, const std::vector<Triangle>& triangles, int groupSize = 64) {
+    LightSamples samples = generateLightSamples(lights, groupSize, 7);
+    std::vector<uint32_t> sets = assignSets(receivers, samples.sets);
+    VisibilityMasks reference = castReference(samples, receivers, sets, triangles, CastOptions().epsilon);
+    INFO(scene << ": " << reference.blockedCount() << " blocked of " << receivers.size() * samples.sampleCount);
+    REQUIRE(reference.blockedCount() > 0);
+    REQUIRE(reference.blockedCount() < uint64_t(receivers.size()) * samples.sampleCount);
+    for (const auto& [name, options] : optionVariants()) {
+        for (int tiles : {1, 3}) {
+            INFO(name << ", tiles " << tiles);
+            VisibilityMasks hpc = castHpc(samples, receivers, sets, triangles, options, tiles);
+            CHECK(hpc.blockedCount() == reference.blockedCount());
+            CHECK(hpc.words == reference.words);
+        }
+    }
 }
 
 }  // namespace penumbra::test
