@@ -75,7 +75,7 @@ TEST_CASE("peak RSS is the same for 1M and 10M streamed triangles", "[outofcore]
     CHECK_FALSE(anyBucketDirectory(large.path));
 }
 
-TEST_CASE("--keep-buckets leaves the bucket files; without it none remain", "[outofcore]") {
+TEST_CASE("bucket files stay with --keep-buckets and only then", "[outofcore]") {
     ScratchDir dir("keep");
     bakeStats(dir, grassScene(1000), "--keep-buckets");
     CHECK(anyBucketDirectory(dir.path));
