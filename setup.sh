@@ -26,15 +26,17 @@ build=${PENUMBRA_BUILD_DIR:-build}
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$build" --parallel "$(nproc)"
 
-# The Khronos glTF validator, for the vertex-colour tests (they skip when it is missing). Never
-# fatal: offline machines or ones without npm just get a notice.
-if command -v npm >/dev/null 2>&1; then
-  if [ ! -d "$build/npm/node_modules/gltf-validator" ]; then
-    npm install --prefix "$build/npm" gltf-validator --no-audit --no-fund >/dev/null 2>&1 ||
-      echo "setup: notice: could not install the npm package gltf-validator (offline?); glTF validation tests will be skipped" >&2
+# The Khronos glTF validator, for the vertex-colour tests (they skip when it is missing). Only
+# the tests need it, and it is never fatal: offline machines or ones without npm get a notice.
+if [ "$mode" = test ]; then
+  if command -v npm >/dev/null 2>&1; then
+    if [ ! -d "$build/npm/node_modules/gltf-validator" ]; then
+      timeout 300 npm install --prefix "$build/npm" gltf-validator --no-audit --no-fund >/dev/null 2>&1 ||
+        echo "setup: notice: could not install the npm package gltf-validator (offline?); glTF validation tests will be skipped" >&2
+    fi
+  else
+    echo "setup: notice: npm not found; glTF validation tests will be skipped" >&2
   fi
-else
-  echo "setup: notice: npm not found; glTF validation tests will be skipped" >&2
 fi
 
 case "$mode" in
