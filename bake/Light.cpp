@@ -146,6 +146,15 @@ double LightDesc::area() const {
     return 0.0;
 }
 
+glm::dvec3 LightDesc::emitterNormal() const {
+    switch (type) {
+        case LightType::Rect: return glm::normalize(glm::cross(u, v));
+        case LightType::Disk: return glm::normalize(normal);
+        case LightType::Polygon: return glm::normalize(polygonNormal(polygon));
+        default: return glm::dvec3(0.0);
+    }
+}
+
 void validateLight(const LightDesc& l) {
     auto finite = [](const glm::dvec3& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); };
     if (!finite(l.center) || !finite(l.u) || !finite(l.v) || !finite(l.normal) || !std::isfinite(l.radius))

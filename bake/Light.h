@@ -34,6 +34,9 @@ struct LightDesc {
 
     /// Emitting area (planar lights) or volume-equivalent surface area (sphere).
     double area() const;
+    /// Unit normal of the emitting side of a planar light; zero for spheres and suns, which have
+    /// no emitter cosine.
+    glm::dvec3 emitterNormal() const;
 };
 
 /// @brief Up to 64 spatially close samples of one light; one 64-bit mask word.

@@ -302,15 +302,8 @@ PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& r
         }
     for (const ConvexBound& bound : samples_.lightBounds) {
         Box reach = receiversBox;
-        for (const glm::dvec3& v : bound.vertices) {
-            // Round outward so the float box still contains the double vertex.
-            glm::vec3 lo(v), hi(v);
-            for (int a = 0; a < 3; ++a) {
-                if (double(lo[a]) > v[a]) lo[a] = std::nextafter(lo[a], -INFINITY);
-                if (double(hi[a]) < v[a]) hi[a] = std::nextafter(hi[a], INFINITY);
-            }
-            reach.lo = glm::min(reach.lo, lo), reach.hi = glm::max(reach.hi, hi);
-        }
+        for (const glm::dvec3& v : bound.vertices)
+            reach.lo = glm::min(reach.lo, roundToFloat(v, true)), reach.hi = glm::max(reach.hi, roundToFloat(v, false));
         reach_.push_back(reach);
     }
 }

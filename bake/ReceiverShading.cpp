@@ -9,26 +9,6 @@
 #include <cmath>
 
 namespace penumbra {
-namespace {
-
-glm::dvec3 emitterNormal(const LightDesc& l) {
-    switch (l.type) {
-        case LightType::Rect: return glm::normalize(glm::cross(l.u, l.v));
-        case LightType::Disk: return glm::normalize(l.normal);
-        case LightType::Polygon: {
-            glm::dvec3 n(0.0);
-            for (size_t i = 1; i + 1 < l.polygon.size(); ++i)
-                n += glm::cross(l.polygon[i] - l.polygon[0], l.polygon[i + 1] - l.polygon[0]);
-            return glm::normalize(n);
-        }
-        case LightType::Sphere:
-        case LightType::Sun: return glm::dvec3(0.0);
-    }
-    return glm::dvec3(0.0);
-}
-
-}  // namespace
-
 glm::dvec3 radianceFromPower(const LightDesc& l, const glm::dvec3& power) {
     const double pi = glm::pi<double>();
     switch (l.type) {
@@ -51,7 +31,7 @@ ReceiverShader::ReceiverShader(const std::vector<LightDesc>& lights, const Light
         } else {
             // A sphere is seen as a disk of its radius from every direction.
             double area = l.type == LightType::Sphere ? M_PI * l.radius * l.radius : l.area();
-            p.normal = emitterNormal(l), p.weight = l.radiance * (area / l.samples);
+            p.normal = l.emitterNormal(), p.weight = l.radiance * (area / l.samples);
         }
         lights_.push_back(p);
     }

@@ -17,8 +17,6 @@ namespace {
 
 std::string indexed(const std::string& key, size_t i) { return key + "[" + std::to_string(i) + "]"; }
 
-std::string resolve(const std::filesystem::path& base, const std::string& p) { return resolveScenePath(base, p); }
-
 /// An RGB value given as [r, g, b] or as one number for grey; must be finite and non-negative.
 glm::dvec3 colour(const JsonParams& j, const std::string& key, const glm::dvec3& fallback) {
     const nlohmann::json* raw = j.raw(key);
@@ -102,7 +100,7 @@ void registerFileSourceTypes() {
     for (const char* type : {"obj", "gltf", "glb", "ptri", "file"})
         registerSourceType(type, [](const SourceRequest& r) {
             JsonParams j(r.params, r.file, r.path);
-            std::string path = resolve(r.baseDir, j.string("path"));
+            std::string path = resolveScenePath(r.baseDir, j.string("path"));
             j.finish();
             return openGeometryFile(path);
         });
@@ -139,7 +137,7 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
     if (!receivers) fail(j.where("receivers"), "missing required field");
     scene.receivers = *receivers;
 
-    scene.output = resolve(scene.baseDir, j.string("output", scene.output));
+    scene.output = resolveScenePath(scene.baseDir, j.string("output", scene.output));
     if (const nlohmann::json* bake = j.raw("bake")) parseOptions(JsonParams(*bake, file, "bake"), scene);
     j.finish();
     makeReceiverKind(scene.receivers, scene);  // validates the receivers now; the bake makes its own

@@ -27,14 +27,16 @@ Basis basisOf(const CameraDesc& c) {
     return b;
 }
 
-}  // namespace
-
-glm::dvec3 CameraDesc::pixelDirection(int x, int y) const {
-    Basis b = basisOf(*this);
-    double sx = (2.0 * (x + 0.5) / width - 1.0) * b.tanHalf * b.aspect;
-    double sy = (1.0 - 2.0 * (y + 0.5) / height) * b.tanHalf;
+/// Unit direction of the ray through the centre of pixel (x, y) of a w x h image.
+glm::dvec3 directionThrough(const Basis& b, int w, int h, int x, int y) {
+    double sx = (2.0 * (x + 0.5) / w - 1.0) * b.tanHalf * b.aspect;
+    double sy = (1.0 - 2.0 * (y + 0.5) / h) * b.tanHalf;
     return glm::normalize(b.forward + sx * b.right + sy * b.up);
 }
+
+}  // namespace
+
+glm::dvec3 CameraDesc::pixelDirection(int x, int y) const { return directionThrough(basisOf(*this), width, height, x, y); }
 
 void validateCamera(const CameraDesc& c) {
     if (c.width < 1 || c.height < 1 || c.width > 65536 || c.height > 65536)
@@ -59,9 +61,7 @@ CameraRasterizer::CameraRasterizer(const CameraDesc& camera) : camera_(camera) {
 }
 
 glm::dvec3 CameraRasterizer::direction(int x, int y) const {
-    double sx = (2.0 * (x + 0.5) / camera_.width - 1.0) * tanHalf_ * aspect_;
-    double sy = (1.0 - 2.0 * (y + 0.5) / camera_.height) * tanHalf_;
-    return glm::normalize(forward_ + sx * right_ + sy * up_);
+    return directionThrough(Basis{right_, up_, forward_, tanHalf_, aspect_}, camera_.width, camera_.height, x, y);
 }
 
 void CameraRasterizer::add(std::span<const Triangle> chunk) {

@@ -1,5 +1,7 @@
 #include "receivers/ReceiverHierarchy.h"
 
+#include "stream/Triangle.h"
+
 #include <glm/common.hpp>
 
 #include <algorithm>
@@ -108,11 +110,7 @@ uint32_t ReceiverHierarchy::buildRange(uint32_t node, uint32_t begin, uint32_t e
     glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
     for (uint32_t i = begin; i < end; ++i) lo = glm::min(lo, position[order[i]]), hi = glm::max(hi, position[order[i]]);
     // Float boxes rounded outward so they still contain the double positions.
-    glm::vec3 flo(lo), fhi(hi);
-    for (int a = 0; a < 3; ++a) {
-        if (double(flo[a]) > lo[a]) flo[a] = std::nextafter(flo[a], -INFINITY);
-        if (double(fhi[a]) < hi[a]) fhi[a] = std::nextafter(fhi[a], INFINITY);
-    }
+    glm::vec3 flo = roundToFloat(lo, true), fhi = roundToFloat(hi, false);
     nodes[node].lo = flo, nodes[node].hi = fhi;
     uint32_t n = end - begin;
     if (n <= uint32_t(std::max(1, params_.leafSize))) {

@@ -6,6 +6,7 @@
 #include <glm/geometric.hpp>
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 
 namespace penumbra {
@@ -25,6 +26,17 @@ struct Triangle {
     float area() const { return 0.5f * glm::length(glm::cross(v[1] - v[0], v[2] - v[0])); }
 };
 static_assert(sizeof(Triangle) == 40, "Triangle is a raw on-disk record");
+
+/// @brief The largest float point not above @p p in any coordinate (@p below) or the smallest not
+/// below it: float boxes built from double points still contain them.
+inline glm::vec3 roundToFloat(const glm::dvec3& p, bool below) {
+    glm::vec3 f(p);
+    for (int a = 0; a < 3; ++a) {
+        if (below && double(f[a]) > p[a]) f[a] = std::nextafter(f[a], -INFINITY);
+        if (!below && double(f[a]) < p[a]) f[a] = std::nextafter(f[a], INFINITY);
+    }
+    return f;
+}
 
 /// True when all nine coordinates are finite.
 inline bool isFinite(const Triangle& t) {
