@@ -2,6 +2,7 @@
 /// @file CastOptions.h
 /// @brief Switches and parameters of hierarchical penumbra casting, and what a cast measures.
 
+#include "bake/HardShadowBlock.h"
 #include "receivers/ReceiverHierarchy.h"
 
 #include <cstdint>
@@ -21,6 +22,7 @@ struct CastOptions {
     HierarchyParams hierarchy;
     double epsilon = 1e-5;     ///< receiver-end epsilon, relative (BlockingRule.h)
     int groupSize = 64;        ///< light samples per group, 1..64
+    SimdLevel simd = SimdLevel::Auto;  ///< instruction set of the hard-shadow tests (same bits for all)
 };
 
 /// @brief Counters and timers of one cast, summed over tiles (the paper's Table 2 columns).

@@ -1,6 +1,7 @@
 #include "bake/PenumbraCaster.h"
 
 #include "bake/BlockingRule.h"
+#include "bake/HardShadowBlock.h"
 #include "bake/PenumbraVolume.h"
 #include "receivers/MaskPool.h"
 #include "receivers/ReceiverHierarchy.h"
@@ -42,8 +43,13 @@ struct PenumbraCaster::Tile {
     bool groupVolumesBuilt = false;
     uint32_t currentLight = 0;
     std::vector<PenumbraVolume> groupVolumes;
-    std::vector<HardShadowVolume> hardVolumes;  // [set][sample]
-    std::vector<uint64_t> hardReady;            // [set][group]: bit j set once sample j's volume is built
+    // Hard-shadow volumes in blocks of four samples: group k's samples 4b..4b+3 are block
+    // blockFirst[k] + b of a set; a set holds blocksPerSet blocks.
+    HardShadowKernels kernels;
+    std::vector<uint32_t> blockFirst;
+    size_t blocksPerSet = 0;
+    std::vector<HardShadowBlock> hardBlocks;  // [set][block]
+    std::vector<uint32_t> hardReady;          // [set][group]: bit b set once block b is built
     std::vector<uint32_t> hardReadyList;
     std::vector<ActiveGroup> stack;
     bool reachedRoot = false;
@@ -54,11 +60,15 @@ struct PenumbraCaster::Tile {
 
     Tile(const LightSamples& s, const CastOptions& o)
         : samples(s), options(o), hierarchy(o.hierarchy, s.groupCount()), pool(s.groupCount()),
-          groupCount(s.groupCount()), umbraWords((s.groupCount() + 63) / 64) {
+          groupCount(s.groupCount()), umbraWords((s.groupCount() + 63) / 64), kernels(hardShadowKernels(o.simd)) {
         allGroupsBits.assign(umbraWords, 0);
         for (int k = 0; k < groupCount; ++k) allGroupsBits[k >> 6] |= 1ull << (k & 63);
         groupVolumes.resize(groupCount);
-        hardVolumes.resize(size_t(s.sets) * s.sampleCount);
+        for (const LightSampleGroup& g : s.groups) {
+            blockFirst.push_back(uint32_t(blocksPerSet));
+            blocksPerSet += (g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes;
+        }
+        hardBlocks.resize(size_t(s.sets) * blocksPerSet);
         hardReady.assign(size_t(s.sets) * groupCount, 0);
     }
 
@@ -84,23 +94,32 @@ struct PenumbraCaster::Tile {
         groupVolumesBuilt = true;
     }
 
-    /// The hard-shadow volumes of group @p k in sample set @p set, built for the samples in
-    /// @p needed that are not built yet. Per-sample laziness matters for small blockers, which
-    /// touch a few receivers (so a few sets) and a few samples of each group.
-    const HardShadowVolume* hardShadowVolumes(uint32_t set, uint32_t k, uint64_t needed) {
+    /// The hard-shadow blocks of group @p k in sample set @p set, with every block that holds a
+    /// sample of @p needed built. Per-block laziness matters for small blockers, which touch a
+    /// few receivers (so a few sets) and a few samples of each group.
+    /// @return the group's first block and, in @p which, the blocks holding samples of @p needed.
+    const HardShadowBlock* hardShadowBlocks(uint32_t set, uint32_t k, uint64_t needed, uint32_t& which) {
         const size_t slot = size_t(set) * groupCount + k;
         const LightSampleGroup& g = samples.groups[k];
-        HardShadowVolume* h = &hardVolumes[size_t(set) * samples.sampleCount + g.first];
-        uint64_t missing = needed & ~hardReady[slot];
+        HardShadowBlock* blocks = &hardBlocks[set * blocksPerSet + blockFirst[k]];
+        which = 0;
+        for (uint64_t rest = needed; rest;) {
+            const int b = __builtin_ctzll(rest) / HardShadowBlock::kLanes;
+            which |= 1u << b;
+            rest &= ~(0xFull << (HardShadowBlock::kLanes * b));
+        }
+        uint32_t missing = which & ~hardReady[slot];
         if (missing) {
             if (!hardReady[slot]) hardReadyList.push_back(uint32_t(slot));
             hardReady[slot] |= missing;
+            const glm::vec3* first = &samples.position(int(set), int(g.first));
             for (; missing; missing &= missing - 1) {
-                const int j = __builtin_ctzll(missing);
-                h[j] = makeHardShadowVolume(glm::dvec3(samples.position(int(set), int(g.first) + j)), *tri);
+                const int b = __builtin_ctz(missing), lane0 = b * HardShadowBlock::kLanes;
+                kernels.build(blocks[b], first + lane0, std::min<int>(HardShadowBlock::kLanes, int(g.count) - lane0),
+                              *tri);
             }
         }
-        return h;
+        return blocks;
     }
 
     /// Processes one blocker against this tile; returns whether any root box met V_L.
@@ -128,8 +147,9 @@ struct PenumbraCaster::Tile {
             uint32_t g0 = samples.lightFirstGroup[currentLight], g1 = samples.lightFirstGroup[currentLight + 1];
             if (!options.lazyVolumes) {  // optimization C off: build everything before traversal
                 buildGroupVolumes();
+                uint32_t which;
                 for (uint32_t set = 0; set < uint32_t(samples.sets); ++set)
-                    for (uint32_t k = g0; k < g1; ++k) hardShadowVolumes(set, k, samples.groups[k].fullMask());
+                    for (uint32_t k = g0; k < g1; ++k) hardShadowBlocks(set, k, samples.groups[k].fullMask(), which);
             }
             stack.clear();
             for (uint32_t k = g0; k < g1; ++k) stack.push_back({k, kAllPlanes});
@@ -205,12 +225,10 @@ struct PenumbraCaster::Tile {
             const uint64_t before = mask ? mask[g.group] : 0;
             uint64_t word = before;
             const uint64_t open = ~word & group.fullMask();
-            const HardShadowVolume* hard = hardShadowVolumes(set, g.group, open);
-            for (uint64_t todo = open; todo; todo &= todo - 1) {
-                int j = __builtin_ctzll(todo);
-                ++hardTests;
-                if (blocks(hard[j], p, dist, eps)) word |= 1ull << j;
-            }
+            uint32_t which;
+            const HardShadowBlock* hard = hardShadowBlocks(set, g.group, open, which);
+            hardTests += uint64_t(__builtin_popcountll(open));
+            word |= kernels.test(hard, which, p, dist, eps) & open;
             if (word != before) {
                 if (!mask) {  // line 59, deferred until a bit is really set
                     h.mask[r] = pool.allocate();

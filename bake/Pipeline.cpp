@@ -275,6 +275,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         {"scene", scene.file},
         {"method", methodName(settings.method)},
         {"threads", threads},
+        {"simd", simdName(hardShadowKernels(scene.options.simd).level)},
         {"receivers", p.receivers.size()},
         {"light_samples", p.samples.sampleCount},
         {"sample_sets", p.samples.sets},

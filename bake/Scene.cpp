@@ -89,6 +89,7 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
     o.groupSize = int(j.integer("group_size", o.groupSize, 1, 64));
     o.epsilon = j.number("epsilon", o.epsilon);
     if (!(o.epsilon >= 0)) fail(j.where("epsilon"), "must not be negative, got {}", o.epsilon);
+    if (j.has("simd")) o.simd = parseSimdLevel(j.string("simd"), j.where("simd"));
     scene.seed = uint64_t(j.integer("seed", int64_t(scene.seed), 0, INT64_MAX));
     scene.smoothShading = j.boolean("smooth_shading", scene.smoothShading);
     j.finish();

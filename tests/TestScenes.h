@@ -117,6 +117,9 @@ inline std::vector<std::pair<std::string, CastOptions>> optionVariants() {
     off("no lazy volumes (C)", [](CastOptions& o) { o.lazyVolumes = false; });
     off("no lazy masks (D)", [](CastOptions& o) { o.lazyMasks = false; });
     off("no rebuild", [](CastOptions& o) { o.rebuild = false; });
+    // The default is the best SIMD level of the CPU; the others must give the same bits.
+    off("scalar kernels", [](CastOptions& o) { o.simd = SimdLevel::Scalar; });
+    off("sse2 kernels", [](CastOptions& o) { o.simd = SimdLevel::Sse2; });
     off("all off", [](CastOptions& o) {
         o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = false;
     });

@@ -68,6 +68,8 @@ int main(int argc, char** argv) {
     bake->add_option("--disable", disabled, "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, all")
         ->delimiter(',');
     bake->add_flag("-q,--quiet", quiet, "no progress on stderr");
+    std::string simd;
+    bake->add_option("--simd", simd, "hard-shadow test kernels: auto (default), avx2, sse2 or scalar; same bits for all");
     std::string memoryBudget, tmpDir;
     bool keepBuckets = false;
     bake->add_option("--memory-budget", memoryBudget, "bound on bake memory, e.g. 256M or 2G; receivers are tiled to fit");
@@ -117,6 +119,7 @@ int main(int argc, char** argv) {
             SceneDesc scene = loadScene(scenePath);
             if (!output.empty()) scene.output = output;
             disableOptimizations(scene.options, disabled);
+            if (!simd.empty()) scene.options.simd = parseSimdLevel(simd, "--simd");
             BakeSettings settings;
             settings.method = parseMethod(method);
             if (threads < 0) throw InputError(fmt::format("--threads: must not be negative, got {}", threads));
