@@ -90,7 +90,7 @@ struct PenumbraCaster::Tile {
 
     void buildGroupVolumes() {
         for (uint32_t k = samples.lightFirstGroup[currentLight]; k < samples.lightFirstGroup[currentLight + 1]; ++k)
-            groupVolumes[k] = makePenumbraVolume(samples.groups[k].bound, *tri);
+            buildPenumbraVolume(samples.groups[k].bound, *tri, groupVolumes[k]);
         groupVolumesBuilt = true;
     }
 
@@ -355,7 +355,7 @@ void PenumbraCaster::cast(std::span<const Triangle> blockers) {
             if (!prepared_[i].valid) continue;
             for (size_t l = 0; l < lights; ++l)
                 if (lightActive_[i * lights + l])
-                    lightVolumes_[i * lights + l] = makePenumbraVolume(samples_.lightBounds[l], prepared_[i]);
+                    buildPenumbraVolume(samples_.lightBounds[l], prepared_[i], lightVolumes_[i * lights + l]);
         }
     });
     tbb::parallel_for(size_t(0), tiles_.size(), [&](size_t t) {

@@ -16,36 +16,48 @@ constexpr double kMargin = 1e-9;
 struct Builder {
     const ConvexBound& bound;
     const BlockerTriangle& t;
-    PenumbraVolume volume;
+    PenumbraVolume& volume;
     double scale = 1.0;
 
-    void tryPlane(const glm::dvec3& normal, const glm::dvec3& through) {
-        double len = glm::length(normal);
-        if (!(len > 0.0) || !std::isfinite(len)) return;
-        Plane p = Plane::through(normal / len, through);
-        const double tol = kAccept * scale;
+    /// Adds the plane through @p through with normal ±@p normal if it separates T (positive side)
+    /// from the bound. Candidates are judged unnormalised, comparing squares against the
+    /// tolerance, because most are rejected; only accepted planes are normalised. The points
+    /// that define the candidate (triangle vertices @p triOn, a bit set, and bound vertices
+    /// @p boundOnA / @p boundOnB) lie on it up to roundoff far below the tolerance, so they are
+    /// not evaluated: that halves the work per candidate.
+    void tryPlane(const glm::dvec3& normal, const glm::dvec3& through, unsigned triOn, size_t boundOnA,
+                  size_t boundOnB) {
+        const double nn = glm::dot(normal, normal);
+        if (!(nn > 0.0) || !std::isfinite(nn)) return;
+        const double d = -glm::dot(normal, through);
+        const double tol2 = kAccept * scale * kAccept * scale * nn;  // (tolerance * |n|)^2
         // Orientation from the triangle vertex farthest from the plane; then every vertex must
         // agree. Most candidates fail on an early vertex, so bail out as soon as one does.
-        double far = 0.0;
-        for (const glm::dvec3& v : t.v) {
-            double e = p.eval(v);
-            if (std::abs(e) > std::abs(far)) far = e;
+        double e[3] = {0.0, 0.0, 0.0}, far = 0.0;
+        for (int i = 0; i < 3; ++i) {
+            if (triOn >> i & 1u) continue;
+            e[i] = glm::dot(normal, t.v[i]) + d;
+            if (std::abs(e[i]) > std::abs(far)) far = e[i];
         }
-        if (far < 0.0) p = p.flipped();  // triangle on the positive side
-        for (const glm::dvec3& v : t.v)
-            if (p.eval(v) < -tol) return;
-        for (const glm::dvec3& v : bound.vertices)
-            if (p.eval(v) > tol) return;
-        add(p);
+        const double s = far < 0.0 ? -1.0 : 1.0;  // triangle on the positive side
+        for (double v : e)
+            if (s * v < 0.0 && v * v > tol2) return;
+        for (size_t i = 0; i < bound.vertices.size(); ++i) {
+            if (i == boundOnA || i == boundOnB) continue;
+            const double x = s * (glm::dot(normal, bound.vertices[i]) + d);
+            if (x > 0.0 && x * x > tol2) return;
+        }
+        const double len = std::sqrt(nn);
+        add(Plane{normal * (s / len), d * (s / len)});
     }
 
     void add(Plane p) {
         p.d += kMargin * scale;
         for (int i = 0; i < volume.count; ++i) {
-            const Plane& q = volume.planes[i];
+            const Plane q = volume.plane(i);
             if (glm::dot(q.n, p.n) > 1.0 - 1e-12 && std::abs(q.d - p.d) <= kAccept * scale) return;
         }
-        if (volume.count < PenumbraVolume::kMaxPlanes) volume.planes[volume.count++] = p;
+        if (volume.count < PenumbraVolume::kMaxPlanes) volume.push(p);
         // Dropping a plane beyond the limit only enlarges the volume: still conservative.
     }
 };
@@ -53,7 +65,15 @@ struct Builder {
 }  // namespace
 
 PenumbraVolume makePenumbraVolume(const ConvexBound& bound, const BlockerTriangle& t) {
-    Builder b{bound, t, {}};
+    PenumbraVolume volume;
+    buildPenumbraVolume(bound, t, volume);
+    return volume;
+}
+
+void buildPenumbraVolume(const ConvexBound& bound, const BlockerTriangle& t, PenumbraVolume& volume) {
+    volume.count = 0;
+    volume.nx[0] = volume.ny[0] = volume.nz[0] = volume.d[0] = 0.0;  // the slot after the last
+    Builder b{bound, t, volume};
     for (const glm::dvec3& v : bound.vertices)
         b.scale = std::max({b.scale, std::abs(v.x), std::abs(v.y), std::abs(v.z)});
     for (const glm::dvec3& v : t.v) b.scale = std::max({b.scale, std::abs(v.x), std::abs(v.y), std::abs(v.z)});
@@ -68,17 +88,19 @@ PenumbraVolume makePenumbraVolume(const ConvexBound& bound, const BlockerTriangl
     if (hi < -tol) b.add(t.plane);
     else if (lo > tol) b.add(t.plane.flipped());
 
+    constexpr size_t kNone = ~size_t(0);
     for (int e = 0; e < 3; ++e) {
         const glm::dvec3& a = t.v[e];
         const glm::dvec3& c = t.v[(e + 1) % 3];
-        for (const glm::dvec3& p : bound.vertices) b.tryPlane(glm::cross(c - a, p - a), a);
+        const unsigned on = (1u << e) | (1u << (e + 1) % 3);
+        for (size_t i = 0; i < bound.vertices.size(); ++i)
+            b.tryPlane(glm::cross(c - a, bound.vertices[i] - a), a, on, i, kNone);
     }
     for (const auto& edge : bound.edges) {
         const glm::dvec3& a = bound.vertices[edge[0]];
         const glm::dvec3& c = bound.vertices[edge[1]];
-        for (const glm::dvec3& p : t.v) b.tryPlane(glm::cross(c - a, p - a), a);
+        for (int i = 0; i < 3; ++i) b.tryPlane(glm::cross(c - a, t.v[i] - a), a, 1u << i, edge[0], edge[1]);
     }
-    return b.volume;
 }
 
 }  // namespace penumbra
