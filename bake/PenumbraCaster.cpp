@@ -312,14 +312,14 @@ PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& r
         tiles_[t]->build(std::move(inputs));
     });
     // Rebuilds only drop receivers, so boxes from the first build stay conservative.
-    Box receiversBox{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+    receiversBox_ = Box{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
     for (const auto& tile : tiles_)
         if (!tile->hierarchy.nodes.empty()) {
-            receiversBox.lo = glm::min(receiversBox.lo, tile->hierarchy.nodes[0].lo);
-            receiversBox.hi = glm::max(receiversBox.hi, tile->hierarchy.nodes[0].hi);
+            receiversBox_.lo = glm::min(receiversBox_.lo, tile->hierarchy.nodes[0].lo);
+            receiversBox_.hi = glm::max(receiversBox_.hi, tile->hierarchy.nodes[0].hi);
         }
     for (const ConvexBound& bound : samples_.lightBounds) {
-        Box reach = receiversBox;
+        Box reach = receiversBox_;
         for (const glm::dvec3& v : bound.vertices)
             reach.lo = glm::min(reach.lo, roundToFloat(v, true)), reach.hi = glm::max(reach.hi, roundToFloat(v, false));
         reach_.push_back(reach);
@@ -353,6 +353,17 @@ void PenumbraCaster::cast(std::span<const Triangle> blockers) {
             if (!any) continue;  // outside every light's reach: no penumbra volume needed
             prepared_[i] = BlockerTriangle::from(tri);
             if (!prepared_[i].valid) continue;
+            // Every receiver on the light's side of T's plane: T shadows none of them.
+            any = false;
+            for (size_t l = 0; l < lights; ++l) {
+                uint8_t& active = lightActive_[i * lights + l];
+                if (active && capExcludes(samples_.lightBounds[l], prepared_[i], receiversBox_)) active = 0;
+                any = any || active;
+            }
+            if (!any) {
+                prepared_[i].valid = false;
+                continue;
+            }
             for (size_t l = 0; l < lights; ++l)
                 if (lightActive_[i * lights + l])
                     buildPenumbraVolume(samples_.lightBounds[l], prepared_[i], lightVolumes_[i * lights + l]);

@@ -50,6 +50,7 @@ private:
     /// segment from a receiver to a sample if it meets their convex hull, so a blocker whose box
     /// misses this box is culled before its penumbra volume is built.
     std::vector<Box> reach_;
+    Box receiversBox_;  ///< around every tile's receivers
     // Per-chunk buffers, kept to avoid reallocating them for every chunk.
     std::vector<BlockerTriangle> prepared_;
     std::vector<PenumbraVolume> lightVolumes_;

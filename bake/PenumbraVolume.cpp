@@ -70,23 +70,51 @@ PenumbraVolume makePenumbraVolume(const ConvexBound& bound, const BlockerTriangl
     return volume;
 }
 
-void buildPenumbraVolume(const ConvexBound& bound, const BlockerTriangle& t, PenumbraVolume& volume) {
-    volume.count = 0;
-    volume.nx[0] = volume.ny[0] = volume.nz[0] = volume.d[0] = 0.0;  // the slot after the last
-    Builder b{bound, t, volume};
-    for (const glm::dvec3& v : bound.vertices)
-        b.scale = std::max({b.scale, std::abs(v.x), std::abs(v.y), std::abs(v.z)});
-    for (const glm::dvec3& v : t.v) b.scale = std::max({b.scale, std::abs(v.x), std::abs(v.y), std::abs(v.z)});
+namespace {
 
-    // Cap first: it is the plane most likely to reject a box, and order is the test order.
+double volumeScale(const ConvexBound& bound, const BlockerTriangle& t) {
+    double scale = 1.0;
+    for (const glm::dvec3& v : bound.vertices) scale = std::max({scale, std::abs(v.x), std::abs(v.y), std::abs(v.z)});
+    for (const glm::dvec3& v : t.v) scale = std::max({scale, std::abs(v.x), std::abs(v.y), std::abs(v.z)});
+    return scale;
+}
+
+/// The cap of the volume (T's plane, oriented away from the bound, pushed out by the margin), or
+/// false when T's plane cuts the bound.
+bool capPlane(const ConvexBound& bound, const BlockerTriangle& t, double scale, Plane& cap) {
     double lo = INFINITY, hi = -INFINITY;
     for (const glm::dvec3& v : bound.vertices) {
         double e = t.plane.eval(v);
         lo = std::min(lo, e), hi = std::max(hi, e);
     }
-    double tol = kAccept * b.scale;
-    if (hi < -tol) b.add(t.plane);
-    else if (lo > tol) b.add(t.plane.flipped());
+    const double tol = kAccept * scale;
+    if (hi < -tol) cap = t.plane;
+    else if (lo > tol) cap = t.plane.flipped();
+    else return false;
+    cap.d += kMargin * scale;
+    return true;
+}
+
+}  // namespace
+
+bool capExcludes(const ConvexBound& bound, const BlockerTriangle& t, const Box& box) {
+    Plane cap;
+    if (!capPlane(bound, t, volumeScale(bound, t), cap)) return false;
+    PenumbraVolume v;
+    v.count = 0;
+    v.push(cap);
+    uint32_t active = 1;
+    return !intersects(v, box, active);
+}
+
+void buildPenumbraVolume(const ConvexBound& bound, const BlockerTriangle& t, PenumbraVolume& volume) {
+    volume.count = 0;
+    volume.nx[0] = volume.ny[0] = volume.nz[0] = volume.d[0] = 0.0;  // the slot after the last
+    Builder b{bound, t, volume, volumeScale(bound, t)};
+
+    // Cap first: it is the plane most likely to reject a box, and order is the test order.
+    Plane cap;
+    if (capPlane(bound, t, b.scale, cap)) volume.push(cap);
 
     constexpr size_t kNone = ~size_t(0);
     for (int e = 0; e < 3; ++e) {

@@ -45,6 +45,11 @@ struct alignas(16) PenumbraVolume {
 /// (in place: a volume is a kilobyte, and the caster builds several per triangle).
 void buildPenumbraVolume(const ConvexBound& bound, const BlockerTriangle& t, PenumbraVolume& out);
 
+/// @brief True when the cap of the penumbra volume of @p bound and @p t (T's plane, when the
+/// bound lies entirely on one side of it) leaves all of @p box outside: T can shadow nothing in
+/// the box. A cheap first test: it needs one plane, not the whole volume.
+bool capExcludes(const ConvexBound& bound, const BlockerTriangle& t, const Box& box);
+
 /// @brief Convenience form of buildPenumbraVolume().
 PenumbraVolume makePenumbraVolume(const ConvexBound& bound, const BlockerTriangle& t);
 

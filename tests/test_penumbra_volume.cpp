@@ -89,3 +89,38 @@ TEST_CASE("box classification against a penumbra volume prunes active planes", "
     CHECK(intersects(v, Box{{-3, 0, -3}, {0, 0.1f, 0}}, active));
     CHECK(active != 0);
 }
+
+TEST_CASE("box and point tests agree with evaluating every plane at the box corners", "[hpc][volume]") {
+    LightSamples samples = generateLightSamples({rectLight({0, 5, 0}, {2, 0.3, 0}, {0, 0.2, 1.5}, 16, 1)}, 16, 3);
+    Rng rng(11);
+    uint64_t outside = 0, pruned = 0;
+    for (const Triangle& tri : triangleSoup(5, 30, {-2, 0.5f, -2}, {2, 3.5f, 2}, 1.5f)) {
+        PenumbraVolume v = makePenumbraVolume(samples.lightBounds[0], BlockerTriangle::from(tri));
+        for (int i = 0; i < 200; ++i) {
+            glm::vec3 a = randomIn(rng, {-5, -1, -5}, {5, 4, 5}), b = a + randomIn(rng, {0, 0, 0}, {1.5f, 1.5f, 1.5f});
+            Box box{a, b};
+            // Expected, plane by plane: outside if the farthest corner is behind, inside if the nearest is in front.
+            bool expectOut = false;
+            uint32_t expectActive = v.all();
+            for (int k = 0; k < v.count; ++k) {
+                double lo = INFINITY, hi = -INFINITY;
+                for (int c = 0; c < 8; ++c) {
+                    glm::dvec3 p(c & 1 ? b.x : a.x, c & 2 ? b.y : a.y, c & 4 ? b.z : a.z);
+                    double e = v.plane(k).eval(p);
+                    lo = std::min(lo, e), hi = std::max(hi, e);
+                    CHECK(contains(v, p, 1u << k) == (e >= 0.0));
+                }
+                expectOut = expectOut || hi < 0.0;
+                if (lo >= 0.0) expectActive &= ~(1u << k);
+            }
+            uint32_t active = v.all();
+            const bool hit = intersects(v, box, active);
+            REQUIRE(hit == !expectOut);
+            if (hit) REQUIRE(active == expectActive);
+            outside += !hit;
+            pruned += hit && active != v.all();
+        }
+    }
+    CHECK(outside > 100);
+    CHECK(pruned > 100);
+}
