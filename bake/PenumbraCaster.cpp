@@ -7,6 +7,7 @@
 #include "receivers/ReceiverHierarchy.h"
 
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <chrono>
@@ -328,54 +329,58 @@ PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& r
 
 PenumbraCaster::~PenumbraCaster() = default;
 
-void PenumbraCaster::cast(std::span<const Triangle> blockers) {
-    auto t0 = std::chrono::steady_clock::now();
+void PenumbraCaster::prepare(Batch& batch, std::span<const Triangle> blockers) {
     const size_t n = blockers.size(), lights = size_t(samples_.lightCount());
-    if (prepared_.size() < n) {
-        prepared_.resize(n);
-        lightVolumes_.resize(n * lights);
-        lightActive_.resize(n * lights);
+    batch.n = n;
+    if (batch.prepared.size() < n) {
+        batch.prepared.resize(n);
+        batch.lightVolumes.resize(n * lights);
+        batch.lightActive.resize(n * lights);
     }
-    reached_.resize(tiles_.size());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& range) {
         for (size_t i = range.begin(); i != range.end(); ++i) {
             const Triangle& tri = blockers[i];
             Box box{glm::min(glm::min(tri.v[0], tri.v[1]), tri.v[2]), glm::max(glm::max(tri.v[0], tri.v[1]), tri.v[2])};
+            uint8_t* active = &batch.lightActive[i * lights];
+            BlockerTriangle& prepared = batch.prepared[i];
             bool any = false;
             for (size_t l = 0; l < lights; ++l) {
                 const Box& r = reach_[l];
                 bool overlaps = box.lo.x <= r.hi.x && box.hi.x >= r.lo.x && box.lo.y <= r.hi.y && box.hi.y >= r.lo.y &&
                                 box.lo.z <= r.hi.z && box.hi.z >= r.lo.z;
-                lightActive_[i * lights + l] = overlaps;
+                active[l] = overlaps;
                 any = any || overlaps;
             }
-            prepared_[i].valid = false;
+            prepared.valid = false;
             if (!any) continue;  // outside every light's reach: no penumbra volume needed
-            prepared_[i] = BlockerTriangle::from(tri);
-            if (!prepared_[i].valid) continue;
+            prepared = BlockerTriangle::from(tri);
+            if (!prepared.valid) continue;
             // Every receiver on the light's side of T's plane: T shadows none of them.
             any = false;
             for (size_t l = 0; l < lights; ++l) {
-                uint8_t& active = lightActive_[i * lights + l];
-                if (active && capExcludes(samples_.lightBounds[l], prepared_[i], receiversBox_)) active = 0;
-                any = any || active;
+                if (active[l] && capExcludes(samples_.lightBounds[l], prepared, receiversBox_)) active[l] = 0;
+                any = any || active[l];
             }
             if (!any) {
-                prepared_[i].valid = false;
+                prepared.valid = false;
                 continue;
             }
             for (size_t l = 0; l < lights; ++l)
-                if (lightActive_[i * lights + l])
-                    buildPenumbraVolume(samples_.lightBounds[l], prepared_[i], lightVolumes_[i * lights + l]);
+                if (active[l]) buildPenumbraVolume(samples_.lightBounds[l], prepared, batch.lightVolumes[i * lights + l]);
         }
     });
+}
+
+void PenumbraCaster::castBatch(const Batch& batch) {
+    const size_t n = batch.n, lights = size_t(samples_.lightCount());
+    reached_.resize(tiles_.size());
     tbb::parallel_for(size_t(0), tiles_.size(), [&](size_t t) {
         Tile& tile = *tiles_[t];
         std::vector<uint8_t>& reached = reached_[t];
         reached.assign(n, 0);
         for (size_t i = 0; i < n; ++i) {
-            if (!prepared_[i].valid) continue;
-            tile.castTriangle(prepared_[i], &lightVolumes_[i * lights], &lightActive_[i * lights]);
+            if (!batch.prepared[i].valid) continue;
+            tile.castTriangle(batch.prepared[i], &batch.lightVolumes[i * lights], &batch.lightActive[i * lights]);
             reached[i] = tile.reachedRoot;
         }
     });
@@ -385,10 +390,31 @@ void PenumbraCaster::cast(std::span<const Triangle> blockers) {
         stats_.trianglesCulledAtRoot += !any;
     }
     stats_.trianglesProcessed += n;
+}
+
+void PenumbraCaster::cast(std::span<const Triangle> blockers) {
+    auto t0 = std::chrono::steady_clock::now();
+    // The chunk is prepared (penumbra volumes V_L) while the tiles cast the previous one, so the
+    // preparation fills the gaps that uneven tiles leave on the other threads.
+    const int next = pending_ < 0 ? 0 : 1 - pending_;
+    if (pending_ >= 0)
+        tbb::parallel_invoke([&] { castBatch(batches_[pending_]); }, [&] { prepare(batches_[next], blockers); });
+    else
+        prepare(batches_[next], blockers);
+    pending_ = next;
     stats_.castSeconds += secondsSince(t0);
 }
 
-void PenumbraCaster::finish(const MaskVisitor& visit) const {
+void PenumbraCaster::flush() {
+    if (pending_ < 0) return;
+    auto t0 = std::chrono::steady_clock::now();
+    castBatch(batches_[pending_]);
+    pending_ = -1;
+    stats_.castSeconds += secondsSince(t0);
+}
+
+void PenumbraCaster::finish(const MaskVisitor& visit) {
+    flush();
     for (const auto& tile : tiles_) {
         const ReceiverHierarchy& h = tile->hierarchy;
         for (uint32_t id : h.retired) visit(id, nullptr, true);

@@ -33,11 +33,15 @@ public:
                    const CastOptions& options, int tiles, std::span<const uint32_t> receiverIds = {});
     ~PenumbraCaster();
 
-    /// @brief Casts a chunk of blockers (in the order given) against every tile.
+    /// @brief Casts a chunk of blockers (in the order given) against every tile. The chunk is
+    /// copied: the last one is cast by the next call or by flush().
     void cast(std::span<const Triangle> blockers);
-    /// @brief Reports every receiver's result to @p visit, tile by tile.
-    void finish(const MaskVisitor& visit) const;
+    /// @brief Casts the chunk still pending from the last cast().
+    void flush();
+    /// @brief Flushes, then reports every receiver's result to @p visit, tile by tile.
+    void finish(const MaskVisitor& visit);
 
+    /// @brief Counters and timers; call after finish() or flush() to include the last chunk.
     CastStats stats() const;
 
 private:
@@ -51,11 +55,20 @@ private:
     /// misses this box is culled before its penumbra volume is built.
     std::vector<Box> reach_;
     Box receiversBox_;  ///< around every tile's receivers
-    // Per-chunk buffers, kept to avoid reallocating them for every chunk.
-    std::vector<BlockerTriangle> prepared_;
-    std::vector<PenumbraVolume> lightVolumes_;
-    std::vector<uint8_t> lightActive_;
+    /// A chunk of blockers ready to cast: promoted to double, with V_L per light. Two of them
+    /// alternate so one is prepared while the other is cast; kept to avoid reallocation.
+    struct Batch {
+        size_t n = 0;
+        std::vector<BlockerTriangle> prepared;
+        std::vector<PenumbraVolume> lightVolumes;  ///< [triangle][light]
+        std::vector<uint8_t> lightActive;          ///< [triangle][light]: in reach and not capped away
+    };
+    Batch batches_[2];
+    int pending_ = -1;  ///< the batch prepared but not cast yet
     std::vector<std::vector<uint8_t>> reached_;
+
+    void prepare(Batch& batch, std::span<const Triangle> blockers);
+    void castBatch(const Batch& batch);
 };
 
 /// @brief Splits receivers into @p count spatially compact parts of near-equal size by recursive

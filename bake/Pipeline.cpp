@@ -236,7 +236,9 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     demand.umbraWords = (demand.groups + 63) / 64;
     demand.sampleBytes = p.samples.positions.size() * sizeof(glm::vec3);
     // Bucket buffers, the prefetch queue and the caster's per-chunk volumes are fixed buffers.
-    demand.bufferBytes = p.bucketBufferBytes + 8 * kTriangleChunk * sizeof(Triangle) + kTriangleChunk * 1200 * scene.lights.size();
+    // Two batches of prepared blockers in the caster (one cast while the next is prepared).
+    demand.bufferBytes = p.bucketBufferBytes + 8 * kTriangleChunk * sizeof(Triangle) +
+                         2 * kTriangleChunk * (scene.lights.size() * (sizeof(PenumbraVolume) + 1) + sizeof(BlockerTriangle));
     const MemoryPlan plan = planMemory(demand, settings.memoryBudget);
 
     ReceiverResults results;
