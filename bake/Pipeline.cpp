@@ -67,7 +67,9 @@ private:
 Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverKind& kind, double& streamSeconds,
                  BucketStats& buckets) {
     Prepared p;
-    TriangleSourcePtr source = openSceneGeometry(scene);
+    // Read ahead on a thread of its own, so parsing or generation overlaps with rasterizing
+    // receivers (scan pass) and writing bucket files (bucket pass).
+    TriangleSourcePtr source = std::make_unique<PrefetchSource>(openSceneGeometry(scene));
     AreaHistogram histogram;
     {
         ScopedTimer timer(streamSeconds);
@@ -101,7 +103,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
             while (size_t n = source->read(chunk)) kind.rescan(std::span<const Triangle>(chunk.data(), n));
             source->rewind();
         }
-        p.blockers = std::make_unique<PrefetchSource>(std::move(source));
+        p.blockers = std::move(source);  // already read ahead
         return p;
     }
     BucketOptions options;
