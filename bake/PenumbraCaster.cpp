@@ -104,10 +104,14 @@ struct PenumbraCaster::Tile {
         const LightSampleGroup& g = samples.groups[k];
         HardShadowBlock* blocks = &hardBlocks[set * blocksPerSet + blockFirst[k]];
         which = 0;
-        for (uint64_t rest = needed; rest;) {
-            const int b = __builtin_ctzll(rest) / HardShadowBlock::kLanes;
-            which |= 1u << b;
-            rest &= ~(0xFull << (HardShadowBlock::kLanes * b));
+        if (needed == g.fullMask()) {  // the common case: nothing blocked yet
+            which = (1u << ((g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes)) - 1u;
+        } else {
+            for (uint64_t rest = needed; rest;) {
+                const int b = __builtin_ctzll(rest) / HardShadowBlock::kLanes;
+                which |= 1u << b;
+                rest &= ~(0xFull << (HardShadowBlock::kLanes * b));
+            }
         }
         uint32_t missing = which & ~hardReady[slot];
         if (missing) {
