@@ -57,22 +57,32 @@ VertexBend::VertexBend(std::span<const std::array<glm::vec3, 3>> triangles, std:
     addTriangles(triangles, normals);
 }
 
-uint32_t VertexBend::slotOf(const glm::vec3& v, float sign) {
-    auto [it, inserted] = index_.try_emplace(keyOf(v), uint32_t(sign_.size()));
-    if (inserted) {
-        vertex_.push_back(v);
-        sign_.push_back(sign);
-        bend_.insert(bend_.end(), lights_.size(), 1.f);
-    }
-    return it->second;
+uint32_t VertexBend::slotOf(const glm::vec3& v, float sign, const glm::vec3& owner) {
+    auto [it, inserted] = index_.try_emplace(keyOf(v), kNone);
+    for (uint32_t s = it->second; s != kNone; s = next_[s])
+        if (owner_[s] == owner) return s;  // the same face (or an exactly parallel one) owns it already
+    const uint32_t slot = uint32_t(sign_.size());
+    vertex_.push_back(v);
+    owner_.push_back(owner);
+    sign_.push_back(sign);
+    next_.push_back(it->second);
+    it->second = slot;
+    bend_.insert(bend_.end(), lights_.size(), 1.f);
+    return slot;
+}
+
+std::array<uint32_t, 3> VertexBend::cornersOf(const std::array<glm::vec3, 3>& t, float sign) {
+    glm::dvec3 n = glm::cross(glm::dvec3(t[1] - t[0]), glm::dvec3(t[2] - t[0]));
+    const double len = glm::length(n);
+    const glm::vec3 owner(len > 0 ? double(sign) * n / len : glm::dvec3(0.0));
+    return {slotOf(t[0], sign, owner), slotOf(t[1], sign, owner), slotOf(t[2], sign, owner)};
 }
 
 void VertexBend::addTriangles(std::span<const std::array<glm::vec3, 3>> triangles, std::span<const glm::vec3> normals) {
     for (size_t r = 0; r < triangles.size(); ++r) {
         const auto& t = triangles[r];
         glm::dvec3 n = glm::cross(glm::dvec3(t[1] - t[0]), glm::dvec3(t[2] - t[0]));
-        float sign = glm::dot(n, glm::dvec3(normals[r])) < 0 ? -1.f : 1.f;
-        corners_.push_back({slotOf(t[0], sign), slotOf(t[1], sign), slotOf(t[2], sign)});
+        corners_.push_back(cornersOf(t, glm::dot(n, glm::dvec3(normals[r])) < 0 ? -1.f : 1.f));
     }
 }
 
@@ -95,7 +105,7 @@ void VertexBend::recover(std::span<const Triangle> chunk) {
         if (id >= seen_ + chunk.size()) break;
         const Triangle& t = chunk[id - seen_];
         const float sign = ids_[r] & CameraRasterizer::kFlippedBit ? -1.f : 1.f;
-        corners_[firstWaiting_ + r] = {slotOf(t.v[0], sign), slotOf(t.v[1], sign), slotOf(t.v[2], sign)};
+        corners_[firstWaiting_ + r] = cornersOf({t.v[0], t.v[1], t.v[2]}, sign);
     }
     seen_ += chunk.size();
     if (cursor_ == order_.size()) ids_ = {}, order_ = {};  // all found: free the waiting list
@@ -111,10 +121,13 @@ void VertexBend::add(std::span<const Triangle> chunk) {
         for (const glm::vec3& v : tri.v) {
             auto it = index_.find(keyOf(v));
             if (it == index_.end()) continue;
-            const uint32_t slot = it->second;
-            for (size_t l = 0; l < L; ++l) {
-                double d = sign_[slot] * glm::dot(lights_[l].at(glm::dvec3(v)), n);
-                bend_[slot * L + l] = std::min(bend_[slot * L + l], float(d));
+            for (uint32_t slot = it->second; slot != kNone; slot = next_[slot]) {
+                // A face across a crease (normals more than kCreaseDeg apart) is another surface.
+                if (sign_[slot] * glm::dot(n, glm::dvec3(owner_[slot])) < kCreaseCos) continue;
+                for (size_t l = 0; l < L; ++l) {
+                    double d = sign_[slot] * glm::dot(lights_[l].at(glm::dvec3(v)), n);
+                    bend_[slot * L + l] = std::min(bend_[slot * L + l], float(d));
+                }
             }
         }
     }
@@ -142,7 +155,8 @@ uint64_t VertexBend::bytes() const {
     // An unordered_map node is the key and value plus a next pointer and the cached hash, and
     // each node has a bucket pointer.
     return corners_.capacity() * sizeof(corners_[0]) + index_.size() * (sizeof(Key) + sizeof(uint32_t) + 16 + 8) +
-           vertex_.capacity() * sizeof(glm::vec3) + sign_.capacity() * sizeof(float) + bend_.capacity() * sizeof(float) +
+           (vertex_.capacity() + owner_.capacity()) * sizeof(glm::vec3) + sign_.capacity() * sizeof(float) +
+           next_.capacity() * sizeof(uint32_t) + bend_.capacity() * sizeof(float) +
            ids_.capacity() * sizeof(uint64_t) + order_.capacity() * sizeof(uint32_t);
 }
 

@@ -15,7 +15,8 @@
 /// Adjacency across a streamed triangle soup is found by hashing vertex positions (exact float
 /// bits): only the vertices of triangles that won a pixel are kept (at most 3 per pixel), and a
 /// pass over every face (the bake's cast, which reads them all anyway) lowers their l_bend with
-/// every face that touches them. Faces are
+/// every face that touches them, except faces across a crease (kCreaseDeg): the bend is meant for
+/// smooth surfaces tessellated coarsely, and a box's sides must not darken its top. Faces are
 /// oriented like the visible triangle that owns the vertex (its winding sign relative to the
 /// camera-facing normal), so meshes must be consistently wound for exact results.
 
@@ -46,14 +47,21 @@ std::vector<LightDirection> lightDirections(const std::vector<LightDesc>& lights
 /// @brief s / l_f: the factor smooth shading applies to a receiver's irradiance from one light.
 double smoothShadingFactor(double lf, double lbend);
 
+/// Faces meeting at a crease sharper than this do not bend each other's shading: a box's top face
+/// is not darkened by its sides. Every visible face owns its vertices' slots (faces with the same
+/// normal share them); a slot's l_bend is the minimum over the faces around the vertex whose
+/// normals are within this angle of its owner's.
+inline constexpr double kCreaseDeg = 60.0;
+inline constexpr double kCreaseCos = 0.5;  // cos(kCreaseDeg)
+
 /// @brief Per-vertex bent values for the visible triangles of a camera.
 ///
 /// Receivers are added in receiver order, either with their triangles' vertices (addTriangles())
 /// or, cheaper during the z-buffer pass, with the triangles' positions in the scene stream
 /// (expectTriangleIds(), then recover() with the whole stream in order). Then every face of the
 /// scene, in any order, goes through add(); receivers added later need their own add() pass.
-/// Holds 12 bytes per receiver (its three vertex slots) and about 50 + 4 * lights per distinct
-/// visible vertex; 12 more per receiver while ids wait for recover().
+/// Holds 12 bytes per receiver (its three vertex slots) and about 70 + 4 * lights per slot (a
+/// visible vertex of a visible face); 12 more per receiver while ids wait for recover().
 class VertexBend {
 public:
     explicit VertexBend(std::vector<LightDirection> lights) : lights_(std::move(lights)) {}
@@ -73,7 +81,7 @@ public:
     double factor(size_t r, const glm::dvec3& position, const glm::dvec3& normal, int light) const;
     /// Bytes held (for the memory plan and stats).
     uint64_t bytes() const;
-    /// Distinct visible vertices.
+    /// Vertex slots (distinct visible vertices, once per distinct owner face normal).
     size_t vertices() const { return vertex_.size(); }
 
 private:
@@ -86,12 +94,16 @@ private:
     };
     static Key keyOf(const glm::vec3& p);
     static constexpr uint32_t kNone = ~0u;
-    /// The slot of vertex @p v, made with owner winding sign @p sign if new.
-    uint32_t slotOf(const glm::vec3& v, float sign);
+    /// The slot of vertex @p v owned by a face with camera-facing unit normal @p owner (winding
+    /// sign @p sign), made if new.
+    uint32_t slotOf(const glm::vec3& v, float sign, const glm::vec3& owner);
+    std::array<uint32_t, 3> cornersOf(const std::array<glm::vec3, 3>& triangle, float sign);
     std::vector<LightDirection> lights_;
     std::vector<std::array<uint32_t, 3>> corners_;     ///< per receiver: its triangle's vertex slots
-    std::unordered_map<Key, uint32_t, KeyHash> index_;  ///< vertex -> slot
+    std::unordered_map<Key, uint32_t, KeyHash> index_;  ///< vertex position -> its latest slot
+    std::vector<uint32_t> next_;                        ///< per slot: the position's previous slot
     std::vector<glm::vec3> vertex_;                     ///< per slot: position
+    std::vector<glm::vec3> owner_;                      ///< per slot: its face's camera-facing normal
     std::vector<float> sign_;                           ///< per slot: winding sign of its owner
     std::vector<float> bend_;                           ///< per slot and light: min dot(l, n_F)
     // Waiting for recover(): receiver r's triangle id, receivers sorted by id, the next one.
