@@ -315,6 +315,9 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     // read of the blockers, and only those are cast.
     const size_t firstPass = p.receivers.size();
     if (kind->refine(p.receivers, results)) {
+        demand.kindBytes = kind->residentBytes() + kind->refineBytes();
+        // The refinement's rasterizer fits, or a clear error; the stats report the largest minimum.
+        const uint64_t refineMinimum = planMemory(demand, settings.memoryBudget).minimumBudget;
         {
             ScopedTimer timer(refineSeconds);
             if (settings.method == Method::Hpc) {
@@ -335,6 +338,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         demand.kindBytes = kind->residentBytes();
         demand.outputBytes = kind->outputBytes(p.receivers.size());
         plan = planMemory(demand, settings.memoryBudget);
+        plan.minimumBudget = std::max(plan.minimumBudget, refineMinimum);
         castPass(uint32_t(firstPass), true);
     }
 

@@ -47,11 +47,12 @@ struct Baked {
     std::string bytes;
 };
 
-Baked bake(const ScratchDir& dir, const nlohmann::json& scene, Method method = Method::Hpc, int threads = 2) {
+Baked bake(const ScratchDir& dir, const nlohmann::json& scene, Method method = Method::Hpc, int threads = 2,
+           uint64_t memoryBudget = 0) {
     registerFileSourceTypes();
     SceneDesc desc = parseScene(scene, dir / "scene.json");
     BakeSettings settings;
-    settings.quiet = true, settings.method = method, settings.threads = threads;
+    settings.quiet = true, settings.method = method, settings.threads = threads, settings.memoryBudget = memoryBudget;
     Baked b;
     b.stats = runBake(desc, settings);
     b.image = readExr(dir / "out/cam.exr");
@@ -127,7 +128,7 @@ TEST_CASE("antialiasing refines exactly the high-contrast pixels with the sub-pi
 TEST_CASE("antialiased camera bakes match the reference bit for bit and do not depend on threads", "[camera][antialias]") {
     ScratchDir dir("antialias-exact");
     writeEdgeGeometry(dir);
-    nlohmann::json scene = edgeScene(40, 30, true);
+    nlohmann::json scene = edgeScene(320, 240, true);  // enough receivers for several memory tiles
     scene["lights"][0]["sample_sets"] = 4;  // sub-pixel receivers continue the receivers' set order
     Baked hpc1 = bake(dir, scene, Method::Hpc, 1);
     Baked hpc2 = bake(dir, scene, Method::Hpc, 2);
@@ -135,6 +136,10 @@ TEST_CASE("antialiased camera bakes match the reference bit for bit and do not d
     REQUIRE(hpc1.stats["antialias"]["refined_pixels"].get<int>() > 0);
     CHECK(hpc1.bytes == hpc2.bytes);
     for (const char* key : {"refined_pixels", "added_receivers"}) CHECK(reference.stats["antialias"][key] == hpc1.stats["antialias"][key]);
+    // Memory tiles: both passes replay the blockers once per tile, and the bytes do not change.
+    Baked tiled = bake(dir, scene, Method::Hpc, 2, hpc1.stats["memory_plan"]["minimum_budget_bytes"].get<uint64_t>());
+    CHECK(tiled.stats["memory_plan"]["tiles"].get<int>() > 1);
+    CHECK(tiled.bytes == hpc1.bytes);
     for (const auto& [name, values] : hpc1.image.channels) {
         INFO(name);
         CHECK(values == reference.image.channels[name]);
