@@ -5,8 +5,9 @@
 ///
 /// A kind is made from the scene's "receivers" object by a registered factory. The pipeline then
 /// (1) feeds it every chunk of the scene stream during the scan pass (camera receivers rasterize
-/// there; kinds that do not need the stream ignore it), (2) asks it for the receivers, and after
-/// casting (3) hands it the per-receiver results to write.
+/// there; kinds that do not need the stream ignore it), (2) asks it for the receivers, (3) casts
+/// them, (4) lets it refine: ask for more receivers after seeing the first results (camera
+/// antialiasing), casting only those, and (5) hands it the per-receiver results to write.
 
 #include "bake/Light.h"
 #include "bake/ReceiverShading.h"
