@@ -108,7 +108,10 @@ void VertexBend::recover(std::span<const Triangle> chunk) {
         corners_[firstWaiting_ + r] = cornersOf({t.v[0], t.v[1], t.v[2]}, sign);
     }
     seen_ += chunk.size();
-    if (cursor_ == order_.size()) ids_ = {}, order_ = {};  // all found: free the waiting list
+    if (cursor_ == order_.size()) {  // all found: free the waiting list (`= {}` would keep the capacity)
+        ids_ = std::vector<uint64_t>();
+        order_ = std::vector<uint32_t>();
+    }
 }
 
 void VertexBend::add(std::span<const Triangle> chunk) {
