@@ -50,7 +50,8 @@ glm::vec3 shadedIrradiance(const ReceiverSet& receivers, const ReceiverResults& 
 }
 
 void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, const LightSamples& samples,
-                        const ReceiverResults& results, const std::string& output, const VertexBend* smooth) {
+                        const ReceiverResults& results, const std::string& output, const VertexBend* smooth,
+                        const CameraRefinement& refinement) {
     const int W = receivers.width, H = receivers.height;
     const size_t pixels = size_t(W) * H;
     std::vector<float> V(pixels, 0.f), A(pixels, 0.f), Z(pixels, 0.f), ER(pixels, 0.f), EG(pixels, 0.f), EB(pixels, 0.f);
@@ -60,7 +61,8 @@ void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, co
     size_t layers = 1;
     for (uint32_t px : receivers.pixel) layers = std::max(layers, size_t(px / pixels) + 1);
     std::vector<std::vector<float>> deep((layers - 1) * 9, std::vector<float>(pixels, 0.f));
-    for (size_t i = 0; i < receivers.size(); ++i) {
+    const size_t firstPass = std::min(refinement.firstPass, receivers.size());
+    for (size_t i = 0; i < firstPass; ++i) {
         const size_t layer = receivers.pixel[i] / pixels, px = receivers.pixel[i] % pixels;
         if (layer > 0) {
             float* d[9];
@@ -84,7 +86,7 @@ void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, co
     for (size_t c = 0; c < deep.size(); ++c) channels.push_back({deepNames[c], deep[c].data()});
     // The per-light layers and the preview show the nearest surface (layer 0, listed first).
     size_t front = 0;
-    while (front < receivers.size() && receivers.pixel[front] < pixels) ++front;
+    while (front < firstPass && receivers.pixel[front] < pixels) ++front;
     // Several lights: each gets its own layer, "light<i>.V" and "light<i>.E.R/G/B".
     const int lightCount = results.lights;
     std::vector<std::vector<float>> perLight(lightCount > 1 ? size_t(lightCount) * 4 : 0, std::vector<float>(pixels, 0.f));
@@ -97,6 +99,35 @@ void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, co
             perLight[4 * l + 1][px] = el.x, perLight[4 * l + 2][px] = el.y, perLight[4 * l + 3][px] = el.z;
         }
         for (const char* c : {"V", "E.R", "E.G", "E.B"}) names.push_back(fmt::format("light{}.{}", l, c));
+    }
+    // Refined pixels: the mean over their sub-pixel receivers (summed in double, in receiver order).
+    std::vector<std::pair<uint32_t, glm::vec3>> refinedPreview;  // pixel, premultiplied shading
+    for (size_t i = firstPass; i < receivers.size();) {
+        const uint32_t px = receivers.pixel[i];
+        size_t end = i;
+        while (end < receivers.size() && receivers.pixel[end] == px) ++end;
+        const double count = double(end - i);
+        double v = 0;
+        glm::dvec3 sumE(0.0), shade(0.0);
+        std::vector<double> lightSums(perLight.size(), 0.0);
+        for (size_t r = i; r < end; ++r) {
+            v += results.visibility[r], sumE += glm::dvec3(e[r]);
+            shade += glm::dvec3(shadedIrradiance(receivers, results, r, smooth));
+            for (int l = 0; l < int(perLight.size() / 4); ++l) {
+                glm::vec3 el = results.irradianceOf(r, l);
+                lightSums[4 * l] += results.visibilityOf(r, l);
+                lightSums[4 * l + 1] += el.x, lightSums[4 * l + 2] += el.y, lightSums[4 * l + 3] += el.z;
+            }
+        }
+        V[px] = float(v / count), ER[px] = float(sumE.x / count), EG[px] = float(sumE.y / count), EB[px] = float(sumE.z / count);
+        for (size_t c = 0; c < perLight.size(); ++c) perLight[c][px] = float(lightSums[c] / count);
+        if (A[px] == 0.f) {  // the centre saw nothing: depth and normal of the first covered sub-pixel
+            Z[px] = receivers.depth[i];
+            NX[px] = receivers.normal[i].x, NY[px] = receivers.normal[i].y, NZ[px] = receivers.normal[i].z;
+        }
+        A[px] = float(count / refinement.subPixels);
+        refinedPreview.push_back({px, glm::vec3(shade / count)});
+        i = end;
     }
     for (size_t c = 0; c < perLight.size(); ++c) channels.push_back({names[c], perLight[c].data()});
     ensureParentDirectory(output);
@@ -122,6 +153,10 @@ void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, co
     for (size_t i = 0; i < front; ++i) {
         uint32_t px = receivers.pixel[i];
         glm::vec3 c = glm::vec3(ambient) + exposure * shaded[i];
+        rgb[3 * px] = encodeSrgb(c.x), rgb[3 * px + 1] = encodeSrgb(c.y), rgb[3 * px + 2] = encodeSrgb(c.z);
+    }
+    for (const auto& [px, shade] : refinedPreview) {  // coverage blends with the background
+        glm::vec3 c = A[px] * (glm::vec3(ambient) + exposure * shade) + (1.f - A[px]) * glm::vec3(0.02f);
         rgb[3 * px] = encodeSrgb(c.x), rgb[3 * px + 1] = encodeSrgb(c.y), rgb[3 * px + 2] = encodeSrgb(c.z);
     }
     writePng8(previewPath(output), W, H, 3, rgb);

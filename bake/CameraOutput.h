@@ -21,12 +21,23 @@ std::string previewPath(const std::string& output);
 /// ("penumbra:light0" = "type=rect samples=256 ...", "penumbra:samples", ...).
 std::vector<ExrAttribute> cameraAttributes(const SceneDesc& scene, const LightSamples& samples);
 
+/// @brief Antialiasing refinement for the outputs: receivers from index `firstPass` on are
+/// sub-pixel receivers (grouped by pixel), `subPixels` per refined pixel at most.
+struct CameraRefinement {
+    size_t firstPass = SIZE_MAX;
+    int subPixels = 1;
+};
+
 /// @brief Writes @p output (EXR: V, E.R/E.G/E.B, Z, N.X/N.Y/N.Z, A) and its PNG preview.
-/// Pixels without a receiver have A = 0 and V = 0.
+/// Pixels without a receiver have A = 0 and V = 0. A refined pixel's V and E (total and per
+/// light) are the mean over its covered sub-pixel receivers, A is the covered fraction of its
+/// sub-pixels, and Z and N stay the pixel centre's (the first covered sub-pixel's where the
+/// centre saw nothing).
 /// @param smooth when given, the preview's irradiance uses smooth coherent shading (SmoothShading.h);
 /// the EXR's E channels always hold the plain Heckbert-Herf irradiance.
 void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, const LightSamples& samples,
-                        const ReceiverResults& results, const std::string& output, const VertexBend* smooth = nullptr);
+                        const ReceiverResults& results, const std::string& output, const VertexBend* smooth = nullptr,
+                        const CameraRefinement& refinement = {});
 
 /// @brief The irradiance a shaded preview shows for receiver @p r: the baked irradiance, or with
 /// @p smooth each light's irradiance scaled by its smooth-shading factor.

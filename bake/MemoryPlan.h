@@ -19,6 +19,7 @@ struct MemoryDemand {
     uint64_t sampleBytes = 0;    ///< light sample positions
     bool dumpMasks = false;      ///< --dump keeps every receiver's final mask
     uint64_t bufferBytes = 0;    ///< bucket buffers, chunks and other fixed buffers
+    uint64_t kindBytes = 0;      ///< held by the receiver kind through casting (smooth shading's vertex table, a refinement pass)
 };
 
 struct MemoryPlan {

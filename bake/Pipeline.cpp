@@ -148,23 +148,44 @@ void writeDump(const std::string& dir, const Prepared& p, const VisibilityMasks&
     writeNpy((base / "masks.npy").string(), "<u8", maskShape, dense.data(), dense.size() * sizeof(uint64_t));
 }
 
-/// Hierarchical penumbra casting, one memory tile after another; each tile replays the blockers.
+/// Adds the stats of one more tile or cast pass to @p total; they run one after another, so
+/// peaks are the largest one's, not the sum.
+void accumulate(CastStats& total, const CastStats& s) {
+    total.hierarchyBuildSeconds += s.hierarchyBuildSeconds;
+    total.castSeconds += s.castSeconds;
+    total.trianglesProcessed += s.trianglesProcessed;
+    total.trianglesCulledAtRoot += s.trianglesCulledAtRoot;
+    total.rebuilds += s.rebuilds;
+    total.hardShadowTests += s.hardShadowTests;
+    total.peakLiveMasks = std::max(total.peakLiveMasks, s.peakLiveMasks);
+    total.peakMaskBytes = std::max(total.peakMaskBytes, s.peakMaskBytes);
+    total.peakHierarchyBytes = std::max(total.peakHierarchyBytes, s.peakHierarchyBytes);
+    total.receiverBytes = std::max(total.receiverBytes, s.receiverBytes);
+}
+
+/// Hierarchical penumbra casting of receivers [first, end), one memory tile after another; each
+/// tile replays the blockers. The first tile of the bake's first pass reads the replay the scan
+/// pass left ready; every other tile rewinds it. The kind sees the first tile's chunks when it
+/// asks for them.
 CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettings& settings, int threads,
                            const MemoryPlan& plan, const ReceiverShader& shader, ReceiverResults& results,
-                           VisibilityMasks* dumpMasks) {
+                           VisibilityMasks* dumpMasks, ReceiverKind& kind, uint32_t first, bool rewindFirst) {
     CastStats total;
-    std::vector<uint32_t> all(p.receivers.size());
-    for (uint32_t i = 0; i < all.size(); ++i) all[i] = i;
-    const auto tiles = partitionReceivers(p.receivers, all, plan.tiles);
+    std::vector<uint32_t> ids(p.receivers.size() - first);
+    for (uint32_t i = 0; i < ids.size(); ++i) ids[i] = first + i;
+    const auto tiles = partitionReceivers(p.receivers, ids, plan.tiles);
     ProgressReporter progress("cast", p.triangleCount * tiles.size(), settings.quiet);
+    const bool feedKind = kind.wantsCastChunks();
     std::vector<Triangle> chunk(kTriangleChunk);
     for (size_t t = 0; t < tiles.size(); ++t) {
         const auto& tile = tiles[t];
         // Within a memory tile, threads work on disjoint sub-tiles (2 per thread balances load).
         PenumbraCaster caster(p.samples, p.receivers, p.sampleSets, scene.options, threads > 1 ? 2 * threads : 1, tile);
-        if (t > 0) p.blockers->rewind();  // the first tile reads the replay the scan pass left ready
+        if (t > 0 || rewindFirst) p.blockers->rewind();
         while (size_t n = p.blockers->read(chunk)) {
-            caster.cast(std::span<const Triangle>(chunk.data(), n));
+            std::span<const Triangle> part(chunk.data(), n);
+            caster.cast(part);
+            if (feedKind && t == 0) kind.castChunk(part);
             progress.update(n);
         }
         caster.finish([&](uint32_t r, const uint64_t* words, bool full) {
@@ -173,24 +194,36 @@ CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettin
                 for (int k = 0; k < dumpMasks->groups; ++k)
                     dumpMasks->row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
         });
-        CastStats s = caster.stats();
         // Tile hierarchies are built on worker threads, in their malloc arenas; hand the freed
         // memory back before the next tile, or arenas keep it and RSS creeps past the plan.
         returnFreedMemory();
-        total.hierarchyBuildSeconds += s.hierarchyBuildSeconds;
-        total.castSeconds += s.castSeconds;
-        total.trianglesProcessed += s.trianglesProcessed;
-        total.trianglesCulledAtRoot += s.trianglesCulledAtRoot;
-        total.rebuilds += s.rebuilds;
-        total.hardShadowTests += s.hardShadowTests;
-        // Tiles run one after another: peaks are the largest tile's, not the sum.
-        total.peakLiveMasks = std::max(total.peakLiveMasks, s.peakLiveMasks);
-        total.peakMaskBytes = std::max(total.peakMaskBytes, s.peakMaskBytes);
-        total.peakHierarchyBytes = std::max(total.peakHierarchyBytes, s.peakHierarchyBytes);
-        total.receiverBytes = std::max(total.receiverBytes, s.receiverBytes);
+        accumulate(total, caster.stats());
     }
     progress.done();
     return total;
+}
+
+/// Calls @p f with @p all in chunks of kTriangleChunk.
+template <class F>
+void forEachChunk(const std::vector<Triangle>& all, F&& f) {
+    for (size_t i = 0; i < all.size(); i += kTriangleChunk)
+        f(std::span<const Triangle>(all).subspan(i, std::min(kTriangleChunk, all.size() - i)));
+}
+
+/// Receivers [first, end) of @p set as a set of their own (the ray casters take whole sets).
+ReceiverSet tailOf(const ReceiverSet& set, size_t first) {
+    ReceiverSet out;
+    out.position.assign(set.position.begin() + first, set.position.end());
+    out.normal.assign(set.normal.begin() + first, set.normal.end());
+    return out;
+}
+
+/// Appends @p extra (refinement receivers) to @p set.
+void append(ReceiverSet& set, const ReceiverSet& extra) {
+    set.position.insert(set.position.end(), extra.position.begin(), extra.position.end());
+    set.normal.insert(set.normal.end(), extra.normal.begin(), extra.normal.end());
+    set.pixel.insert(set.pixel.end(), extra.pixel.begin(), extra.pixel.end());
+    set.depth.insert(set.depth.end(), extra.depth.begin(), extra.depth.end());
 }
 
 }  // namespace
@@ -241,36 +274,79 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     // Two batches of prepared blockers in the caster (one cast while the next is prepared).
     demand.bufferBytes = p.bucketBufferBytes + 8 * kTriangleChunk * sizeof(Triangle) +
                          2 * kTriangleChunk * (scene.lights.size() * (sizeof(PenumbraVolume) + 1) + sizeof(BlockerTriangle));
-    const MemoryPlan plan = planMemory(demand, settings.memoryBudget);
+    demand.kindBytes = kind->residentBytes();
+    MemoryPlan plan = planMemory(demand, settings.memoryBudget);
 
     ReceiverResults results;
     results.resize(p.receivers.size(), int(p.lights.size()));
-    ReceiverShader shader(p.lights, p.samples, p.receivers, p.sampleSets);
     VisibilityMasks masks;
     if (dump || settings.method != Method::Hpc) masks = VisibilityMasks(p.receivers.size(), p.samples.groupCount());
 
     CastStats cast;
     EmbreeStats embree;
-    double castSeconds = 0;
-    {
+    double castSeconds = 0, refineSeconds = 0;
+    std::vector<Triangle> all;  // the ray casters' whole scene, read once
+    // One cast of receivers [first, end): the first pass casts them all, a refinement pass only
+    // the receivers it added.
+    auto castPass = [&](uint32_t first, bool rewind) {
         ScopedTimer timer(castSeconds);
+        ReceiverShader shader(p.lights, p.samples, p.receivers, p.sampleSets);
         if (settings.method == Method::Hpc) {
-            cast = castHierarchical(p, scene, settings, threads, plan, shader, results, dump ? &masks : nullptr);
-        } else {
-            // The ray casters need the whole scene in memory: that is their nature, not ours.
-            std::vector<Triangle> all = readAll(*p.blockers);
-            ProgressReporter progress(methodName(settings.method), p.receivers.size(), settings.quiet);
-            auto tick = [&](uint64_t n) { progress.update(n); };
-            if (settings.method == Method::Reference)
-                masks = castReference(p.samples, p.receivers, p.sampleSets, all, scene.options.epsilon, tick);
-            else
-                masks = castEmbree(p.samples, p.receivers, p.sampleSets, all, scene.options.epsilon, &embree, tick);
-            progress.done();
-            for (uint32_t r = 0; r < p.receivers.size(); ++r) shader.shade(r, masks.row(r), false, results);
+            accumulate(cast, castHierarchical(p, scene, settings, threads, plan, shader, results, dump ? &masks : nullptr,
+                                              *kind, first, rewind));
+            return;
         }
+        // The ray casters need the whole scene in memory: that is their nature, not ours.
+        if (all.empty()) {
+            all = readAll(*p.blockers);
+        }
+        if (kind->wantsCastChunks()) forEachChunk(all, [&](std::span<const Triangle> c) { kind->castChunk(c); });
+        const ReceiverSet part = first == 0 ? ReceiverSet{} : tailOf(p.receivers, first);
+        const ReceiverSet& targets = first == 0 ? p.receivers : part;
+        const std::span<const uint32_t> sets = std::span<const uint32_t>(p.sampleSets).subspan(first);
+        ProgressReporter progress(methodName(settings.method), targets.size(), settings.quiet);
+        auto tick = [&](uint64_t n) { progress.update(n); };
+        VisibilityMasks m = settings.method == Method::Reference
+                                ? castReference(p.samples, targets, sets, all, scene.options.epsilon, tick)
+                                : castEmbree(p.samples, targets, sets, all, scene.options.epsilon, &embree, tick);
+        progress.done();
+        std::copy(m.words.begin(), m.words.end(), masks.words.begin() + size_t(first) * masks.groups);
+        for (uint32_t r = first; r < p.receivers.size(); ++r) shader.shade(r, masks.row(r), false, results);
+    };
+    castPass(0, false);
+
+    // Adaptive refinement: the kind looks at the first pass, finds its new receivers in one more
+    // read of the blockers, and only those are cast.
+    const size_t firstPass = p.receivers.size();
+    if (kind->refine(p.receivers, results)) {
+        demand.kindBytes = kind->residentBytes() + kind->refineBytes();
+        // The refinement's rasterizer fits, or a clear error; the stats report the largest minimum.
+        const uint64_t refineMinimum = planMemory(demand, settings.memoryBudget).minimumBudget;
+        {
+            ScopedTimer timer(refineSeconds);
+            if (settings.method == Method::Hpc) {
+                p.blockers->rewind();
+                std::vector<Triangle> chunk(kTriangleChunk);
+                while (size_t n = p.blockers->read(chunk)) kind->refineScan(std::span<const Triangle>(chunk.data(), n));
+            } else {
+                forEachChunk(all, [&](std::span<const Triangle> c) { kind->refineScan(c); });
+            }
+            append(p.receivers, kind->refinedReceivers());
+        }
+        returnFreedMemory();
+        for (size_t i = firstPass; i < p.receivers.size(); ++i)
+            p.sampleSets.push_back(uint32_t(sampleSetOf(i, p.samples.sets, scene.seed)));
+        results.extend(p.receivers.size());
+        if (masks.groups) masks.words.resize(p.receivers.size() * size_t(masks.groups), 0);
+        demand.receivers = p.receivers.size();
+        demand.kindBytes = kind->residentBytes();
+        demand.outputBytes = kind->outputBytes(p.receivers.size());
+        plan = planMemory(demand, settings.memoryBudget);
+        plan.minimumBudget = std::max(plan.minimumBudget, refineMinimum);
+        castPass(uint32_t(firstPass), true);
     }
 
-    kind->write(OutputContext{scene, p.receivers, p.samples, results, scene.output});
+    kind->write(OutputContext{scene, p.receivers, p.samples, results, scene.output, firstPass});
     if (dump) writeDump(settings.dumpDir, p, masks);
 
     uint64_t blocked = 0;
@@ -316,6 +392,9 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
           {"read_mb_per_s", p.replay && p.replay->readSeconds() > 0 ? double(p.replay->bytesRead()) / 1e6 / p.replay->readSeconds() : 0.0},
           {"pass_time_s", buckets.seconds}}},
     };
+    if (nlohmann::json extra = kind->stats(); extra.is_object())
+        for (auto& [key, value] : extra.items()) stats[key] = value;
+    if (refineSeconds > 0) stats["antialias"]["refine_scan_time_s"] = refineSeconds;
     if (settings.method == Method::Embree)
         stats["embree"] = {{"build_time_s", embree.buildSeconds}, {"trace_time_s", embree.traceSeconds},
                            {"rays", embree.rays}, {"scene_bytes", embree.sceneBytes}};

@@ -5,8 +5,9 @@
 ///
 /// A kind is made from the scene's "receivers" object by a registered factory. The pipeline then
 /// (1) feeds it every chunk of the scene stream during the scan pass (camera receivers rasterize
-/// there; kinds that do not need the stream ignore it), (2) asks it for the receivers, and after
-/// casting (3) hands it the per-receiver results to write.
+/// there; kinds that do not need the stream ignore it), (2) asks it for the receivers, (3) casts
+/// them, (4) lets it refine: ask for more receivers after seeing the first results (camera
+/// antialiasing), casting only those, and (5) hands it the per-receiver results to write.
 
 #include "bake/Light.h"
 #include "bake/ReceiverShading.h"
@@ -34,6 +35,8 @@ struct OutputContext {
     const LightSamples& samples;
     const ReceiverResults& results;
     std::string output;  ///< the output path (scene "output" or -o)
+    /// Receivers [0, firstPass) are the first pass's; later ones are refinement() receivers.
+    size_t firstPass = receivers.size();
 };
 
 class ReceiverKind {
@@ -53,6 +56,26 @@ public:
     /// rescan() with every chunk, in stream order, before casting.
     virtual bool wantsRescan() const { return false; }
     virtual void rescan(std::span<const Triangle> chunk) {}
+    /// Bytes the kind holds from after the rescan until its outputs are written (smooth shading's
+    /// vertex table), for the memory plan. Asked after the rescan.
+    virtual uint64_t residentBytes() const { return 0; }
+    /// True when the kind wants every blocker once per cast pass; the pipeline then calls
+    /// castChunk() with each chunk the first memory tile casts (replay order, not stream order).
+    virtual bool wantsCastChunks() const { return false; }
+    virtual void castChunk(std::span<const Triangle> chunk) {}
+
+    /// Adaptive refinement in a second pass (camera antialiasing): after the first cast, refine()
+    /// sees the receivers and their results and returns true when it wants more receivers. The
+    /// pipeline then feeds every blocker (replay order) to refineScan(), appends the receivers
+    /// refinedReceivers() returns (once) to the set and casts only those, with the same light
+    /// samples and method; write() then gets both passes (OutputContext::firstPass).
+    virtual bool refine(const ReceiverSet& receivers, const ReceiverResults& results) { return false; }
+    virtual void refineScan(std::span<const Triangle> chunk) {}
+    virtual ReceiverSet refinedReceivers() { return {}; }
+    /// Bytes held during refineScan(), for the memory plan (asked after refine()).
+    virtual uint64_t refineBytes() const { return 0; }
+    /// Kind-specific entries for the stats JSON (null for none), asked after write().
+    virtual nlohmann::json stats() const { return nullptr; }
     /// Writes the outputs. Every file goes through AtomicFile (no partial outputs).
     virtual void write(const OutputContext& context) = 0;
 };

@@ -32,6 +32,12 @@ struct ReceiverResults {
         lightVisibility.assign(lightCount > 1 ? receivers * size_t(lightCount) : 0, 0.f);
         lightIrradiance.assign(lightCount > 1 ? receivers * size_t(lightCount) : 0, glm::vec3(0.f));
     }
+    /// @brief Grows the arrays to @p receivers receivers, keeping the results already there.
+    void extend(size_t receivers) {
+        visibility.resize(receivers, 0.f);
+        irradiance.resize(receivers, glm::vec3(0.f));
+        if (lights > 1) lightVisibility.resize(receivers * size_t(lights), 0.f), lightIrradiance.resize(receivers * size_t(lights), glm::vec3(0.f));
+    }
     float visibilityOf(size_t r, int light) const { return lights > 1 ? lightVisibility[r * lights + light] : visibility[r]; }
     glm::vec3 irradianceOf(size_t r, int light) const {
         return lights > 1 ? lightIrradiance[r * lights + light] : irradiance[r];

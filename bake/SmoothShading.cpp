@@ -1,5 +1,6 @@
 #include "bake/SmoothShading.h"
 
+#include "receivers/CameraReceivers.h"
 #include "stream/Triangle.h"
 
 #include <glm/geometric.hpp>
@@ -50,20 +51,66 @@ VertexBend::Key VertexBend::keyOf(const glm::vec3& p) {
     return {bits(p.x), bits(p.y), bits(p.z)};
 }
 
-VertexBend::VertexBend(std::vector<std::array<glm::vec3, 3>> triangles, std::span<const glm::vec3> normals,
+VertexBend::VertexBend(std::span<const std::array<glm::vec3, 3>> triangles, std::span<const glm::vec3> normals,
                        std::vector<LightDirection> lights)
-    : triangles_(std::move(triangles)), lights_(std::move(lights)) {
-    const size_t L = lights_.size();
-    for (size_t r = 0; r < triangles_.size(); ++r) {
-        const auto& t = triangles_[r];
+    : lights_(std::move(lights)) {
+    addTriangles(triangles, normals);
+}
+
+uint32_t VertexBend::slotOf(const glm::vec3& v, float sign, const glm::vec3& owner) {
+    auto [it, inserted] = index_.try_emplace(keyOf(v), kNone);
+    for (uint32_t s = it->second; s != kNone; s = next_[s])
+        if (owner_[s] == owner) return s;  // the same face (or an exactly parallel one) owns it already
+    const uint32_t slot = uint32_t(sign_.size());
+    vertex_.push_back(v);
+    owner_.push_back(owner);
+    sign_.push_back(sign);
+    next_.push_back(it->second);
+    it->second = slot;
+    bend_.insert(bend_.end(), lights_.size(), 1.f);
+    return slot;
+}
+
+std::array<uint32_t, 3> VertexBend::cornersOf(const std::array<glm::vec3, 3>& t, float sign) {
+    glm::dvec3 n = glm::cross(glm::dvec3(t[1] - t[0]), glm::dvec3(t[2] - t[0]));
+    const double len = glm::length(n);
+    const glm::vec3 owner(len > 0 ? double(sign) * n / len : glm::dvec3(0.0));
+    return {slotOf(t[0], sign, owner), slotOf(t[1], sign, owner), slotOf(t[2], sign, owner)};
+}
+
+void VertexBend::addTriangles(std::span<const std::array<glm::vec3, 3>> triangles, std::span<const glm::vec3> normals) {
+    for (size_t r = 0; r < triangles.size(); ++r) {
+        const auto& t = triangles[r];
         glm::dvec3 n = glm::cross(glm::dvec3(t[1] - t[0]), glm::dvec3(t[2] - t[0]));
-        float sign = glm::dot(n, glm::dvec3(normals[r])) < 0 ? -1.f : 1.f;
-        for (const glm::vec3& v : t) {
-            auto [it, inserted] = index_.try_emplace(keyOf(v), uint32_t(sign_.size()));
-            if (!inserted) continue;
-            sign_.push_back(sign);
-            bend_.insert(bend_.end(), L, 1.f);
-        }
+        corners_.push_back(cornersOf(t, glm::dot(n, glm::dvec3(normals[r])) < 0 ? -1.f : 1.f));
+    }
+}
+
+void VertexBend::expectTriangleIds(std::vector<uint64_t> ids) {
+    firstWaiting_ = corners_.size();
+    corners_.resize(corners_.size() + ids.size(), {kNone, kNone, kNone});
+    ids_ = std::move(ids);
+    order_.resize(ids_.size());
+    std::iota(order_.begin(), order_.end(), 0u);
+    const uint64_t mask = ~CameraRasterizer::kFlippedBit;
+    std::stable_sort(order_.begin(), order_.end(), [&](uint32_t a, uint32_t b) { return (ids_[a] & mask) < (ids_[b] & mask); });
+    cursor_ = 0, seen_ = 0;
+}
+
+void VertexBend::recover(std::span<const Triangle> chunk) {
+    const uint64_t mask = ~CameraRasterizer::kFlippedBit;
+    for (; cursor_ < order_.size(); ++cursor_) {
+        const uint32_t r = order_[cursor_];
+        const uint64_t id = ids_[r] & mask;
+        if (id >= seen_ + chunk.size()) break;
+        const Triangle& t = chunk[id - seen_];
+        const float sign = ids_[r] & CameraRasterizer::kFlippedBit ? -1.f : 1.f;
+        corners_[firstWaiting_ + r] = cornersOf({t.v[0], t.v[1], t.v[2]}, sign);
+    }
+    seen_ += chunk.size();
+    if (cursor_ == order_.size()) {  // all found: free the waiting list (`= {}` would keep the capacity)
+        ids_ = std::vector<uint64_t>();
+        order_ = std::vector<uint32_t>();
     }
 }
 
@@ -77,17 +124,22 @@ void VertexBend::add(std::span<const Triangle> chunk) {
         for (const glm::vec3& v : tri.v) {
             auto it = index_.find(keyOf(v));
             if (it == index_.end()) continue;
-            const uint32_t slot = it->second;
-            for (size_t l = 0; l < L; ++l) {
-                double d = sign_[slot] * glm::dot(lights_[l].at(glm::dvec3(v)), n);
-                bend_[slot * L + l] = std::min(bend_[slot * L + l], float(d));
+            for (uint32_t slot = it->second; slot != kNone; slot = next_[slot]) {
+                // A face across a crease (normals more than kCreaseDeg apart) is another surface.
+                if (sign_[slot] * glm::dot(n, glm::dvec3(owner_[slot])) < kCreaseCos) continue;
+                for (size_t l = 0; l < L; ++l) {
+                    double d = sign_[slot] * glm::dot(lights_[l].at(glm::dvec3(v)), n);
+                    bend_[slot * L + l] = std::min(bend_[slot * L + l], float(d));
+                }
             }
         }
     }
 }
 
 double VertexBend::factor(size_t r, const glm::dvec3& position, const glm::dvec3& normal, int light) const {
-    const auto& t = triangles_[r];
+    const auto& c = corners_[r];
+    if (c[0] == kNone) return 1.0;
+    const glm::vec3 t[3] = {vertex_[c[0]], vertex_[c[1]], vertex_[c[2]]};
     const size_t L = lights_.size();
     // Barycentric coordinates of the receiver in its triangle (it lies in the triangle's plane).
     glm::dvec3 a(t[0]), e1 = glm::dvec3(t[1]) - a, e2 = glm::dvec3(t[2]) - a, q = position - a;
@@ -97,14 +149,18 @@ double VertexBend::factor(size_t r, const glm::dvec3& position, const glm::dvec3
     double b2 = det > 0 ? std::clamp((d11 * q2 - d12 * q1) / det, 0.0, 1.0 - b1) : 1.0 / 3;
     double w[3] = {1.0 - b1 - b2, b1, b2};
     double bend = 0;
-    for (int i = 0; i < 3; ++i) bend += w[i] * bend_[index_.at(keyOf(t[i])) * L + size_t(light)];
+    for (int i = 0; i < 3; ++i) bend += w[i] * bend_[c[i] * L + size_t(light)];
     double lf = glm::dot(lights_[size_t(light)].at(position), normal);
     return smoothShadingFactor(lf, bend);
 }
 
 uint64_t VertexBend::bytes() const {
-    return triangles_.size() * sizeof(triangles_[0]) + index_.size() * (sizeof(Key) + sizeof(uint32_t) + 16) +
-           sign_.size() * sizeof(float) + bend_.size() * sizeof(float);
+    // An unordered_map node is the key and value plus a next pointer and the cached hash, and
+    // each node has a bucket pointer.
+    return corners_.capacity() * sizeof(corners_[0]) + index_.size() * (sizeof(Key) + sizeof(uint32_t) + 16 + 8) +
+           (vertex_.capacity() + owner_.capacity()) * sizeof(glm::vec3) + sign_.capacity() * sizeof(float) +
+           next_.capacity() * sizeof(uint32_t) + bend_.capacity() * sizeof(float) +
+           ids_.capacity() * sizeof(uint64_t) + order_.capacity() * sizeof(uint32_t);
 }
 
 }  // namespace penumbra

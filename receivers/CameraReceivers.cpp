@@ -60,6 +60,27 @@ CameraRasterizer::CameraRasterizer(const CameraDesc& camera) : camera_(camera) {
     normal_.assign(pixels, glm::vec3(0.0f));
 }
 
+CameraRasterizer::CameraRasterizer(const CameraDesc& camera, int subdivision, std::span<const uint32_t> pixels)
+    : camera_(camera), sub_(subdivision), coarseWidth_(camera.width), refined_(pixels.begin(), pixels.end()) {
+    validateCamera(camera);
+    if (subdivision < 1 || camera.layers != 1) fail(camera.where, "refinement needs a subdivision >= 1 and one layer");
+    camera_.width *= subdivision, camera_.height *= subdivision;
+    Basis b = basisOf(camera_);
+    right_ = b.right, up_ = b.up, forward_ = b.forward, tanHalf_ = b.tanHalf, aspect_ = b.aspect;
+    lookup_.assign(size_t(camera.width) * camera.height, ~0u);
+    for (size_t i = 0; i < refined_.size(); ++i) lookup_[refined_[i]] = uint32_t(i);
+    const size_t slots = refined_.size() * size_t(sub_) * sub_;
+    depth_.assign(slots, std::numeric_limits<float>::infinity());
+    normal_.assign(slots, glm::vec3(0.0f));
+}
+
+size_t CameraRasterizer::slotOf(int x, int y) const {
+    if (sub_ == 1) return (size_t(y) * camera_.width + x) * size_t(camera_.layers);
+    const uint32_t i = lookup_[size_t(y / sub_) * coarseWidth_ + x / sub_];
+    if (i == ~0u) return SIZE_MAX;
+    return (size_t(i) * sub_ + y % sub_) * sub_ + x % sub_;
+}
+
 glm::dvec3 CameraRasterizer::direction(int x, int y) const {
     return directionThrough(Basis{right_, up_, forward_, tanHalf_, aspect_}, camera_.width, camera_.height, x, y);
 }
@@ -67,7 +88,8 @@ glm::dvec3 CameraRasterizer::direction(int x, int y) const {
 void CameraRasterizer::add(std::span<const Triangle> chunk) {
     const int W = camera_.width, H = camera_.height;
     const double nearZ = 1e-6;
-    for (const Triangle& tri : chunk) {
+    for (size_t index = 0; index < chunk.size(); ++index) {
+        const Triangle& tri = chunk[index];
         glm::dvec3 v[3] = {glm::dvec3(tri.v[0]), glm::dvec3(tri.v[1]), glm::dvec3(tri.v[2])};
         glm::dvec3 n = glm::cross(v[1] - v[0], v[2] - v[0]);
         if (!(glm::length(n) > 0.0) || !std::isfinite(glm::length(n))) continue;
@@ -104,6 +126,8 @@ void CameraRasterizer::add(std::span<const Triangle> chunk) {
         for (int y = y0; y <= y1; ++y) {
             double py = y + 0.5;
             for (int x = x0; x <= x1; ++x) {
+                const size_t base = slotOf(x, y);
+                if (base == SIZE_MAX) continue;
                 double px = x + 0.5;
                 bool inside = true;
                 for (int i = 0; i < m && inside; ++i) {
@@ -118,7 +142,7 @@ void CameraRasterizer::add(std::span<const Triangle> chunk) {
                 if (!(t > 0.0)) continue;
                 // Slots of a pixel hold its nearest distinct depths, ascending; a depth equal to
                 // one already kept is the same surface again, and the earlier triangle keeps it.
-                const size_t L = size_t(camera_.layers), base = (size_t(y) * W + x) * L;
+                const size_t L = size_t(camera_.layers);
                 const float ft = float(t);
                 size_t k = 0;
                 while (k < L && !(ft < depth_[base + k])) ++k;
@@ -126,13 +150,16 @@ void CameraRasterizer::add(std::span<const Triangle> chunk) {
                 for (size_t j = L - 1; j > k; --j) {
                     depth_[base + j] = depth_[base + j - 1], normal_[base + j] = normal_[base + j - 1];
                     if (!triangle_.empty()) triangle_[base + j] = triangle_[base + j - 1];
+                    if (!triangleId_.empty()) triangleId_[base + j] = triangleId_[base + j - 1];
                 }
                 depth_[base + k] = ft;
                 normal_[base + k] = glm::vec3(glm::normalize(denom > 0 ? -n : n));
                 if (!triangle_.empty()) triangle_[base + k] = {tri.v[0], tri.v[1], tri.v[2]};
+                if (!triangleId_.empty()) triangleId_[base + k] = (seen_ + index) | (denom > 0 ? kFlippedBit : 0);
             }
         }
     }
+    seen_ += chunk.size();
 }
 
 ReceiverSet CameraRasterizer::finish() {
@@ -146,18 +173,33 @@ ReceiverSet CameraRasterizer::finish() {
     const size_t covered = size_t(std::count_if(depth_.begin(), depth_.end(), [](float d) { return std::isfinite(d); }));
     set.position.reserve(covered), set.normal.reserve(covered), set.pixel.reserve(covered), set.depth.reserve(covered);
     if (!triangle_.empty()) winners_.reserve(covered);
+    if (!triangleId_.empty()) winnerIds_.reserve(covered);
+    auto emit = [&](size_t slot, int x, int y, uint32_t pixel) {
+        set.position.push_back(glm::vec3(camera_.eye + double(depth_[slot]) * direction(x, y)));
+        set.normal.push_back(normal_[slot]);
+        set.pixel.push_back(pixel);
+        set.depth.push_back(depth_[slot]);
+        if (!triangle_.empty()) winners_.push_back(triangle_[slot]);
+        if (!triangleId_.empty()) winnerIds_.push_back(triangleId_[slot]);
+    };
+    if (sub_ > 1) {  // refinement: pixel by pixel, sub-pixels in scanline order
+        set.width = coarseWidth_, set.height = H / sub_;
+        for (size_t i = 0, slot = 0; i < refined_.size(); ++i) {
+            const int x0 = int(refined_[i] % coarseWidth_) * sub_, y0 = int(refined_[i] / coarseWidth_) * sub_;
+            for (int sy = 0; sy < sub_; ++sy)
+                for (int sx = 0; sx < sub_; ++sx, ++slot)
+                    if (std::isfinite(depth_[slot])) emit(slot, x0 + sx, y0 + sy, refined_[i]);
+        }
+        depth_ = {}, normal_ = {}, triangle_ = {}, lookup_ = {};
+        return set;
+    }
     for (size_t layer = 0; layer < L; ++layer)
         for (int y = 0; y < H; ++y)
             for (int x = 0; x < W; ++x) {
                 size_t p = size_t(y) * W + x, slot = p * L + layer;
-                if (!std::isfinite(depth_[slot])) continue;
-                set.position.push_back(glm::vec3(camera_.eye + double(depth_[slot]) * direction(x, y)));
-                set.normal.push_back(normal_[slot]);
-                set.pixel.push_back(uint32_t(layer * size_t(W) * H + p));
-                set.depth.push_back(depth_[slot]);
-                if (!triangle_.empty()) winners_.push_back(triangle_[slot]);
+                if (std::isfinite(depth_[slot])) emit(slot, x, y, uint32_t(layer * size_t(W) * H + p));
             }
-    depth_ = {}, normal_ = {}, triangle_ = {};
+    depth_ = {}, normal_ = {}, triangle_ = {}, triangleId_ = {};
     return set;
 }
 

@@ -10,6 +10,7 @@
 
 #include <array>
 #include <functional>
+#include <span>
 #include <string>
 
 namespace penumbra {
@@ -33,25 +34,49 @@ void validateCamera(const CameraDesc& camera);
 
 /// @brief The z-buffer pass as an object that is fed chunks, so that it can share a pass over the
 /// stream with other work (the area histogram). Holds 16 bytes per pixel until finish().
+///
+/// Refinement mode (adaptive antialiasing) rasterizes only the sub-pixels of chosen pixels: an
+/// n x n stratified pattern per pixel, at exactly the pixel centres of the same camera at n times
+/// the resolution, so a refined pixel's receivers are those of an n-times-larger image.
 class CameraRasterizer {
 public:
     /// @throw InputError when the camera is invalid (validateCamera()).
     explicit CameraRasterizer(const CameraDesc& camera);
+    /// Refinement mode: @p pixels (ascending, layer-0 pixel indices y * width + x) get n x n
+    /// sub-pixel slots each, n = @p subdivision. Holds 16 bytes per sub-pixel and 4 per pixel.
+    CameraRasterizer(const CameraDesc& camera, int subdivision, std::span<const uint32_t> pixels);
     /// Rasterizes the chunk; triangles are depth-tested in the order given.
     void add(std::span<const Triangle> chunk);
     /// Also keep, per pixel, the vertices of the triangle that wins it (36 more bytes per pixel),
     /// for shading that needs the visible triangle (smooth coherent shading). Call before add().
     void recordTriangles() { triangle_.assign(depth_.size(), {}); }
+    /// Cheaper alternative: keep, per pixel, only the winning triangle's position in the order
+    /// add() saw it (8 more bytes per pixel; the top bit is set when the triangle's winding faces
+    /// away from the camera), so its vertices can be found again in a later pass.
+    void recordTriangleIds() { triangleId_.assign(depth_.size(), kNoTriangle); }
     /// One receiver per covered pixel and layer: layer 0 in scanline order, then layer 1... Call once.
+    /// In refinement mode: the covered sub-pixels of each chosen pixel, pixel by pixel, each
+    /// pixel's sub-pixels in scanline order; `pixel` is the (coarse) pixel they refine.
     ReceiverSet finish();
     /// After finish() with recordTriangles(): each receiver's triangle, in receiver order.
     std::vector<std::array<glm::vec3, 3>> takeTriangles() { return std::move(winners_); }
+    /// After finish() with recordTriangleIds(): each receiver's triangle id, in receiver order.
+    std::vector<uint64_t> takeTriangleIds() { return std::move(winnerIds_); }
+    static constexpr uint64_t kFlippedBit = 1ull << 63, kNoTriangle = ~0ull;
     /// Bytes per pixel held while rasterizing.
     static constexpr uint64_t kBytesPerPixel = 16;
 
 private:
     glm::dvec3 direction(int x, int y) const;
+    /// Storage slot of (fine) pixel (x, y) and layer 0, or SIZE_MAX when it is not rasterized.
+    size_t slotOf(int x, int y) const;
     CameraDesc camera_;
+    int sub_ = 1;                     ///< refinement: sub-pixels per pixel side; 1 otherwise
+    int coarseWidth_ = 0;
+    std::vector<uint32_t> refined_;   ///< refinement: the chosen pixels
+    std::vector<uint32_t> lookup_;    ///< refinement: coarse pixel -> index in refined_, or ~0u
+    uint64_t seen_ = 0;               ///< triangles given to add() so far
+    std::vector<uint64_t> triangleId_, winnerIds_;
     glm::dvec3 right_, up_, forward_;
     double tanHalf_, aspect_;
     std::vector<float> depth_;
