@@ -17,6 +17,7 @@
 
 #include <tbb/global_control.h>
 #include <tbb/info.h>
+#include <tbb/parallel_invoke.h>
 
 #include <filesystem>
 
@@ -184,8 +185,10 @@ CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettin
         if (t > 0 || rewindFirst) p.blockers->rewind();
         while (size_t n = p.blockers->read(chunk)) {
             std::span<const Triangle> part(chunk.data(), n);
-            caster.cast(part);
-            if (feedKind && t == 0) kind.castChunk(part);
+            if (feedKind && t == 0)  // smooth shading's pass over the faces runs beside the cast
+                tbb::parallel_invoke([&] { caster.cast(part); }, [&] { kind.castChunk(part); });
+            else
+                caster.cast(part);
             progress.update(n);
         }
         caster.finish([&](uint32_t r, const uint64_t* words, bool full) {

@@ -114,17 +114,45 @@ void VertexBend::recover(std::span<const Triangle> chunk) {
     }
 }
 
+void VertexBend::buildFilter() {
+    // About 16 bits per visible position: a face vertex that is not visible (nearly all of them
+    // in a big scene) is rejected by one bit test with a false-positive rate near 1/16, instead
+    // of a hash-map probe that misses the cache.
+    size_t bits = 1 << 16;
+    while (bits < 16 * index_.size()) bits <<= 1;
+    filter_.assign(bits / 64, 0);
+    filterMask_ = bits - 1;
+    for (const auto& entry : index_) {
+        const uint64_t h = KeyHash{}(entry.first) & filterMask_;
+        filter_[h >> 6] |= 1ull << (h & 63);
+    }
+    filterSize_ = index_.size();
+}
+
 void VertexBend::add(std::span<const Triangle> chunk) {
+    if (filterSize_ != index_.size() || filter_.empty()) buildFilter();
     const size_t L = lights_.size();
     for (const Triangle& tri : chunk) {
+        uint32_t first[3];
+        bool any = false;
+        for (int i = 0; i < 3; ++i) {
+            first[i] = kNone;
+            const Key key = keyOf(tri.v[i]);
+            const uint64_t h = KeyHash{}(key) & filterMask_;
+            if (!(filter_[h >> 6] >> (h & 63) & 1)) continue;
+            auto it = index_.find(key);
+            if (it == index_.end()) continue;
+            first[i] = it->second;
+            any = true;
+        }
+        if (!any) continue;
         glm::dvec3 n = glm::cross(glm::dvec3(tri.v[1] - tri.v[0]), glm::dvec3(tri.v[2] - tri.v[0]));
         double len = glm::length(n);
         if (!(len > 0) || !std::isfinite(len)) continue;
         n /= len;
-        for (const glm::vec3& v : tri.v) {
-            auto it = index_.find(keyOf(v));
-            if (it == index_.end()) continue;
-            for (uint32_t slot = it->second; slot != kNone; slot = next_[slot]) {
+        for (int i = 0; i < 3; ++i) {
+            const glm::vec3& v = tri.v[i];
+            for (uint32_t slot = first[i]; slot != kNone; slot = next_[slot]) {
                 // A face across a crease (normals more than kCreaseDeg apart) is another surface.
                 if (sign_[slot] * glm::dot(n, glm::dvec3(owner_[slot])) < kCreaseCos) continue;
                 for (size_t l = 0; l < L; ++l) {
@@ -160,7 +188,8 @@ uint64_t VertexBend::bytes() const {
     return corners_.capacity() * sizeof(corners_[0]) + index_.size() * (sizeof(Key) + sizeof(uint32_t) + 16 + 8) +
            (vertex_.capacity() + owner_.capacity()) * sizeof(glm::vec3) + sign_.capacity() * sizeof(float) +
            next_.capacity() * sizeof(uint32_t) + bend_.capacity() * sizeof(float) +
-           ids_.capacity() * sizeof(uint64_t) + order_.capacity() * sizeof(uint32_t);
+           ids_.capacity() * sizeof(uint64_t) + order_.capacity() * sizeof(uint32_t) +
+           filter_.capacity() * sizeof(uint64_t);
 }
 
 }  // namespace penumbra

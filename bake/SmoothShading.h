@@ -108,6 +108,11 @@ private:
     std::vector<float> bend_;                           ///< per slot and light: min dot(l, n_F)
     // Waiting for recover(): receiver r's triangle id, receivers sorted by id, the next one.
     std::vector<uint64_t> ids_;
+    /// A one-hash Bloom filter over index_'s keys, rebuilt by add() when slots were added.
+    std::vector<uint64_t> filter_;
+    uint64_t filterMask_ = 0;
+    size_t filterSize_ = 0;
+    void buildFilter();
     std::vector<uint32_t> order_;
     size_t cursor_ = 0, firstWaiting_ = 0;
     uint64_t seen_ = 0;
