@@ -359,18 +359,17 @@ void PenumbraCaster::prepare(Batch& batch, std::span<const Triangle> blockers) {
             if (!any) continue;  // outside every light's reach: no penumbra volume needed
             prepared = BlockerTriangle::from(tri);
             if (!prepared.valid) continue;
-            // Every receiver on the light's side of T's plane: T shadows none of them.
+            // V_L is built plane by plane and abandoned as soon as one plane leaves every receiver
+            // outside (first the cap: every receiver on the light's side of T's plane), so a
+            // blocker culled at the root rarely pays for its whole volume.
             any = false;
             for (size_t l = 0; l < lights; ++l) {
-                if (active[l] && capExcludes(samples_.lightBounds[l], prepared, receiversBox_)) active[l] = 0;
+                if (active[l] &&
+                    !buildPenumbraVolume(samples_.lightBounds[l], prepared, batch.lightVolumes[i * lights + l], &receiversBox_))
+                    active[l] = 0;
                 any = any || active[l];
             }
-            if (!any) {
-                prepared.valid = false;
-                continue;
-            }
-            for (size_t l = 0; l < lights; ++l)
-                if (active[l]) buildPenumbraVolume(samples_.lightBounds[l], prepared, batch.lightVolumes[i * lights + l]);
+            if (!any) prepared.valid = false;
         }
     });
 }

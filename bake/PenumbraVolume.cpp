@@ -18,6 +18,8 @@ struct Builder {
     const BlockerTriangle& t;
     PenumbraVolume& volume;
     double scale = 1.0;
+    const Box* cull = nullptr;  ///< stop as soon as an accepted plane leaves this box outside
+    bool culled = false;
 
     /// Adds the plane through @p through with normal ±@p normal if it separates T (positive side)
     /// from the bound. Candidates are judged unnormalised, comparing squares against the
@@ -59,6 +61,13 @@ struct Builder {
         }
         if (volume.count < PenumbraVolume::kMaxPlanes) volume.push(p);
         // Dropping a plane beyond the limit only enlarges the volume: still conservative.
+        if (cull && !culled) {
+            PenumbraVolume one;
+            one.count = 0;
+            one.push(p);
+            uint32_t active = 1;
+            culled = !intersects(one, *cull, active);
+        }
     }
 };
 
@@ -79,8 +88,8 @@ double volumeScale(const ConvexBound& bound, const BlockerTriangle& t) {
     return scale;
 }
 
-/// The cap of the volume (T's plane, oriented away from the bound, pushed out by the margin), or
-/// false when T's plane cuts the bound.
+/// The cap of the volume (T's plane, oriented away from the bound), or false when T's plane cuts
+/// the bound.
 bool capPlane(const ConvexBound& bound, const BlockerTriangle& t, double scale, Plane& cap) {
     double lo = INFINITY, hi = -INFINITY;
     for (const glm::dvec3& v : bound.vertices) {
@@ -91,44 +100,35 @@ bool capPlane(const ConvexBound& bound, const BlockerTriangle& t, double scale, 
     if (hi < -tol) cap = t.plane;
     else if (lo > tol) cap = t.plane.flipped();
     else return false;
-    cap.d += kMargin * scale;
     return true;
 }
 
 }  // namespace
 
-bool capExcludes(const ConvexBound& bound, const BlockerTriangle& t, const Box& box) {
-    Plane cap;
-    if (!capPlane(bound, t, volumeScale(bound, t), cap)) return false;
-    PenumbraVolume v;
-    v.count = 0;
-    v.push(cap);
-    uint32_t active = 1;
-    return !intersects(v, box, active);
-}
-
-void buildPenumbraVolume(const ConvexBound& bound, const BlockerTriangle& t, PenumbraVolume& volume) {
+bool buildPenumbraVolume(const ConvexBound& bound, const BlockerTriangle& t, PenumbraVolume& volume,
+                         const Box* cull) {
     volume.count = 0;
     volume.nx[0] = volume.ny[0] = volume.nz[0] = volume.d[0] = 0.0;  // the slot after the last
-    Builder b{bound, t, volume, volumeScale(bound, t)};
+    Builder b{bound, t, volume, volumeScale(bound, t), cull};
 
     // Cap first: it is the plane most likely to reject a box, and order is the test order.
     Plane cap;
-    if (capPlane(bound, t, b.scale, cap)) volume.push(cap);
+    if (capPlane(bound, t, b.scale, cap)) b.add(cap);
 
     constexpr size_t kNone = ~size_t(0);
     for (int e = 0; e < 3; ++e) {
         const glm::dvec3& a = t.v[e];
         const glm::dvec3& c = t.v[(e + 1) % 3];
         const unsigned on = (1u << e) | (1u << (e + 1) % 3);
-        for (size_t i = 0; i < bound.vertices.size(); ++i)
+        for (size_t i = 0; i < bound.vertices.size() && !b.culled; ++i)
             b.tryPlane(glm::cross(c - a, bound.vertices[i] - a), a, on, i, kNone);
     }
     for (const auto& edge : bound.edges) {
         const glm::dvec3& a = bound.vertices[edge[0]];
         const glm::dvec3& c = bound.vertices[edge[1]];
-        for (int i = 0; i < 3; ++i) b.tryPlane(glm::cross(c - a, t.v[i] - a), a, 1u << i, edge[0], edge[1]);
+        for (int i = 0; i < 3 && !b.culled; ++i) b.tryPlane(glm::cross(c - a, t.v[i] - a), a, 1u << i, edge[0], edge[1]);
     }
+    return !b.culled;
 }
 
 }  // namespace penumbra

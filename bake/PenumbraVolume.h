@@ -43,12 +43,11 @@ struct alignas(16) PenumbraVolume {
 
 /// @brief Builds the penumbra volume of @p bound and the (valid) triangle @p t into @p out
 /// (in place: a volume is a kilobyte, and the caster builds several per triangle).
-void buildPenumbraVolume(const ConvexBound& bound, const BlockerTriangle& t, PenumbraVolume& out);
-
-/// @brief True when the cap of the penumbra volume of @p bound and @p t (T's plane, when the
-/// bound lies entirely on one side of it) leaves all of @p box outside: T can shadow nothing in
-/// the box. A cheap first test: it needs one plane, not the whole volume.
-bool capExcludes(const ConvexBound& bound, const BlockerTriangle& t, const Box& box);
+/// @param cull when given, building stops as soon as one accepted plane leaves this box
+/// entirely outside: T shadows nothing in it, and most of the volume need not be built.
+/// @return false when building stopped that way (@p out is then incomplete and unusable).
+bool buildPenumbraVolume(const ConvexBound& bound, const BlockerTriangle& t, PenumbraVolume& out,
+                         const Box* cull = nullptr);
 
 /// @brief Convenience form of buildPenumbraVolume().
 PenumbraVolume makePenumbraVolume(const ConvexBound& bound, const BlockerTriangle& t);
