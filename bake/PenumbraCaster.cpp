@@ -2,6 +2,7 @@
 
 #include "bake/BlockingRule.h"
 #include "bake/PenumbraVolume.h"
+#include "bake/SampleMaskTable.h"
 #include "receivers/MaskPool.h"
 #include "receivers/ReceiverHierarchy.h"
 
@@ -31,6 +32,7 @@ struct ActiveGroup {
 struct PenumbraCaster::Tile {
     const LightSamples& samples;
     const CastOptions& options;
+    const std::vector<SampleMaskTable>* tables;  // per light, or nullptr when the option is off
     ReceiverHierarchy hierarchy;
     MaskPool pool;
     int groupCount, umbraWords;
@@ -46,14 +48,15 @@ struct PenumbraCaster::Tile {
     std::vector<uint64_t> hardReady;            // [set][group]: bit j set once sample j's volume is built
     std::vector<uint32_t> hardReadyList;
     std::vector<ActiveGroup> stack;
+    SampleMaskTable::Blocker tableBlocker;  // the current triangle against the current light
     bool reachedRoot = false;
 
     double buildSeconds = 0;
-    uint64_t rebuilds = 0, hardTests = 0;
+    uint64_t rebuilds = 0, hardTests = 0, tableDecided = 0;
     size_t peakHierarchyBytes = 0, peakReceiverBytes = 0;
 
-    Tile(const LightSamples& s, const CastOptions& o)
-        : samples(s), options(o), hierarchy(o.hierarchy, s.groupCount()), pool(s.groupCount()),
+    Tile(const LightSamples& s, const CastOptions& o, const std::vector<SampleMaskTable>* t)
+        : samples(s), options(o), tables(t), hierarchy(o.hierarchy, s.groupCount()), pool(s.groupCount()),
           groupCount(s.groupCount()), umbraWords((s.groupCount() + 63) / 64) {
         allGroupsBits.assign(umbraWords, 0);
         for (int k = 0; k < groupCount; ++k) allGroupsBits[k >> 6] |= 1ull << (k & 63);
@@ -124,6 +127,7 @@ struct PenumbraCaster::Tile {
         for (currentLight = 0; currentLight < uint32_t(samples.lightCount()); ++currentLight) {
             if (!lightActive[currentLight]) continue;
             lightVolume = &lightVolumes[currentLight];
+            if (tables) tableBlocker = (*tables)[currentLight].prepare(t);
             groupVolumesBuilt = false;
             uint32_t g0 = samples.lightFirstGroup[currentLight], g1 = samples.lightFirstGroup[currentLight + 1];
             if (!options.lazyVolumes) {  // optimization C off: build everything before traversal
@@ -191,9 +195,13 @@ struct PenumbraCaster::Tile {
         // cannot be blocked by any sample (BlockingRule.h).
         const double dist = distanceBehind(*tri, p), eps = h.epsilon[r];
         if (!(dist > eps) && !(-dist > eps)) return;
+        const uint32_t set = h.sampleSet[r];
+        SampleMaskTable::Rows rows;  // sample mask table: three edges' rows for this receiver
+        const auto lookup = tables ? (*tables)[currentLight].lookup(tableBlocker, set, p, dist, eps, rows)
+                                   : SampleMaskTable::Lookup::Exact;
+        if (lookup == SampleMaskTable::Lookup::NoneBlocked) return;  // behind T on no sample's side
         if (!groupVolumesBuilt) buildGroupVolumes();  // lines 60-64
 
-        const uint32_t set = h.sampleSet[r];
         uint64_t* bits = &h.groupUmbra[size_t(r) * umbraWords];
         uint64_t* mask = h.mask[r] != MaskPool::kNone ? pool.data(h.mask[r]) : nullptr;
         for (size_t i = groupsBegin; i < groupsEnd; ++i) {  // lines 65-73
@@ -204,7 +212,14 @@ struct PenumbraCaster::Tile {
             const LightSampleGroup& group = samples.groups[g.group];
             const uint64_t before = mask ? mask[g.group] : 0;
             uint64_t word = before;
-            const uint64_t open = ~word & group.fullMask();
+            uint64_t open = ~word & group.fullMask();
+            if (lookup == SampleMaskTable::Lookup::Rows) {  // sure bits are blocked; bits outside maybe are not
+                const uint32_t k = g.group - (*tables)[currentLight].firstGroup();
+                const uint64_t sure = rows.sureWord(k) & open, undecided = rows.maybeWord(k) & open & ~sure;
+                tableDecided += uint64_t(__builtin_popcountll(open & ~undecided));
+                word |= sure;
+                open = undecided;
+            }
             const HardShadowVolume* hard = hardShadowVolumes(set, g.group, open);
             for (uint64_t todo = open; todo; todo &= todo - 1) {
                 int j = __builtin_ctzll(todo);
@@ -281,10 +296,13 @@ PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& r
         std::iota(all.begin(), all.end(), 0u);
         receiverIds = all;
     }
+    if (options_.sampleTable)
+        for (uint32_t l = 0; l < uint32_t(samples_.lightCount()); ++l)
+            tables_.emplace_back(samples_, l, options_.sampleTableAngles, options_.sampleTableOffsets);
     auto parts = partitionReceivers(receivers, receiverIds, std::max(1, tiles));
     tiles_.resize(parts.size());
     tbb::parallel_for(size_t(0), parts.size(), [&](size_t t) {
-        tiles_[t] = std::make_unique<Tile>(samples_, options_);
+        tiles_[t] = std::make_unique<Tile>(samples_, options_, options_.sampleTable ? &tables_ : nullptr);
         std::vector<ReceiverInput> inputs;
         inputs.reserve(parts[t].size());
         for (uint32_t id : parts[t]) {
@@ -372,6 +390,7 @@ void PenumbraCaster::finish(const MaskVisitor& visit) const {
 
 CastStats PenumbraCaster::stats() const {
     CastStats s = stats_;
+    for (const SampleMaskTable& table : tables_) s.sampleTableBytes += table.bytes();
     for (const auto& tile : tiles_) {
         s.hierarchyBuildSeconds += tile->buildSeconds;
         s.rebuilds += tile->rebuilds;
@@ -380,6 +399,7 @@ CastStats PenumbraCaster::stats() const {
         s.peakHierarchyBytes += tile->peakHierarchyBytes;
         s.receiverBytes += tile->peakReceiverBytes;
         s.hardShadowTests += tile->hardTests;
+        s.tableDecidedRelations += tile->tableDecided;
     }
     return s;
 }

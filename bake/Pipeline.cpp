@@ -181,6 +181,8 @@ CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettin
         total.trianglesCulledAtRoot += s.trianglesCulledAtRoot;
         total.rebuilds += s.rebuilds;
         total.hardShadowTests += s.hardShadowTests;
+        total.tableDecidedRelations += s.tableDecidedRelations;
+        total.sampleTableBytes = std::max(total.sampleTableBytes, s.sampleTableBytes);
         // Tiles run one after another: peaks are the largest tile's, not the sum.
         total.peakLiveMasks = std::max(total.peakLiveMasks, s.peakLiveMasks);
         total.peakMaskBytes = std::max(total.peakMaskBytes, s.peakMaskBytes);
@@ -294,6 +296,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
           {"rebuilds", cast.rebuilds},
           {"peak_live_masks", cast.peakLiveMasks},
           {"hard_shadow_tests", cast.hardShadowTests},
+          {"table_decided_relations", cast.tableDecidedRelations},
+          {"sample_table_bytes", cast.sampleTableBytes},
           {"peak_rss_bytes", peakRssBytes()}}},
         {"memory_plan",
          {{"budget_bytes", plan.budget},

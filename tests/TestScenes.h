@@ -83,10 +83,12 @@ inline LightDesc rectLight(glm::dvec3 center, glm::dvec3 u, glm::dvec3 v, int sa
     return l;
 }
 
-/// Runs hierarchical penumbra casting and converts the result to VisibilityMasks.
+/// Runs hierarchical penumbra casting and converts the result to VisibilityMasks; the cast's
+/// counters go to @p stats when given.
 inline VisibilityMasks castHpc(const LightSamples& samples, const ReceiverSet& receivers,
                                const std::vector<uint32_t>& sets, std::vector<Triangle> triangles,
-                               const CastOptions& options, int tiles = 1, size_t chunk = 97) {
+                               const CastOptions& options, int tiles = 1, size_t chunk = 97,
+                               CastStats* stats = nullptr) {
     if (options.sortBlockers) sortByAreaDescending(triangles);
     PenumbraCaster caster(samples, receivers, sets, options, tiles);
     for (size_t i = 0; i < triangles.size(); i += chunk)
@@ -96,6 +98,7 @@ inline VisibilityMasks castHpc(const LightSamples& samples, const ReceiverSet& r
         for (int k = 0; k < masks.groups; ++k)
             masks.row(r)[k] = full ? samples.groups[k].fullMask() : (words ? words[k] : 0);
     });
+    if (stats) *stats = caster.stats();
     return masks;
 }
 

@@ -68,6 +68,9 @@ int main(int argc, char** argv) {
     bake->add_option("--disable", disabled, "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, all")
         ->delimiter(',');
     bake->add_flag("-q,--quiet", quiet, "no progress on stderr");
+    std::string sampleTable;
+    bake->add_option("--sample-table", sampleTable, "on or off: sample mask tables (overrides bake.sample_table)")
+        ->check(CLI::IsMember({"on", "off"}));
     std::string memoryBudget, tmpDir;
     bool keepBuckets = false;
     bake->add_option("--memory-budget", memoryBudget, "bound on bake memory, e.g. 256M or 2G; receivers are tiled to fit");
@@ -117,6 +120,7 @@ int main(int argc, char** argv) {
             SceneDesc scene = loadScene(scenePath);
             if (!output.empty()) scene.output = output;
             disableOptimizations(scene.options, disabled);
+            if (!sampleTable.empty()) scene.options.sampleTable = sampleTable == "on";
             BakeSettings settings;
             settings.method = parseMethod(method);
             if (threads < 0) throw InputError(fmt::format("--threads: must not be negative, got {}", threads));
