@@ -195,13 +195,12 @@ struct PenumbraCaster::Tile {
         // cannot be blocked by any sample (BlockingRule.h).
         const double dist = distanceBehind(*tri, p), eps = h.epsilon[r];
         if (!(dist > eps) && !(-dist > eps)) return;
-        const uint32_t set = h.sampleSet[r];
-        SampleMaskTable::Rows rows;  // sample mask table: three edges' rows for this receiver
-        const auto lookup = tables ? (*tables)[currentLight].lookup(tableBlocker, set, p, dist, eps, rows)
-                                   : SampleMaskTable::Lookup::Exact;
-        if (lookup == SampleMaskTable::Lookup::NoneBlocked) return;  // behind T on no sample's side
         if (!groupVolumesBuilt) buildGroupVolumes();  // lines 60-64
 
+        const uint32_t set = h.sampleSet[r];
+        SampleMaskTable::Rows rows;  // sample mask table: looked up when a group first needs it
+        auto lookup = SampleMaskTable::Lookup::Exact;
+        bool lookedUp = !tables;
         uint64_t* bits = &h.groupUmbra[size_t(r) * umbraWords];
         uint64_t* mask = h.mask[r] != MaskPool::kNone ? pool.data(h.mask[r]) : nullptr;
         for (size_t i = groupsBegin; i < groupsEnd; ++i) {  // lines 65-73
@@ -213,6 +212,11 @@ struct PenumbraCaster::Tile {
             const uint64_t before = mask ? mask[g.group] : 0;
             uint64_t word = before;
             uint64_t open = ~word & group.fullMask();
+            if (!lookedUp && open) {
+                lookedUp = true;
+                lookup = (*tables)[currentLight].lookup(tableBlocker, set, p, dist, eps, rows);
+                if (lookup == SampleMaskTable::Lookup::NoneBlocked) return;  // no bit has changed yet
+            }
             if (lookup == SampleMaskTable::Lookup::Rows) {  // sure bits are blocked; bits outside maybe are not
                 const uint32_t k = g.group - (*tables)[currentLight].firstGroup();
                 const uint64_t sure = rows.sureWord(k) & open, undecided = rows.maybeWord(k) & open & ~sure;

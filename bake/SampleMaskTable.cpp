@@ -11,8 +11,9 @@ namespace penumbra {
 namespace {
 
 constexpr double kRoundoff = 0x1p-53;  // u: unit roundoff of double
-/// Angular slack of a table cell: the cell's masks hold for every line whose angle is within this
-/// of the cell's range, which covers atan2's error and the rounding of the bin index many times.
+/// Slack of a table cell in diamond angle: the cell's masks hold for every line whose diamond
+/// angle is within this of the cell's range, which covers the rounding of the diamond angle and
+/// of the bin index many times.
 constexpr double kAngleSlack = 1e-9;
 /// Samples farther than this (relative to the light's radius) from the fitted plane: the light is
 /// volumetric (a sphere), and the table would decide almost nothing.
@@ -20,16 +21,26 @@ constexpr double kMaxFlatness = 1e-4;
 
 double maxAbs(const glm::dvec3& p) { return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
 
-/// Is angle @p phi within [lo - slack, hi + slack], modulo 2 pi?
-bool angleWithin(double phi, double lo, double hi) {
-    double d = std::remainder(phi - 0.5 * (lo + hi), glm::two_pi<double>());
-    return std::abs(d) <= 0.5 * (hi - lo) + kAngleSlack;
+/// The direction of 1-norm 1 whose diamond angle is @p p, for p in [0, 4]. The diamond angle
+/// increases with the polar angle over [0, 4) (one quadrant per unit) and, unlike the polar
+/// angle, moves the unit-1-norm direction linearly within a quadrant; so dot(direction, q) is
+/// linear in it and its extremes over a cell are at the cell's ends.
+glm::dvec2 diamondDirection(double p) {
+    const int quadrant = std::min(3, int(p));
+    const double f = p - quadrant;
+    switch (quadrant) {
+        case 0: return {1 - f, f};
+        case 1: return {-f, 1 - f};
+        case 2: return {f - 1, -f};
+        default: return {f, f - 1};
+    }
 }
+
 
 }  // namespace
 
 SampleMaskTable::SampleMaskTable(const LightSamples& samples, uint32_t light, int angles, int offsets)
-    : angles_(std::max(1, angles)), offsets_(std::max(1, offsets)) {
+    : angles_(std::max(4, (angles + 3) / 4 * 4)), offsets_(std::max(1, offsets)) {  // cells within a quadrant
     firstGroup_ = samples.lightFirstGroup[light];
     groups_ = samples.lightFirstGroup[light + 1] - firstGroup_;
     if (groups_ == 0) return;
@@ -76,6 +87,8 @@ SampleMaskTable::SampleMaskTable(const LightSamples& samples, uint32_t light, in
     // Slack for the rounding of these very measurements (a few ulps of the coordinates).
     flatness_ = flatness + 1e-12 * (maxAbs_ + radius);
     radius_ = radius * (1.0 + 1e-6);
+    width_ = 2.0 * radius_ / offsets_;
+    invWidth_ = offsets_ / (2.0 * radius_);
     usable_ = true;
 
     // Local sample -> (group of the light, bit).
@@ -85,53 +98,47 @@ SampleMaskTable::SampleMaskTable(const LightSamples& samples, uint32_t light, in
         for (uint32_t j = 0; j < g.count; ++j) groupOf[g.first - first + j] = k, bitOf[g.first - first + j] = j;
     }
     const size_t rows = size_t(samples.sets) * angles_ * (offsets_ + 2);
-    sure_.assign(rows * groups_, 0);
-    maybe_.assign(rows * groups_, 0);
-    const double step = glm::two_pi<double>() / angles_;
+    cells_.assign(rows * groups_ * 2, 0);
     for (int set = 0; set < samples.sets; ++set)
         for (int a = 0; a < angles_; ++a) {
-            const double t0 = -glm::pi<double>() + a * step, t1 = t0 + step;
-            const glm::dvec2 d0(std::cos(t0), std::sin(t0)), d1(std::cos(t1), std::sin(t1));
+            const glm::dvec2 d0 = diamondDirection(4.0 * a / angles_), d1 = diamondDirection(4.0 * (a + 1) / angles_);
             for (uint32_t k = 0; k < count; ++k) {
                 const glm::dvec2 q = coords[size_t(set) * count + k];
-                // Extremes of dot(dir(theta), q) over the cell's angles: at an end of the range,
-                // or |q| when q's own direction (or its opposite) lies inside it.
-                const double p0 = glm::dot(d0, q), p1 = glm::dot(d1, q), len = glm::length(q);
-                const double phi = std::atan2(q.y, q.x);
-                double lowest = std::min(p0, p1), highest = std::max(p0, p1);
-                if (angleWithin(phi, t0, t1)) highest = len;
-                if (angleWithin(phi + glm::pi<double>(), t0, t1)) lowest = -len;
-                // Widen by the angular slack and by the rounding of the dot products.
-                lowest -= kAngleSlack * radius_;
-                highest += kAngleSlack * radius_;
+                // Extremes of dot(direction, q) over the cell: at its ends (linear in the diamond
+                // angle). Widened for the slack (the derivative is at most |q|_1 <= 2R) and for the
+                // rounding of the dot products (far below that).
+                const double p0 = glm::dot(d0, q), p1 = glm::dot(d1, q);
+                const double lowest = std::min(p0, p1) - 4 * kAngleSlack * radius_;
+                const double highest = std::max(p0, p1) + 4 * kAngleSlack * radius_;
                 // sure in bin b  <=>  upper(b) <= lowest; maybe in bin b  <=>  lower(b) <= highest.
-                // Both are prefixes of the bins, found with the same bin bounds lookup() uses.
-                const int sureLast = offsetBin(lowest) - 1;  // upper(b - 1) == lower(b) <= lowest < upper(b)
-                const int maybeLast = offsetBin(highest);
+                // Both are prefixes of the bins; the last bin is found from the estimate and then
+                // checked against the bounds themselves, so the cells mean exactly that.
+                int sureLast = offsetBin(lowest) - 1, maybeLast = offsetBin(highest);
+                while (sureLast >= 0 && upper(sureLast) > lowest) --sureLast;
+                while (sureLast < offsets_ && upper(sureLast + 1) <= lowest) ++sureLast;
+                while (maybeLast > 0 && lower(maybeLast) > highest) --maybeLast;
+                while (maybeLast < offsets_ + 1 && lower(maybeLast + 1) <= highest) ++maybeLast;
                 const uint64_t bit = 1ull << bitOf[k];
-                for (int b = 0; b <= sureLast; ++b) sure_[row(uint32_t(set), a, b) + groupOf[k]] |= bit;
-                for (int b = 0; b <= maybeLast; ++b) maybe_[row(uint32_t(set), a, b) + groupOf[k]] |= bit;
+                for (int b = 0; b <= sureLast; ++b) cells_[cell(uint32_t(set), a, b) + 2 * groupOf[k]] |= bit;
+                for (int b = 0; b <= maybeLast; ++b) cells_[cell(uint32_t(set), a, b) + 2 * groupOf[k] + 1] |= bit;
             }
         }
 }
 
 double SampleMaskTable::lower(int bin) const {
-    return bin == 0 ? -std::numeric_limits<double>::infinity() : -radius_ + (bin - 1) * (2.0 * radius_ / offsets_);
+    return bin == 0 ? -std::numeric_limits<double>::infinity() : -radius_ + (bin - 1) * width_;
 }
 
 double SampleMaskTable::upper(int bin) const {
-    return bin == offsets_ + 1 ? std::numeric_limits<double>::infinity() : -radius_ + bin * (2.0 * radius_ / offsets_);
+    return bin == offsets_ + 1 ? std::numeric_limits<double>::infinity() : -radius_ + bin * width_;
 }
 
 int SampleMaskTable::offsetBin(double x) const {
-    // The bin b with lower(b) <= x < upper(b); bins 0 and offsets_+1 are the open ends. The
-    // estimate is corrected against the very bounds the table was built with, so the answer does
-    // not depend on how the division rounds.
-    double estimate = std::floor((x + radius_) / (2.0 * radius_ / offsets_)) + 1.0;
-    int b = int(std::clamp(estimate, 0.0, double(offsets_ + 1)));
-    while (b > 0 && x < lower(b)) --b;
-    while (b < offsets_ + 1 && x >= upper(b)) ++b;
-    return b;
+    // Bins 0 and offsets_+1 are the open ends. The result b satisfies lower(b) - e <= x <
+    // upper(b) + e with e <= 8u (|x| + 3R) from the rounding of this product and of the bounds;
+    // lookup()'s margin covers it. (Clamping first makes the truncation a floor and keeps NaN-free
+    // finite input in range; this runs six times per receiver, so no division and no libm floor.)
+    return int(std::clamp((x + radius_) * invWidth_ + 1.0, 0.0, double(offsets_ + 1)));
 }
 
 SampleMaskTable::Blocker SampleMaskTable::prepare(const BlockerTriangle& t) const {
@@ -171,7 +178,6 @@ SampleMaskTable::Lookup SampleMaskTable::lookup(const Blocker& b, uint32_t set, 
     // BlockingRule's first clause, with the side every sample shares: the same double expression.
     if (!(b.side * dist > eps)) return Lookup::NoneBlocked;
     const double m = std::max(b.maxAbs, maxAbs(r)), u = kRoundoff;
-    const double step = glm::two_pi<double>() / angles_;
     // Error budget, every coordinate bounded by M (= m):
     //  - BlockingRule computes edge value E(l) = sigma * fl(det(a-l, b-l, r-l)). Differences are
     //    within 2M, the cross product's components within 8M^2 with error 32uM^2, the two dot
@@ -182,26 +188,31 @@ SampleMaskTable::Lookup SampleMaskTable::lookup(const Blocker& b, uint32_t set, 
     //  - l - o = s u + t v + h n + e: |h| <= H (flatness_), |e| <= 8u|l-o|; the table holds the
     //    computed (s, t). With w = -sigma (m.u, m.v), k = -sigma m.(o-r) the rounding of w, k, the
     //    frame and the h term add at most |m| (H + 128uM).
-    //  - Normalising by g = |w| (so the offset is tau = -k/g) and the angle binning (covered in
-    //    the table by kAngleSlack) add a few ulps of R and tau.
+    //  - Normalising by g = |w|_1 (so the offset is tau = -k/g; any norm gives the same
+    //    half-plane), the angle binning (covered in the table by kAngleSlack) and the offset
+    //    binning (offsetBin()) add a few ulps of R and tau (at most 8u (|tau| + 4R)).
+    //  - |m| is bounded by its 1-norm, which needs no square root.
     // So sigma*det > beta whenever dot(dir, q) > tau + delta with
-    //    delta = ((2048 + 256) u M^3 + |m| (H + 128uM)) / g + 4u (R + |tau|),
+    //    delta = ((2048 + 256) u M^3 + |m| (H + 128uM)) / g + 40u (R + |tau|),
     // and sigma*det < -beta whenever dot(dir, q) < tau - delta; then E(l) >= 0 (resp. < 0) for
-    // certain. The code doubles delta and rounds the last term up to 1e-12, which costs nothing
-    // measurable: delta stays many orders of magnitude below a cell.
+    // certain. The code doubles delta and rounds the last term up to 1e-12 (u = 1.1e-16), which
+    // costs nothing measurable: delta stays many orders of magnitude below a cell.
     const double fixed = 2304 * u * m * m * m;
     for (int e = 0; e < 3; ++e) {
         const glm::dvec3 mr = glm::cross(b.v[e] - r, b.v[(e + 1) % 3] - r);
         const double wx = -b.sigma * glm::dot(mr, u_), wy = -b.sigma * glm::dot(mr, v_);
         const double k = -b.sigma * glm::dot(mr, origin_ - r);
-        const double g = std::sqrt(wx * wx + wy * wy), tau = -k / g;
-        const double delta = 2.0 * ((fixed + glm::length(mr) * (flatness_ + 128 * u * m)) / g) + 1e-12 * (radius_ + std::abs(tau));
+        // Normalised by g = |w|_1, so the direction has 1-norm 1 and its diamond angle is one
+        // component over g: one division per edge, no square root, no atan2.
+        const double ax = std::abs(wx), ay = std::abs(wy), invG = 1.0 / (ax + ay), tau = -k * invG;
+        const double norm1 = std::abs(mr.x) + std::abs(mr.y) + std::abs(mr.z);
+        const double delta = 2.0 * (fixed + norm1 * (flatness_ + 128 * u * m)) * invG + 1e-12 * (radius_ + std::abs(tau));
         // A line this uncertain (a plane nearly parallel to the light, or g == 0) decides little.
         if (!(delta < radius_) || !std::isfinite(tau)) return Lookup::Exact;
-        int a = int((std::atan2(wy, wx) + glm::pi<double>()) / step);
-        a = std::clamp(a, 0, angles_ - 1);
-        rows.sure[e] = &sure_[row(set, a, offsetBin(tau + delta))];
-        rows.maybe[e] = &maybe_[row(set, a, offsetBin(tau - delta))];
+        const double diamond = wy >= 0 ? (wx >= 0 ? wy * invG : 1 + ax * invG) : (wx < 0 ? 2 + ay * invG : 3 + ax * invG);
+        const int a = std::clamp(int(diamond * (0.25 * angles_)), 0, angles_ - 1);
+        rows.sure[e] = &cells_[cell(set, a, offsetBin(tau + delta))];
+        rows.maybe[e] = &cells_[cell(set, a, offsetBin(tau - delta)) + 1];
     }
     return Lookup::Rows;
 }

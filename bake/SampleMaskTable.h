@@ -41,7 +41,8 @@ namespace penumbra {
 class SampleMaskTable {
 public:
     /// @brief Builds the table for light @p light of @p samples.
-    /// @param angles number of line-angle bins over [-pi, pi)
+    /// @param angles number of line-angle bins (of the diamond angle, a cheap monotone stand-in for
+    /// the polar angle; at least 4)
     /// @param offsets number of signed-offset bins over [-R, R], R the light's radius in its plane;
     /// two more bins hold the offsets beyond either end
     /// The table is not usable() (every relation goes to the exact test) when the light's samples
@@ -50,7 +51,7 @@ public:
 
     bool usable() const { return usable_; }
     /// @brief Bytes held by the two mask arrays.
-    size_t bytes() const { return (sure_.size() + maybe_.size()) * sizeof(uint64_t); }
+    size_t bytes() const { return cells_.size() * sizeof(uint64_t); }
 
     /// @brief What a blocker contributes, independent of the receiver.
     struct Blocker {
@@ -63,14 +64,18 @@ public:
     /// @brief Classifies the light against @p t's plane (8 corners of the samples' box).
     Blocker prepare(const BlockerTriangle& t) const;
 
-    /// @brief The three edges' rows for one receiver.
+    /// @brief The three edges' cells for one receiver (each cell: sure and maybe word per group,
+    /// interleaved, so a cell of up to four groups is one cache line).
     struct Rows {
         const uint64_t* sure[3];
         const uint64_t* maybe[3];
         /// Sure-blocked samples of group @p k (index within the light's groups).
-        uint64_t sureWord(uint32_t k) const { return sure[0][k] & sure[1][k] & sure[2][k]; }
+        uint64_t sureWord(uint32_t k) const { return sure[0][2 * k] & sure[1][2 * k] & sure[2][2 * k]; }
         /// Samples that may be blocked: every other sample of the group is certainly not blocked.
-        uint64_t maybeWord(uint32_t k) const { return maybe[0][k] & maybe[1][k] & maybe[2][k]; }
+        uint64_t maybeWord(uint32_t k) const { return maybe[0][2 * k] & maybe[1][2 * k] & maybe[2][2 * k]; }
+        /// One edge's words (tests check each line on its own).
+        uint64_t sureWord(int edge, uint32_t k) const { return sure[edge][2 * k]; }
+        uint64_t maybeWord(int edge, uint32_t k) const { return maybe[edge][2 * k]; }
     };
     enum class Lookup {
         Exact,        ///< the table cannot decide here: test every open sample exactly
@@ -87,8 +92,8 @@ public:
     uint32_t firstGroup() const { return firstGroup_; }
 
 private:
-    size_t row(uint32_t set, int angle, int bin) const {
-        return ((size_t(set) * angles_ + angle) * size_t(offsets_ + 2) + bin) * groups_;
+    size_t cell(uint32_t set, int angle, int bin) const {
+        return ((size_t(set) * angles_ + angle) * size_t(offsets_ + 2) + bin) * groups_ * 2;
     }
     /// Bounds of offset bin @p bin: [lower, upper); bin 0 and bin offsets_ + 1 are unbounded.
     double lower(int bin) const;
@@ -101,10 +106,11 @@ private:
     uint32_t firstGroup_ = 0, groups_ = 0;
     glm::dvec3 origin_{0.0}, u_{0.0}, v_{0.0}, n_{0.0};  ///< frame of the light plane
     double radius_ = 0;     ///< R: every sample lies within R of origin_ in the plane (with slack)
+    double width_ = 0, invWidth_ = 0;  ///< of an offset bin: 2R / offsets_, and its inverse
     double flatness_ = 0;   ///< H: bound on every sample's distance from the plane
     double maxAbs_ = 0;     ///< largest |coordinate| of any sample
     glm::dvec3 lo_{0.0}, hi_{0.0};  ///< box of every sample (exact float values)
-    std::vector<uint64_t> sure_, maybe_;  ///< [set][angle][offset bin][group of the light]
+    std::vector<uint64_t> cells_;  ///< [set][angle][offset bin][group of the light][sure, maybe]
 };
 
 }  // namespace penumbra

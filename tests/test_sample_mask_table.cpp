@@ -75,8 +75,8 @@ void checkReceiver(const LightSamples& samples, const SampleMaskTable& table, co
                 for (int e = 0; e < 3; ++e) {
                     const bool inside = h.edge[e].eval(r) >= 0.0;
                     INFO("set " << set << " group " << k << " sample " << j << " edge " << e);
-                    if ((rows.sure[e][local] & bit) && !inside) FAIL("sure, but outside the edge plane");
-                    if (!(rows.maybe[e][local] & bit) && inside) FAIL("not maybe, but inside the edge plane");
+                    if ((rows.sureWord(e, local) & bit) && !inside) FAIL("sure, but outside the edge plane");
+                    if (!(rows.maybeWord(e, local) & bit) && inside) FAIL("not maybe, but inside the edge plane");
                 }
                 const bool sure = rows.sureWord(local) & bit, maybe = rows.maybeWord(local) & bit;
                 if (sure && !blocked) FAIL("sure, but not blocked");
