@@ -144,7 +144,6 @@ int SampleMaskTable::offsetBin(double x) const {
 SampleMaskTable::Blocker SampleMaskTable::prepare(const BlockerTriangle& t) const {
     Blocker out;
     if (!usable_ || !t.valid) return out;
-    for (int i = 0; i < 3; ++i) out.v[i] = t.v[i];
     out.maxAbs = std::max({maxAbs_, maxAbs(t.v[0]), maxAbs(t.v[1]), maxAbs(t.v[2])});
     const double m = out.maxAbs, u = kRoundoff;
     // Every sample lies in the box [lo_, hi_]; an affine function's extremes over the box are at
@@ -168,6 +167,17 @@ SampleMaskTable::Blocker SampleMaskTable::prepare(const BlockerTriangle& t) cons
     if (gMin > gMargin) out.sigma = 1.0;
     else if (gMax < -gMargin) out.sigma = -1.0;
     else return out;
+    // m(r) = a x b - (a - b) x r, so m.c = (a x b).c - r.(c x (a - b)) and
+    // m.(o - r) = (a x b).o - r.(o x (a - b) + a x b)   (as (a x b).r is the only r.r-free term).
+    for (int e = 0; e < 3; ++e) {
+        const glm::dvec3 &a = t.v[e], &b = t.v[(e + 1) % 3];
+        const glm::dvec3 ab = glm::cross(a, b), d = a - b;
+        const double s = -out.sigma;
+        out.line[e][0] = {s * glm::dot(ab, u_), s * glm::cross(u_, d)};
+        out.line[e][1] = {s * glm::dot(ab, v_), s * glm::cross(v_, d)};
+        out.line[e][2] = {s * glm::dot(ab, origin_), s * (glm::cross(origin_, d) + ab)};
+        out.line[e][3] = {glm::dot(ab, n_), glm::cross(n_, d)};
+    }
     out.usable = true;
     return out;
 }
@@ -183,29 +193,31 @@ SampleMaskTable::Lookup SampleMaskTable::lookup(const Blocker& b, uint32_t set, 
     //    within 2M, the cross product's components within 8M^2 with error 32uM^2, the two dot
     //    products and the sum add 192uM^3, and the cross product's error times |r-l|_1 <= 6M adds
     //    192uM^3: |E(l) - sigma*det| <= 384uM^3 =: beta (the code uses 2048uM^3 for beta).
-    //  - In real arithmetic det(a-l, b-l, r-l) = -mr . (l - r) with mr = (a-r) x (b-r). Computed,
-    //    m has error 32uM^2 per component: 256uM^3 on the value.
-    //  - l - o = s u + t v + h n + e: |h| <= H (flatness_), |e| <= 8u|l-o|; the table holds the
-    //    computed (s, t). With w = -sigma (m.u, m.v), k = -sigma m.(o-r) the rounding of w, k, the
-    //    frame and the h term add at most |m| (H + 128uM).
+    //  - In real arithmetic det(a-l, b-l, r-l) = -m . (l - r) with m = (a-r) x (b-r), and
+    //    l - o = s u + t v + h n + e with |h| <= H (flatness_), |e| <= 8u|l-o|; the table holds
+    //    the computed (s, t). So sigma*det = wx s + wy t + k - sigma (m.n) h - sigma m.e with
+    //    w = -sigma (m.u, m.v), k = -sigma m.(o-r): the h and e terms are at most |m| (H + 64uM),
+    //    and |m| <= |wx| + |wy| + |m.n| (u, v, n orthonormal).
+    //  - wx, wy, m.n, k come from prepare()'s affine forms: coefficients within 6M^2 and 6M
+    //    (constant and linear part; 6M^3 and 6M^2 for k), rounding at most 160uM^2 on wx, wy, m.n
+    //    and 200uM^3 on k; times |s| + |t| <= 2R <= 8M that is below 1500uM^3 =: 2048uM^3.
+    //    (Their own rounding on the |m| bound is O(u^2) and absorbed in 64uM -> 128uM.)
     //  - Normalising by g = |w|_1 (so the offset is tau = -k/g; any norm gives the same
     //    half-plane), the angle binning (covered in the table by kAngleSlack) and the offset
     //    binning (offsetBin()) add a few ulps of R and tau (at most 8u (|tau| + 4R)).
     //  - |m| is bounded by its 1-norm, which needs no square root.
     // So sigma*det > beta whenever dot(dir, q) > tau + delta with
-    //    delta = ((2048 + 256) u M^3 + |m| (H + 128uM)) / g + 40u (R + |tau|),
+    //    delta = ((2048 + 2048) u M^3 + |m| (H + 128uM)) / g + 40u (R + |tau|),
     // and sigma*det < -beta whenever dot(dir, q) < tau - delta; then E(l) >= 0 (resp. < 0) for
     // certain. The code doubles delta and rounds the last term up to 1e-12 (u = 1.1e-16), which
     // costs nothing measurable: delta stays many orders of magnitude below a cell.
-    const double fixed = 2304 * u * m * m * m;
+    const double fixed = 4096 * u * m * m * m;
     for (int e = 0; e < 3; ++e) {
-        const glm::dvec3 mr = glm::cross(b.v[e] - r, b.v[(e + 1) % 3] - r);
-        const double wx = -b.sigma * glm::dot(mr, u_), wy = -b.sigma * glm::dot(mr, v_);
-        const double k = -b.sigma * glm::dot(mr, origin_ - r);
+        const double wx = b.line[e][0].at(r), wy = b.line[e][1].at(r), k = b.line[e][2].at(r);
         // Normalised by g = |w|_1, so the direction has 1-norm 1 and its diamond angle is one
         // component over g: one division per edge, no square root, no atan2.
         const double ax = std::abs(wx), ay = std::abs(wy), invG = 1.0 / (ax + ay), tau = -k * invG;
-        const double norm1 = std::abs(mr.x) + std::abs(mr.y) + std::abs(mr.z);
+        const double norm1 = ax + ay + std::abs(b.line[e][3].at(r));
         const double delta = 2.0 * (fixed + norm1 * (flatness_ + 128 * u * m)) * invG + 1e-12 * (radius_ + std::abs(tau));
         // A line this uncertain (a plane nearly parallel to the light, or g == 0) decides little.
         if (!(delta < radius_) || !std::isfinite(tau)) return Lookup::Exact;

@@ -59,7 +59,15 @@ public:
         double side = 0;      ///< HardShadowVolume::side of every sample of the light
         double sigma = 0;     ///< orientation of every edge plane (sign of det(a-l, b-l, c-l))
         double maxAbs = 0;    ///< largest |coordinate| of T and of the light's samples
-        glm::dvec3 v[3];
+        /// Per edge (a, b): with m(r) = (a - r) x (b - r), the line's coefficients
+        /// wx = -sigma m.u, wy = -sigma m.v, k = -sigma m.(o - r) and mn = m.n (frame u, v, n,
+        /// origin o) are affine in r; each is stored as c0 - dot(c, r), [wx, wy, k, mn].
+        struct Affine {
+            double c0;
+            glm::dvec3 c;
+            double at(const glm::dvec3& r) const { return c0 - glm::dot(c, r); }
+        };
+        Affine line[3][4];
     };
     /// @brief Classifies the light against @p t's plane (8 corners of the samples' box).
     Blocker prepare(const BlockerTriangle& t) const;
