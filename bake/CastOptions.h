@@ -18,9 +18,9 @@ struct CastOptions {
     bool rebuild = true;       ///< rebuild the hierarchy without umbra receivers (needs A)
     bool sortBlockers = true;  ///< process blockers largest first
     /// Sintorn et al. 2008 plane-to-bitmask tables (SampleMaskTable.h) decide most of a group's
-    /// bits before the per-sample test; exact, so masks do not change. Off by default: see
-    /// docs/performance.md, "Sample mask table".
-    bool sampleTable = false;
+    /// bits before the per-sample test; exact, so masks do not change. Measured faster on GRIDS
+    /// and flowers: docs/performance.md, "Sample mask table".
+    bool sampleTable = true;
     int sampleTableAngles = 128;   ///< angle bins of each table
     int sampleTableOffsets = 128;  ///< offset bins of each table
     double rebuildThreshold = 0.25;  ///< rebuild when this fraction of live receivers is in umbra

@@ -6,6 +6,7 @@
 #include "bake/ReceiverKind.h"
 #include "bake/ReceiverShading.h"
 #include "bake/ReferenceCaster.h"
+#include "bake/SampleMaskTable.h"
 #include "bake/SunLight.h"
 #include "bucket/BucketPlan.h"
 #include "stream/AtomicFile.h"
@@ -237,6 +238,10 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     demand.groups = p.samples.groupCount();
     demand.umbraWords = (demand.groups + 63) / 64;
     demand.sampleBytes = p.samples.positions.size() * sizeof(glm::vec3);
+    if (scene.options.sampleTable)  // one copy per caster; casters (memory tiles) run one at a time
+        for (uint32_t l = 0; l < uint32_t(p.samples.lightCount()); ++l)
+            demand.sampleBytes += SampleMaskTable::plannedBytes(p.samples, l, scene.options.sampleTableAngles,
+                                                                scene.options.sampleTableOffsets);
     // Bucket buffers, the prefetch queue and the caster's per-chunk volumes are fixed buffers.
     demand.bufferBytes = p.bucketBufferBytes + 8 * kTriangleChunk * sizeof(Triangle) + kTriangleChunk * 1200 * scene.lights.size();
     const MemoryPlan plan = planMemory(demand, settings.memoryBudget);

@@ -18,6 +18,11 @@ constexpr double kAngleSlack = 1e-9;
 /// Samples farther than this (relative to the light's radius) from the fitted plane: the light is
 /// volumetric (a sphere), and the table would decide almost nothing.
 constexpr double kMaxFlatness = 1e-4;
+/// A light whose table would be larger than this (many samples times many sets) gets none: the
+/// table must stay small next to the receivers, and cache-resident enough to pay off.
+constexpr size_t kMaxTableBytes = size_t(64) << 20;
+
+int angleBins(int angles) { return std::max(4, (angles + 3) / 4 * 4); }  // cells within a quadrant
 
 double maxAbs(const glm::dvec3& p) { return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
 
@@ -40,7 +45,7 @@ glm::dvec2 diamondDirection(double p) {
 }  // namespace
 
 SampleMaskTable::SampleMaskTable(const LightSamples& samples, uint32_t light, int angles, int offsets)
-    : angles_(std::max(4, (angles + 3) / 4 * 4)), offsets_(std::max(1, offsets)) {  // cells within a quadrant
+    : angles_(angleBins(angles)), offsets_(std::max(1, offsets)) {
     firstGroup_ = samples.lightFirstGroup[light];
     groups_ = samples.lightFirstGroup[light + 1] - firstGroup_;
     if (groups_ == 0) return;
@@ -84,6 +89,8 @@ SampleMaskTable::SampleMaskTable(const LightSamples& samples, uint32_t light, in
         flatness = std::max(flatness, std::abs(glm::dot(n_, d)));
     }
     if (!(radius > 0.0) || flatness > kMaxFlatness * radius) return;
+    const size_t words = plannedBytes(samples, light, angles_, offsets_) / sizeof(uint64_t);
+    if (words == 0) return;
     // Slack for the rounding of these very measurements (a few ulps of the coordinates).
     flatness_ = flatness + 1e-12 * (maxAbs_ + radius);
     radius_ = radius * (1.0 + 1e-6);
@@ -97,8 +104,7 @@ SampleMaskTable::SampleMaskTable(const LightSamples& samples, uint32_t light, in
         const LightSampleGroup& g = samples.groups[firstGroup_ + k];
         for (uint32_t j = 0; j < g.count; ++j) groupOf[g.first - first + j] = k, bitOf[g.first - first + j] = j;
     }
-    const size_t rows = size_t(samples.sets) * angles_ * (offsets_ + 2);
-    cells_.assign(rows * groups_ * 2, 0);
+    cells_.assign(words, 0);
     for (int set = 0; set < samples.sets; ++set)
         for (int a = 0; a < angles_; ++a) {
             const glm::dvec2 d0 = diamondDirection(4.0 * a / angles_), d1 = diamondDirection(4.0 * (a + 1) / angles_);
@@ -139,6 +145,12 @@ int SampleMaskTable::offsetBin(double x) const {
     // lookup()'s margin covers it. (Clamping first makes the truncation a floor and keeps NaN-free
     // finite input in range; this runs six times per receiver, so no division and no libm floor.)
     return int(std::clamp((x + radius_) * invWidth_ + 1.0, 0.0, double(offsets_ + 1)));
+}
+
+size_t SampleMaskTable::plannedBytes(const LightSamples& samples, uint32_t light, int angles, int offsets) {
+    const size_t groups = samples.lightFirstGroup[light + 1] - samples.lightFirstGroup[light];
+    const size_t bytes = size_t(samples.sets) * angleBins(angles) * (std::max(1, offsets) + 2) * groups * 2 * sizeof(uint64_t);
+    return bytes > kMaxTableBytes ? 0 : bytes;
 }
 
 SampleMaskTable::Blocker SampleMaskTable::prepare(const BlockerTriangle& t) const {

@@ -46,8 +46,12 @@ public:
     /// @param offsets number of signed-offset bins over [-R, R], R the light's radius in its plane;
     /// two more bins hold the offsets beyond either end
     /// The table is not usable() (every relation goes to the exact test) when the light's samples
-    /// do not lie in a plane (sphere lights) or span no area.
+    /// do not lie in a plane (sphere lights) or span no area, or when it would exceed 64 MiB.
     SampleMaskTable(const LightSamples& samples, uint32_t light, int angles = 128, int offsets = 128);
+
+    /// @brief Bytes the table of light @p light would take (0 when over the 64 MiB cap, as then
+    /// none is built), for memory planning. Sphere lights are counted though they get no table.
+    static size_t plannedBytes(const LightSamples& samples, uint32_t light, int angles, int offsets);
 
     bool usable() const { return usable_; }
     /// @brief Bytes held by the two mask arrays.

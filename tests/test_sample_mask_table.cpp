@@ -14,29 +14,6 @@ using namespace penumbra::test;
 
 namespace {
 
-LightDesc diskLight() {
-    LightDesc disk;
-    disk.type = LightType::Disk, disk.center = {0.5, 4.5, -0.3}, disk.normal = {0.2, -1, 0.1}, disk.radius = 0.9;
-    disk.samples = 100, disk.sampleSets = 3;
-    return disk;
-}
-
-LightDesc polygonLight() {
-    LightDesc polygon;
-    polygon.type = LightType::Polygon;
-    for (glm::dvec2 q : {glm::dvec2(-1, -1), {1, -1}, {1.4, 0.5}, {0, 1.2}, {-1.2, 0.3}})  // tilted plane
-        polygon.polygon.push_back({q.x, 4.2 + 0.15 * q.x + 0.1 * q.y, q.y});
-    polygon.samples = 80, polygon.sampleSets = 2;
-    return polygon;
-}
-
-LightDesc sphereLight() {
-    LightDesc sphere;
-    sphere.type = LightType::Sphere, sphere.center = {-0.5, 4.2, 0.4}, sphere.radius = 0.6, sphere.samples = 96;
-    sphere.sampleSets = 4;
-    return sphere;
-}
-
 /// How often each kind of bit occurred, so a test can show it would notice a wrong table.
 struct Tally {
     uint64_t sure = 0;             // decided blocked by the table
@@ -158,13 +135,9 @@ TEST_CASE("sample mask table falls back when a blocker's plane cuts the light", 
 }
 
 TEST_CASE("penumbra casting with the sample mask table matches the reference", "[hpc][table][exact]") {
-    std::vector<Triangle> tris = triangleSoup(5, 50, {-2, 1, -2}, {2, 2.5f, 2}, 1.0f);
-    std::vector<Triangle> floor;
-    addQuad(floor, {-4, 0, -4}, {4, 0, -4}, {4, 0, 4}, {-4, 0, 4});
+    std::vector<Triangle> tris;
     ReceiverSet receivers;
-    addReceiversOnTriangles(receivers, floor, 6, 250);
-    addReceiversOnTriangles(receivers, tris, 7, 2);
-    tris.insert(tris.end(), floor.begin(), floor.end());
+    soupOverFloor(tris, receivers);
 
     const LightDesc rect = rectLight({0, 4, 0}, {1.3, 0.2, 0}, {0, 0.1, 1.1}, 64, 4);
     const std::vector<std::pair<std::string, std::vector<LightDesc>>> scenes = {

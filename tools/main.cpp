@@ -34,10 +34,12 @@ void disableOptimizations(CastOptions& o, const std::vector<std::string>& names)
         else if (name == "lazy-masks") o.lazyMasks = false;
         else if (name == "rebuild") o.rebuild = false;
         else if (name == "sort") o.sortBlockers = false;
-        else if (name == "all") o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = false;
+        else if (name == "sample-table") o.sampleTable = false;
+        else if (name == "all")
+            o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = o.sampleTable = false;
         else
             throw InputError("--disable: unknown optimization \"" + name +
-                             "\" (known: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, all)");
+                             "\" (known: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, all)");
     }
 }
 
@@ -65,7 +67,8 @@ int main(int argc, char** argv) {
     bake->add_option("--threads", threads, "worker threads (default: all cores)");
     bake->add_option("--stats", statsPath, "write JSON stats to this file");
     bake->add_option("--dump", dumpDir, "write receivers.npy, samples.npy and masks.npy to this directory");
-    bake->add_option("--disable", disabled, "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, all")
+    bake->add_option("--disable", disabled,
+                     "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, all")
         ->delimiter(',');
     bake->add_flag("-q,--quiet", quiet, "no progress on stderr");
     std::string sampleTable;
