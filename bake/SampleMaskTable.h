@@ -10,7 +10,8 @@
 /// sigma * det(a - l, b - l, r - l) = -sigma * m . (l - r) with m = (a - r) x (b - r) and sigma the
 /// (per light constant) sign of det(a - l, b - l, c - l): an affine function of l. Restricted to
 /// the light's plane it is a half-plane, "the inner side of a line". The table is indexed by the
-/// line's angle and signed offset in a 2D frame of the light plane, and each cell holds, per group
+/// line's direction (as a diamond angle, see SampleMaskTable.cpp) and signed offset in a 2D frame
+/// of the light plane, and each cell holds, per group
 /// of samples (one 64-bit word, same layout as LightSampleGroup), two masks:
 ///  - sure:  samples on the inner side of every line of the cell,
 ///  - maybe: samples on the inner side of some line of the cell.
