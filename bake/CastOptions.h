@@ -18,6 +18,12 @@ struct CastOptions {
     bool lazyMasks = true;     ///< D: allocate masks on demand, release them in full umbra
     bool rebuild = true;       ///< rebuild the hierarchy without umbra receivers (needs A)
     bool sortBlockers = true;  ///< process blockers largest first
+    /// Sintorn et al. 2008 plane-to-bitmask tables (SampleMaskTable.h) decide most of a group's
+    /// bits before the per-sample test; exact, so masks do not change. Measured faster on GRIDS
+    /// and flowers: docs/performance.md, "Sample mask table".
+    bool sampleTable = true;
+    int sampleTableAngles = 128;   ///< angle bins of each table
+    int sampleTableOffsets = 128;  ///< offset bins of each table
     double rebuildThreshold = 0.25;  ///< rebuild when this fraction of live receivers is in umbra
     HierarchyParams hierarchy;
     double epsilon = 1e-5;     ///< receiver-end epsilon, relative (BlockingRule.h)
@@ -37,6 +43,8 @@ struct CastStats {
     uint64_t peakHierarchyBytes = 0;
     uint64_t receiverBytes = 0;
     uint64_t hardShadowTests = 0;
+    uint64_t tableDecidedRelations = 0;  ///< open relations the sample mask table decided
+    uint64_t sampleTableBytes = 0;       ///< memory of the sample mask tables
 };
 
 }  // namespace penumbra

@@ -3,6 +3,7 @@
 #include "bake/BlockingRule.h"
 #include "bake/HardShadowBlock.h"
 #include "bake/PenumbraVolume.h"
+#include "bake/SampleMaskTable.h"
 #include "receivers/MaskPool.h"
 #include "receivers/ReceiverHierarchy.h"
 
@@ -33,6 +34,7 @@ struct ActiveGroup {
 struct PenumbraCaster::Tile {
     const LightSamples& samples;
     const CastOptions& options;
+    const std::vector<SampleMaskTable>* tables;  // per light, or nullptr when the option is off
     ReceiverHierarchy hierarchy;
     MaskPool pool;
     int groupCount, umbraWords;
@@ -53,14 +55,15 @@ struct PenumbraCaster::Tile {
     std::vector<uint32_t> hardReady;          // [set][group]: bit b set once block b is built
     std::vector<uint32_t> hardReadyList;
     std::vector<ActiveGroup> stack;
+    SampleMaskTable::Blocker tableBlocker;  // the current triangle against the current light
     bool reachedRoot = false;
 
     double buildSeconds = 0;
-    uint64_t rebuilds = 0, hardTests = 0;
+    uint64_t rebuilds = 0, hardTests = 0, tableDecided = 0;
     size_t peakHierarchyBytes = 0, peakReceiverBytes = 0;
 
-    Tile(const LightSamples& s, const CastOptions& o)
-        : samples(s), options(o), hierarchy(o.hierarchy, s.groupCount()), pool(s.groupCount()),
+    Tile(const LightSamples& s, const CastOptions& o, const std::vector<SampleMaskTable>* t)
+        : samples(s), options(o), tables(t), hierarchy(o.hierarchy, s.groupCount()), pool(s.groupCount()),
           groupCount(s.groupCount()), umbraWords((s.groupCount() + 63) / 64), kernels(hardShadowKernels(o.simd)) {
         allGroupsBits.assign(umbraWords, 0);
         for (int k = 0; k < groupCount; ++k) allGroupsBits[k >> 6] |= 1ull << (k & 63);
@@ -148,6 +151,7 @@ struct PenumbraCaster::Tile {
         for (currentLight = 0; currentLight < uint32_t(samples.lightCount()); ++currentLight) {
             if (!lightActive[currentLight]) continue;
             lightVolume = &lightVolumes[currentLight];
+            if (tables) tableBlocker = (*tables)[currentLight].prepare(t);
             groupVolumesBuilt = false;
             uint32_t g0 = samples.lightFirstGroup[currentLight], g1 = samples.lightFirstGroup[currentLight + 1];
             if (!options.lazyVolumes) {  // optimization C off: build everything before traversal
@@ -219,6 +223,9 @@ struct PenumbraCaster::Tile {
         if (!groupVolumesBuilt) buildGroupVolumes();  // lines 60-64
 
         const uint32_t set = h.sampleSet[r];
+        SampleMaskTable::Rows rows;  // sample mask table: looked up when a group first needs it
+        auto lookup = SampleMaskTable::Lookup::Exact;
+        bool lookedUp = !tables;
         uint64_t* bits = &h.groupUmbra[size_t(r) * umbraWords];
         uint64_t* mask = h.mask[r] != MaskPool::kNone ? pool.data(h.mask[r]) : nullptr;
         for (size_t i = groupsBegin; i < groupsEnd; ++i) {  // lines 65-73
@@ -229,11 +236,25 @@ struct PenumbraCaster::Tile {
             const LightSampleGroup& group = samples.groups[g.group];
             const uint64_t before = mask ? mask[g.group] : 0;
             uint64_t word = before;
-            const uint64_t open = ~word & group.fullMask();
-            uint32_t which;
-            const HardShadowBlock* hard = hardShadowBlocks(set, g.group, open, which);
-            hardTests += uint64_t(__builtin_popcountll(open));
-            word |= kernels.test(hard, which, p, dist, eps) & open;
+            uint64_t open = ~word & group.fullMask();
+            if (!lookedUp && open) {
+                lookedUp = true;
+                lookup = (*tables)[currentLight].lookup(tableBlocker, set, p, dist, eps, rows);
+                if (lookup == SampleMaskTable::Lookup::NoneBlocked) return;  // no bit has changed yet
+            }
+            if (lookup == SampleMaskTable::Lookup::Rows) {  // sure bits are blocked; bits outside maybe are not
+                const uint32_t k = g.group - (*tables)[currentLight].firstGroup();
+                const uint64_t sure = rows.sureWord(k) & open, undecided = rows.maybeWord(k) & open & ~sure;
+                tableDecided += uint64_t(__builtin_popcountll(open & ~undecided));
+                word |= sure;
+                open = undecided;
+            }
+            if (open) {
+                uint32_t which;
+                const HardShadowBlock* hard = hardShadowBlocks(set, g.group, open, which);
+                hardTests += uint64_t(__builtin_popcountll(open));
+                word |= kernels.test(hard, which, p, dist, eps) & open;
+            }
             if (word != before) {
                 if (!mask) {  // line 59, deferred until a bit is really set
                     h.mask[r] = pool.allocate();
@@ -304,10 +325,13 @@ PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& r
         std::iota(all.begin(), all.end(), 0u);
         receiverIds = all;
     }
+    if (options_.sampleTable)
+        for (uint32_t l = 0; l < uint32_t(samples_.lightCount()); ++l)
+            tables_.emplace_back(samples_, l, options_.sampleTableAngles, options_.sampleTableOffsets);
     auto parts = partitionReceivers(receivers, receiverIds, std::max(1, tiles));
     tiles_.resize(parts.size());
     tbb::parallel_for(size_t(0), parts.size(), [&](size_t t) {
-        tiles_[t] = std::make_unique<Tile>(samples_, options_);
+        tiles_[t] = std::make_unique<Tile>(samples_, options_, options_.sampleTable ? &tables_ : nullptr);
         std::vector<ReceiverInput> inputs;
         inputs.reserve(parts[t].size());
         for (uint32_t id : parts[t]) {
@@ -430,6 +454,7 @@ void PenumbraCaster::finish(const MaskVisitor& visit) {
 
 CastStats PenumbraCaster::stats() const {
     CastStats s = stats_;
+    for (const SampleMaskTable& table : tables_) s.sampleTableBytes += table.bytes();
     for (const auto& tile : tiles_) {
         s.hierarchyBuildSeconds += tile->buildSeconds;
         s.rebuilds += tile->rebuilds;
@@ -438,6 +463,7 @@ CastStats PenumbraCaster::stats() const {
         s.peakHierarchyBytes += tile->peakHierarchyBytes;
         s.receiverBytes += tile->peakReceiverBytes;
         s.hardShadowTests += tile->hardTests;
+        s.tableDecidedRelations += tile->tableDecided;
     }
     return s;
 }

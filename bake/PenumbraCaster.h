@@ -6,6 +6,7 @@
 #include "bake/CastOptions.h"
 #include "bake/PenumbraVolume.h"
 #include "bake/Light.h"
+#include "bake/SampleMaskTable.h"
 #include "receivers/ReceiverSet.h"
 #include "stream/Triangle.h"
 
@@ -49,6 +50,7 @@ private:
     const LightSamples& samples_;
     CastOptions options_;
     std::vector<std::unique_ptr<Tile>> tiles_;
+    std::vector<SampleMaskTable> tables_;  ///< per light when options_.sampleTable; shared by tiles
     CastStats stats_;
     /// Per light: the box around the light's bound and every receiver. A blocker can only block a
     /// segment from a receiver to a sample if it meets their convex hull, so a blocker whose box

@@ -6,6 +6,7 @@
 #include "bake/ReceiverKind.h"
 #include "bake/ReceiverShading.h"
 #include "bake/ReferenceCaster.h"
+#include "bake/SampleMaskTable.h"
 #include "bake/SunLight.h"
 #include "bucket/BucketPlan.h"
 #include "stream/AtomicFile.h"
@@ -158,6 +159,9 @@ void accumulate(CastStats& total, const CastStats& s) {
     total.trianglesCulledAtRoot += s.trianglesCulledAtRoot;
     total.rebuilds += s.rebuilds;
     total.hardShadowTests += s.hardShadowTests;
+    total.tableDecidedRelations += s.tableDecidedRelations;
+    total.sampleTableBytes = std::max(total.sampleTableBytes, s.sampleTableBytes);
+    // Tiles run one after another: peaks are the largest tile's, not the sum.
     total.peakLiveMasks = std::max(total.peakLiveMasks, s.peakLiveMasks);
     total.peakMaskBytes = std::max(total.peakMaskBytes, s.peakMaskBytes);
     total.peakHierarchyBytes = std::max(total.peakHierarchyBytes, s.peakHierarchyBytes);
@@ -273,6 +277,10 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     demand.groups = p.samples.groupCount();
     demand.umbraWords = (demand.groups + 63) / 64;
     demand.sampleBytes = p.samples.positions.size() * sizeof(glm::vec3);
+    if (scene.options.sampleTable)  // one copy per caster; casters (memory tiles) run one at a time
+        for (uint32_t l = 0; l < uint32_t(p.samples.lightCount()); ++l)
+            demand.sampleBytes += SampleMaskTable::plannedBytes(p.samples, l, scene.options.sampleTableAngles,
+                                                                scene.options.sampleTableOffsets);
     // Bucket buffers, the prefetch queue and the caster's per-chunk volumes are fixed buffers.
     // Two batches of prepared blockers in the caster (one cast while the next is prepared).
     demand.bufferBytes = p.bucketBufferBytes + 8 * kTriangleChunk * sizeof(Triangle) +
@@ -378,6 +386,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
           {"rebuilds", cast.rebuilds},
           {"peak_live_masks", cast.peakLiveMasks},
           {"hard_shadow_tests", cast.hardShadowTests},
+          {"table_decided_relations", cast.tableDecidedRelations},
+          {"sample_table_bytes", cast.sampleTableBytes},
           {"peak_rss_bytes", peakRssBytes()}}},
         {"memory_plan",
          {{"budget_bytes", plan.budget},

@@ -81,6 +81,9 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
     o.lazyMasks = j.boolean("lazy_masks", o.lazyMasks);
     o.rebuild = j.boolean("rebuild", o.rebuild);
     o.sortBlockers = j.boolean("sort_blockers", o.sortBlockers);
+    o.sampleTable = j.boolean("sample_table", o.sampleTable);
+    o.sampleTableAngles = int(j.integer("sample_table_angles", o.sampleTableAngles, 4, 4096));
+    o.sampleTableOffsets = int(j.integer("sample_table_offsets", o.sampleTableOffsets, 1, 4096));
     o.rebuildThreshold = j.number("rebuild_threshold", o.rebuildThreshold);
     if (!(o.rebuildThreshold > 0 && o.rebuildThreshold <= 1))
         fail(j.where("rebuild_threshold"), "must be in (0, 1], got {}", o.rebuildThreshold);

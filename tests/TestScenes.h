@@ -83,10 +83,47 @@ inline LightDesc rectLight(glm::dvec3 center, glm::dvec3 u, glm::dvec3 v, int sa
     return l;
 }
 
-/// Runs hierarchical penumbra casting and converts the result to VisibilityMasks.
+/// The disk, sphere and tilted polygon lights of the light-type tests (all above y = 4).
+inline LightDesc diskLight() {
+    LightDesc disk;
+    disk.type = LightType::Disk, disk.center = {0.5, 4.5, -0.3}, disk.normal = {0.2, -1, 0.1}, disk.radius = 0.9;
+    disk.samples = 100, disk.sampleSets = 3;
+    return disk;
+}
+
+inline LightDesc sphereLight() {
+    LightDesc sphere;
+    sphere.type = LightType::Sphere, sphere.center = {-0.5, 4.2, 0.4}, sphere.radius = 0.6, sphere.samples = 96;
+    sphere.sampleSets = 4;
+    return sphere;
+}
+
+inline LightDesc polygonLight() {
+    LightDesc polygon;
+    polygon.type = LightType::Polygon;
+    for (glm::dvec2 q : {glm::dvec2(-1, -1), {1, -1}, {1.4, 0.5}, {0, 1.2}, {-1.2, 0.3}})  // tilted plane
+        polygon.polygon.push_back({q.x, 4.2 + 0.15 * q.x + 0.1 * q.y, q.y});
+    polygon.samples = 80, polygon.sampleSets = 2;
+    return polygon;
+}
+
+/// Blockers and receivers for the light-type tests: a triangle soup over a floor, receivers on
+/// the floor and on the blockers; the floor is appended to @p tris.
+inline void soupOverFloor(std::vector<Triangle>& tris, ReceiverSet& receivers) {
+    tris = triangleSoup(5, 50, {-2, 1, -2}, {2, 2.5f, 2}, 1.0f);
+    std::vector<Triangle> floor;
+    addQuad(floor, {-4, 0, -4}, {4, 0, -4}, {4, 0, 4}, {-4, 0, 4});
+    addReceiversOnTriangles(receivers, floor, 6, 250);
+    addReceiversOnTriangles(receivers, tris, 7, 2);
+    tris.insert(tris.end(), floor.begin(), floor.end());
+}
+
+/// Runs hierarchical penumbra casting and converts the result to VisibilityMasks; the cast's
+/// counters go to @p stats when given.
 inline VisibilityMasks castHpc(const LightSamples& samples, const ReceiverSet& receivers,
                                const std::vector<uint32_t>& sets, std::vector<Triangle> triangles,
-                               const CastOptions& options, int tiles = 1, size_t chunk = 97) {
+                               const CastOptions& options, int tiles = 1, size_t chunk = 97,
+                               CastStats* stats = nullptr) {
     if (options.sortBlockers) sortByAreaDescending(triangles);
     PenumbraCaster caster(samples, receivers, sets, options, tiles);
     for (size_t i = 0; i < triangles.size(); i += chunk)
@@ -96,6 +133,7 @@ inline VisibilityMasks castHpc(const LightSamples& samples, const ReceiverSet& r
         for (int k = 0; k < masks.groups; ++k)
             masks.row(r)[k] = full ? samples.groups[k].fullMask() : (words ? words[k] : 0);
     });
+    if (stats) *stats = caster.stats();
     return masks;
 }
 
@@ -120,8 +158,9 @@ inline std::vector<std::pair<std::string, CastOptions>> optionVariants() {
     // The default is the best SIMD level of the CPU; the others must give the same bits.
     off("scalar kernels", [](CastOptions& o) { o.simd = SimdLevel::Scalar; });
     off("sse2 kernels", [](CastOptions& o) { o.simd = SimdLevel::Sse2; });
+    off("no sample table", [](CastOptions& o) { o.sampleTable = false; });
     off("all off", [](CastOptions& o) {
-        o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = false;
+        o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = o.sampleTable = false;
     });
     return v;
 }

@@ -71,6 +71,7 @@ TEST_CASE("bake writes the EXR, PNG, dump and stats; hpc matches reference via c
     CHECK(stats["counters"]["triangles_read"].get<uint64_t>() == 2 + 2 * 25 * 12);
     CHECK(stats["counters"]["peak_rss_bytes"].get<uint64_t>() > 1000000);
     CHECK(stats["table2"]["peak_hierarchy_memory_bytes"].get<uint64_t>() > 0);
+    CHECK(stats["counters"]["table_decided_relations"].get<uint64_t>() > 0);  // sample table on by default
 
     RunResult ref = runPenumbra("bake " + (dir / "scene.json") + " -q --method reference -o " + (dir / "ref.exr") + " --dump " + (dir / "ref"));
     REQUIRE(ref.exitCode == 0);
@@ -84,6 +85,9 @@ TEST_CASE("bake writes the EXR, PNG, dump and stats; hpc matches reference via c
     REQUIRE(one.exitCode == 0);
     CHECK(readNpy(dir / "one/masks.npy").data == msk.data);
     CHECK(readExr(dir / "one.exr").channels["V"] == img.channels["V"]);
+    RunResult noTable = runPenumbra("bake " + (dir / "scene.json") + " -q --sample-table off -o " + (dir / "nt.exr") + " --dump " + (dir / "nt"));
+    REQUIRE(noTable.exitCode == 0);
+    CHECK(readNpy(dir / "nt/masks.npy").data == msk.data);
 }
 
 TEST_CASE("bad input gives one clean line and a non-zero exit", "[cli]") {

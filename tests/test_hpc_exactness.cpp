@@ -92,24 +92,10 @@ TEST_CASE("blockers straddling and touching the light's plane match the referenc
 }
 
 TEST_CASE("every light type, alone and together, matches the reference", "[hpc][exact]") {
-    std::vector<Triangle> tris = triangleSoup(5, 50, {-2, 1, -2}, {2, 2.5f, 2}, 1.0f);
-    std::vector<Triangle> floor = floorQuad(4);
+    std::vector<Triangle> tris;
     ReceiverSet receivers;
-    addReceiversOnTriangles(receivers, floor, 6, 250);
-    addReceiversOnTriangles(receivers, tris, 7, 2);
-    tris.insert(tris.end(), floor.begin(), floor.end());
-
-    LightDesc disk;
-    disk.type = LightType::Disk, disk.center = {0.5, 4.5, -0.3}, disk.normal = {0.2, -1, 0.1}, disk.radius = 0.9;
-    disk.samples = 100, disk.sampleSets = 3;
-    LightDesc sphere;
-    sphere.type = LightType::Sphere, sphere.center = {-0.5, 4.2, 0.4}, sphere.radius = 0.6, sphere.samples = 96;
-    sphere.sampleSets = 4;
-    LightDesc polygon;
-    polygon.type = LightType::Polygon;
-    for (glm::dvec2 q : {glm::dvec2(-1, -1), {1, -1}, {1.4, 0.5}, {0, 1.2}, {-1.2, 0.3}})  // tilted plane
-        polygon.polygon.push_back({q.x, 4.2 + 0.15 * q.x + 0.1 * q.y, q.y});
-    polygon.samples = 80, polygon.sampleSets = 2;
+    soupOverFloor(tris, receivers);
+    const LightDesc disk = diskLight(), sphere = sphereLight(), polygon = polygonLight();
     LightDesc rect = rectLight({0, 4, 0}, {1.3, 0.2, 0}, {0, 0.1, 1.1}, 64, 4);
 
     requireMatchesReference("disk", {disk}, receivers, tris);

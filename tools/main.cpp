@@ -34,10 +34,12 @@ void disableOptimizations(CastOptions& o, const std::vector<std::string>& names)
         else if (name == "lazy-masks") o.lazyMasks = false;
         else if (name == "rebuild") o.rebuild = false;
         else if (name == "sort") o.sortBlockers = false;
-        else if (name == "all") o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = false;
+        else if (name == "sample-table") o.sampleTable = false;
+        else if (name == "all")
+            o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = o.sampleTable = false;
         else
             throw InputError("--disable: unknown optimization \"" + name +
-                             "\" (known: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, all)");
+                             "\" (known: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, all)");
     }
 }
 
@@ -65,11 +67,15 @@ int main(int argc, char** argv) {
     bake->add_option("--threads", threads, "worker threads (default: all cores)");
     bake->add_option("--stats", statsPath, "write JSON stats to this file");
     bake->add_option("--dump", dumpDir, "write receivers.npy, samples.npy and masks.npy to this directory");
-    bake->add_option("--disable", disabled, "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, all")
+    bake->add_option("--disable", disabled,
+                     "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, all")
         ->delimiter(',');
     bake->add_flag("-q,--quiet", quiet, "no progress on stderr");
     std::string simd;
     bake->add_option("--simd", simd, "hard-shadow test kernels: auto (default), avx2, sse2 or scalar; same bits for all");
+    std::string sampleTable;
+    bake->add_option("--sample-table", sampleTable, "on or off: sample mask tables (overrides bake.sample_table)")
+        ->check(CLI::IsMember({"on", "off"}));
     std::string memoryBudget, tmpDir;
     bool keepBuckets = false;
     bake->add_option("--memory-budget", memoryBudget, "bound on bake memory, e.g. 256M or 2G; receivers are tiled to fit");
@@ -120,6 +126,7 @@ int main(int argc, char** argv) {
             if (!output.empty()) scene.output = output;
             disableOptimizations(scene.options, disabled);
             if (!simd.empty()) scene.options.simd = parseSimdLevel(simd, "--simd");
+            if (!sampleTable.empty()) scene.options.sampleTable = sampleTable == "on";
             BakeSettings settings;
             settings.method = parseMethod(method);
             if (threads < 0) throw InputError(fmt::format("--threads: must not be negative, got {}", threads));

@@ -1,0 +1,244 @@
+#include "bake/SampleMaskTable.h"
+
+#include <glm/geometric.hpp>
+#include <glm/gtc/constants.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace penumbra {
+namespace {
+
+constexpr double kRoundoff = 0x1p-53;  // u: unit roundoff of double
+/// Slack of a table cell in diamond angle: the cell's masks hold for every line whose diamond
+/// angle is within this of the cell's range, which covers the rounding of the diamond angle and
+/// of the bin index many times.
+constexpr double kAngleSlack = 1e-9;
+/// Samples farther than this (relative to the light's radius) from the fitted plane: the light is
+/// volumetric (a sphere), and the table would decide almost nothing.
+constexpr double kMaxFlatness = 1e-4;
+/// A light whose table would be larger than this (many samples times many sets) gets none: the
+/// table must stay small next to the receivers, and cache-resident enough to pay off.
+constexpr size_t kMaxTableBytes = size_t(64) << 20;
+
+int angleBins(int angles) { return std::max(4, (angles + 3) / 4 * 4); }  // cells within a quadrant
+
+double maxAbs(const glm::dvec3& p) { return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
+
+/// The direction of 1-norm 1 whose diamond angle is @p p, for p in [0, 4]. The diamond angle
+/// increases with the polar angle over [0, 4) (one quadrant per unit) and, unlike the polar
+/// angle, moves the unit-1-norm direction linearly within a quadrant; so dot(direction, q) is
+/// linear in it and its extremes over a cell are at the cell's ends.
+glm::dvec2 diamondDirection(double p) {
+    const int quadrant = std::min(3, int(p));
+    const double f = p - quadrant;
+    switch (quadrant) {
+        case 0: return {1 - f, f};
+        case 1: return {-f, 1 - f};
+        case 2: return {f - 1, -f};
+        default: return {f, f - 1};
+    }
+}
+
+
+}  // namespace
+
+SampleMaskTable::SampleMaskTable(const LightSamples& samples, uint32_t light, int angles, int offsets)
+    : angles_(angleBins(angles)), offsets_(std::max(1, offsets)) {
+    firstGroup_ = samples.lightFirstGroup[light];
+    groups_ = samples.lightFirstGroup[light + 1] - firstGroup_;
+    if (groups_ == 0) return;
+    const uint32_t first = samples.groups[firstGroup_].first;
+    const uint32_t count = samples.groups[firstGroup_ + groups_ - 1].first +
+                           samples.groups[firstGroup_ + groups_ - 1].count - first;
+    std::vector<glm::dvec3> points;  // [set][sample of the light]
+    points.reserve(size_t(samples.sets) * count);
+    for (int set = 0; set < samples.sets; ++set)
+        for (uint32_t k = 0; k < count; ++k) points.push_back(glm::dvec3(samples.position(set, int(first + k))));
+
+    // The plane through three far-apart samples; how flat the light is gets measured below, so the
+    // choice only needs to be good, not optimal. Sphere lights are rejected by the flatness test.
+    glm::dvec3 centroid(0.0);
+    lo_ = hi_ = points[0];
+    for (const glm::dvec3& p : points) centroid += p, lo_ = glm::min(lo_, p), hi_ = glm::max(hi_, p);
+    centroid /= double(points.size());
+    maxAbs_ = std::max(maxAbs(lo_), maxAbs(hi_));
+    auto farthestFrom = [&](const glm::dvec3& q) {
+        return *std::max_element(points.begin(), points.end(), [&](const glm::dvec3& a, const glm::dvec3& b) {
+            return glm::length(a - q) < glm::length(b - q);
+        });
+    };
+    const glm::dvec3 p0 = farthestFrom(centroid), p1 = farthestFrom(p0);
+    const glm::dvec3 p2 = *std::max_element(points.begin(), points.end(), [&](const glm::dvec3& a, const glm::dvec3& b) {
+        return glm::length(glm::cross(p1 - p0, a - p0)) < glm::length(glm::cross(p1 - p0, b - p0));
+    });
+    glm::dvec3 normal = glm::cross(p1 - p0, p2 - p0);
+    if (!(glm::length(normal) > 0.0)) return;  // one sample, or all on a line
+    origin_ = centroid;
+    n_ = glm::normalize(normal);
+    u_ = glm::normalize((p1 - p0) - glm::dot(p1 - p0, n_) * n_);
+    v_ = glm::cross(n_, u_);
+
+    std::vector<glm::dvec2> coords(points.size());
+    double radius = 0, flatness = 0;
+    for (size_t i = 0; i < points.size(); ++i) {
+        glm::dvec3 d = points[i] - origin_;
+        coords[i] = {glm::dot(u_, d), glm::dot(v_, d)};
+        radius = std::max(radius, glm::length(coords[i]));
+        flatness = std::max(flatness, std::abs(glm::dot(n_, d)));
+    }
+    if (!(radius > 0.0) || flatness > kMaxFlatness * radius) return;
+    const size_t words = plannedBytes(samples, light, angles_, offsets_) / sizeof(uint64_t);
+    if (words == 0) return;
+    // Slack for the rounding of these very measurements (a few ulps of the coordinates).
+    flatness_ = flatness + 1e-12 * (maxAbs_ + radius);
+    radius_ = radius * (1.0 + 1e-6);
+    width_ = 2.0 * radius_ / offsets_;
+    invWidth_ = offsets_ / (2.0 * radius_);
+    usable_ = true;
+
+    // Local sample -> (group of the light, bit).
+    std::vector<uint32_t> groupOf(count), bitOf(count);
+    for (uint32_t k = 0; k < groups_; ++k) {
+        const LightSampleGroup& g = samples.groups[firstGroup_ + k];
+        for (uint32_t j = 0; j < g.count; ++j) groupOf[g.first - first + j] = k, bitOf[g.first - first + j] = j;
+    }
+    cells_.assign(words, 0);
+    for (int set = 0; set < samples.sets; ++set)
+        for (int a = 0; a < angles_; ++a) {
+            const glm::dvec2 d0 = diamondDirection(4.0 * a / angles_), d1 = diamondDirection(4.0 * (a + 1) / angles_);
+            for (uint32_t k = 0; k < count; ++k) {
+                const glm::dvec2 q = coords[size_t(set) * count + k];
+                // Extremes of dot(direction, q) over the cell: at its ends (linear in the diamond
+                // angle). Widened for the slack (the derivative is at most |q|_1 <= 2R) and for the
+                // rounding of the dot products (far below that).
+                const double p0 = glm::dot(d0, q), p1 = glm::dot(d1, q);
+                const double lowest = std::min(p0, p1) - 4 * kAngleSlack * radius_;
+                const double highest = std::max(p0, p1) + 4 * kAngleSlack * radius_;
+                // sure in bin b  <=>  upper(b) <= lowest; maybe in bin b  <=>  lower(b) <= highest.
+                // Both are prefixes of the bins; the last bin is found from the estimate and then
+                // checked against the bounds themselves, so the cells mean exactly that.
+                int sureLast = offsetBin(lowest) - 1, maybeLast = offsetBin(highest);
+                while (sureLast >= 0 && upper(sureLast) > lowest) --sureLast;
+                while (sureLast < offsets_ && upper(sureLast + 1) <= lowest) ++sureLast;
+                while (maybeLast > 0 && lower(maybeLast) > highest) --maybeLast;
+                while (maybeLast < offsets_ + 1 && lower(maybeLast + 1) <= highest) ++maybeLast;
+                const uint64_t bit = 1ull << bitOf[k];
+                for (int b = 0; b <= sureLast; ++b) cells_[cell(uint32_t(set), a, b) + 2 * groupOf[k]] |= bit;
+                for (int b = 0; b <= maybeLast; ++b) cells_[cell(uint32_t(set), a, b) + 2 * groupOf[k] + 1] |= bit;
+            }
+        }
+}
+
+double SampleMaskTable::lower(int bin) const {
+    return bin == 0 ? -std::numeric_limits<double>::infinity() : -radius_ + (bin - 1) * width_;
+}
+
+double SampleMaskTable::upper(int bin) const {
+    return bin == offsets_ + 1 ? std::numeric_limits<double>::infinity() : -radius_ + bin * width_;
+}
+
+int SampleMaskTable::offsetBin(double x) const {
+    // Bins 0 and offsets_+1 are the open ends. The result b satisfies lower(b) - e <= x <
+    // upper(b) + e with e <= 8u (|x| + 3R) from the rounding of this product and of the bounds;
+    // lookup()'s margin covers it. (Clamping first makes the truncation a floor and keeps NaN-free
+    // finite input in range; this runs six times per receiver, so no division and no libm floor.)
+    return int(std::clamp((x + radius_) * invWidth_ + 1.0, 0.0, double(offsets_ + 1)));
+}
+
+size_t SampleMaskTable::plannedBytes(const LightSamples& samples, uint32_t light, int angles, int offsets) {
+    const size_t groups = samples.lightFirstGroup[light + 1] - samples.lightFirstGroup[light];
+    const size_t bytes = size_t(samples.sets) * angleBins(angles) * (std::max(1, offsets) + 2) * groups * 2 * sizeof(uint64_t);
+    return bytes > kMaxTableBytes ? 0 : bytes;
+}
+
+SampleMaskTable::Blocker SampleMaskTable::prepare(const BlockerTriangle& t) const {
+    Blocker out;
+    if (!usable_ || !t.valid) return out;
+    out.maxAbs = std::max({maxAbs_, maxAbs(t.v[0]), maxAbs(t.v[1]), maxAbs(t.v[2])});
+    const double m = out.maxAbs, u = kRoundoff;
+    // Every sample lies in the box [lo_, hi_]; an affine function's extremes over the box are at
+    // its corners. BlockingRule's per-sample values differ from the real affine ones by at most
+    // ~18 u M (the side, T's plane at l) and ~384 u M^3 (det(a-l, b-l, c-l), see lookup()); the
+    // corners are evaluated with similar error. Demanding 64 u M and 2048 u M^3 at every corner
+    // leaves the sign of every sample's computed value certain, so side and sigma are the same for
+    // all samples of the light, as makeHardShadowVolume() will compute them.
+    const glm::dvec3 normal = glm::cross(t.v[0] - t.v[2], t.v[1] - t.v[2]);  // G(l) = -normal . (l - v2)
+    double sideMin = INFINITY, sideMax = -INFINITY, gMin = INFINITY, gMax = -INFINITY;
+    for (int c = 0; c < 8; ++c) {
+        glm::dvec3 x((c & 1) ? hi_.x : lo_.x, (c & 2) ? hi_.y : lo_.y, (c & 4) ? hi_.z : lo_.z);
+        double s = t.plane.eval(x), g = -glm::dot(normal, x - t.v[2]);
+        sideMin = std::min(sideMin, s), sideMax = std::max(sideMax, s);
+        gMin = std::min(gMin, g), gMax = std::max(gMax, g);
+    }
+    const double sideMargin = 64 * u * m, gMargin = 2048 * u * m * m * m;
+    if (sideMin > sideMargin) out.side = -1.0;       // sl > 0 for every sample
+    else if (sideMax < -sideMargin) out.side = 1.0;  // sl < 0 for every sample
+    else return out;
+    if (gMin > gMargin) out.sigma = 1.0;
+    else if (gMax < -gMargin) out.sigma = -1.0;
+    else return out;
+    // m(r) = a x b - (a - b) x r, so m.c = (a x b).c - r.(c x (a - b)) and
+    // m.(o - r) = (a x b).o - r.(o x (a - b) + a x b)   (as (a x b).r is the only r.r-free term).
+    for (int e = 0; e < 3; ++e) {
+        const glm::dvec3 &a = t.v[e], &b = t.v[(e + 1) % 3];
+        const glm::dvec3 ab = glm::cross(a, b), d = a - b;
+        const double s = -out.sigma;
+        out.line[e][0] = {s * glm::dot(ab, u_), s * glm::cross(u_, d)};
+        out.line[e][1] = {s * glm::dot(ab, v_), s * glm::cross(v_, d)};
+        out.line[e][2] = {s * glm::dot(ab, origin_), s * (glm::cross(origin_, d) + ab)};
+        out.line[e][3] = {glm::dot(ab, n_), glm::cross(n_, d)};
+    }
+    out.usable = true;
+    return out;
+}
+
+SampleMaskTable::Lookup SampleMaskTable::lookup(const Blocker& b, uint32_t set, const glm::dvec3& r, double dist,
+                                                double eps, Rows& rows) const {
+    if (!b.usable) return Lookup::Exact;
+    // BlockingRule's first clause, with the side every sample shares: the same double expression.
+    if (!(b.side * dist > eps)) return Lookup::NoneBlocked;
+    const double m = std::max(b.maxAbs, maxAbs(r)), u = kRoundoff;
+    // Error budget, every coordinate bounded by M (= m):
+    //  - BlockingRule computes edge value E(l) = sigma * fl(det(a-l, b-l, r-l)). Differences are
+    //    within 2M, the cross product's components within 8M^2 with error 32uM^2, the two dot
+    //    products and the sum add 192uM^3, and the cross product's error times |r-l|_1 <= 6M adds
+    //    192uM^3: |E(l) - sigma*det| <= 384uM^3 =: beta (the code uses 2048uM^3 for beta).
+    //  - In real arithmetic det(a-l, b-l, r-l) = -m . (l - r) with m = (a-r) x (b-r), and
+    //    l - o = s u + t v + h n + e with |h| <= H (flatness_), |e| <= 8u|l-o|; the table holds
+    //    the computed (s, t). So sigma*det = wx s + wy t + k - sigma (m.n) h - sigma m.e with
+    //    w = -sigma (m.u, m.v), k = -sigma m.(o-r): the h and e terms are at most |m| (H + 64uM),
+    //    and |m| <= |wx| + |wy| + |m.n| (u, v, n orthonormal).
+    //  - wx, wy, m.n, k come from prepare()'s affine forms: coefficients within 6M^2 and 6M
+    //    (constant and linear part; 6M^3 and 6M^2 for k), rounding at most 160uM^2 on wx, wy, m.n
+    //    and 200uM^3 on k; times |s| + |t| <= 2R <= 8M that is below 1500uM^3 =: 2048uM^3.
+    //    (Their own rounding on the |m| bound is O(u^2) and absorbed in 64uM -> 128uM.)
+    //  - Normalising by g = |w|_1 (so the offset is tau = -k/g; any norm gives the same
+    //    half-plane), the angle binning (covered in the table by kAngleSlack) and the offset
+    //    binning (offsetBin()) add a few ulps of R and tau (at most 8u (|tau| + 4R)).
+    //  - |m| is bounded by its 1-norm, which needs no square root.
+    // So sigma*det > beta whenever dot(dir, q) > tau + delta with
+    //    delta = ((2048 + 2048) u M^3 + |m| (H + 128uM)) / g + 40u (R + |tau|),
+    // and sigma*det < -beta whenever dot(dir, q) < tau - delta; then E(l) >= 0 (resp. < 0) for
+    // certain. The code doubles delta and rounds the last term up to 1e-12 (u = 1.1e-16), which
+    // costs nothing measurable: delta stays many orders of magnitude below a cell.
+    const double fixed = 4096 * u * m * m * m;
+    for (int e = 0; e < 3; ++e) {
+        const double wx = b.line[e][0].at(r), wy = b.line[e][1].at(r), k = b.line[e][2].at(r);
+        // Normalised by g = |w|_1, so the direction has 1-norm 1 and its diamond angle is one
+        // component over g: one division per edge, no square root, no atan2.
+        const double ax = std::abs(wx), ay = std::abs(wy), invG = 1.0 / (ax + ay), tau = -k * invG;
+        const double norm1 = ax + ay + std::abs(b.line[e][3].at(r));
+        const double delta = 2.0 * (fixed + norm1 * (flatness_ + 128 * u * m)) * invG + 1e-12 * (radius_ + std::abs(tau));
+        // A line this uncertain (a plane nearly parallel to the light, or g == 0) decides little.
+        if (!(delta < radius_) || !std::isfinite(tau)) return Lookup::Exact;
+        const double diamond = wy >= 0 ? (wx >= 0 ? wy * invG : 1 + ax * invG) : (wx < 0 ? 2 + ay * invG : 3 + ax * invG);
+        const int a = std::clamp(int(diamond * (0.25 * angles_)), 0, angles_ - 1);
+        rows.sure[e] = &cells_[cell(set, a, offsetBin(tau + delta))];
+        rows.maybe[e] = &cells_[cell(set, a, offsetBin(tau - delta)) + 1];
+    }
+    return Lookup::Rows;
+}
+
+}  // namespace penumbra
