@@ -84,12 +84,14 @@ TEST_CASE("bench table2 at a tiny scale: columns, ratio, ties and the Markdown s
         CHECK(c["triangles_per_second_per_core"].get<double>() > 0.0);
     }
 
-    // The other sections are kept; the generated one is appended with its markers.
+    // The other sections are kept: everything before the generated part (all of the file when
+    // it has no markers yet, then the section is appended).
+    const std::string head = original.substr(0, original.find(kBegin));
     std::string md = slurp(dir / "BENCHMARKS.md");
-    CHECK(md.rfind(original, 0) == 0);
+    CHECK(md.rfind(head, 0) == 0);
     CHECK(occurrences(md, kBegin) == 1);
     CHECK_THAT(md, Catch::Contains("Reduced-scale validation run") && Catch::Contains("| grids | 32×24 | 256 |") &&
-                       Catch::Contains("### Targets") && Catch::Contains("Root-cull throughput"));
+                       Catch::Contains("### Targets") && Catch::Contains("### Root-cull throughput"));
     CHECK(r.out.find("| grids | 32×24 | 256 |") != std::string::npos);
 
     // A second run replaces the section in place: text after it survives too.
@@ -98,10 +100,22 @@ TEST_CASE("bench table2 at a tiny scale: columns, ratio, ties and the Markdown s
     INFO(again.err);
     REQUIRE(again.exitCode == 0);
     md = slurp(dir / "BENCHMARKS.md");
-    CHECK(md.rfind(original, 0) == 0);
+    CHECK(md.rfind(head, 0) == 0);
     CHECK(occurrences(md, kBegin) == 1);
     CHECK_THAT(md, Catch::EndsWith("## Later section\n\nkept\n"));
-    CHECK_THAT(md, !Catch::Contains("Root-cull throughput"));
+    CHECK_THAT(md, !Catch::Contains("### Root-cull throughput"));
+
+    // A file without the section gets it appended after everything it had.
+    const std::string bare = "# Benchmarks\n\n## Other\n\ntext\n";
+    std::ofstream(dir / "bare.md") << bare;
+    RunResult appended = runPenumbra("bench table2 -q --scale 0.05 --rows 640x480@256 --scenes grids --examples " +
+                                     std::string(PENUMBRA_SOURCE_DIR) + "/examples --tmp " + dir.path.string() +
+                                     " --no-embree --no-cull --markdown " + (dir / "bare.md"));
+    REQUIRE(appended.exitCode == 0);
+    md = slurp(dir / "bare.md");
+    CHECK(md.rfind(bare, 0) == 0);
+    CHECK(occurrences(md, kBegin) == 1);
+    CHECK_THAT(md, Catch::Contains("## Table 2"));
 }
 
 TEST_CASE("bench table2 rejects unknown rows and scenes with one-line errors", "[cli][bench]") {
