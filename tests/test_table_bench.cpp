@@ -38,6 +38,7 @@ TEST_CASE("bench table2 at a tiny scale: columns, ratio, ties and the Markdown s
     CHECK_THAT(j["command"].get<std::string>(), Catch::Contains("bench table2") && Catch::Contains("--scale 0.05"));
     for (const char* key : {"cpu", "cores", "ram_bytes", "os", "compiler", "commit"}) CHECK(j["machine"].contains(key));
     CHECK(j["machine"]["cores"].get<int>() >= 1);
+    CHECK(j.contains("load_average_start"));
     REQUIRE(j["rows"].size() == 1);
     const nlohmann::json& row = j["rows"][0];
     INFO(row.dump(2));
@@ -52,7 +53,7 @@ TEST_CASE("bench table2 at a tiny scale: columns, ratio, ties and the Markdown s
 
     const nlohmann::json& ours = row["ours"];
     for (const char* key : {"sort_s", "hierarchy_build_s", "penumbra_cast_s", "time_s", "samples_memory_bytes",
-                            "hierarchy_memory_bytes", "mask_memory_bytes", "bake_total_s", "peak_rss_bytes"})
+                            "hierarchy_memory_bytes", "mask_memory_bytes", "bake_total_s", "peak_rss_bytes", "process_cpu_s"})
         CHECK(ours[key].get<double>() >= 0.0);
     CHECK(ours["penumbra_cast_s"].get<double>() > 0.0);
     CHECK(ours["time_s"].get<double>() ==

@@ -130,6 +130,16 @@ json machineInfo() {
             {"commit", commit}};
 }
 
+/// The 1-minute load average: on a shared machine it says how many cores the bench really had.
+double loadAverage() {
+    double load = -1;
+    if (std::FILE* f = std::fopen("/proc/loadavg", "r")) {
+        if (std::fscanf(f, "%lf", &load) != 1) load = -1;
+        std::fclose(f);
+    }
+    return load;
+}
+
 std::string utcNow() {
     std::time_t t = std::time(nullptr);
     char buffer[32];
@@ -142,6 +152,7 @@ struct ChildResult {
     int exitCode = -1;
     double wallSeconds = 0;
     uint64_t peakRssBytes = 0;  ///< wait4() ru_maxrss: this child's own peak
+    double cpuSeconds = 0;      ///< user + system time of the child, all its threads
     std::string out, err;
 };
 
@@ -171,6 +182,7 @@ ChildResult runSelf(const std::vector<std::string>& args, const fs::path& dir) {
     r.wallSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
     r.peakRssBytes = uint64_t(usage.ru_maxrss) * 1024;
+    r.cpuSeconds = double(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) + 1e-6 * double(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
     r.out = slurpFile(outPath);
     r.err = slurpFile(errPath);
     return r;
@@ -216,6 +228,7 @@ json bakeChild(const fs::path& scene, const std::string& method, int threads, co
     json s = json::parse(slurpFile(stats));
     s["child_peak_rss_bytes"] = child.peakRssBytes;
     s["child_wall_s"] = child.wallSeconds;
+    s["child_cpu_s"] = child.cpuSeconds;
     return s;
 }
 
@@ -241,6 +254,8 @@ json oursColumns(const json& s) {
             {"scan_s", s["stream"]["scan_time_s"]},
             {"bake_total_s", t["total_time_s"]},
             {"peak_rss_bytes", s["child_peak_rss_bytes"]},
+            {"process_wall_s", s["child_wall_s"]},
+            {"process_cpu_s", s["child_cpu_s"]},
             {"triangles", s["counters"]["triangles_read"]},
             {"triangles_culled_at_root", s["counters"]["triangles_culled_at_root"]},
             {"hard_shadow_tests", s["counters"]["hard_shadow_tests"]}};
@@ -255,7 +270,9 @@ json embreeColumns(const json& s) {
             {"scene_bytes", s["embree"]["scene_bytes"]},
             {"scan_s", s["stream"]["scan_time_s"]},
             {"bake_total_s", s["table2"]["total_time_s"]},
-            {"peak_rss_bytes", s["child_peak_rss_bytes"]}};
+            {"peak_rss_bytes", s["child_peak_rss_bytes"]},
+            {"process_wall_s", s["child_wall_s"]},
+            {"process_cpu_s", s["child_cpu_s"]}};
 }
 
 /// The fastest of @p repeat bakes by @p seconds (errors win only if every run failed).
@@ -495,8 +512,14 @@ std::string table2Markdown(const json& result) {
     md += fmt::format("Machine: {}, {} cores, {:.1f} GiB RAM, {}; {}; commit {}.\n\n", m["cpu"].get<std::string>(),
                       m["cores"].get<int>(), m["ram_bytes"].get<double>() / double(1ull << 30), m["os"].get<std::string>(),
                       m["compiler"].get<std::string>(), m["commit"].get<std::string>());
-    md += fmt::format("Best of {} run(s) per row and method; ours on {} thread(s), Embree on {} thread(s).\n\n",
+    md += fmt::format("Best of {} run(s) per row and method; ours on {} thread(s), Embree on {} thread(s).",
                       result["repeat"].get<int>(), result["threads_table"].get<int>(), result["threads_table"].get<int>());
+    if (result.contains("load_average_end"))
+        md += fmt::format(" Load average (1 min) {:.1f} at the start and {:.1f} at the end, over {:.0f} s: a load near or "
+                          "above the core count means other work shared the cores, which shows first in thread scaling.",
+                          result["load_average_start"].get<double>(), result["load_average_end"].get<double>(),
+                          result["elapsed_s"].get<double>());
+    md += "\n\n";
     if (result.contains("bench_process_peak_rss_bytes"))
         md += fmt::format("Peak RSS is each bake's own (a child process each, wait4() ru_maxrss). Linux counts the spawning "
                           "process's resident set in a child's ru_maxrss, so no figure can read below the benchmark "
@@ -622,6 +645,7 @@ void runBenchTable(const BenchTableOptions& o, const std::string& commandLine) {
                    {"repeat", o.repeat},
                    {"threads_table", tableThreads},
                    {"threads", threadList},
+                   {"load_average_start", loadAverage()},
                    {"rows", json::array()}};
     auto save = [&] {
         if (!o.jsonPath.empty()) writeText(o.jsonPath, result.dump(2) + "\n");
@@ -716,6 +740,7 @@ void runBenchTable(const BenchTableOptions& o, const std::string& commandLine) {
                                      c["triangles_per_second_per_core"].get<double>() / 1e6));
     }
     result["elapsed_s"] = elapsed();
+    result["load_average_end"] = loadAverage();
     result["bench_process_peak_rss_bytes"] = peakRssBytes();
     save();
     const std::string md = table2Markdown(result);
