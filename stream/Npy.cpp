@@ -252,7 +252,24 @@ std::string npyTypeName(std::string_view dtype) {
     }
 }
 
-NpyArray readNpy(const std::string& path) {
+namespace {
+
+/// Reads exactly @p n bytes or fails naming @p path and the part of the file (@p what).
+void readFully(std::FILE* file, const std::string& path, void* dst, size_t n, const char* what) {
+    if (n == 0) return;
+    if (std::fread(dst, 1, n, file) != n) {
+        if (std::ferror(file)) fail(path, "read failed: {}", errnoText(errno));
+        fail(path, "file ends inside the {} (truncated .npy file?)", what);
+    }
+}
+
+/// An open .npy file positioned at its data, with the validated header.
+struct OpenedNpy {
+    std::unique_ptr<std::FILE, FileCloser> file;
+    NpyHeader header;
+};
+
+OpenedNpy openNpy(const std::string& path) {
     std::unique_ptr<std::FILE, FileCloser> file(std::fopen(path.c_str(), "rb"));
     if (!file) fail(path, "cannot open: {}", errnoText(errno));
     struct stat st {};
@@ -260,13 +277,7 @@ NpyArray readNpy(const std::string& path) {
     if (S_ISDIR(st.st_mode)) fail(path, "is a directory, not a .npy file");
     const uint64_t fileBytes = static_cast<uint64_t>(st.st_size);
 
-    auto readExact = [&](void* dst, size_t n, const char* what) {
-        if (n == 0) return;
-        if (std::fread(dst, 1, n, file.get()) != n) {
-            if (std::ferror(file.get())) fail(path, "read failed: {}", errnoText(errno));
-            fail(path, "file ends inside the {} (truncated .npy file?)", what);
-        }
-    };
+    auto readExact = [&](void* dst, size_t n, const char* what) { readFully(file.get(), path, dst, n, what); };
 
     // Magic and version.
     unsigned char prefix[8];
@@ -300,9 +311,10 @@ NpyArray readNpy(const std::string& path) {
     if (h.fortranOrder)
         fail(path, "array is stored in Fortran order; save it with np.ascontiguousarray() first");
 
-    NpyArray out;
+    NpyHeader out;
     out.dtype = dtype->normalized;
     out.shape = std::move(h.shape);
+    out.dataOffset = dataOffset;
     const auto expected = byteCount(out.shape, dtype->size);
     if (!expected || *expected > static_cast<uint64_t>(std::numeric_limits<size_t>::max()))
         fail(path, "header shape {} is too large", shapeText(out.shape));
@@ -310,6 +322,22 @@ NpyArray readNpy(const std::string& path) {
     if (dataBytes != *expected)
         fail(path, "header says {} {} ({} bytes) but file has {} bytes of data", shapeText(out.shape),
              npyTypeName(out.dtype), *expected, dataBytes);
+    out.dataBytes = dataBytes;
+    return {std::move(file), std::move(out)};
+}
+
+}  // namespace
+
+NpyHeader readNpyHeader(const std::string& path) { return openNpy(path).header; }
+
+NpyArray readNpy(const std::string& path) {
+    OpenedNpy opened = openNpy(path);
+    std::FILE* file = opened.file.get();
+    auto readExact = [&](void* dst, size_t n, const char* what) { readFully(file, path, dst, n, what); };
+    NpyArray out;
+    out.dtype = std::move(opened.header.dtype);
+    out.shape = std::move(opened.header.shape);
+    const uint64_t dataBytes = opened.header.dataBytes;
 
     out.data.resize(static_cast<size_t>(dataBytes));
     readExact(out.data.data(), out.data.size(), "data");

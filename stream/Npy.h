@@ -34,6 +34,17 @@ struct NpyArray {
     size_t itemSize() const;
 };
 
+/// @brief The validated header of a .npy file, for reading its data in pieces (large dumps).
+struct NpyHeader {
+    std::string dtype;            ///< normalised, as in NpyArray
+    std::vector<uint64_t> shape;
+    uint64_t dataOffset = 0;      ///< bytes before the data
+    uint64_t dataBytes = 0;       ///< checked against the shape
+};
+
+/// @brief Reads and checks only the header (same checks and messages as readNpy()).
+NpyHeader readNpyHeader(const std::string& path);
+
 /// @brief Reads a whole .npy file (versions 1.0, 2.0 and 3.0).
 /// @param path file to read; also the prefix of every error message.
 /// @throw InputError naming @p path for a missing file, bad magic, unknown version, malformed

@@ -5,35 +5,190 @@
 #include "stream/Error.h"
 #include "stream/Npy.h"
 
+#include <algorithm>
 #include <bit>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <memory>
+#include <numeric>
 
 namespace penumbra {
 namespace {
 
+/// Receivers compared per step: dumps of millions of receivers are read in pieces of this many
+/// rows, so the comparison holds a few MB whatever the dump size.
+constexpr uint64_t kRowsPerStep = 1 << 16;
+
 struct Dump {
-    NpyArray receivers, samples, masks;
+    std::string dir;
+    NpyHeader receivers, masks;
+    NpyArray samples;  ///< small (sets x samples x 3): read whole
+    std::string path(const char* name) const { return (std::filesystem::path(dir) / name).string(); }
 };
 
-Dump loadDump(const std::string& dir) {
-    auto path = [&](const char* name) { return (std::filesystem::path(dir) / name).string(); };
-    Dump d{readNpy(path("receivers.npy")), readNpy(path("samples.npy")), readNpy(path("masks.npy"))};
+Dump openDump(const std::string& dir) {
+    Dump d{dir, {}, {}, {}};
+    d.receivers = readNpyHeader(d.path("receivers.npy"));
+    d.masks = readNpyHeader(d.path("masks.npy"));
+    d.samples = readNpy(d.path("samples.npy"));
     if (d.receivers.dtype != "<f4" || d.receivers.shape.size() != 2 || d.receivers.shape[1] != 7)
-        fail(path("receivers.npy"), "expected float32 N x 7");
+        fail(d.path("receivers.npy"), "expected float32 N x 7");
     if (d.samples.dtype != "<f4" || d.samples.shape.size() != 3 || d.samples.shape[2] != 3)
-        fail(path("samples.npy"), "expected float32 S x K x 3");
+        fail(d.path("samples.npy"), "expected float32 S x K x 3");
     uint64_t n = d.receivers.shape[0], k = d.samples.shape[1];
     if (d.masks.dtype != "<u8" || d.masks.shape.size() != 2 || d.masks.shape[0] != n || d.masks.shape[1] != (k + 63) / 64)
-        fail(path("masks.npy"), "expected uint64 {} x {} to match receivers.npy and samples.npy", n, (k + 63) / 64);
+        fail(d.path("masks.npy"), "expected uint64 {} x {} to match receivers.npy and samples.npy", n, (k + 63) / 64);
     return d;
 }
+
+/// Sequential reader of the rows of a 2-D .npy array, a block of rows at a time.
+class RowReader {
+public:
+    RowReader(const std::string& path, const NpyHeader& header, size_t rowBytes)
+        : path_(path), file_(std::fopen(path.c_str(), "rb")), rowBytes_(rowBytes) {
+        if (!file_ || std::fseek(file_.get(), long(header.dataOffset), SEEK_SET) != 0) fail(path, "cannot open for reading");
+    }
+    /// Reads the next @p rows rows into @p out (resized).
+    template <class T>
+    void next(uint64_t rows, std::vector<T>& out) {
+        out.resize(rows * rowBytes_ / sizeof(T));
+        if (std::fread(out.data(), 1, rows * rowBytes_, file_.get()) != rows * rowBytes_)
+            fail(path_, "file ends early (changed while being compared?)");
+    }
+
+private:
+    struct Closer {
+        void operator()(std::FILE* f) const { std::fclose(f); }
+    };
+    std::string path_;
+    std::unique_ptr<std::FILE, Closer> file_;
+    size_t rowBytes_;
+};
+
+/// The scene's blockers with a median-split bounding-volume hierarchy over their boxes, so a
+/// mismatch is classified against the triangles near its segment rather than all of them.
+///
+/// A mismatch can only be explained by a triangle that one of the two methods found on the
+/// segment (up to roundoff), so such a triangle's box always meets the segment: the tie test is
+/// applied to the triangles whose box, grown by the tie tolerance, the segment meets. (isTie()
+/// alone would also accept a far-away triangle whose infinite plane happens to pass through the
+/// receiver, e.g. any floor triangle for every floor receiver.)
+class TieClassifier {
+public:
+    TieClassifier(const SceneDesc& scene, double tolerance) : epsilon_(scene.options.epsilon), tolerance_(tolerance) {
+        TriangleSourcePtr source = openSceneGeometry(scene);
+        std::vector<Triangle> chunk(kTriangleChunk);
+        while (size_t n = source->read(chunk))
+            for (size_t i = 0; i < n; ++i)
+                if (BlockerTriangle bt = BlockerTriangle::from(chunk[i]); bt.valid) triangles_.push_back(bt);
+        if (triangles_.empty()) return;
+        std::vector<uint32_t> order(triangles_.size());
+        std::iota(order.begin(), order.end(), 0u);
+        nodes_.reserve(2 * triangles_.size() / kLeaf + 1);
+        build(order, 0, uint32_t(order.size()));
+        std::vector<BlockerTriangle> sorted;
+        sorted.reserve(order.size());
+        for (uint32_t i : order) sorted.push_back(triangles_[i]);
+        triangles_.swap(sorted);
+    }
+
+    /// True when some triangle near the segment from @p recv to @p light makes the relation a tie.
+    bool tie(const glm::dvec3& light, const glm::dvec3& recv) const {
+        if (nodes_.empty()) return false;
+        const double margin = tolerance_ * std::max({1.0, glm::length(recv), glm::length(light)}) +
+                              2.0 * receiverEpsilon(recv, epsilon_);
+        uint32_t stack[64];
+        int top = 0;
+        stack[top++] = 0;
+        while (top > 0) {
+            const Node& node = nodes_[stack[--top]];
+            if (!segmentMeetsBox(recv, light, node, margin)) continue;
+            if (node.count > 0) {
+                for (uint32_t i = node.first; i < node.first + node.count; ++i)
+                    if (isTie(light, recv, triangles_[i], epsilon_, tolerance_)) return true;
+            } else {
+                stack[top++] = node.first;      // left child
+                stack[top++] = node.first + 1;  // right child
+            }
+        }
+        return false;
+    }
+
+private:
+    static constexpr uint32_t kLeaf = 4;
+    struct Node {
+        glm::dvec3 lo, hi;
+        uint32_t first = 0;  ///< leaf: first triangle; inner: index of the left child (right follows)
+        uint32_t count = 0;  ///< triangles in a leaf; 0 for an inner node
+    };
+
+    static bool segmentMeetsBox(const glm::dvec3& a, const glm::dvec3& b, const Node& box, double margin) {
+        double t0 = 0.0, t1 = 1.0;
+        for (int axis = 0; axis < 3; ++axis) {
+            const double lo = box.lo[axis] - margin, hi = box.hi[axis] + margin, d = b[axis] - a[axis];
+            if (d == 0.0) {
+                if (a[axis] < lo || a[axis] > hi) return false;
+                continue;
+            }
+            double ta = (lo - a[axis]) / d, tb = (hi - a[axis]) / d;
+            if (ta > tb) std::swap(ta, tb);
+            t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+            if (t0 > t1) return false;
+        }
+        return true;
+    }
+
+    /// Builds the subtree over order[first, last) and returns its node index. Children of a node
+    /// are stored next to each other, so the stack depth stays at the tree depth (~log2 n).
+    uint32_t build(std::vector<uint32_t>& order, uint32_t first, uint32_t last) {
+        const uint32_t index = uint32_t(nodes_.size());
+        nodes_.push_back({});
+        buildInto(order, index, first, last);
+        return index;
+    }
+
+    void buildInto(std::vector<uint32_t>& order, uint32_t index, uint32_t first, uint32_t last) {
+        Node node;
+        node.lo = glm::dvec3(INFINITY), node.hi = glm::dvec3(-INFINITY);
+        glm::dvec3 clo(INFINITY), chi(-INFINITY);
+        for (uint32_t i = first; i < last; ++i) {
+            const BlockerTriangle& t = triangles_[order[i]];
+            for (const glm::dvec3& v : t.v) node.lo = glm::min(node.lo, v), node.hi = glm::max(node.hi, v);
+            const glm::dvec3 c = (t.v[0] + t.v[1] + t.v[2]) / 3.0;
+            clo = glm::min(clo, c), chi = glm::max(chi, c);
+        }
+        if (last - first <= kLeaf) {
+            node.first = first, node.count = last - first;
+            nodes_[index] = node;
+            return;
+        }
+        const glm::dvec3 extent = chi - clo;
+        const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
+        const uint32_t mid = first + (last - first) / 2;
+        std::nth_element(order.begin() + first, order.begin() + mid, order.begin() + last, [&](uint32_t a, uint32_t b) {
+            const BlockerTriangle &ta = triangles_[a], &tb = triangles_[b];
+            return ta.v[0][axis] + ta.v[1][axis] + ta.v[2][axis] < tb.v[0][axis] + tb.v[1][axis] + tb.v[2][axis];
+        });
+        const uint32_t left = uint32_t(nodes_.size());
+        nodes_.push_back({});
+        nodes_.push_back({});
+        node.first = left;
+        nodes_[index] = node;
+        buildInto(order, left, first, mid);
+        buildInto(order, left + 1, mid, last);
+    }
+
+    std::vector<BlockerTriangle> triangles_;
+    std::vector<Node> nodes_;
+    double epsilon_, tolerance_;
+};
 
 }  // namespace
 
 CompareResult compareDumps(const std::string& dirA, const std::string& dirB, const std::string& scenePath) {
-    Dump a = loadDump(dirA), b = loadDump(dirB);
-    if (a.receivers.shape != b.receivers.shape || a.receivers.data != b.receivers.data)
+    Dump a = openDump(dirA), b = openDump(dirB);
+    if (a.receivers.shape != b.receivers.shape)
         fail(dirB, "receivers.npy differs from {}: the dumps are not of the same receivers", dirA);
     if (a.samples.shape != b.samples.shape || a.samples.data != b.samples.data)
         fail(dirB, "samples.npy differs from {}: the dumps are not of the same light samples", dirA);
@@ -43,41 +198,40 @@ CompareResult compareDumps(const std::string& dirA, const std::string& dirB, con
     r.samples = a.samples.shape[1];
     r.relations = r.receivers * r.samples;
     const uint64_t words = (r.samples + 63) / 64;
-    auto maskA = reinterpret_cast<const uint64_t*>(a.masks.data.data());
-    auto maskB = reinterpret_cast<const uint64_t*>(b.masks.data.data());
-    auto rec = reinterpret_cast<const float*>(a.receivers.data.data());
     auto smp = reinterpret_cast<const float*>(a.samples.data.data());
 
-    std::vector<BlockerTriangle> blockers;
-    double epsilon = 0;
+    std::unique_ptr<TieClassifier> classifier;
     if (!scenePath.empty()) {
-        SceneDesc scene = loadScene(scenePath);
-        epsilon = scene.options.epsilon;
-        TriangleSourcePtr source = openSceneGeometry(scene);
-        for (const Triangle& t : readAll(*source))
-            if (BlockerTriangle bt = BlockerTriangle::from(t); bt.valid) blockers.push_back(bt);
+        classifier = std::make_unique<TieClassifier>(loadScene(scenePath), 1e-4);
         r.classified = true;
     }
 
-    for (uint64_t i = 0; i < r.receivers; ++i)
-        for (uint64_t w = 0; w < words; ++w) {
-            uint64_t x = maskA[i * words + w], y = maskB[i * words + w];
-            r.blockedA += std::popcount(x), r.blockedB += std::popcount(y);
-            r.onlyA += std::popcount(x & ~y), r.onlyB += std::popcount(y & ~x);
-            if (!r.classified) continue;
-            for (uint64_t diff = x ^ y; diff; diff &= diff - 1) {
-                uint64_t k = w * 64 + uint64_t(std::countr_zero(diff));
-                const float* p = rec + i * 7;
-                uint64_t set = uint64_t(p[6]);
-                const float* s = smp + (set * r.samples + k) * 3;
-                glm::dvec3 recv(p[0], p[1], p[2]), light(s[0], s[1], s[2]);
-                for (const BlockerTriangle& t : blockers)
-                    if (isTie(light, recv, t, epsilon, 1e-4)) {
-                        ++r.ties;
-                        break;
-                    }
+    RowReader recA(a.path("receivers.npy"), a.receivers, 7 * sizeof(float));
+    RowReader recB(b.path("receivers.npy"), b.receivers, 7 * sizeof(float));
+    RowReader maskA(a.path("masks.npy"), a.masks, words * sizeof(uint64_t));
+    RowReader maskB(b.path("masks.npy"), b.masks, words * sizeof(uint64_t));
+    std::vector<float> rec, recOther;
+    std::vector<uint64_t> ma, mb;
+    for (uint64_t first = 0; first < r.receivers; first += kRowsPerStep) {
+        const uint64_t rows = std::min(kRowsPerStep, r.receivers - first);
+        recA.next(rows, rec), recB.next(rows, recOther);
+        if (std::memcmp(rec.data(), recOther.data(), rec.size() * sizeof(float)) != 0)
+            fail(dirB, "receivers.npy differs from {}: the dumps are not of the same receivers", dirA);
+        maskA.next(rows, ma), maskB.next(rows, mb);
+        for (uint64_t i = 0; i < rows; ++i)
+            for (uint64_t w = 0; w < words; ++w) {
+                const uint64_t x = ma[i * words + w], y = mb[i * words + w];
+                r.blockedA += std::popcount(x), r.blockedB += std::popcount(y);
+                r.onlyA += std::popcount(x & ~y), r.onlyB += std::popcount(y & ~x);
+                if (!classifier) continue;
+                for (uint64_t diff = x ^ y; diff; diff &= diff - 1) {
+                    const uint64_t k = w * 64 + uint64_t(std::countr_zero(diff));
+                    const float* p = rec.data() + i * 7;
+                    const float* s = smp + (uint64_t(p[6]) * r.samples + k) * 3;
+                    r.ties += classifier->tie(glm::dvec3(s[0], s[1], s[2]), glm::dvec3(p[0], p[1], p[2]));
+                }
             }
-        }
+    }
     return r;
 }
 

@@ -4,6 +4,7 @@
 #include "Compare.h"
 #include "Generate.h"
 #include "GeneratorBench.h"
+#include "TableBench.h"
 
 #include "bake/Pipeline.h"
 #include "bake/Scene.h"
@@ -113,6 +114,8 @@ int main(int argc, char** argv) {
     CLI::App* bench = app.add_subcommand("bench", "benchmarks");
     bench->require_subcommand(1);
     CLI::App* benchGenerators = addBenchGeneratorsCommand(*bench, benchGeneratorsOptions);
+    BenchTableOptions benchTableOptions;
+    CLI::App* benchTable = addBenchTableCommand(*bench, benchTableOptions);
 
     try {
         app.parse(argc, argv);
@@ -159,6 +162,10 @@ int main(int argc, char** argv) {
             runGenerate(generateOptions);
         } else if (*benchGenerators) {
             runBenchGenerators(benchGeneratorsOptions);
+        } else if (*benchTable) {
+            std::string commandLine = "penumbra";
+            for (int i = 1; i < argc; ++i) commandLine += std::string(" ") + argv[i];
+            runBenchTable(benchTableOptions, commandLine);
         } else if (*slice) {
             writeVolumeSlicePng(sliceIn, sliceOut, sliceGrid, sliceAxis[0], sliceAt);
         } else if (*convert) {

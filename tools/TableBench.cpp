@@ -1,0 +1,751 @@
+#include "TableBench.h"
+
+#include "stream/AtomicFile.h"
+#include "stream/Error.h"
+#include "stream/Memory.h"
+#include "stream/Npy.h"
+
+#include <fmt/format.h>
+#include <tbb/info.h>
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/resource.h>
+#include <sys/utsname.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <optional>
+#include <span>
+#include <sstream>
+#include <tuple>
+
+extern char** environ;
+
+namespace penumbra {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+constexpr const char* kBeginMarker = "<!-- penumbra bench table2: begin (generated, do not edit) -->";
+constexpr const char* kEndMarker = "<!-- penumbra bench table2: end -->";
+
+/// One row of the paper's table: a resolution, a sample count and a light-size factor.
+struct RowSpec {
+    std::string name;
+    int width, height, samples;
+    double lightScale;  ///< u and v are multiplied by this (2: four times the area)
+};
+
+const std::vector<RowSpec>& rowSpecs() {
+    static const std::vector<RowSpec> rows = {
+        {"640x480@256", 640, 480, 256, 1.0},     {"1280x960@256", 1280, 960, 256, 1.0},
+        {"2560x1920@256", 2560, 1920, 256, 1.0}, {"1280x960@1024", 1280, 960, 1024, 1.0},
+        {"1280x960@256-light4x", 1280, 960, 256, 2.0},
+    };
+    return rows;
+}
+
+std::string slurpFile(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+void writeText(const std::string& path, const std::string& text) {
+    ensureParentDirectory(path);
+    writeFileAtomically(path, std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+}
+
+/// Output of a shell command's first line ("" on failure); for `git rev-parse` and the like.
+std::string commandOutput(const std::string& command) {
+    std::FILE* pipe = ::popen((command + " 2>/dev/null").c_str(), "r");
+    if (!pipe) return "";
+    char buffer[512];
+    std::string out;
+    if (std::fgets(buffer, sizeof buffer, pipe)) out = buffer;
+    ::pclose(pipe);
+    while (!out.empty() && (out.back() == '\n' || out.back() == '\r')) out.pop_back();
+    return out;
+}
+
+/// The first "KEY: value" line's value of a /proc-style file, or "".
+std::string procField(const std::string& path, const std::string& key) {
+    std::ifstream in(path);
+    for (std::string line; std::getline(in, line);)
+        if (line.rfind(key, 0) == 0) {
+            auto colon = line.find(':');
+            if (colon == std::string::npos) continue;
+            std::string v = line.substr(colon + 1);
+            v.erase(0, v.find_first_not_of(" \t"));
+            return v;
+        }
+    return "";
+}
+
+json machineInfo() {
+    std::string os;
+    std::ifstream osRelease("/etc/os-release");
+    for (std::string line; std::getline(osRelease, line);)
+        if (line.rfind("PRETTY_NAME=", 0) == 0) {
+            os = line.substr(12);
+            os.erase(std::remove(os.begin(), os.end(), '"'), os.end());
+        }
+    struct utsname u {};
+    if (::uname(&u) == 0) os += std::string(os.empty() ? "" : ", ") + u.sysname + " " + u.release;
+    uint64_t ramKiB = 0;
+    std::sscanf(procField("/proc/meminfo", "MemTotal").c_str(), "%llu", reinterpret_cast<unsigned long long*>(&ramKiB));
+    std::string commit = commandOutput("git rev-parse --short HEAD");
+    if (commit.empty()) commit = "unknown";
+    else if (!commandOutput("git status --porcelain --untracked-files=no").empty()) commit += " (uncommitted changes)";
+#if defined(__clang__)
+    const std::string compiler = std::string("clang ") + __clang_version__;
+#elif defined(__GNUC__)
+    const std::string compiler = std::string("gcc ") + __VERSION__;
+#else
+    const std::string compiler = "unknown";
+#endif
+#ifdef NDEBUG
+    const bool optimized = true;
+#else
+    const bool optimized = false;
+#endif
+    return {{"cpu", procField("/proc/cpuinfo", "model name")},
+            {"cores", tbb::info::default_concurrency()},
+            {"ram_bytes", ramKiB * 1024},
+            {"os", os},
+            {"compiler", compiler},
+            {"assertions_off", optimized},
+            {"commit", commit}};
+}
+
+/// The 1-minute load average: on a shared machine it says how many cores the bench really had.
+double loadAverage() {
+    double load = -1;
+    if (std::FILE* f = std::fopen("/proc/loadavg", "r")) {
+        if (std::fscanf(f, "%lf", &load) != 1) load = -1;
+        std::fclose(f);
+    }
+    return load;
+}
+
+std::string utcNow() {
+    std::time_t t = std::time(nullptr);
+    char buffer[32];
+    std::strftime(buffer, sizeof buffer, "%Y-%m-%d %H:%M UTC", std::gmtime(&t));
+    return buffer;
+}
+
+/// A finished child process: exit status, wall time, peak RSS and what it printed.
+struct ChildResult {
+    int exitCode = -1;
+    double wallSeconds = 0;
+    uint64_t peakRssBytes = 0;  ///< wait4() ru_maxrss: this child's own peak
+    double cpuSeconds = 0;      ///< user + system time of the child, all its threads
+    std::string out, err;
+};
+
+/// Runs this executable with @p args in a child process, stdout and stderr to files in @p dir.
+ChildResult runSelf(const std::vector<std::string>& args, const fs::path& dir) {
+    static const std::string self = fs::read_symlink("/proc/self/exe").string();
+    const std::string outPath = (dir / "child.out").string(), errPath = (dir / "child.err").string();
+    std::vector<std::string> argvText{self};
+    argvText.insert(argvText.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (std::string& a : argvText) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 1, outPath.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&actions, 2, errPath.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const auto start = std::chrono::steady_clock::now();
+    pid_t pid = 0;
+    int rc = posix_spawn(&pid, self.c_str(), &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    if (rc != 0) fail(self, "cannot start a child process: {}", std::strerror(rc));
+    int status = 0;
+    struct rusage usage {};
+    while (::wait4(pid, &status, 0, &usage) < 0)
+        if (errno != EINTR) fail(self, "wait4 failed: {}", std::strerror(errno));
+    ChildResult r;
+    r.wallSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    r.peakRssBytes = uint64_t(usage.ru_maxrss) * 1024;
+    r.cpuSeconds = double(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) + 1e-6 * double(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+    r.out = slurpFile(outPath);
+    r.err = slurpFile(errPath);
+    return r;
+}
+
+/// Last non-empty line of a child's stderr, for error records.
+std::string lastLine(const std::string& text) {
+    std::string t = text;
+    while (!t.empty() && (t.back() == '\n' || t.back() == '\r')) t.pop_back();
+    auto nl = t.rfind('\n');
+    return nl == std::string::npos ? t : t.substr(nl + 1);
+}
+
+/// A temporary directory removed with its contents when the benchmark ends (or throws).
+struct TempDir {
+    fs::path path;
+    explicit TempDir(const std::string& parent) {
+        fs::path base = parent.empty() ? fs::temp_directory_path() : fs::path(parent);
+        std::string pattern = (base / "penumbra-bench-XXXXXX").string();
+        if (!::mkdtemp(pattern.data())) fail(base.string(), "cannot create a temporary directory: {}", std::strerror(errno));
+        path = pattern;
+    }
+    ~TempDir() {
+        std::error_code ec;
+        fs::remove_all(path, ec);
+    }
+};
+
+/// Runs one bake in a child and returns its stats with the child's wall time and peak RSS added
+/// (or {"error": ...}).
+json bakeChild(const fs::path& scene, const std::string& method, int threads, const fs::path& work,
+               const std::vector<std::string>& extra = {}) {
+    const std::string stats = (work / "stats.json").string();
+    std::error_code ec;
+    fs::remove(stats, ec);
+    std::vector<std::string> args{"bake", scene.string(), "--method", method, "-q", "--stats", stats,
+                                  "--tmp", work.string()};
+    if (threads > 0) args.insert(args.end(), {"--threads", std::to_string(threads)});
+    args.insert(args.end(), extra.begin(), extra.end());
+    ChildResult child = runSelf(args, work);
+    if (child.exitCode != 0)
+        return {{"error", fmt::format("bake --method {} exited with {}: {}", method, child.exitCode, lastLine(child.err))}};
+    json s = json::parse(slurpFile(stats));
+    s["child_peak_rss_bytes"] = child.peakRssBytes;
+    s["child_wall_s"] = child.wallSeconds;
+    s["child_cpu_s"] = child.cpuSeconds;
+    return s;
+}
+
+/// Our time: the paper's total, sort + hierarchy build + penumbra cast.
+double oursSeconds(const json& s) {
+    const json& t = s["table2"];
+    return t["sort_time_s"].get<double>() + t["hierarchy_build_time_s"].get<double>() + t["penumbra_cast_time_s"].get<double>();
+}
+
+/// Embree's time: device, scene and BVH build plus tracing.
+double embreeSeconds(const json& s) { return s["embree"]["build_time_s"].get<double>() + s["embree"]["trace_time_s"].get<double>(); }
+
+json oursColumns(const json& s) {
+    const json& t = s["table2"];
+    return {{"threads", s["threads"]},
+            {"sort_s", t["sort_time_s"]},
+            {"hierarchy_build_s", t["hierarchy_build_time_s"]},
+            {"penumbra_cast_s", t["penumbra_cast_time_s"]},
+            {"time_s", oursSeconds(s)},
+            {"samples_memory_bytes", t["samples_memory_bytes"]},
+            {"hierarchy_memory_bytes", t["peak_hierarchy_memory_bytes"]},
+            {"mask_memory_bytes", t["peak_mask_memory_bytes"]},
+            {"scan_s", s["stream"]["scan_time_s"]},
+            {"bake_total_s", t["total_time_s"]},
+            {"peak_rss_bytes", s["child_peak_rss_bytes"]},
+            {"process_wall_s", s["child_wall_s"]},
+            {"process_cpu_s", s["child_cpu_s"]},
+            {"triangles", s["counters"]["triangles_read"]},
+            {"triangles_culled_at_root", s["counters"]["triangles_culled_at_root"]},
+            {"hard_shadow_tests", s["counters"]["hard_shadow_tests"]}};
+}
+
+json embreeColumns(const json& s) {
+    return {{"threads", s["threads"]},
+            {"build_s", s["embree"]["build_time_s"]},
+            {"trace_s", s["embree"]["trace_time_s"]},
+            {"time_s", embreeSeconds(s)},
+            {"rays", s["embree"]["rays"]},
+            {"scene_bytes", s["embree"]["scene_bytes"]},
+            {"scan_s", s["stream"]["scan_time_s"]},
+            {"bake_total_s", s["table2"]["total_time_s"]},
+            {"peak_rss_bytes", s["child_peak_rss_bytes"]},
+            {"process_wall_s", s["child_wall_s"]},
+            {"process_cpu_s", s["child_cpu_s"]}};
+}
+
+/// The fastest of @p repeat bakes by @p seconds (errors win only if every run failed).
+template <class Seconds>
+json bestOf(int repeat, Seconds seconds, const std::function<json()>& run) {
+    json best;
+    for (int i = 0; i < repeat; ++i) {
+        json s = run();
+        if (s.contains("error")) {
+            if (best.is_null()) best = s;
+            continue;
+        }
+        if (best.is_null() || best.contains("error") || seconds(s) < seconds(best)) best = s;
+    }
+    return best;
+}
+
+/// The scene of one row: the example with the row's resolution (times @p scale), samples and
+/// light size, writing its output into @p work.
+json rowScene(json scene, const RowSpec& row, double scale, const fs::path& work) {
+    scene["receivers"]["width"] = std::max(8, int(std::lround(row.width * scale)));
+    scene["receivers"]["height"] = std::max(6, int(std::lround(row.height * scale)));
+    for (json& light : scene["lights"]) {
+        light["samples"] = row.samples;
+        if (row.lightScale != 1.0)
+            for (const char* axis : {"u", "v"})
+                for (json& c : light[axis]) c = c.get<double>() * row.lightScale;
+    }
+    scene["output"] = (work / "out.exr").string();
+    return scene;
+}
+
+/// Parses `penumbra compare` output ("key value" lines).
+std::map<std::string, uint64_t> parseCompare(const std::string& text) {
+    std::map<std::string, uint64_t> values;
+    std::istringstream in(text);
+    std::string key;
+    unsigned long long v = 0;
+    while (in >> key >> v) values[key] = v;
+    return values;
+}
+
+/// Runs both methods with --dump and counts the relations where they differ, classifying them
+/// as ties of the blocking rule against the scene (penumbra compare --scene, in a child).
+json mismatches(const fs::path& scene, int threads, const fs::path& work) {
+    const fs::path ours = work / "dump-ours", theirs = work / "dump-embree";
+    json a = bakeChild(scene, "hpc", threads, work, {"--dump", ours.string()});
+    if (a.contains("error")) return a;
+    json b = bakeChild(scene, "embree", threads, work, {"--dump", theirs.string(), "--disable", "sort"});
+    if (b.contains("error")) return b;
+    ChildResult c = runSelf({"compare", ours.string(), theirs.string(), "--scene", scene.string()}, work);
+    std::error_code ec;
+    fs::remove_all(ours, ec), fs::remove_all(theirs, ec);
+    if (c.exitCode != 0 && c.exitCode != 3)
+        return {{"error", fmt::format("compare exited with {}: {}", c.exitCode, lastLine(c.err))}};
+    auto v = parseCompare(c.out);
+    const uint64_t differing = v["only_a"] + v["only_b"];
+    return {{"relations", v["relations"]},   {"blocked_ours", v["blocked_a"]}, {"blocked_embree", v["blocked_b"]},
+            {"only_ours", v["only_a"]},      {"only_embree", v["only_b"]},     {"mismatches", differing},
+            {"ties", v["ties"]},             {"non_ties", differing - v["ties"]},
+            {"compare_s", c.wallSeconds}};
+}
+
+fs::path sceneFile(const BenchTableOptions& o, const std::string& name) {
+    fs::path p = name.size() > 5 && name.substr(name.size() - 5) == ".json" ? fs::path(name)
+                                                                            : fs::path(o.examplesDir) / (name + ".json");
+    if (!fs::is_regular_file(p))
+        fail("--scenes", "no scene file {} (scene names are looked up in --examples, default ./examples)", p.string());
+    return p;
+}
+
+std::string sceneName(const std::string& name) { return fs::path(name).stem().string(); }
+
+/// Points on a square floor, normals up, as an N x 6 .npy (for the root-cull scene).
+void writeFloorPoints(const std::string& path, int side, float half) {
+    std::vector<float> v;
+    for (int i = 0; i < side; ++i)
+        for (int j = 0; j < side; ++j) {
+            const float x = -half + 2 * half * float(i) / float(side - 1), z = -half + 2 * half * float(j) / float(side - 1);
+            v.insert(v.end(), {x, 0.0f, z, 0.0f, 1.0f, 0.0f});
+        }
+    const uint64_t shape[2] = {uint64_t(side) * side, 6};
+    writeNpy(path, "<f4", shape, v.data(), v.size() * sizeof(float));
+}
+
+/// Root-cull throughput on one core. Receivers are points on the floor [-4, 4]^2 (y = 0), the
+/// light a 2 x 2 square at height 5, so the reach box is [-4, 4] x [0, 5] x [-4, 4]. Grass
+/// blades are added (a) far outside the reach box, where the reach test drops them before a
+/// penumbra volume is built, and (b) inside the reach box, in a top corner beside the light:
+/// their penumbra volumes lead away from the floor, so the root's V_L test culls them. The rate
+/// is the added triangles over the added penumbra-cast time against a bake without them.
+json cullThroughput(const BenchTableOptions& o, const fs::path& work) {
+    writeFloorPoints((work / "floor.npy").string(), 100, 4.0f);
+    const uint64_t blades = std::max<uint64_t>(1, o.cullTriangles / 5);  // grass: 5 triangles a blade
+    auto scene = [&](const json& grass) {
+        return json{{"geometry", {grass}},
+                    {"lights", {{{"type", "rect"}, {"center", {0, 5, 0}}, {"u", {2, 0, 0}}, {"v", {0, 0, 2}}, {"samples", 256}}}},
+                    {"receivers", {{"type", "points"}, {"path", (work / "floor.npy").string()}}},
+                    {"output", (work / "cull-out.npy").string()}};
+    };
+    const json grassBase = {{"type", "grass"}, {"height", {0.15, 0.3}}, {"bend", {0.0, 0.1}}, {"seed", 7}};
+    json base = grassBase, far = grassBase, beside = grassBase;
+    base["count"] = 1, base["area"] = {{-0.1, -0.1}, {0.1, 0.1}}, base["transform"] = {{"translate", {500, 0, 500}}};
+    far["count"] = blades, far["area"] = {{40, 40}, {140, 140}};
+    beside["count"] = blades, beside["area"] = {{3.0, 3.0}, {3.9, 3.9}}, beside["transform"] = {{"translate", {0, 4.55, 0}}};
+
+    json out = {{"triangles_requested", o.cullTriangles}, {"threads", 1}, {"cases", json::array()}};
+    auto run = [&](const std::string& name, const json& grass) {
+        const fs::path file = work / ("cull-" + name + ".json");
+        writeText(file.string(), scene(grass).dump(2));
+        return bestOf(o.repeat, [](const json& s) { return s["table2"]["penumbra_cast_time_s"].get<double>(); },
+                      [&] { return bakeChild(file, "hpc", 1, work); });
+    };
+    json b = run("base", base);
+    if (b.contains("error")) return {{"error", b["error"]}};
+    const std::vector<std::tuple<std::string, std::string, json>> cases = {{"outside reach", "far", far},
+                                                                           {"beside the light", "beside", beside}};
+    for (const auto& [name, file, grass] : cases) {
+        json s = run(file, grass);
+        if (s.contains("error")) {
+            out["cases"].push_back({{"case", name}, {"error", s["error"]}});
+            continue;
+        }
+        const double added = s["counters"]["triangles_read"].get<double>() - b["counters"]["triangles_read"].get<double>();
+        const double culled = s["counters"]["triangles_culled_at_root"].get<double>() -
+                              b["counters"]["triangles_culled_at_root"].get<double>();
+        const double seconds = s["table2"]["penumbra_cast_time_s"].get<double>() - b["table2"]["penumbra_cast_time_s"].get<double>();
+        out["cases"].push_back({{"case", name},
+                                {"triangles", added},
+                                {"culled_at_root", culled},
+                                {"cast_s", seconds},
+                                {"triangles_per_second_per_core", seconds > 0 ? culled / seconds : 0.0},
+                                {"sort_pass_triangles_per_second", added / std::max(1e-9, s["table2"]["sort_time_s"].get<double>())},
+                                {"peak_rss_bytes", s["child_peak_rss_bytes"]}});
+    }
+    return out;
+}
+
+std::string mib(const json& bytes) { return fmt::format("{:.1f}", bytes.get<double>() / (1024.0 * 1024.0)); }
+std::string secs(const json& v) { return fmt::format("{:.2f}", v.get<double>()); }
+
+/// Finds the row of @p scene named @p row with no error, or nullptr.
+const json* findRow(const json& result, const std::string& scene, const std::string& row) {
+    for (const json& r : result["rows"])
+        if (r["scene"] == scene && r["row"] == row && !r.contains("error")) return &r;
+    return nullptr;
+}
+
+std::string verdict(bool met) { return met ? "met" : "**not met**"; }
+
+std::string targetsMarkdown(const json& result) {
+    std::string md = "| target | measured | verdict |\n|---|---|---|\n";
+    std::vector<std::string> scenes;
+    for (const json& r : result["rows"])
+        if (std::find(scenes.begin(), scenes.end(), r["scene"].get<std::string>()) == scenes.end())
+            scenes.push_back(r["scene"]);
+    // Faster than Embree at 1280x960 and above; 3x on grids and sponza-like.
+    for (const std::string& scene : scenes) {
+        double worst = INFINITY;
+        for (const json& r : result["rows"])
+            if (r["scene"] == scene && r.contains("ratio") && r["nominal_width"].get<int>() >= 1280)
+                worst = std::min(worst, r["ratio"].get<double>());
+        if (!std::isfinite(worst)) continue;
+        const bool aim3 = scene == "grids" || scene == "sponza-like";
+        md += fmt::format("| {}: Embree/ours ≥ 1{} at 1280×960 and above | lowest ratio {:.2f} | {} |\n", scene,
+                          aim3 ? " (aim ≥ 3)" : "", worst, worst >= 1.0 ? (aim3 && worst < 3.0 ? "met (aim of 3 not met)" : "met") : "**not met**");
+    }
+    for (const std::string& scene : scenes) {
+        auto ratio = [&](const char* a, const char* b) -> std::optional<double> {
+            const json *ra = findRow(result, scene, a), *rb = findRow(result, scene, b);
+            if (!ra || !rb) return std::nullopt;
+            return (*rb)["ours"]["time_s"].get<double>() / (*ra)["ours"]["time_s"].get<double>();
+        };
+        using Step = std::tuple<const char*, const char*, const char*>;
+        for (auto [a, b, what] : std::vector<Step>{{"640x480@256", "1280x960@256", "4× receivers (640×480 → 1280×960)"},
+                                                   {"1280x960@256", "2560x1920@256", "4× receivers (1280×960 → 2560×1920)"},
+                                                   {"1280x960@256", "1280x960@1024", "4× samples (256 → 1024)"}})
+            if (auto r = ratio(a, b)) md += fmt::format("| {}: {} costs ≤ 2.5× | {:.2f}× | {} |\n", scene, what, *r, verdict(*r <= 2.5));
+    }
+    uint64_t nonTies = 0, total = 0;
+    bool compared = false;
+    for (const json& r : result["rows"])
+        if (r.contains("mismatches") && !r["mismatches"].contains("error")) {
+            compared = true;
+            nonTies += r["mismatches"]["non_ties"].get<uint64_t>();
+            total += r["mismatches"]["mismatches"].get<uint64_t>();
+        }
+    if (compared)
+        md += fmt::format("| zero mismatches against Embree apart from ties | {} mismatches, {} not ties | {} |\n", total,
+                          nonTies, verdict(nonTies == 0));
+    if (result.contains("thread_scaling"))
+        for (const json& s : result["thread_scaling"])
+            if (s.contains("speedup"))
+                md += fmt::format("| {} {}: {} threads ≥ 1.8× of 1 | {:.2f}× | {} |\n", s["scene"].get<std::string>(),
+                                  s["row"].get<std::string>(), s["threads"].back().get<int>(), s["speedup"].get<double>(),
+                                  verdict(s["speedup"].get<double>() >= 1.8));
+    if (result.contains("root_cull") && result["root_cull"].contains("cases"))
+        for (const json& c : result["root_cull"]["cases"])
+            if (c.contains("triangles_per_second_per_core"))
+                md += fmt::format("| root cull ({}) ≥ 20M triangles/s/core | {:.1f}M | {} |\n", c["case"].get<std::string>(),
+                                  c["triangles_per_second_per_core"].get<double>() / 1e6,
+                                  verdict(c["triangles_per_second_per_core"].get<double>() >= 20e6));
+    return md;
+}
+
+}  // namespace
+
+std::vector<std::string> tableRowNames() {
+    std::vector<std::string> names;
+    for (const RowSpec& r : rowSpecs()) names.push_back(r.name);
+    return names;
+}
+
+std::string replaceTable2Section(const std::string& document, const std::string& generated) {
+    const std::string block = std::string(kBeginMarker) + "\n\n" + generated + "\n" + kEndMarker + "\n";
+    const size_t begin = document.find(kBeginMarker), end = document.find(kEndMarker);
+    if (begin != std::string::npos && end != std::string::npos && end > begin) {
+        size_t after = end + std::string(kEndMarker).size();
+        if (after < document.size() && document[after] == '\n') ++after;
+        return document.substr(0, begin) + block + document.substr(after);
+    }
+    std::string doc = document;
+    if (!doc.empty() && doc.back() != '\n') doc += '\n';
+    return doc + "\n## Table 2: penumbra casting against Embree\n\n" +
+           "Generated by `penumbra bench table2`; see the README for the command.\n\n" + block;
+}
+
+std::string table2Markdown(const json& result) {
+    const json& m = result["machine"];
+    std::string md;
+    const double scale = result["scale"];
+    if (scale != 1.0)
+        md += fmt::format("**Reduced-scale validation run (`--scale {}`): every resolution is {:.0f}% of the paper's in each "
+                          "direction; these numbers check the tool, they are not the benchmark.**\n\n",
+                          scale, 100 * scale);
+    md += fmt::format("Run {} with `{}`.\n\n", result["date"].get<std::string>(), result["command"].get<std::string>());
+    md += fmt::format("Machine: {}, {} cores, {:.1f} GiB RAM, {}; {}; commit {}.\n\n", m["cpu"].get<std::string>(),
+                      m["cores"].get<int>(), m["ram_bytes"].get<double>() / double(1ull << 30), m["os"].get<std::string>(),
+                      m["compiler"].get<std::string>(), m["commit"].get<std::string>());
+    md += fmt::format("Best of {} run(s) per row and method; ours on {} thread(s), Embree on {} thread(s).",
+                      result["repeat"].get<int>(), result["threads_table"].get<int>(), result["threads_table"].get<int>());
+    if (result.contains("load_average_end"))
+        md += fmt::format(" Load average (1 min) {:.1f} at the start and {:.1f} at the end, over {:.0f} s: a load near or "
+                          "above the core count means other work shared the cores, which shows first in thread scaling.",
+                          result["load_average_start"].get<double>(), result["load_average_end"].get<double>(),
+                          result["elapsed_s"].get<double>());
+    md += "\n\n";
+    if (result.contains("bench_process_peak_rss_bytes"))
+        md += fmt::format("Peak RSS is each bake's own (a child process each, wait4() ru_maxrss). Linux counts the spawning "
+                          "process's resident set in a child's ru_maxrss, so no figure can read below the benchmark "
+                          "process's own peak, {} MiB.\n\n",
+                          mib(result["bench_process_peak_rss_bytes"]));
+    md += "| scene | resolution | samples | light | sort s | hierarchy build s | penumbra cast s | ours s | samples MiB | "
+          "hierarchy MiB | masks MiB | ours peak RSS MiB | Embree s (build + trace) | Embree peak RSS MiB | Embree/ours | "
+          "mismatches (ties) |\n";
+    md += "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+    for (const json& r : result["rows"]) {
+        md += fmt::format("| {} | {}×{} | {} | {} |", r["scene"].get<std::string>(), r["width"].get<int>(), r["height"].get<int>(),
+                          r["samples"].get<int>(), r["light_scale"].get<double>() == 1.0 ? "1×" : "4× area");
+        if (r.contains("error")) {
+            md += " error: " + r["error"].get<std::string>() + " ||||||||||||\n";
+            continue;
+        }
+        const json& o = r["ours"];
+        md += fmt::format(" {} | {} | {} | {} | {} | {} | {} | {} |", secs(o["sort_s"]), secs(o["hierarchy_build_s"]),
+                          secs(o["penumbra_cast_s"]), secs(o["time_s"]), mib(o["samples_memory_bytes"]),
+                          mib(o["hierarchy_memory_bytes"]), mib(o["mask_memory_bytes"]), mib(o["peak_rss_bytes"]));
+        if (r.contains("embree") && !r["embree"].contains("error"))
+            md += fmt::format(" {} ({} + {}) | {} | {:.2f} |", secs(r["embree"]["time_s"]), secs(r["embree"]["build_s"]),
+                              secs(r["embree"]["trace_s"]), mib(r["embree"]["peak_rss_bytes"]), r["ratio"].get<double>());
+        else
+            md += r.contains("embree") ? " error | | |" : " – | – | – |";
+        if (r.contains("mismatches") && !r["mismatches"].contains("error"))
+            md += fmt::format(" {} ({}) |\n", r["mismatches"]["mismatches"].get<uint64_t>(), r["mismatches"]["ties"].get<uint64_t>());
+        else
+            md += r.contains("mismatches") ? " error |\n" : " – |\n";
+    }
+    if (result.contains("thread_scaling") && !result["thread_scaling"].empty()) {
+        md += "\n### Thread scaling (ours: sort + hierarchy build + penumbra cast)\n\n| scene | row |";
+        std::string rule = "|---|---|";
+        for (const json& t : result["thread_scaling"][0]["threads"]) md += fmt::format(" {} thr s |", t.get<int>()), rule += "---:|";
+        md += " speed-up | cast-only speed-up |\n" + rule + "---:|---:|\n";
+        for (const json& s : result["thread_scaling"]) {
+            md += fmt::format("| {} | {} |", s["scene"].get<std::string>(), s["row"].get<std::string>());
+            for (const json& t : s["seconds"]) md += " " + (t.is_null() ? std::string("error") : secs(t)) + " |";
+            md += s.contains("speedup") ? fmt::format(" {:.2f}× | {:.2f}× |\n", s["speedup"].get<double>(), s["cast_speedup"].get<double>())
+                                        : " – | – |\n";
+        }
+    }
+    if (result.contains("root_cull")) {
+        const json& c = result["root_cull"];
+        md += "\n### Root-cull throughput (1 thread)\n\n";
+        if (c.contains("error")) {
+            md += "error: " + c["error"].get<std::string>() + "\n";
+        } else {
+            md += "| case | triangles | culled at root | penumbra cast s | M triangles/s/core | stream + bucket pass M triangles/s |\n"
+                  "|---|---:|---:|---:|---:|---:|\n";
+            for (const json& k : c["cases"]) {
+                if (k.contains("error")) {
+                    md += "| " + k["case"].get<std::string>() + " | error: " + k["error"].get<std::string>() + " ||||\n";
+                    continue;
+                }
+                md += fmt::format("| {} | {:.0f} | {:.0f} | {:.3f} | {:.1f} | {:.1f} |\n", k["case"].get<std::string>(),
+                                  k["triangles"].get<double>(), k["culled_at_root"].get<double>(), k["cast_s"].get<double>(),
+                                  k["triangles_per_second_per_core"].get<double>() / 1e6,
+                                  k["sort_pass_triangles_per_second"].get<double>() / 1e6);
+            }
+        }
+    }
+    md += "\n### Targets\n\n" + targetsMarkdown(result);
+    return md;
+}
+
+CLI::App* addBenchTableCommand(CLI::App& bench, BenchTableOptions& o) {
+    CLI::App* cmd = bench.add_subcommand("table2", "the paper's Table 2: ours against Embree on the procedural scenes");
+    cmd->add_option("--scenes", o.scenes, "scene names in --examples or .json paths (default grids,flowers,sponza-like)")
+        ->delimiter(',');
+    cmd->add_option("--rows", o.rows, "rows to run (default all): " + fmt::format("{}", fmt::join(tableRowNames(), ",")))
+        ->delimiter(',');
+    cmd->add_option("--scale", o.scale, "resolution factor for a quick run, e.g. 0.25 (default 1: the paper's sizes)");
+    cmd->add_option("--threads", o.threads, "thread count, or a list such as 1,2 to measure scaling (default: all cores)")
+        ->delimiter(',');
+    cmd->add_option("--json", o.jsonPath, "write the full result as JSON (rewritten after every row)");
+    cmd->add_option("--markdown", o.markdownPath, "regenerate the Table 2 section of this BENCHMARKS.md");
+    cmd->add_option("--examples", o.examplesDir, "directory of the scene files (default ./examples)");
+    cmd->add_option("--tmp", o.tmpDir, "directory for scenes, dumps and bucket files (default: the system temp dir)");
+    cmd->add_option("--repeat", o.repeat, "timed runs per row and method; the fastest is reported (default 1)");
+    cmd->add_flag("--no-embree", o.noEmbree, "measure ours only");
+    cmd->add_flag("--no-compare", o.noCompare, "skip the --dump runs that count mismatches against Embree");
+    cmd->add_flag("--no-cull", o.noCull, "skip the root-cull throughput measurement");
+    cmd->add_option("--cull-triangles", o.cullTriangles, "triangles per root-cull case (default 20M)");
+    cmd->add_flag("-q,--quiet", o.quiet, "no progress lines on stderr");
+    return cmd;
+}
+
+void runBenchTable(const BenchTableOptions& o, const std::string& commandLine) {
+    if (!(o.scale > 0.0 && o.scale <= 4.0)) throw InputError(fmt::format("--scale: must be in (0, 4], got {}", o.scale));
+    if (o.repeat < 1 || o.repeat > 100) throw InputError(fmt::format("--repeat: must be in 1..100, got {}", o.repeat));
+    for (int t : o.threads)
+        if (t < 1 || t > 1024) throw InputError(fmt::format("--threads: each count must be in 1..1024, got {}", t));
+    if (o.cullTriangles == 0) throw InputError("--cull-triangles: must be positive");
+    std::vector<RowSpec> rows;
+    for (const RowSpec& r : rowSpecs())
+        if (o.rows.empty() || std::find(o.rows.begin(), o.rows.end(), r.name) != o.rows.end()) rows.push_back(r);
+    const std::vector<std::string> known = tableRowNames();
+    for (const std::string& name : o.rows)
+        if (std::find(known.begin(), known.end(), name) == known.end())
+            throw InputError(fmt::format("--rows: unknown row \"{}\" (known: {})", name, fmt::join(known, ", ")));
+    std::vector<std::pair<std::string, json>> scenes;
+    for (const std::string& name : o.scenes) {
+        const fs::path file = sceneFile(o, name);
+        json scene;
+        try {
+            scene = json::parse(slurpFile(file.string()));
+        } catch (const json::exception& e) {
+            fail(file.string(), "not valid JSON: {}", e.what());
+        }
+        scenes.emplace_back(sceneName(name), std::move(scene));
+    }
+    std::string markdownBase;
+    if (!o.markdownPath.empty() && fs::exists(o.markdownPath)) markdownBase = slurpFile(o.markdownPath);
+
+    const std::vector<int> threadList = o.threads.empty() ? std::vector<int>{0} : o.threads;
+    const int tableThreads = threadList.back() > 0 ? threadList.back() : int(tbb::info::default_concurrency());
+    TempDir tmp(o.tmpDir);
+    json result = {{"command", commandLine},
+                   {"date", utcNow()},
+                   {"machine", machineInfo()},
+                   {"scale", o.scale},
+                   {"repeat", o.repeat},
+                   {"threads_table", tableThreads},
+                   {"threads", threadList},
+                   {"load_average_start", loadAverage()},
+                   {"rows", json::array()}};
+    auto save = [&] {
+        if (!o.jsonPath.empty()) writeText(o.jsonPath, result.dump(2) + "\n");
+    };
+    auto progress = [&](const std::string& line) {
+        if (!o.quiet) fmt::print(stderr, "[table2] {}\n", line);
+    };
+    const auto benchStart = std::chrono::steady_clock::now();
+    auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - benchStart).count(); };
+
+    for (const auto& [name, base] : scenes)
+        for (const RowSpec& spec : rows) {
+            const fs::path work = tmp.path / (name + "-" + spec.name);
+            fs::create_directories(work);
+            const json scene = rowScene(base, spec, o.scale, work);
+            const fs::path file = work / "scene.json";
+            writeText(file.string(), scene.dump(2));
+            json row = {{"scene", name},
+                        {"row", spec.name},
+                        {"width", scene["receivers"]["width"]},
+                        {"height", scene["receivers"]["height"]},
+                        {"nominal_width", spec.width},
+                        {"samples", spec.samples},
+                        {"light_scale", spec.lightScale * spec.lightScale}};
+            progress(fmt::format("{} {} ({}×{}): running", name, spec.name, row["width"].get<int>(), row["height"].get<int>()));
+            // Ours at every thread count, fastest of `repeat`; the last count is the table's.
+            json ours;
+            json scaling = {{"scene", name}, {"row", spec.name}, {"threads", json::array()}, {"seconds", json::array()},
+                            {"cast_seconds", json::array()}};
+            for (int threads : threadList) {
+                ours = bestOf(o.repeat, oursSeconds, [&] { return bakeChild(file, "hpc", threads, work); });
+                scaling["threads"].push_back(threads > 0 ? threads : int(tbb::info::default_concurrency()));
+                scaling["seconds"].push_back(ours.contains("error") ? json() : json(oursSeconds(ours)));
+                scaling["cast_seconds"].push_back(ours.contains("error") ? json() : ours["table2"]["penumbra_cast_time_s"]);
+            }
+            if (ours.contains("error")) {
+                row["error"] = ours["error"];
+                result["rows"].push_back(row);
+                save();
+                progress(fmt::format("{} {}: {}", name, spec.name, row["error"].get<std::string>()));
+                continue;
+            }
+            row["receivers"] = ours["receivers"];
+            row["light_samples"] = ours["light_samples"];
+            row["ours"] = oursColumns(ours);
+            if (threadList.size() > 1) {
+                const json& s = scaling["seconds"];
+                const json& c = scaling["cast_seconds"];
+                if (!s.front().is_null() && !s.back().is_null()) {
+                    scaling["speedup"] = s.front().get<double>() / s.back().get<double>();
+                    scaling["cast_speedup"] = c.front().get<double>() / c.back().get<double>();
+                }
+                result["thread_scaling"].push_back(scaling);
+            }
+            std::string line = fmt::format("{} {}: ours {:.2f} s, peak {} MiB", name, spec.name, oursSeconds(ours),
+                                           mib(row["ours"]["peak_rss_bytes"]));
+            if (!o.noEmbree) {
+                // Embree does not need our sorted buckets: it reads the stream directly.
+                json e = bestOf(o.repeat, embreeSeconds,
+                                [&] { return bakeChild(file, "embree", tableThreads, work, {"--disable", "sort"}); });
+                if (e.contains("error")) {
+                    row["embree"] = {{"error", e["error"]}};
+                } else {
+                    row["embree"] = embreeColumns(e);
+                    row["ratio"] = embreeSeconds(e) / oursSeconds(ours);
+                    line += fmt::format("; Embree {:.2f} s, peak {} MiB; Embree/ours {:.2f}", embreeSeconds(e),
+                                        mib(row["embree"]["peak_rss_bytes"]), row["ratio"].get<double>());
+                }
+                if (!o.noCompare) {
+                    row["mismatches"] = mismatches(file, tableThreads, work);
+                    if (!row["mismatches"].contains("error"))
+                        line += fmt::format("; mismatches {} ({} ties)", row["mismatches"]["mismatches"].get<uint64_t>(),
+                                            row["mismatches"]["ties"].get<uint64_t>());
+                }
+            }
+            std::error_code ec;
+            fs::remove_all(work, ec);
+            result["rows"].push_back(row);
+            result["elapsed_s"] = elapsed();
+            save();
+            progress(line + fmt::format(" [{:.0f} s elapsed]", elapsed()));
+        }
+
+    if (!o.noCull) {
+        progress(fmt::format("root cull: {} triangles per case", o.cullTriangles));
+        const fs::path work = tmp.path / "cull";
+        fs::create_directories(work);
+        result["root_cull"] = cullThroughput(o, work);
+        for (const json& c : result["root_cull"].value("cases", json::array()))
+            if (c.contains("triangles_per_second_per_core"))
+                progress(fmt::format("root cull, {}: {:.1f}M triangles/s/core", c["case"].get<std::string>(),
+                                     c["triangles_per_second_per_core"].get<double>() / 1e6));
+    }
+    result["elapsed_s"] = elapsed();
+    result["load_average_end"] = loadAverage();
+    result["bench_process_peak_rss_bytes"] = peakRssBytes();
+    save();
+    const std::string md = table2Markdown(result);
+    if (!o.markdownPath.empty()) writeText(o.markdownPath, replaceTable2Section(markdownBase, md));
+    fmt::print("{}", md);
+}
+
+}  // namespace penumbra
