@@ -231,17 +231,19 @@ struct PenumbraCaster::Tile {
         for (size_t i = groupsBegin; i < groupsEnd; ++i) {  // lines 65-73
             const ActiveGroup g = stack[i];
             if (umbra() && h.groupUmbraBit(bits, g.group)) continue;
-            const PenumbraVolume& v = groupVolumes[g.group];
-            if (!contains(v, p, g.planes & v.all())) continue;
             const LightSampleGroup& group = samples.groups[g.group];
             const uint64_t before = mask ? mask[g.group] : 0;
             uint64_t word = before;
             uint64_t open = ~word & group.fullMask();
-            if (!lookedUp && open) {
+            if (!open) continue;
+            if (!lookedUp) {
                 lookedUp = true;
                 lookup = (*tables)[currentLight].lookup(tableBlocker, set, p, dist, eps, rows);
                 if (lookup == SampleMaskTable::Lookup::NoneBlocked) return;  // no bit has changed yet
             }
+            // With table rows, V_Gk's point test would only repeat what the rows decide.
+            const PenumbraVolume& v = groupVolumes[g.group];
+            if (lookup != SampleMaskTable::Lookup::Rows && !contains(v, p, g.planes & v.all())) continue;
             if (lookup == SampleMaskTable::Lookup::Rows) {  // sure bits are blocked; bits outside maybe are not
                 const uint32_t k = g.group - (*tables)[currentLight].firstGroup();
                 const uint64_t sure = rows.sureWord(k) & open, undecided = rows.maybeWord(k) & open & ~sure;
