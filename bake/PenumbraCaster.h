@@ -39,7 +39,8 @@ public:
     void cast(std::span<const Triangle> blockers);
     /// @brief Casts the chunk still pending from the last cast().
     void flush();
-    /// @brief Flushes, then reports every receiver's result to @p visit, tile by tile.
+    /// @brief Flushes, then reports every receiver's result to @p visit exactly once. Visits run
+    /// in parallel, so @p visit must be safe to call concurrently for different receivers.
     void finish(const MaskVisitor& visit);
 
     /// @brief Counters and timers; call after finish() or flush() to include the last chunk.

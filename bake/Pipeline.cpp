@@ -184,8 +184,10 @@ CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettin
     std::vector<Triangle> chunk(kTriangleChunk);
     for (size_t t = 0; t < tiles.size(); ++t) {
         const auto& tile = tiles[t];
-        // Within a memory tile, threads work on disjoint sub-tiles (2 per thread balances load).
-        PenumbraCaster caster(p.samples, p.receivers, p.sampleSets, scene.options, threads > 1 ? 2 * threads : 1, tile);
+        // Within a memory tile, threads work on disjoint sub-tiles. Four per thread: chunk by chunk,
+        // uneven tiles leave threads idle at the barrier; measured on GRIDS, 2 per thread cast in
+        // 4.28 s, 4 in 3.86 s, 8 in 3.92 s (2 threads; 6.76 s on one).
+        PenumbraCaster caster(p.samples, p.receivers, p.sampleSets, scene.options, threads > 1 ? 4 * threads : 1, tile);
         if (t > 0 || rewindFirst) p.blockers->rewind();
         while (size_t n = p.blockers->read(chunk)) {
             std::span<const Triangle> part(chunk.data(), n);
