@@ -1,4 +1,5 @@
 #include "TableBench.h"
+#include "TableBenchReport.h"
 
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
@@ -36,9 +37,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-constexpr const char* kBeginMarker = "<!-- penumbra bench table2: begin (generated, do not edit) -->";
-constexpr const char* kEndMarker = "<!-- penumbra bench table2: end -->";
 
 /// One row of the paper's table: a resolution, a sample count and a light-size factor.
 struct RowSpec {
@@ -411,179 +409,12 @@ json cullThroughput(const BenchTableOptions& o, const fs::path& work) {
     return out;
 }
 
-std::string mib(const json& bytes) { return fmt::format("{:.1f}", bytes.get<double>() / (1024.0 * 1024.0)); }
-std::string secs(const json& v) { return fmt::format("{:.2f}", v.get<double>()); }
-
-/// Finds the row of @p scene named @p row with no error, or nullptr.
-const json* findRow(const json& result, const std::string& scene, const std::string& row) {
-    for (const json& r : result["rows"])
-        if (r["scene"] == scene && r["row"] == row && !r.contains("error")) return &r;
-    return nullptr;
-}
-
-std::string verdict(bool met) { return met ? "met" : "**not met**"; }
-
-std::string targetsMarkdown(const json& result) {
-    std::string md = "| target | measured | verdict |\n|---|---|---|\n";
-    std::vector<std::string> scenes;
-    for (const json& r : result["rows"])
-        if (std::find(scenes.begin(), scenes.end(), r["scene"].get<std::string>()) == scenes.end())
-            scenes.push_back(r["scene"]);
-    // Faster than Embree at 1280x960 and above; 3x on grids and sponza-like.
-    for (const std::string& scene : scenes) {
-        double worst = INFINITY;
-        for (const json& r : result["rows"])
-            if (r["scene"] == scene && r.contains("ratio") && r["nominal_width"].get<int>() >= 1280)
-                worst = std::min(worst, r["ratio"].get<double>());
-        if (!std::isfinite(worst)) continue;
-        const bool aim3 = scene == "grids" || scene == "sponza-like";
-        md += fmt::format("| {}: Embree/ours ≥ 1{} at 1280×960 and above | lowest ratio {:.2f} | {} |\n", scene,
-                          aim3 ? " (aim ≥ 3)" : "", worst, worst >= 1.0 ? (aim3 && worst < 3.0 ? "met (aim of 3 not met)" : "met") : "**not met**");
-    }
-    for (const std::string& scene : scenes) {
-        auto ratio = [&](const char* a, const char* b) -> std::optional<double> {
-            const json *ra = findRow(result, scene, a), *rb = findRow(result, scene, b);
-            if (!ra || !rb) return std::nullopt;
-            return (*rb)["ours"]["time_s"].get<double>() / (*ra)["ours"]["time_s"].get<double>();
-        };
-        using Step = std::tuple<const char*, const char*, const char*>;
-        for (auto [a, b, what] : std::vector<Step>{{"640x480@256", "1280x960@256", "4× receivers (640×480 → 1280×960)"},
-                                                   {"1280x960@256", "2560x1920@256", "4× receivers (1280×960 → 2560×1920)"},
-                                                   {"1280x960@256", "1280x960@1024", "4× samples (256 → 1024)"}})
-            if (auto r = ratio(a, b)) md += fmt::format("| {}: {} costs ≤ 2.5× | {:.2f}× | {} |\n", scene, what, *r, verdict(*r <= 2.5));
-    }
-    uint64_t nonTies = 0, total = 0;
-    bool compared = false;
-    for (const json& r : result["rows"])
-        if (r.contains("mismatches") && !r["mismatches"].contains("error")) {
-            compared = true;
-            nonTies += r["mismatches"]["non_ties"].get<uint64_t>();
-            total += r["mismatches"]["mismatches"].get<uint64_t>();
-        }
-    if (compared)
-        md += fmt::format("| zero mismatches against Embree apart from ties | {} mismatches, {} not ties | {} |\n", total,
-                          nonTies, verdict(nonTies == 0));
-    if (result.contains("thread_scaling"))
-        for (const json& s : result["thread_scaling"])
-            if (s.contains("speedup"))
-                md += fmt::format("| {} {}: {} threads ≥ 1.8× of 1 | {:.2f}× | {} |\n", s["scene"].get<std::string>(),
-                                  s["row"].get<std::string>(), s["threads"].back().get<int>(), s["speedup"].get<double>(),
-                                  verdict(s["speedup"].get<double>() >= 1.8));
-    if (result.contains("root_cull") && result["root_cull"].contains("cases"))
-        for (const json& c : result["root_cull"]["cases"])
-            if (c.contains("triangles_per_second_per_core"))
-                md += fmt::format("| root cull ({}) ≥ 20M triangles/s/core | {:.1f}M | {} |\n", c["case"].get<std::string>(),
-                                  c["triangles_per_second_per_core"].get<double>() / 1e6,
-                                  verdict(c["triangles_per_second_per_core"].get<double>() >= 20e6));
-    return md;
-}
-
 }  // namespace
 
 std::vector<std::string> tableRowNames() {
     std::vector<std::string> names;
     for (const RowSpec& r : rowSpecs()) names.push_back(r.name);
     return names;
-}
-
-std::string replaceTable2Section(const std::string& document, const std::string& generated) {
-    const std::string block = std::string(kBeginMarker) + "\n\n" + generated + "\n" + kEndMarker + "\n";
-    const size_t begin = document.find(kBeginMarker), end = document.find(kEndMarker);
-    if (begin != std::string::npos && end != std::string::npos && end > begin) {
-        size_t after = end + std::string(kEndMarker).size();
-        if (after < document.size() && document[after] == '\n') ++after;
-        return document.substr(0, begin) + block + document.substr(after);
-    }
-    std::string doc = document;
-    if (!doc.empty() && doc.back() != '\n') doc += '\n';
-    return doc + "\n## Table 2: penumbra casting against Embree\n\n" +
-           "Generated by `penumbra bench table2`; see the README for the command.\n\n" + block;
-}
-
-std::string table2Markdown(const json& result) {
-    const json& m = result["machine"];
-    std::string md;
-    const double scale = result["scale"];
-    if (scale != 1.0)
-        md += fmt::format("**Reduced-scale validation run (`--scale {}`): every resolution is {:.0f}% of the paper's in each "
-                          "direction; these numbers check the tool, they are not the benchmark.**\n\n",
-                          scale, 100 * scale);
-    md += fmt::format("Run {} with `{}`.\n\n", result["date"].get<std::string>(), result["command"].get<std::string>());
-    md += fmt::format("Machine: {}, {} cores, {:.1f} GiB RAM, {}; {}; commit {}.\n\n", m["cpu"].get<std::string>(),
-                      m["cores"].get<int>(), m["ram_bytes"].get<double>() / double(1ull << 30), m["os"].get<std::string>(),
-                      m["compiler"].get<std::string>(), m["commit"].get<std::string>());
-    md += fmt::format("Best of {} run(s) per row and method; ours on {} thread(s), Embree on {} thread(s).",
-                      result["repeat"].get<int>(), result["threads_table"].get<int>(), result["threads_table"].get<int>());
-    if (result.contains("load_average_end"))
-        md += fmt::format(" Load average (1 min) {:.1f} at the start and {:.1f} at the end, over {:.0f} s: a load near or "
-                          "above the core count means other work shared the cores, which shows first in thread scaling.",
-                          result["load_average_start"].get<double>(), result["load_average_end"].get<double>(),
-                          result["elapsed_s"].get<double>());
-    md += "\n\n";
-    if (result.contains("bench_process_peak_rss_bytes"))
-        md += fmt::format("Peak RSS is each bake's own (a child process each, wait4() ru_maxrss). Linux counts the spawning "
-                          "process's resident set in a child's ru_maxrss, so no figure can read below the benchmark "
-                          "process's own peak, {} MiB.\n\n",
-                          mib(result["bench_process_peak_rss_bytes"]));
-    md += "| scene | resolution | samples | light | sort s | hierarchy build s | penumbra cast s | ours s | samples MiB | "
-          "hierarchy MiB | masks MiB | ours peak RSS MiB | Embree s (build + trace) | Embree peak RSS MiB | Embree/ours | "
-          "mismatches (ties) |\n";
-    md += "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
-    for (const json& r : result["rows"]) {
-        md += fmt::format("| {} | {}×{} | {} | {} |", r["scene"].get<std::string>(), r["width"].get<int>(), r["height"].get<int>(),
-                          r["samples"].get<int>(), r["light_scale"].get<double>() == 1.0 ? "1×" : "4× area");
-        if (r.contains("error")) {
-            md += " error: " + r["error"].get<std::string>() + " ||||||||||||\n";
-            continue;
-        }
-        const json& o = r["ours"];
-        md += fmt::format(" {} | {} | {} | {} | {} | {} | {} | {} |", secs(o["sort_s"]), secs(o["hierarchy_build_s"]),
-                          secs(o["penumbra_cast_s"]), secs(o["time_s"]), mib(o["samples_memory_bytes"]),
-                          mib(o["hierarchy_memory_bytes"]), mib(o["mask_memory_bytes"]), mib(o["peak_rss_bytes"]));
-        if (r.contains("embree") && !r["embree"].contains("error"))
-            md += fmt::format(" {} ({} + {}) | {} | {:.2f} |", secs(r["embree"]["time_s"]), secs(r["embree"]["build_s"]),
-                              secs(r["embree"]["trace_s"]), mib(r["embree"]["peak_rss_bytes"]), r["ratio"].get<double>());
-        else
-            md += r.contains("embree") ? " error | | |" : " – | – | – |";
-        if (r.contains("mismatches") && !r["mismatches"].contains("error"))
-            md += fmt::format(" {} ({}) |\n", r["mismatches"]["mismatches"].get<uint64_t>(), r["mismatches"]["ties"].get<uint64_t>());
-        else
-            md += r.contains("mismatches") ? " error |\n" : " – |\n";
-    }
-    if (result.contains("thread_scaling") && !result["thread_scaling"].empty()) {
-        md += "\n### Thread scaling (ours: sort + hierarchy build + penumbra cast)\n\n| scene | row |";
-        std::string rule = "|---|---|";
-        for (const json& t : result["thread_scaling"][0]["threads"]) md += fmt::format(" {} thr s |", t.get<int>()), rule += "---:|";
-        md += " speed-up | cast-only speed-up |\n" + rule + "---:|---:|\n";
-        for (const json& s : result["thread_scaling"]) {
-            md += fmt::format("| {} | {} |", s["scene"].get<std::string>(), s["row"].get<std::string>());
-            for (const json& t : s["seconds"]) md += " " + (t.is_null() ? std::string("error") : secs(t)) + " |";
-            md += s.contains("speedup") ? fmt::format(" {:.2f}× | {:.2f}× |\n", s["speedup"].get<double>(), s["cast_speedup"].get<double>())
-                                        : " – | – |\n";
-        }
-    }
-    if (result.contains("root_cull")) {
-        const json& c = result["root_cull"];
-        md += "\n### Root-cull throughput (1 thread)\n\n";
-        if (c.contains("error")) {
-            md += "error: " + c["error"].get<std::string>() + "\n";
-        } else {
-            md += "| case | triangles | culled at root | penumbra cast s | M triangles/s/core | stream + bucket pass M triangles/s |\n"
-                  "|---|---:|---:|---:|---:|---:|\n";
-            for (const json& k : c["cases"]) {
-                if (k.contains("error")) {
-                    md += "| " + k["case"].get<std::string>() + " | error: " + k["error"].get<std::string>() + " ||||\n";
-                    continue;
-                }
-                md += fmt::format("| {} | {:.0f} | {:.0f} | {:.3f} | {:.1f} | {:.1f} |\n", k["case"].get<std::string>(),
-                                  k["triangles"].get<double>(), k["culled_at_root"].get<double>(), k["cast_s"].get<double>(),
-                                  k["triangles_per_second_per_core"].get<double>() / 1e6,
-                                  k["sort_pass_triangles_per_second"].get<double>() / 1e6);
-            }
-        }
-    }
-    md += "\n### Targets\n\n" + targetsMarkdown(result);
-    return md;
 }
 
 CLI::App* addBenchTableCommand(CLI::App& bench, BenchTableOptions& o) {
@@ -701,7 +532,7 @@ void runBenchTable(const BenchTableOptions& o, const std::string& commandLine) {
                 result["thread_scaling"].push_back(scaling);
             }
             std::string line = fmt::format("{} {}: ours {:.2f} s, peak {} MiB", name, spec.name, oursSeconds(ours),
-                                           mib(row["ours"]["peak_rss_bytes"]));
+                                           formatMiB(row["ours"]["peak_rss_bytes"]));
             if (!o.noEmbree) {
                 // Embree does not need our sorted buckets: it reads the stream directly.
                 json e = bestOf(o.repeat, embreeSeconds,
@@ -712,7 +543,7 @@ void runBenchTable(const BenchTableOptions& o, const std::string& commandLine) {
                     row["embree"] = embreeColumns(e);
                     row["ratio"] = embreeSeconds(e) / oursSeconds(ours);
                     line += fmt::format("; Embree {:.2f} s, peak {} MiB; Embree/ours {:.2f}", embreeSeconds(e),
-                                        mib(row["embree"]["peak_rss_bytes"]), row["ratio"].get<double>());
+                                        formatMiB(row["embree"]["peak_rss_bytes"]), row["ratio"].get<double>());
                 }
                 if (!o.noCompare) {
                     row["mismatches"] = mismatches(file, tableThreads, work);

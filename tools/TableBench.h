@@ -6,6 +6,8 @@
 /// (`penumbra bake ... --stats`), so each method's peak RSS is its own. docs/BENCHMARKS.md,
 /// section "Table 2", says what every column means.
 
+#include "TableBenchReport.h"
+
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
@@ -34,13 +36,6 @@ struct BenchTableOptions {
 /// @brief Row names in table order: "640x480@256", "1280x960@256", "2560x1920@256",
 /// "1280x960@1024", "1280x960@256-light4x".
 std::vector<std::string> tableRowNames();
-
-/// @brief Replaces the generated part of a BENCHMARKS.md text (between the table2 markers) with
-/// @p generated; without markers, appends a "Table 2" section with them. Other sections are kept.
-std::string replaceTable2Section(const std::string& document, const std::string& generated);
-
-/// @brief The generated Markdown (machine, command, tables, targets) for a result document.
-std::string table2Markdown(const nlohmann::json& result);
 
 /// @brief Adds `bench table2` under @p bench. @return the new subcommand.
 CLI::App* addBenchTableCommand(CLI::App& bench, BenchTableOptions& options);
