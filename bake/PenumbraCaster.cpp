@@ -354,6 +354,10 @@ PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& r
         for (const glm::dvec3& v : bound.vertices)
             reach.lo = glm::min(reach.lo, roundToFloat(v, true)), reach.hi = glm::max(reach.hi, roundToFloat(v, false));
         reach_.push_back(reach);
+        const glm::dvec3 lo(receiversBox_.lo), hi(receiversBox_.hi);
+        const glm::dvec3 corners[8] = {{lo.x, lo.y, lo.z}, {hi.x, lo.y, lo.z}, {lo.x, hi.y, lo.z}, {hi.x, hi.y, lo.z},
+                                       {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z}, {lo.x, hi.y, hi.z}, {hi.x, hi.y, hi.z}};
+        reachHull_.emplace_back(boundingBall(bound.vertices), boundingBall(corners));
     }
 }
 
@@ -383,6 +387,16 @@ void PenumbraCaster::prepare(Batch& batch, std::span<const Triangle> blockers) {
             }
             prepared.valid = false;
             if (!any) continue;  // outside every light's reach: no penumbra volume needed
+            {  // beside the light: T's ball misses the hull of the light's and the receivers' balls
+                const glm::dvec3 v[3] = {glm::dvec3(tri.v[0]), glm::dvec3(tri.v[1]), glm::dvec3(tri.v[2])};
+                const Ball ball = boundingBall(v);
+                any = false;
+                for (size_t l = 0; l < lights; ++l) {
+                    if (active[l] && reachHull_[l].misses(ball)) active[l] = 0;
+                    any = any || active[l];
+                }
+                if (!any) continue;
+            }
             prepared = BlockerTriangle::from(tri);
             if (!prepared.valid) continue;
             // V_L is built plane by plane and abandoned as soon as one plane leaves every receiver

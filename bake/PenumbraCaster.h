@@ -5,6 +5,7 @@
 #include "bake/BlockingRule.h"
 #include "bake/CastOptions.h"
 #include "bake/PenumbraVolume.h"
+#include "bake/ReachHull.h"
 #include "bake/Light.h"
 #include "bake/SampleMaskTable.h"
 #include "receivers/ReceiverSet.h"
@@ -57,6 +58,9 @@ private:
     /// segment from a receiver to a sample if it meets their convex hull, so a blocker whose box
     /// misses this box is culled before its penumbra volume is built.
     std::vector<Box> reach_;
+    /// Per light: the hull of a ball around the light and one around the receivers (ReachHull.h),
+    /// the finer second test for blockers inside reach_.
+    std::vector<ReachHull> reachHull_;
     Box receiversBox_;  ///< around every tile's receivers
     /// A chunk of blockers ready to cast: promoted to double, with V_L per light. Two of them
     /// alternate so one is prepared while the other is cast; kept to avoid reallocation.
