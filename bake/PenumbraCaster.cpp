@@ -92,9 +92,12 @@ struct PenumbraCaster::Tile {
 
     bool umbra() const { return options.umbraBits; }
 
+    /// The per-triangle state that only a reached receiver needs: V_Gk and the table's blocker
+    /// coefficients. Most blockers never reach a receiver of a given tile.
     void buildGroupVolumes() {
         for (uint32_t k = samples.lightFirstGroup[currentLight]; k < samples.lightFirstGroup[currentLight + 1]; ++k)
             buildPenumbraVolume(samples.groups[k].bound, *tri, groupVolumes[k]);
+        if (tables) tableBlocker = (*tables)[currentLight].prepare(*tri);
         groupVolumesBuilt = true;
     }
 
@@ -107,14 +110,10 @@ struct PenumbraCaster::Tile {
         const LightSampleGroup& g = samples.groups[k];
         HardShadowBlock* blocks = &hardBlocks[set * blocksPerSet + blockFirst[k]];
         which = 0;
-        if (needed == g.fullMask()) {  // the common case: nothing blocked yet
-            which = (1u << ((g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes)) - 1u;
-        } else {
-            for (uint64_t rest = needed; rest;) {
-                const int b = __builtin_ctzll(rest) / HardShadowBlock::kLanes;
-                which |= 1u << b;
-                rest &= ~(0xFull << (HardShadowBlock::kLanes * b));
-            }
+        for (uint64_t rest = needed; rest;) {
+            const int b = __builtin_ctzll(rest) / HardShadowBlock::kLanes;
+            which |= 1u << b;
+            rest &= ~(0xFull << (HardShadowBlock::kLanes * b));
         }
         uint32_t missing = which & ~hardReady[slot];
         if (missing) {
@@ -151,7 +150,6 @@ struct PenumbraCaster::Tile {
         for (currentLight = 0; currentLight < uint32_t(samples.lightCount()); ++currentLight) {
             if (!lightActive[currentLight]) continue;
             lightVolume = &lightVolumes[currentLight];
-            if (tables) tableBlocker = (*tables)[currentLight].prepare(t);
             groupVolumesBuilt = false;
             uint32_t g0 = samples.lightFirstGroup[currentLight], g1 = samples.lightFirstGroup[currentLight + 1];
             if (!options.lazyVolumes) {  // optimization C off: build everything before traversal

@@ -61,13 +61,7 @@ struct Builder {
         }
         if (volume.count < PenumbraVolume::kMaxPlanes) volume.push(p);
         // Dropping a plane beyond the limit only enlarges the volume: still conservative.
-        if (cull && !culled) {
-            PenumbraVolume one;
-            one.count = 0;
-            one.push(p);
-            uint32_t active = 1;
-            culled = !intersects(one, *cull, active);
-        }
+        if (cull && !culled) culled = classify(p, *cull) == BoxSide::Outside;
     }
 };
 
