@@ -20,7 +20,7 @@
 namespace penumbra::testing {
 
 /// Where the shared meshes and glTF samples live.
-inline std::string dataDir() { return PENUMBRA_SOURCE_DIR "/../shared/data"; }
+inline std::string dataDir() { return PENUMBRA_SHARED_DATA; }
 
 /// A fresh directory under the system temp dir, removed with its contents on destruction.
 class TempDir {

@@ -23,8 +23,8 @@ extern char** environ;
 
 namespace penumbra::test {
 
-/// A file of the shared test data (../shared/data beside the project), e.g. "meshes/spot.obj".
-inline std::string sharedData(const std::string& rel) { return std::string(PENUMBRA_SOURCE_DIR) + "/../shared/data/" + rel; }
+/// A file of the shared test data (../shared/data beside the project; see CMakeLists.txt), e.g. "meshes/spot.obj".
+inline std::string sharedData(const std::string& rel) { return std::string(PENUMBRA_SHARED_DATA) + "/" + rel; }
 
 /// A fresh directory under the system temp dir (mkdtemp), removed with everything in it.
 struct ScratchDir {
