@@ -34,7 +34,10 @@ struct CastOptions {
 /// @brief Counters and timers of one cast, summed over tiles (the paper's Table 2 columns).
 struct CastStats {
     double hierarchyBuildSeconds = 0;  ///< thread-seconds, all builds and rebuilds
-    double castSeconds = 0;            ///< wall-clock seconds in cast()
+    /// Wall-clock seconds from the first cast() to the end of flush(): tiles cast in the background
+    /// while the caller reads the next chunk, so this includes the replay read.
+    double castSeconds = 0;
+    double replayReadSeconds = 0;  ///< of castSeconds, the caller's time reading the bucket replay
     uint64_t trianglesProcessed = 0;
     uint64_t trianglesCulledAtRoot = 0;  ///< no tile root box intersected V_L
     uint64_t rebuilds = 0;

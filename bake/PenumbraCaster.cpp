@@ -8,11 +8,11 @@
 #include "receivers/ReceiverHierarchy.h"
 
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <chrono>
 #include <numeric>
+#include <thread>
 
 namespace penumbra {
 namespace {
@@ -357,9 +357,23 @@ PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& r
                                        {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z}, {lo.x, hi.y, hi.z}, {hi.x, hi.y, hi.z}};
         reachHull_.emplace_back(boundingBall(bound.vertices), boundingBall(corners));
     }
+    // One tile has nothing to overlap but preparation, so two chunks do; with several, a tile can
+    // fall up to three chunks behind the fastest before the caller stops to help.
+    ring_.resize(tiles_.size() > 1 ? 4 : 2);
+    for (auto& b : ring_) b = std::make_unique<Batch>();
+    tileNext_.assign(tiles_.size(), 0);
+    tileBusy_ = std::make_unique<std::atomic<bool>[]>(tiles_.size());
+    for (size_t t = 0; t < tiles_.size(); ++t) tileBusy_[t] = false;
 }
 
-PenumbraCaster::~PenumbraCaster() = default;
+PenumbraCaster::~PenumbraCaster() {
+    // Only after an exception can tasks still be pending; they must not outlive the tiles.
+    group_.cancel();
+    try {
+        group_.wait();
+    } catch (...) {
+    }
+}
 
 void PenumbraCaster::prepare(Batch& batch, std::span<const Triangle> blockers) {
     const size_t n = blockers.size(), lights = size_t(samples_.lightCount());
@@ -412,46 +426,74 @@ void PenumbraCaster::prepare(Batch& batch, std::span<const Triangle> blockers) {
     });
 }
 
-void PenumbraCaster::castBatch(const Batch& batch) {
+void PenumbraCaster::castOnTile(size_t t, Batch& batch) {
     const size_t n = batch.n, lights = size_t(samples_.lightCount());
-    reached_.resize(tiles_.size());
-    tbb::parallel_for(size_t(0), tiles_.size(), [&](size_t t) {
-        Tile& tile = *tiles_[t];
-        std::vector<uint8_t>& reached = reached_[t];
-        reached.assign(n, 0);
-        for (size_t i = 0; i < n; ++i) {
-            if (!batch.prepared[i].valid) continue;
-            tile.castTriangle(batch.prepared[i], &batch.lightVolumes[i * lights], &batch.lightActive[i * lights]);
-            reached[i] = tile.reachedRoot;
-        }
-    });
+    Tile& tile = *tiles_[t];
+    uint8_t* reached = &batch.reached[t * n];
+    for (size_t i = 0; i < n; ++i) {
+        reached[i] = 0;
+        if (!batch.prepared[i].valid) continue;
+        tile.castTriangle(batch.prepared[i], &batch.lightVolumes[i * lights], &batch.lightActive[i * lights]);
+        reached[i] = tile.reachedRoot;
+    }
+    if (batch.remaining.fetch_sub(1) != 1) return;
+    uint64_t culled = 0;  // the last tile: every tile's flags are written
     for (size_t i = 0; i < n; ++i) {
         bool any = false;
-        for (const auto& r : reached_) any = any || r[i];
-        stats_.trianglesCulledAtRoot += !any;
+        for (size_t u = 0; u < tiles_.size() && !any; ++u) any = batch.reached[u * n + i];
+        culled += !any;
     }
-    stats_.trianglesProcessed += n;
+    culledAtRoot_ += culled;
+}
+
+void PenumbraCaster::drain(size_t t) {
+    for (;;) {
+        if (tileBusy_[t].exchange(true)) return;
+        try {
+            while (tileNext_[t] < published_.load()) {
+                castOnTile(t, *ring_[tileNext_[t] % ring_.size()]);
+                ++tileNext_[t];
+            }
+        } catch (...) {
+            failed_ = true;  // the tile stays held: its state is unknown, nobody casts it again
+            throw;
+        }
+        const uint64_t next = tileNext_[t];
+        tileBusy_[t].store(false);
+        // A chunk published after the loop's last check but before the release found the tile
+        // busy; its task has returned, so this thread takes the chunk.
+        if (next >= published_.load()) return;
+    }
 }
 
 void PenumbraCaster::cast(std::span<const Triangle> blockers) {
-    auto t0 = std::chrono::steady_clock::now();
-    // The chunk is prepared (penumbra volumes V_L) while the tiles cast the previous one, so the
-    // preparation fills the gaps that uneven tiles leave on the other threads.
-    const int next = pending_ < 0 ? 0 : 1 - pending_;
-    if (pending_ >= 0)
-        tbb::parallel_invoke([&] { castBatch(batches_[pending_]); }, [&] { prepare(batches_[next], blockers); });
-    else
-        prepare(batches_[next], blockers);
-    pending_ = next;
-    stats_.castSeconds += secondsSince(t0);
+    if (!started_) castStart_ = std::chrono::steady_clock::now(), started_ = true;
+    const uint64_t c = published_.load();
+    Batch& batch = *ring_[c % ring_.size()];
+    // The slot still holds chunk c - ring size until every tile has cast it. Rather than wait,
+    // this thread casts the tiles nobody holds; it yields only while the tiles that still need
+    // the slot run on other threads.
+    while (batch.remaining.load() > 0) {
+        for (size_t t = 0; t < tiles_.size() && !failed_; ++t) drain(t);
+        if (failed_) group_.wait();  // rethrows the tile's exception
+        if (batch.remaining.load() > 0) std::this_thread::yield();
+    }
+    prepare(batch, blockers);
+    batch.reached.resize(tiles_.size() * batch.n);
+    batch.remaining.store(int(tiles_.size()));
+    published_.store(c + 1);
+    for (size_t t = 0; t < tiles_.size(); ++t) group_.run([this, t] { drain(t); });
+    stats_.trianglesProcessed += blockers.size();
 }
 
 void PenumbraCaster::flush() {
-    if (pending_ < 0) return;
-    auto t0 = std::chrono::steady_clock::now();
-    castBatch(batches_[pending_]);
-    pending_ = -1;
-    stats_.castSeconds += secondsSince(t0);
+    if (!started_) return;
+    group_.wait();  // every publish ran drain() for every tile, so every tile is caught up
+    started_ = false;
+    // Wall time from the first chunk to the last tile: includes whatever the caller did between
+    // chunks (reading the replay), which the tiles overlapped.
+    stats_.castSeconds += secondsSince(castStart_);
+    stats_.trianglesCulledAtRoot = culledAtRoot_.load();
 }
 
 void PenumbraCaster::finish(const MaskVisitor& visit) {

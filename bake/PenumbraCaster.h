@@ -11,6 +11,10 @@
 #include "receivers/ReceiverSet.h"
 #include "stream/Triangle.h"
 
+#include <tbb/task_group.h>
+
+#include <atomic>
+#include <chrono>
 #include <functional>
 #include <memory>
 #include <span>
@@ -36,9 +40,10 @@ public:
     ~PenumbraCaster();
 
     /// @brief Casts a chunk of blockers (in the order given) against every tile. The chunk is
-    /// copied: the last one is cast by the next call or by flush().
+    /// copied and prepared on the calling thread, then cast by the tiles in the background; when
+    /// the ring of prepared chunks is full, the calling thread casts tiles until a slot is free.
     void cast(std::span<const Triangle> blockers);
-    /// @brief Casts the chunk still pending from the last cast().
+    /// @brief Waits until every tile has cast every chunk; rethrows a tile's exception.
     void flush();
     /// @brief Flushes, then reports every receiver's result to @p visit exactly once. Visits run
     /// in parallel, so @p visit must be safe to call concurrently for different receivers.
@@ -62,20 +67,36 @@ private:
     /// the finer second test for blockers inside reach_.
     std::vector<ReachHull> reachHull_;
     Box receiversBox_;  ///< around every tile's receivers
-    /// A chunk of blockers ready to cast: promoted to double, with V_L per light. Two of them
-    /// alternate so one is prepared while the other is cast; kept to avoid reallocation.
+    /// A chunk of blockers ready to cast: promoted to double, with V_L per light, and which tiles
+    /// still have to cast it. Kept in a ring so tiles need not wait for one another: each tile
+    /// casts the chunks in order at its own pace, and a tile may run up to the ring's length
+    /// behind the others (the per-chunk barrier this replaces left a thread idle at the end of
+    /// every chunk). Buffers are kept to avoid reallocation.
     struct Batch {
         size_t n = 0;
         std::vector<BlockerTriangle> prepared;
         std::vector<PenumbraVolume> lightVolumes;  ///< [triangle][light]
         std::vector<uint8_t> lightActive;          ///< [triangle][light]: in reach and not capped away
+        std::vector<uint8_t> reached;              ///< [tile][triangle]: V_L met the tile's root box
+        std::atomic<int> remaining{0};             ///< tiles that have not cast this chunk yet
     };
-    Batch batches_[2];
-    int pending_ = -1;  ///< the batch prepared but not cast yet
-    std::vector<std::vector<uint8_t>> reached_;
+    std::vector<std::unique_ptr<Batch>> ring_;
+    std::atomic<uint64_t> published_{0};  ///< chunks prepared and handed to the tiles
+    /// Per tile: the next chunk it casts. Only the holder of the tile's busy flag touches it.
+    std::vector<uint64_t> tileNext_;
+    std::unique_ptr<std::atomic<bool>[]> tileBusy_;
+    std::atomic<bool> failed_{false};  ///< a tile threw; flush() rethrows it
+    std::atomic<uint64_t> culledAtRoot_{0};
+    tbb::task_group group_;
+    bool started_ = false;
+    std::chrono::steady_clock::time_point castStart_;
 
     void prepare(Batch& batch, std::span<const Triangle> blockers);
-    void castBatch(const Batch& batch);
+    /// Casts every published chunk that tile @p t has not cast yet, unless another thread holds
+    /// the tile (that thread then sees the new chunks before it lets go).
+    void drain(size_t t);
+    /// The tile's part of a chunk; the last tile to finish it counts the chunk's root culls.
+    void castOnTile(size_t t, Batch& batch);
 };
 
 /// @brief Splits receivers into @p count spatially compact parts of near-equal size by recursive

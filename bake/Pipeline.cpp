@@ -155,6 +155,7 @@ void writeDump(const std::string& dir, const Prepared& p, const VisibilityMasks&
 void accumulate(CastStats& total, const CastStats& s) {
     total.hierarchyBuildSeconds += s.hierarchyBuildSeconds;
     total.castSeconds += s.castSeconds;
+    total.replayReadSeconds += s.replayReadSeconds;
     total.trianglesProcessed += s.trianglesProcessed;
     total.trianglesCulledAtRoot += s.trianglesCulledAtRoot;
     total.rebuilds += s.rebuilds;
@@ -184,12 +185,19 @@ CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettin
     std::vector<Triangle> chunk(kTriangleChunk);
     for (size_t t = 0; t < tiles.size(); ++t) {
         const auto& tile = tiles[t];
+        double readSeconds = 0;
         // Within a memory tile, threads work on disjoint sub-tiles. Four per thread: chunk by chunk,
         // uneven tiles leave threads idle at the barrier; measured on GRIDS, 2 per thread cast in
         // 4.28 s, 4 in 3.86 s, 8 in 3.92 s (2 threads; 6.76 s on one).
         PenumbraCaster caster(p.samples, p.receivers, p.sampleSets, scene.options, threads > 1 ? 4 * threads : 1, tile);
         if (t > 0 || rewindFirst) p.blockers->rewind();
-        while (size_t n = p.blockers->read(chunk)) {
+        for (;;) {
+            size_t n;
+            {
+                ScopedTimer timer(readSeconds);
+                n = p.blockers->read(chunk);
+            }
+            if (n == 0) break;
             std::span<const Triangle> part(chunk.data(), n);
             if (feedKind && t == 0)  // smooth shading's pass over the faces runs beside the cast
                 tbb::parallel_invoke([&] { caster.cast(part); }, [&] { kind.castChunk(part); });
@@ -206,7 +214,9 @@ CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettin
         // Tile hierarchies are built on worker threads, in their malloc arenas; hand the freed
         // memory back before the next tile, or arenas keep it and RSS creeps past the plan.
         returnFreedMemory();
-        accumulate(total, caster.stats());
+        CastStats s = caster.stats();
+        s.replayReadSeconds = readSeconds;
+        accumulate(total, s);
     }
     progress.done();
     return total;
@@ -378,6 +388,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
          {{"sort_time_s", buckets.seconds},
           {"hierarchy_build_time_s", cast.hierarchyBuildSeconds},
           {"penumbra_cast_time_s", settings.method == Method::Hpc ? cast.castSeconds : castSeconds},
+          {"replay_read_time_s", cast.replayReadSeconds},
           {"samples_memory_bytes", p.receivers.bytes() + cast.receiverBytes},
           {"peak_hierarchy_memory_bytes", cast.peakHierarchyBytes},
           {"peak_mask_memory_bytes", cast.peakMaskBytes},

@@ -11,12 +11,13 @@ Ball boundingBall(std::span<const glm::dvec3> points) {
     glm::dvec3 lo(INFINITY), hi(-INFINITY);
     for (const glm::dvec3& p : points) lo = glm::min(lo, p), hi = glm::max(hi, p);
     Ball b{(lo + hi) * 0.5, 0.0};
-    double scale = 1.0;
+    double scale = 1.0, squared = 0.0;  // one square root per ball: this runs for every blocker
     for (const glm::dvec3& p : points) {
-        b.radius = std::max(b.radius, glm::length(p - b.center));
+        const glm::dvec3 d = p - b.center;
+        squared = std::max(squared, glm::dot(d, d));
         scale = std::max({scale, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
     }
-    b.radius += 1e-9 * scale;
+    b.radius = std::sqrt(squared) + 1e-9 * scale;
     return b;
 }
 
@@ -45,9 +46,11 @@ double ReachHull::distance(const glm::dvec3& p) const {
     const double x = glm::dot(v, axis_);
     const double r = std::sqrt(std::max(0.0, glm::dot(v, v) - x * x));
     // Position along the tangent line, from a's tangent point (a.radius * n) towards b's.
+    // Plain square roots, not std::hypot (several times slower): scene coordinates are far from
+    // overflow, and the rounding is within margin_.
     const double u = (x - a_.radius * sin_) * cos_ - (r - a_.radius * cos_) * sin_;
-    if (u < 0.0) return std::hypot(x, r) - a_.radius;
-    if (u > length_ * cos_) return std::hypot(x - length_, r) - b_.radius;
+    if (u < 0.0) return std::sqrt(glm::dot(v, v)) - a_.radius;
+    if (u > length_ * cos_) return std::sqrt((x - length_) * (x - length_) + r * r) - b_.radius;
     return x * sin_ + r * cos_ - a_.radius;
 }
 
