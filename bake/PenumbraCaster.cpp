@@ -358,8 +358,8 @@ PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& r
         reachHull_.emplace_back(boundingBall(bound.vertices), boundingBall(corners));
     }
     // One tile has nothing to overlap but preparation, so two chunks do; with several, a tile can
-    // fall up to three chunks behind the fastest before the caller stops to help.
-    ring_.resize(tiles_.size() > 1 ? 4 : 2);
+    // fall up to two chunks behind the fastest before the caller stops to help.
+    ring_.resize(tiles_.size() > 1 ? 3 : 2);
     for (auto& b : ring_) b = std::make_unique<Batch>();
     tileNext_.assign(tiles_.size(), 0);
     tileBusy_ = std::make_unique<std::atomic<bool>[]>(tiles_.size());
