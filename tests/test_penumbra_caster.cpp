@@ -12,18 +12,35 @@
 using namespace penumbra;
 using namespace penumbra::test;
 
-TEST_CASE("caster: any tile count, chunk size and thread count gives the reference's masks", "[hpc][caster]") {
-    GridParams p;
-    p.cells = 6, p.levels = 2, p.size = 3, p.floorSize = 6;
-    const std::vector<Triangle> tris = readAll(*makeGridSource(p));
+namespace {
+
+/// Perforated grids over a floor, receivers on the floor and on the bars, and the reference's
+/// masks, which must hold blocked and unblocked relations.
+struct GridCase {
+    std::vector<Triangle> tris;
     ReceiverSet receivers;
-    addReceiversOnTriangles(receivers, std::vector<Triangle>(tris.begin(), tris.begin() + 2), 5, 300);
-    addReceiversOnTriangles(receivers, std::vector<Triangle>(tris.begin() + 2, tris.end()), 6, 1);
-    const LightSamples samples = generateLightSamples({rectLight({0.3, 4, 0.2}, {1.5, 0, 0}, {0, 0, 1.5}, 128, 4)}, 64, 7);
-    const std::vector<uint32_t> sets = assignSets(receivers, samples.sets);
-    const VisibilityMasks reference = castReference(samples, receivers, sets, tris, CastOptions().epsilon);
-    REQUIRE(reference.blockedCount() > 0);
-    REQUIRE(reference.blockedCount() < uint64_t(receivers.size()) * samples.sampleCount);
+    LightSamples samples;
+    std::vector<uint32_t> sets;
+    VisibilityMasks reference;
+
+    GridCase(int cells, int levels, int floorReceivers, const LightDesc& light) {
+        GridParams p;
+        p.cells = cells, p.levels = levels, p.size = 3, p.floorSize = 6;
+        tris = readAll(*makeGridSource(p));
+        addReceiversOnTriangles(receivers, std::vector<Triangle>(tris.begin(), tris.begin() + 2), 5, floorReceivers);
+        addReceiversOnTriangles(receivers, std::vector<Triangle>(tris.begin() + 2, tris.end()), 6, 1);
+        samples = generateLightSamples({light}, 64, 7);
+        sets = assignSets(receivers, samples.sets);
+        reference = castReference(samples, receivers, sets, tris, CastOptions().epsilon);
+        REQUIRE(reference.blockedCount() > 0);
+        REQUIRE(reference.blockedCount() < uint64_t(receivers.size()) * samples.sampleCount);
+    }
+};
+
+}  // namespace
+
+TEST_CASE("caster: any tile count, chunk size and thread count gives the reference's masks", "[hpc][caster]") {
+    const GridCase g(6, 2, 300, rectLight({0.3, 4, 0.2}, {1.5, 0, 0}, {0, 0, 1.5}, 128, 4));
 
     for (int tiles : {1, 2, 5, 16}) {
         // Root culls depend on the tiles' boxes, so they are compared per tile count.
@@ -36,9 +53,9 @@ TEST_CASE("caster: any tile count, chunk size and thread count gives the referen
                 CastStats stats;
                 VisibilityMasks hpc;
                 tbb::task_arena(threads).execute(
-                    [&] { hpc = castHpc(samples, receivers, sets, tris, CastOptions(), tiles, chunk, &stats); });
-                CHECK(hpc.words == reference.words);
-                CHECK(stats.trianglesProcessed == tris.size());
+                    [&] { hpc = castHpc(g.samples, g.receivers, g.sets, g.tris, CastOptions(), tiles, chunk, &stats); });
+                CHECK(hpc.words == g.reference.words);
+                CHECK(stats.trianglesProcessed == g.tris.size());
                 if (culled == ~0ull) culled = stats.trianglesCulledAtRoot;
                 CHECK(stats.trianglesCulledAtRoot == culled);
             }
@@ -46,26 +63,18 @@ TEST_CASE("caster: any tile count, chunk size and thread count gives the referen
 }
 
 TEST_CASE("caster: casters dropped mid-cast leave no task behind", "[hpc][caster]") {
-    GridParams p;
-    p.cells = 4, p.levels = 1, p.size = 3, p.floorSize = 6;
-    const std::vector<Triangle> tris = readAll(*makeGridSource(p));
-    ReceiverSet receivers;
-    addReceiversOnTriangles(receivers, std::vector<Triangle>(tris.begin(), tris.begin() + 2), 3, 500);
-    const LightSamples samples = generateLightSamples({rectLight({0, 4, 0}, {1, 0, 0}, {0, 0, 1}, 64, 2)}, 64, 7);
-    const std::vector<uint32_t> sets = assignSets(receivers, samples.sets);
-    const VisibilityMasks reference = castReference(samples, receivers, sets, tris, CastOptions().epsilon);
-    REQUIRE(reference.blockedCount() > 0);
+    const GridCase g(4, 1, 500, rectLight({0, 4, 0}, {1, 0, 0}, {0, 0, 1}, 64, 2));
     // As when reading the replay throws between chunks: the destructor must wait for the tiles'
     // tasks, which point into the caster. Had one outlived it, it would write into freed memory
     // that the next casters reuse (and ASan would name it).
     tbb::task_arena(2).execute([&] {
         for (int round = 0; round < 20; ++round) {
             {
-                PenumbraCaster dropped(samples, receivers, sets, CastOptions(), 8);
-                for (size_t i = 0; i < tris.size() / 2; i += 3)
-                    dropped.cast(std::span<const Triangle>(tris.data() + i, 3));
+                PenumbraCaster dropped(g.samples, g.receivers, g.sets, CastOptions(), 8);
+                for (size_t i = 0; i < g.tris.size() / 2; i += 3)
+                    dropped.cast(std::span<const Triangle>(g.tris.data() + i, 3));
             }
-            CHECK(castHpc(samples, receivers, sets, tris, CastOptions(), 8, 3).words == reference.words);
+            CHECK(castHpc(g.samples, g.receivers, g.sets, g.tris, CastOptions(), 8, 3).words == g.reference.words);
         }
     });
 }
