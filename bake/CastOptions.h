@@ -22,6 +22,12 @@ struct CastOptions {
     /// bits before the per-sample test; exact, so masks do not change. Measured faster on GRIDS
     /// and flowers: docs/performance.md, "Sample mask table".
     bool sampleTable = true;
+    /// Sintorn et al. 2008: a triangle marked kTriangleClosed whose plane has the whole light
+    /// strictly behind it is skipped. A segment that crosses it enters the solid and leaves it
+    /// through a triangle facing the light sample, which blocks it, so masks do not change as long
+    /// as no light sample lies inside a closed solid (except for ties of the blocking rule:
+    /// segments that only graze the solid).
+    bool closedCasters = true;
     int sampleTableAngles = 128;   ///< angle bins of each table
     int sampleTableOffsets = 128;  ///< offset bins of each table
     double rebuildThreshold = 0.25;  ///< rebuild when this fraction of live receivers is in umbra
@@ -40,6 +46,7 @@ struct CastStats {
     double replayReadSeconds = 0;  ///< of castSeconds, the caller's time reading the bucket replay
     uint64_t trianglesProcessed = 0;
     uint64_t trianglesCulledAtRoot = 0;  ///< no tile root box intersected V_L
+    uint64_t closedBackFaces = 0;        ///< closed-surface triangles facing away from every light
     uint64_t rebuilds = 0;
     uint64_t peakLiveMasks = 0;
     uint64_t peakMaskBytes = 0;

@@ -23,6 +23,17 @@ double secondsSince(std::chrono::steady_clock::time_point t0) {
 
 constexpr uint32_t kAllPlanes = ~0u;  // "ALL": masked by the volume's own plane count when used
 
+/// Every vertex of the light's bound strictly behind T's plane, beyond roundoff of the plane's
+/// evaluation (unit normal, so a scale-relative margin suffices).
+bool facesAway(const BlockerTriangle& t, const ConvexBound& bound) {
+    for (const glm::dvec3& v : bound.vertices) {
+        const double m = std::max({1.0, std::abs(v.x), std::abs(v.y), std::abs(v.z), std::abs(t.v[0].x),
+                                   std::abs(t.v[0].y), std::abs(t.v[0].z)});
+        if (!(t.plane.eval(v) < -1e-9 * m)) return false;
+    }
+    return !bound.vertices.empty();
+}
+
 struct ActiveGroup {
     uint32_t group;
     uint32_t planes;
@@ -383,7 +394,9 @@ void PenumbraCaster::prepare(Batch& batch, std::span<const Triangle> blockers) {
         batch.lightVolumes.resize(n * lights);
         batch.lightActive.resize(n * lights);
     }
+    std::atomic<uint64_t> closedBackFaces{0};
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& range) {
+        uint64_t backFaces = 0;
         for (size_t i = range.begin(); i != range.end(); ++i) {
             const Triangle& tri = blockers[i];
             Box box{glm::min(glm::min(tri.v[0], tri.v[1]), tri.v[2]), glm::max(glm::max(tri.v[0], tri.v[1]), tri.v[2])};
@@ -411,6 +424,20 @@ void PenumbraCaster::prepare(Batch& batch, std::span<const Triangle> blockers) {
             }
             prepared = BlockerTriangle::from(tri);
             if (!prepared.valid) continue;
+            if (options_.closedCasters && (tri.flags & kTriangleClosed)) {
+                // A closed surface's triangle with every light vertex strictly behind it: a segment
+                // through it enters the solid, and the triangle where it leaves faces the light.
+                any = false;
+                for (size_t l = 0; l < lights; ++l) {
+                    if (active[l] && facesAway(prepared, samples_.lightBounds[l])) active[l] = 0;
+                    any = any || active[l];
+                }
+                if (!any) {
+                    prepared.valid = false;
+                    ++backFaces;
+                    continue;
+                }
+            }
             // V_L is built plane by plane and abandoned as soon as one plane leaves every receiver
             // outside (first the cap: every receiver on the light's side of T's plane), so a
             // blocker culled at the root rarely pays for its whole volume.
@@ -423,7 +450,9 @@ void PenumbraCaster::prepare(Batch& batch, std::span<const Triangle> blockers) {
             }
             if (!any) prepared.valid = false;
         }
+        closedBackFaces += backFaces;
     });
+    stats_.closedBackFaces += closedBackFaces;
 }
 
 void PenumbraCaster::castOnTile(size_t t, Batch& batch) {

@@ -158,6 +158,7 @@ void accumulate(CastStats& total, const CastStats& s) {
     total.replayReadSeconds += s.replayReadSeconds;
     total.trianglesProcessed += s.trianglesProcessed;
     total.trianglesCulledAtRoot += s.trianglesCulledAtRoot;
+    total.closedBackFaces += s.closedBackFaces;
     total.rebuilds += s.rebuilds;
     total.hardShadowTests += s.hardShadowTests;
     total.tableDecidedRelations += s.tableDecidedRelations;
@@ -396,6 +397,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         {"counters",
          {{"triangles_read", p.triangleCount},
           {"triangles_culled_at_root", cast.trianglesCulledAtRoot},
+          {"closed_back_faces_skipped", cast.closedBackFaces},
           {"rebuilds", cast.rebuilds},
           {"peak_live_masks", cast.peakLiveMasks},
           {"hard_shadow_tests", cast.hardShadowTests},

@@ -82,6 +82,7 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
     o.rebuild = j.boolean("rebuild", o.rebuild);
     o.sortBlockers = j.boolean("sort_blockers", o.sortBlockers);
     o.sampleTable = j.boolean("sample_table", o.sampleTable);
+    o.closedCasters = j.boolean("closed_casters", o.closedCasters);
     o.sampleTableAngles = int(j.integer("sample_table_angles", o.sampleTableAngles, 4, 4096));
     o.sampleTableOffsets = int(j.integer("sample_table_offsets", o.sampleTableOffsets, 1, 4096));
     o.rebuildThreshold = j.number("rebuild_threshold", o.rebuildThreshold);
@@ -125,9 +126,11 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
         desc.path = indexed("geometry", i);
         desc.type = g.string("type");
         desc.transform = parseTransform(g);
+        if (g.raw("closed")) desc.closed = g.boolean("closed", false);
         desc.params = (*geometry)[i];
         desc.params.erase("type");
         desc.params.erase("transform");
+        desc.params.erase("closed");
         scene.geometry.push_back(std::move(desc));
     }
 
@@ -169,6 +172,9 @@ TriangleSourcePtr openSceneGeometry(const SceneDesc& scene) {
         TriangleSourcePtr source = openSource(g.type, SourceRequest{g.params, scene.file, g.path, scene.baseDir});
         if (!g.transform.isIdentity())
             source = std::make_unique<TransformedSource>(std::move(source), g.transform.matrix());
+        if (g.closed)
+            source = std::make_unique<FlagSource>(std::move(source), *g.closed ? kTriangleClosed : 0u,
+                                                  *g.closed ? 0u : kTriangleClosed);
         parts.push_back(std::move(source));
     }
     return std::make_unique<ConcatSource>(std::move(parts));

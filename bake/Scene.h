@@ -10,6 +10,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <optional>
+
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -22,6 +24,9 @@ struct GeometryDesc {
     nlohmann::json params;  ///< the entry without "type" and "transform"
     Transform transform;
     std::string path;       ///< key path for messages, "geometry[1]"
+    /// "closed": true marks every triangle as part of a closed, outward-wound surface
+    /// (kTriangleClosed), false clears the mark that a generator set; absent keeps the source's.
+    std::optional<bool> closed;
 };
 
 /// @brief A parsed scene. Paths are already resolved relative to the scene file.

@@ -14,6 +14,11 @@ namespace penumbra {
 /// Bits of Triangle::flags.
 enum TriangleFlag : uint32_t {
     kTriangleAlphaMatte = 1u << 0,  ///< cut-out foliage; bucketed and replayed after opaque blockers
+    /// Part of a closed (watertight) surface wound counter-clockwise seen from outside. A segment
+    /// that enters the solid through such a triangle leaves it through another one that faces
+    /// the segment's far end, so a triangle that faces away from the whole light can be skipped
+    /// (Sintorn et al. 2008, "closed casters"; bake.closed_casters).
+    kTriangleClosed = 1u << 1,
 };
 
 /// @brief One triangle in world space. 40 bytes, trivially copyable, so chunks of them can be

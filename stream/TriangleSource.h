@@ -68,6 +68,26 @@ private:
     size_t current_ = 0;
 };
 
+/// @brief Sets and clears bits of Triangle::flags on everything another source delivers (a scene
+/// entry's "closed": true or false).
+class FlagSource final : public TriangleSource {
+public:
+    FlagSource(TriangleSourcePtr inner, uint32_t set, uint32_t clear)
+        : inner_(std::move(inner)), set_(set), keep_(~clear) {}
+    size_t read(std::span<Triangle> out) override {
+        const size_t n = inner_->read(out);
+        for (size_t i = 0; i < n; ++i) out[i].flags = (out[i].flags & keep_) | set_;
+        return n;
+    }
+    void rewind() override { inner_->rewind(); }
+    std::string name() const override { return inner_->name(); }
+    std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
+
+private:
+    TriangleSourcePtr inner_;
+    uint32_t set_, keep_;
+};
+
 /// Reads a whole source into memory. For tests and small scenes only.
 std::vector<Triangle> readAll(TriangleSource& source);
 

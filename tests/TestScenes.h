@@ -159,8 +159,10 @@ inline std::vector<std::pair<std::string, CastOptions>> optionVariants() {
     off("scalar kernels", [](CastOptions& o) { o.simd = SimdLevel::Scalar; });
     off("sse2 kernels", [](CastOptions& o) { o.simd = SimdLevel::Sse2; });
     off("no sample table", [](CastOptions& o) { o.sampleTable = false; });
+    off("no closed casters", [](CastOptions& o) { o.closedCasters = false; });
     off("all off", [](CastOptions& o) {
-        o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = o.sampleTable = false;
+        o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = o.sampleTable =
+            o.closedCasters = false;
     });
     return v;
 }

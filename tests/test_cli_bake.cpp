@@ -72,6 +72,7 @@ TEST_CASE("bake writes the EXR, PNG, dump and stats; hpc matches reference via c
     CHECK(stats["counters"]["peak_rss_bytes"].get<uint64_t>() > 1000000);
     CHECK(stats["table2"]["peak_hierarchy_memory_bytes"].get<uint64_t>() > 0);
     CHECK(stats["counters"]["table_decided_relations"].get<uint64_t>() > 0);  // sample table on by default
+    CHECK(stats["counters"]["closed_back_faces_skipped"].get<uint64_t>() > 0);  // the bars' undersides
 
     RunResult ref = runPenumbra("bake " + (dir / "scene.json") + " -q --method reference -o " + (dir / "ref.exr") + " --dump " + (dir / "ref"));
     REQUIRE(ref.exitCode == 0);
@@ -88,6 +89,9 @@ TEST_CASE("bake writes the EXR, PNG, dump and stats; hpc matches reference via c
     RunResult noTable = runPenumbra("bake " + (dir / "scene.json") + " -q --sample-table off -o " + (dir / "nt.exr") + " --dump " + (dir / "nt"));
     REQUIRE(noTable.exitCode == 0);
     CHECK(readNpy(dir / "nt/masks.npy").data == msk.data);
+    RunResult allFaces = runPenumbra("bake " + (dir / "scene.json") + " -q --closed-casters off -o " + (dir / "af.exr") + " --dump " + (dir / "af"));
+    REQUIRE(allFaces.exitCode == 0);
+    CHECK(readNpy(dir / "af/masks.npy").data == msk.data);
 }
 
 TEST_CASE("bad input gives one clean line and a non-zero exit", "[cli]") {

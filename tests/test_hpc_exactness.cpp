@@ -4,6 +4,7 @@
 #include "TestScenes.h"
 
 #include "bake/ReferenceCaster.h"
+#include "procedural/BoxesGenerator.h"
 #include "procedural/GridGenerator.h"
 #include "stream/ObjReader.h"
 #include "stream/Transform.h"
@@ -19,6 +20,22 @@ std::vector<Triangle> floorQuad(float half, float y = 0.f) {
     std::vector<Triangle> t;
     addQuad(t, {-half, y, -half}, {half, y, -half}, {half, y, half}, {-half, y, half});
     return t;
+}
+
+/// spot.obj (watertight, wound outward) standing one unit above the origin.
+std::vector<Triangle> spotMesh() {
+    Transform place;
+    place.translate = {0, 1.0f, 0};
+    TransformedSource spot(openObj(sharedData("meshes/spot.obj")), place.matrix());
+    std::vector<Triangle> mesh = readAll(spot);
+    REQUIRE(mesh.size() == 5856);
+    return mesh;
+}
+
+std::vector<Triangle> everyNth(const std::vector<Triangle>& tris, size_t n) {
+    std::vector<Triangle> some;
+    for (size_t i = 0; i < tris.size(); i += n) some.push_back(tris[i]);
+    return some;
 }
 
 }  // namespace
@@ -46,20 +63,43 @@ TEST_CASE("stacked perforated grids match the reference", "[hpc][exact]") {
 }
 
 TEST_CASE("a closed mesh (spot.obj) shadowing itself and a floor matches the reference", "[hpc][exact]") {
-    Transform place;
-    place.scale = 1.0f;
-    place.translate = {0, 1.0f, 0};
-    TransformedSource spot(openObj(sharedData("meshes/spot.obj")), place.matrix());
-    std::vector<Triangle> mesh = readAll(spot);
-    REQUIRE(mesh.size() == 5856);
+    std::vector<Triangle> mesh = spotMesh();
     std::vector<Triangle> floor = floorQuad(3);
     ReceiverSet receivers;
     addReceiversOnTriangles(receivers, floor, 9, 200);
-    std::vector<Triangle> some;
-    for (size_t i = 0; i < mesh.size(); i += 40) some.push_back(mesh[i]);
-    addReceiversOnTriangles(receivers, some, 10, 1);
+    addReceiversOnTriangles(receivers, everyNth(mesh, 40), 10, 1);
     mesh.insert(mesh.end(), floor.begin(), floor.end());
     requireMatchesReference("spot", {rectLight({0.5, 4, 0.5}, {1.5, 0, 0}, {0, 0.3, 1.2}, 64, 4)}, receivers, mesh);
+}
+
+TEST_CASE("closed casters: skipping back faces of closed solids keeps the reference's masks", "[hpc][exact][closed]") {
+    // spot.obj is watertight and wound outward; boxes stand under, beside and above the light's
+    // level, so each light sees some of their faces from behind only.
+    std::vector<Triangle> tris = spotMesh();
+    for (Triangle& t : tris) t.flags = kTriangleClosed;
+    const std::vector<BoxShape> boxes = {
+        {{-2.5, 0.2, -0.5}, {-1.5, 0.6, 0.5}}, {{1.6, 0.5, 1.0}, {2.2, 2.5, 1.4}}, {{-0.4, 2.6, -2.4}, {0.4, 2.8, -1.6}}};
+    const std::vector<Triangle> solids = readAll(*makeBoxSource(boxes));
+    tris.insert(tris.end(), solids.begin(), solids.end());
+    std::vector<Triangle> floor = floorQuad(3.5f);
+    ReceiverSet receivers;
+    addReceiversOnTriangles(receivers, floor, 9, 300);
+    addReceiversOnTriangles(receivers, everyNth(tris, 30), 10, 1);
+    addReceiversOnTriangles(receivers, solids, 11, 4);
+    tris.insert(tris.end(), floor.begin(), floor.end());
+
+    const std::vector<std::pair<std::string, LightDesc>> lights = {
+        {"rect above", rectLight({0.5, 4, 0.5}, {1.5, 0, 0}, {0, 0.3, 1.2}, 64, 4)},
+        {"tilted rect at the side", rectLight({4, 1.5, 0}, {0, 1, 0.2}, {0.1, 0, 1}, 64, 4)},
+        {"sphere", sphereLight()}};
+    for (const auto& [name, light] : lights) {
+        requireMatchesReference("closed, " + name, {light}, receivers, tris);
+        LightSamples samples = generateLightSamples({light}, 64, 7);
+        CastStats stats;
+        castHpc(samples, receivers, assignSets(receivers, samples.sets), tris, CastOptions(), 1, 97, &stats);
+        INFO(name);
+        CHECK(stats.closedBackFaces > 500);  // about half of spot faces away from any light
+    }
 }
 
 TEST_CASE("slivers, near-degenerate triangles and receivers on edges match the reference", "[hpc][exact]") {

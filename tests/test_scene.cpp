@@ -92,3 +92,25 @@ TEST_CASE("unknown geometry types and bad generator parameters name the entry", 
     scene = parseScene(s, "dir/scene.json");
     CHECK_THROWS_WITH(openSceneGeometry(scene), Catch::Contains("missing.obj"));
 }
+
+TEST_CASE("\"closed\" marks or unmarks every triangle of an entry", "[scene]") {
+    registerProceduralGenerators();
+    json s = minimal();
+    auto flagsOf = [&](const json& entry) {
+        s["geometry"] = json::array({entry});
+        std::vector<uint32_t> flags;
+        for (const Triangle& t : readAll(*openSceneGeometry(parseScene(s, "dir/scene.json")))) flags.push_back(t.flags);
+        return flags;
+    };
+    const json grid = {{"type", "grid"}, {"cells", 2}, {"levels", 1}, {"thickness", 0.05}, {"floor_size", 4}};
+    std::vector<uint32_t> plain = flagsOf(grid);  // the generator marks its bars, not its floor
+    REQUIRE(plain.size() == 2u + 9u * 12);
+    CHECK(plain[0] == 0u);
+    CHECK(plain[2] == kTriangleClosed);
+    json closed = grid, open = grid;
+    closed["closed"] = true, open["closed"] = false;
+    for (uint32_t f : flagsOf(closed)) CHECK(f == kTriangleClosed);
+    for (uint32_t f : flagsOf(open)) CHECK(f == 0u);
+    s["geometry"][0]["closed"] = "yes";
+    CHECK_THROWS_WITH(parseScene(s, "dir/scene.json"), Catch::Contains("geometry[0].closed"));
+}

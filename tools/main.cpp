@@ -36,11 +36,13 @@ void disableOptimizations(CastOptions& o, const std::vector<std::string>& names)
         else if (name == "rebuild") o.rebuild = false;
         else if (name == "sort") o.sortBlockers = false;
         else if (name == "sample-table") o.sampleTable = false;
+        else if (name == "closed-casters") o.closedCasters = false;
         else if (name == "all")
-            o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = o.sampleTable = false;
+            o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = o.sampleTable =
+                o.closedCasters = false;
         else
             throw InputError("--disable: unknown optimization \"" + name +
-                             "\" (known: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, all)");
+                             "\" (known: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, closed-casters, all)");
     }
 }
 
@@ -69,13 +71,18 @@ int main(int argc, char** argv) {
     bake->add_option("--stats", statsPath, "write JSON stats to this file");
     bake->add_option("--dump", dumpDir, "write receivers.npy, samples.npy and masks.npy to this directory");
     bake->add_option("--disable", disabled,
-                     "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, all")
+                     "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, closed-casters, all")
         ->delimiter(',');
     bake->add_flag("-q,--quiet", quiet, "no progress on stderr");
     std::string simd;
     bake->add_option("--simd", simd, "hard-shadow test kernels: auto (default), avx2, sse2 or scalar; same bits for all");
     std::string sampleTable;
     bake->add_option("--sample-table", sampleTable, "on or off: sample mask tables (overrides bake.sample_table)")
+        ->check(CLI::IsMember({"on", "off"}));
+    std::string closedCasters;
+    bake->add_option("--closed-casters", closedCasters,
+                     "on or off: skip closed surfaces' triangles that face away from the light (overrides "
+                     "bake.closed_casters)")
         ->check(CLI::IsMember({"on", "off"}));
     std::string memoryBudget, tmpDir;
     bool keepBuckets = false;
@@ -130,6 +137,7 @@ int main(int argc, char** argv) {
             disableOptimizations(scene.options, disabled);
             if (!simd.empty()) scene.options.simd = parseSimdLevel(simd, "--simd");
             if (!sampleTable.empty()) scene.options.sampleTable = sampleTable == "on";
+            if (!closedCasters.empty()) scene.options.closedCasters = closedCasters == "on";
             BakeSettings settings;
             settings.method = parseMethod(method);
             if (threads < 0) throw InputError(fmt::format("--threads: must not be negative, got {}", threads));
