@@ -18,7 +18,6 @@
 
 #include <tbb/global_control.h>
 #include <tbb/info.h>
-#include <tbb/parallel_invoke.h>
 
 #include <filesystem>
 
@@ -200,10 +199,11 @@ CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettin
             }
             if (n == 0) break;
             std::span<const Triangle> part(chunk.data(), n);
-            if (feedKind && t == 0)  // smooth shading's pass over the faces runs beside the cast
-                tbb::parallel_invoke([&] { caster.cast(part); }, [&] { kind.castChunk(part); });
-            else
-                caster.cast(part);
+            // Smooth shading's pass over the faces runs on this thread while the tiles cast earlier
+            // chunks on the others. (As a parallel_invoke beside cast() it could sit unstolen in
+            // this thread's queue while cast() waited for a ring slot.)
+            if (feedKind && t == 0) kind.castChunk(part);
+            caster.cast(part);
             progress.update(n);
         }
         caster.finish([&](uint32_t r, const uint64_t* words, bool full) {
