@@ -6,6 +6,7 @@
 #include "bake/SampleMaskTable.h"
 #include "receivers/MaskPool.h"
 #include "receivers/ReceiverHierarchy.h"
+#include "stream/TriangleSource.h"
 
 #include <tbb/parallel_for.h>
 
@@ -26,9 +27,9 @@ constexpr uint32_t kAllPlanes = ~0u;  // "ALL": masked by the volume's own plane
 /// Every vertex of the light's bound strictly behind T's plane, beyond roundoff of the plane's
 /// evaluation (unit normal, so a scale-relative margin suffices).
 bool facesAway(const BlockerTriangle& t, const ConvexBound& bound) {
+    const double scale = std::max({1.0, std::abs(t.v[0].x), std::abs(t.v[0].y), std::abs(t.v[0].z)});
     for (const glm::dvec3& v : bound.vertices) {
-        const double m = std::max({1.0, std::abs(v.x), std::abs(v.y), std::abs(v.z), std::abs(t.v[0].x),
-                                   std::abs(t.v[0].y), std::abs(t.v[0].z)});
+        const double m = std::max({scale, std::abs(v.x), std::abs(v.y), std::abs(v.z)});
         if (!(t.plane.eval(v) < -1e-9 * m)) return false;
     }
     return !bound.vertices.empty();
@@ -232,9 +233,10 @@ struct PenumbraCaster::Tile {
         if (!groupVolumesBuilt) buildGroupVolumes();  // lines 60-64
 
         const uint32_t set = h.sampleSet[r];
+        const SampleMaskTable* table = tables ? &(*tables)[currentLight] : nullptr;
         SampleMaskTable::Rows rows;  // sample mask table: looked up when a group first needs it
         auto lookup = SampleMaskTable::Lookup::Exact;
-        bool lookedUp = !tables;
+        bool lookedUp = !table;
         uint64_t* bits = &h.groupUmbra[size_t(r) * umbraWords];
         uint64_t* mask = h.mask[r] != MaskPool::kNone ? pool.data(h.mask[r]) : nullptr;
         for (size_t i = groupsBegin; i < groupsEnd; ++i) {  // lines 65-73
@@ -247,14 +249,14 @@ struct PenumbraCaster::Tile {
             if (!open) continue;
             if (!lookedUp) {
                 lookedUp = true;
-                lookup = (*tables)[currentLight].lookup(tableBlocker, set, p, dist, eps, rows);
+                lookup = table->lookup(tableBlocker, set, p, dist, eps, rows);
                 if (lookup == SampleMaskTable::Lookup::NoneBlocked) return;  // no bit has changed yet
             }
             // With table rows, V_Gk's point test would only repeat what the rows decide.
             const PenumbraVolume& v = groupVolumes[g.group];
             if (lookup != SampleMaskTable::Lookup::Rows && !contains(v, p, g.planes & v.all())) continue;
             if (lookup == SampleMaskTable::Lookup::Rows) {  // sure bits are blocked; bits outside maybe are not
-                const uint32_t k = g.group - (*tables)[currentLight].firstGroup();
+                const uint32_t k = g.group - table->firstGroup();
                 const uint64_t sure = rows.sureWord(k) & open, undecided = rows.maybeWord(k) & open & ~sure;
                 tableDecided += uint64_t(__builtin_popcountll(open & ~undecided));
                 word |= sure;
@@ -368,9 +370,9 @@ PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& r
                                        {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z}, {lo.x, hi.y, hi.z}, {hi.x, hi.y, hi.z}};
         reachHull_.emplace_back(boundingBall(bound.vertices), boundingBall(corners));
     }
-    // One tile has nothing to overlap but preparation, so two chunks do; with several, a tile can
-    // fall up to two chunks behind the fastest before the caller stops to help.
-    ring_.resize(tiles_.size() > 1 ? 3 : 2);
+    // With several tiles, one can fall ringChunks() - 1 chunks behind the fastest before the
+    // caller stops preparing and helps.
+    ring_.resize(ringChunks(tiles_.size()));
     for (auto& b : ring_) b = std::make_unique<Batch>();
     tileNext_.assign(tiles_.size(), 0);
     tileBusy_ = std::make_unique<std::atomic<bool>[]>(tiles_.size());
@@ -401,6 +403,15 @@ void PenumbraCaster::prepare(Batch& batch, std::span<const Triangle> blockers) {
             const Triangle& tri = blockers[i];
             Box box{glm::min(glm::min(tri.v[0], tri.v[1]), tri.v[2]), glm::max(glm::max(tri.v[0], tri.v[1]), tri.v[2])};
             uint8_t* active = &batch.lightActive[i * lights];
+            // Switches off the lights for which @p drop(l) holds; false when none is left.
+            auto keepLights = [&](auto&& drop) {
+                bool any = false;
+                for (size_t l = 0; l < lights; ++l) {
+                    if (active[l] && drop(l)) active[l] = 0;
+                    any = any || active[l];
+                }
+                return any;
+            };
             BlockerTriangle& prepared = batch.prepared[i];
             bool any = false;
             for (size_t l = 0; l < lights; ++l) {
@@ -412,43 +423,28 @@ void PenumbraCaster::prepare(Batch& batch, std::span<const Triangle> blockers) {
             }
             prepared.valid = false;
             if (!any) continue;  // outside every light's reach: no penumbra volume needed
-            {  // beside the light: T's ball misses the hull of the light's and the receivers' balls
-                const glm::dvec3 v[3] = {glm::dvec3(tri.v[0]), glm::dvec3(tri.v[1]), glm::dvec3(tri.v[2])};
-                const Ball ball = boundingBall(v);
-                any = false;
-                for (size_t l = 0; l < lights; ++l) {
-                    if (active[l] && reachHull_[l].misses(ball)) active[l] = 0;
-                    any = any || active[l];
-                }
-                if (!any) continue;
-            }
+            // Beside the light: T's ball misses the hull of the light's and the receivers' balls.
+            const glm::dvec3 v[3] = {glm::dvec3(tri.v[0]), glm::dvec3(tri.v[1]), glm::dvec3(tri.v[2])};
+            const Ball ball = boundingBall(v);
+            if (!keepLights([&](size_t l) { return reachHull_[l].misses(ball); })) continue;
             prepared = BlockerTriangle::from(tri);
             if (!prepared.valid) continue;
-            if (options_.closedCasters && (tri.flags & kTriangleClosed)) {
-                // A closed surface's triangle with every light vertex strictly behind it: a segment
-                // through it enters the solid, and the triangle where it leaves faces the light.
-                any = false;
-                for (size_t l = 0; l < lights; ++l) {
-                    if (active[l] && facesAway(prepared, samples_.lightBounds[l])) active[l] = 0;
-                    any = any || active[l];
-                }
-                if (!any) {
-                    prepared.valid = false;
-                    ++backFaces;
-                    continue;
-                }
+            // A closed surface's triangle with every light vertex strictly behind it: a segment
+            // through it enters the solid, and the triangle where it leaves faces the light.
+            if (options_.closedCasters && (tri.flags & kTriangleClosed) &&
+                !keepLights([&](size_t l) { return facesAway(prepared, samples_.lightBounds[l]); })) {
+                prepared.valid = false;
+                ++backFaces;
+                continue;
             }
             // V_L is built plane by plane and abandoned as soon as one plane leaves every receiver
             // outside (first the cap: every receiver on the light's side of T's plane), so a
             // blocker culled at the root rarely pays for its whole volume.
-            any = false;
-            for (size_t l = 0; l < lights; ++l) {
-                if (active[l] &&
-                    !buildPenumbraVolume(samples_.lightBounds[l], prepared, batch.lightVolumes[i * lights + l], &receiversBox_))
-                    active[l] = 0;
-                any = any || active[l];
-            }
-            if (!any) prepared.valid = false;
+            if (!keepLights([&](size_t l) {
+                    return !buildPenumbraVolume(samples_.lightBounds[l], prepared, batch.lightVolumes[i * lights + l],
+                                                &receiversBox_);
+                }))
+                prepared.valid = false;
         }
         closedBackFaces += backFaces;
     });
@@ -542,6 +538,10 @@ void PenumbraCaster::finish(const MaskVisitor& visit) {
             }
         });
     });
+}
+
+size_t PenumbraCaster::preparedChunkBytes(size_t lights) {
+    return kTriangleChunk * (sizeof(BlockerTriangle) + lights * (sizeof(PenumbraVolume) + 1));
 }
 
 CastStats PenumbraCaster::stats() const {

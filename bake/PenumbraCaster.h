@@ -52,6 +52,15 @@ public:
     /// @brief Counters and timers; call after finish() or flush() to include the last chunk.
     CastStats stats() const;
 
+    /// @brief Chunks of prepared blockers held at once: two with one tile (one prepared while
+    /// the other is cast), kMaxRingChunks with several.
+    static size_t ringChunks(size_t tiles) { return tiles > 1 ? kMaxRingChunks : 2; }
+    static constexpr size_t kMaxRingChunks = 3;
+    /// @brief Bytes of one prepared chunk of kTriangleChunk blockers, for memory planning. The
+    /// flags of which tiles a blocker reached (a byte per blocker and tile) are left out, so that
+    /// a plan, and so a tiled bake, does not depend on the thread count.
+    static size_t preparedChunkBytes(size_t lights);
+
 private:
     struct Tile;
     const LightSamples& samples_;

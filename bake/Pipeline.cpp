@@ -169,6 +169,11 @@ void accumulate(CastStats& total, const CastStats& s) {
     total.receiverBytes = std::max(total.receiverBytes, s.receiverBytes);
 }
 
+/// Within a memory tile, threads work on disjoint sub-tiles, four per thread: more sub-tiles even
+/// out uneven work (measured on GRIDS with a barrier per chunk, 2 threads: 2 per thread cast in
+/// 4.28 s, 4 in 3.86 s, 8 in 3.92 s; docs/performance.md, "Parallelism").
+int subTiles(int threads) { return threads > 1 ? 4 * threads : 1; }
+
 /// Hierarchical penumbra casting of receivers [first, end), one memory tile after another; each
 /// tile replays the blockers. The first tile of the bake's first pass reads the replay the scan
 /// pass left ready; every other tile rewinds it. The kind sees the first tile's chunks when it
@@ -186,10 +191,7 @@ CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettin
     for (size_t t = 0; t < tiles.size(); ++t) {
         const auto& tile = tiles[t];
         double readSeconds = 0;
-        // Within a memory tile, threads work on disjoint sub-tiles. Four per thread: chunk by chunk,
-        // uneven tiles leave threads idle at the barrier; measured on GRIDS, 2 per thread cast in
-        // 4.28 s, 4 in 3.86 s, 8 in 3.92 s (2 threads; 6.76 s on one).
-        PenumbraCaster caster(p.samples, p.receivers, p.sampleSets, scene.options, threads > 1 ? 4 * threads : 1, tile);
+        PenumbraCaster caster(p.samples, p.receivers, p.sampleSets, scene.options, subTiles(threads), tile);
         if (t > 0 || rewindFirst) p.blockers->rewind();
         for (;;) {
             size_t n;
@@ -294,10 +296,9 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         for (uint32_t l = 0; l < uint32_t(p.samples.lightCount()); ++l)
             demand.sampleBytes += SampleMaskTable::plannedBytes(p.samples, l, scene.options.sampleTableAngles,
                                                                 scene.options.sampleTableOffsets);
-    // Bucket buffers, the prefetch queue and the caster's per-chunk volumes are fixed buffers.
-    // Two batches of prepared blockers in the caster (one cast while the next is prepared).
+    // Bucket buffers, the prefetch queue and the caster's ring of prepared chunks are fixed buffers.
     demand.bufferBytes = p.bucketBufferBytes + 8 * kTriangleChunk * sizeof(Triangle) +
-                         2 * kTriangleChunk * (scene.lights.size() * (sizeof(PenumbraVolume) + 1) + sizeof(BlockerTriangle));
+                         PenumbraCaster::kMaxRingChunks * PenumbraCaster::preparedChunkBytes(scene.lights.size());
     demand.kindBytes = kind->residentBytes();
     MemoryPlan plan = planMemory(demand, settings.memoryBudget);
 

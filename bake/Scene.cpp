@@ -9,8 +9,6 @@
 #include "stream/SourceRegistry.h"
 
 #include <cmath>
-#include <fstream>
-#include <sstream>
 
 namespace penumbra {
 namespace {
@@ -151,20 +149,7 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
     return scene;
 }
 
-SceneDesc loadScene(const std::string& path) {
-    std::ifstream in(path);
-    if (!in) fail(path, "cannot open scene file: {}", std::strerror(errno));
-    std::stringstream text;
-    text << in.rdbuf();
-    nlohmann::json root;
-    try {
-        root = nlohmann::json::parse(text.str());
-    } catch (const nlohmann::json::parse_error& e) {
-        std::string what = e.what();
-        fail(path, "invalid JSON at byte {}: {}", e.byte, what.substr(what.find(']') + 2));
-    }
-    return parseScene(root, path);
-}
+SceneDesc loadScene(const std::string& path) { return parseScene(readJsonFile(path), path); }
 
 TriangleSourcePtr openSceneGeometry(const SceneDesc& scene) {
     std::vector<TriangleSourcePtr> parts;

@@ -4,7 +4,11 @@
 
 #include <fmt/ranges.h>
 
+#include <cerrno>
 #include <cmath>
+#include <cstring>
+#include <fstream>
+#include <sstream>
 
 namespace penumbra {
 
@@ -127,6 +131,19 @@ glm::dvec2 JsonParams::range(const std::string& key, const glm::dvec2& fallback)
 void JsonParams::finish() const {
     for (auto it = object_.begin(); it != object_.end(); ++it)
         if (!used_.count(it.key())) fail(where(it.key()), "unknown key");
+}
+
+nlohmann::json readJsonFile(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) fail(path, "cannot open: {}", std::strerror(errno));
+    std::stringstream text;
+    text << in.rdbuf();
+    try {
+        return nlohmann::json::parse(text.str());
+    } catch (const nlohmann::json::parse_error& e) {
+        std::string what = e.what();
+        fail(path, "invalid JSON at byte {}: {}", e.byte, what.substr(what.find(']') + 2));
+    }
 }
 
 }  // namespace penumbra

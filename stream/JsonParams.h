@@ -53,4 +53,8 @@ private:
     mutable std::set<std::string> used_;
 };
 
+/// @brief Reads and parses a JSON file (a scene, a benchmark's example).
+/// @throw InputError naming @p path when it cannot be opened or is not valid JSON (with the byte).
+nlohmann::json readJsonFile(const std::string& path);
+
 }  // namespace penumbra

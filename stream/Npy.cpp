@@ -314,7 +314,6 @@ OpenedNpy openNpy(const std::string& path) {
     NpyHeader out;
     out.dtype = dtype->normalized;
     out.shape = std::move(h.shape);
-    out.dataOffset = dataOffset;
     const auto expected = byteCount(out.shape, dtype->size);
     if (!expected || *expected > static_cast<uint64_t>(std::numeric_limits<size_t>::max()))
         fail(path, "header shape {} is too large", shapeText(out.shape));
@@ -328,7 +327,14 @@ OpenedNpy openNpy(const std::string& path) {
 
 }  // namespace
 
-NpyHeader readNpyHeader(const std::string& path) { return openNpy(path).header; }
+NpyRowReader::NpyRowReader(const std::string& path) : path_(path) {
+    OpenedNpy opened = openNpy(path);
+    header_ = std::move(opened.header);
+    file_.reset(opened.file.release());
+    if (!header_.shape.empty() && header_.shape[0] > 0) rowBytes_ = header_.dataBytes / header_.shape[0];
+}
+
+void NpyRowReader::read(void* dst, size_t bytes) { readFully(file_.get(), path_, dst, bytes, "data"); }
 
 NpyArray readNpy(const std::string& path) {
     OpenedNpy opened = openNpy(path);

@@ -13,6 +13,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
+#include <memory>
 #include <span>
 #include <string>
 #include <string_view>
@@ -34,16 +36,36 @@ struct NpyArray {
     size_t itemSize() const;
 };
 
-/// @brief The validated header of a .npy file, for reading its data in pieces (large dumps).
+/// @brief The validated header of a .npy file.
 struct NpyHeader {
     std::string dtype;            ///< normalised, as in NpyArray
     std::vector<uint64_t> shape;
-    uint64_t dataOffset = 0;      ///< bytes before the data
     uint64_t dataBytes = 0;       ///< checked against the shape
 };
 
-/// @brief Reads and checks only the header (same checks and messages as readNpy()).
-NpyHeader readNpyHeader(const std::string& path);
+/// @brief A .npy file opened for reading its rows a block at a time, for arrays too large to
+/// hold whole (dumps of millions of receivers). The header gets readNpy()'s checks on opening.
+class NpyRowReader {
+public:
+    /// @throw InputError as readNpy() does for the header.
+    explicit NpyRowReader(const std::string& path);
+    const NpyHeader& header() const { return header_; }
+    /// @brief Reads the next @p rows rows (a row is everything below the first axis) into
+    /// @p out, resized to hold them exactly.
+    /// @throw InputError naming the file when it ends early or a read fails.
+    template <class T>
+    void next(uint64_t rows, std::vector<T>& out) {
+        out.resize(size_t(rows * rowBytes_ / sizeof(T)));
+        read(out.data(), size_t(rows * rowBytes_));
+    }
+
+private:
+    void read(void* dst, size_t bytes);
+    std::string path_;
+    NpyHeader header_;
+    uint64_t rowBytes_ = 0;
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> file_{nullptr, &std::fclose};
+};
 
 /// @brief Reads a whole .npy file (versions 1.0, 2.0 and 3.0).
 /// @param path file to read; also the prefix of every error message.

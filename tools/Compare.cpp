@@ -7,7 +7,6 @@
 
 #include <algorithm>
 #include <bit>
-#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <memory>
@@ -22,48 +21,19 @@ constexpr uint64_t kRowsPerStep = 1 << 16;
 
 struct Dump {
     std::string dir;
-    NpyHeader receivers, masks;
-    NpyArray samples;  ///< small (sets x samples x 3): read whole
+    NpyRowReader receivers, masks;  ///< read a block of rows at a time
+    NpyArray samples;               ///< small (sets x samples x 3): read whole
+    explicit Dump(const std::string& d)
+        : dir(d), receivers(path("receivers.npy")), masks(path("masks.npy")), samples(readNpy(path("samples.npy"))) {
+        const NpyHeader &rh = receivers.header(), &mh = masks.header();
+        if (rh.dtype != "<f4" || rh.shape.size() != 2 || rh.shape[1] != 7) fail(path("receivers.npy"), "expected float32 N x 7");
+        if (samples.dtype != "<f4" || samples.shape.size() != 3 || samples.shape[2] != 3)
+            fail(path("samples.npy"), "expected float32 S x K x 3");
+        const uint64_t n = rh.shape[0], k = samples.shape[1];
+        if (mh.dtype != "<u8" || mh.shape.size() != 2 || mh.shape[0] != n || mh.shape[1] != (k + 63) / 64)
+            fail(path("masks.npy"), "expected uint64 {} x {} to match receivers.npy and samples.npy", n, (k + 63) / 64);
+    }
     std::string path(const char* name) const { return (std::filesystem::path(dir) / name).string(); }
-};
-
-Dump openDump(const std::string& dir) {
-    Dump d{dir, {}, {}, {}};
-    d.receivers = readNpyHeader(d.path("receivers.npy"));
-    d.masks = readNpyHeader(d.path("masks.npy"));
-    d.samples = readNpy(d.path("samples.npy"));
-    if (d.receivers.dtype != "<f4" || d.receivers.shape.size() != 2 || d.receivers.shape[1] != 7)
-        fail(d.path("receivers.npy"), "expected float32 N x 7");
-    if (d.samples.dtype != "<f4" || d.samples.shape.size() != 3 || d.samples.shape[2] != 3)
-        fail(d.path("samples.npy"), "expected float32 S x K x 3");
-    uint64_t n = d.receivers.shape[0], k = d.samples.shape[1];
-    if (d.masks.dtype != "<u8" || d.masks.shape.size() != 2 || d.masks.shape[0] != n || d.masks.shape[1] != (k + 63) / 64)
-        fail(d.path("masks.npy"), "expected uint64 {} x {} to match receivers.npy and samples.npy", n, (k + 63) / 64);
-    return d;
-}
-
-/// Sequential reader of the rows of a 2-D .npy array, a block of rows at a time.
-class RowReader {
-public:
-    RowReader(const std::string& path, const NpyHeader& header, size_t rowBytes)
-        : path_(path), file_(std::fopen(path.c_str(), "rb")), rowBytes_(rowBytes) {
-        if (!file_ || std::fseek(file_.get(), long(header.dataOffset), SEEK_SET) != 0) fail(path, "cannot open for reading");
-    }
-    /// Reads the next @p rows rows into @p out (resized).
-    template <class T>
-    void next(uint64_t rows, std::vector<T>& out) {
-        out.resize(rows * rowBytes_ / sizeof(T));
-        if (std::fread(out.data(), 1, rows * rowBytes_, file_.get()) != rows * rowBytes_)
-            fail(path_, "file ends early (changed while being compared?)");
-    }
-
-private:
-    struct Closer {
-        void operator()(std::FILE* f) const { std::fclose(f); }
-    };
-    std::string path_;
-    std::unique_ptr<std::FILE, Closer> file_;
-    size_t rowBytes_;
 };
 
 /// The scene's blockers with a median-split bounding-volume hierarchy over their boxes, so a
@@ -187,14 +157,14 @@ private:
 }  // namespace
 
 CompareResult compareDumps(const std::string& dirA, const std::string& dirB, const std::string& scenePath) {
-    Dump a = openDump(dirA), b = openDump(dirB);
-    if (a.receivers.shape != b.receivers.shape)
+    Dump a(dirA), b(dirB);
+    if (a.receivers.header().shape != b.receivers.header().shape)
         fail(dirB, "receivers.npy differs from {}: the dumps are not of the same receivers", dirA);
     if (a.samples.shape != b.samples.shape || a.samples.data != b.samples.data)
         fail(dirB, "samples.npy differs from {}: the dumps are not of the same light samples", dirA);
 
     CompareResult r;
-    r.receivers = a.receivers.shape[0];
+    r.receivers = a.receivers.header().shape[0];
     r.samples = a.samples.shape[1];
     r.relations = r.receivers * r.samples;
     const uint64_t words = (r.samples + 63) / 64;
@@ -206,18 +176,14 @@ CompareResult compareDumps(const std::string& dirA, const std::string& dirB, con
         r.classified = true;
     }
 
-    RowReader recA(a.path("receivers.npy"), a.receivers, 7 * sizeof(float));
-    RowReader recB(b.path("receivers.npy"), b.receivers, 7 * sizeof(float));
-    RowReader maskA(a.path("masks.npy"), a.masks, words * sizeof(uint64_t));
-    RowReader maskB(b.path("masks.npy"), b.masks, words * sizeof(uint64_t));
     std::vector<float> rec, recOther;
     std::vector<uint64_t> ma, mb;
     for (uint64_t first = 0; first < r.receivers; first += kRowsPerStep) {
         const uint64_t rows = std::min(kRowsPerStep, r.receivers - first);
-        recA.next(rows, rec), recB.next(rows, recOther);
+        a.receivers.next(rows, rec), b.receivers.next(rows, recOther);
         if (std::memcmp(rec.data(), recOther.data(), rec.size() * sizeof(float)) != 0)
             fail(dirB, "receivers.npy differs from {}: the dumps are not of the same receivers", dirA);
-        maskA.next(rows, ma), maskB.next(rows, mb);
+        a.masks.next(rows, ma), b.masks.next(rows, mb);
         for (uint64_t i = 0; i < rows; ++i)
             for (uint64_t w = 0; w < words; ++w) {
                 const uint64_t x = ma[i * words + w], y = mb[i * words + w];

@@ -3,6 +3,7 @@
 
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
+#include "stream/JsonParams.h"
 #include "stream/Memory.h"
 #include "stream/Npy.h"
 
@@ -457,18 +458,7 @@ void runBenchTable(const BenchTableOptions& o, const std::string& commandLine) {
         if (std::find(known.begin(), known.end(), name) == known.end())
             throw InputError(fmt::format("--rows: unknown row \"{}\" (known: {})", name, fmt::join(known, ", ")));
     std::vector<std::pair<std::string, json>> scenes;
-    for (const std::string& name : o.scenes) {
-        const fs::path file = sceneFile(o, name);
-        json scene;
-        try {
-            scene = json::parse(slurpFile(file.string()));
-        } catch (const json::exception& e) {
-            fail(file.string(), "not valid JSON: {}", e.what());
-        }
-        scenes.emplace_back(sceneName(name), std::move(scene));
-    }
-    std::string markdownBase;
-    if (!o.markdownPath.empty() && fs::exists(o.markdownPath)) markdownBase = slurpFile(o.markdownPath);
+    for (const std::string& name : o.scenes) scenes.emplace_back(sceneName(name), readJsonFile(sceneFile(o, name).string()));
 
     const std::vector<int> threadList = o.threads.empty() ? std::vector<int>{0} : o.threads;
     const int tableThreads = threadList.back() > 0 ? threadList.back() : int(tbb::info::default_concurrency());
@@ -579,7 +569,9 @@ void runBenchTable(const BenchTableOptions& o, const std::string& commandLine) {
     result["bench_process_peak_rss_bytes"] = peakRssBytes();
     save();
     const std::string md = table2Markdown(result);
-    if (!o.markdownPath.empty()) writeText(o.markdownPath, replaceTable2Section(markdownBase, md));
+    // Read only now: the file may have been edited during a run that takes half an hour.
+    if (!o.markdownPath.empty())
+        writeText(o.markdownPath, replaceTable2Section(fs::exists(o.markdownPath) ? slurpFile(o.markdownPath) : "", md));
     fmt::print("{}", md);
 }
 
