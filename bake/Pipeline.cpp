@@ -439,7 +439,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     if (refineSeconds > 0) stats["antialias"]["refine_scan_time_s"] = refineSeconds;
     if (settings.method == Method::Embree)
         stats["embree"] = {{"build_time_s", embree.buildSeconds}, {"trace_time_s", embree.traceSeconds},
-                           {"rays", embree.rays}, {"scene_bytes", embree.sceneBytes}};
+                           {"rays", embree.rays}, {"scene_bytes", embree.sceneBytes},
+                           {"filter_calls", embree.filterCalls}, {"filter_rejected", embree.filterRejected}};
     if (!settings.statsPath.empty()) {
         std::string text = stats.dump(2) + "\n";
         ensureParentDirectory(settings.statsPath);

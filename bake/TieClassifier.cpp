@@ -143,14 +143,14 @@ TieClassifier::Judged TieClassifier::judge(uint32_t index, const glm::dvec3& l, 
 
     const double dist = distanceBehind(t, r), eps = epsilon_.at(r);
     const glm::dvec3 span = l - w * r;  // the segment (or the ray's direction)
-    const double denom = glm::dot(t.plane.n, span);
-    const double tc = denom != 0.0 ? -dist / denom : 0.0;
-    const double toCrossing = std::max(std::abs(tc) * glm::length(span), kFloatUlp * std::max(rAbs, mT));
-    const double lightFraction = w != 0.0 ? std::abs(1.0 - tc) : 1.0;  // |l - c| / |l - r|
-    const double lightTerm = w != 0.0 ? lAbs / glm::length(span) : 1.0;
+    const double spanLength = glm::length(span);
+    const double lightTerm = w != 0.0 ? lAbs / spanLength : 1.0;
+    const double floorDistance = kFloatUlp * std::max(rAbs, mT);
 
     // The rule's quantities for edge orientation s (the sample's side, or its opposite when the
-    // sample is within roundoff of T's plane).
+    // sample is within roundoff of T's plane). An edge's value E = s det(span, b - a, r - a) is
+    // the signed distance between the segment's line and the edge's line times |span x (b - a)|;
+    // divided by the distance from r to the closest point, it is the angle seen from r.
     auto quantities = [&](double s, Quantity q[4]) {
         const HardShadowVolume h = makeHardShadowVolume(l, w, t);
         q[0] = {RuleQuantity::Band, -1, -s * dist, eps, uf * std::max(rAbs, mT), -s * dist > eps};
@@ -158,9 +158,15 @@ TieClassifier::Judged TieClassifier::judge(uint32_t index, const glm::dvec3& l, 
             const glm::dvec3& a = t.v[e];
             const glm::dvec3& b = t.v[(e + 1) % 3];
             const glm::dvec3 n = h.side != 0.0 && s == -h.side ? h.edge[e] : s * glm::cross(l - w * a, b - a);
-            const double nl = glm::length(n), value = glm::dot(n, r - a);
-            const double angle = nl > 0.0 ? value / nl * lightFraction / toCrossing : 0.0;
-            const double tol = uf * (std::max({rAbs, maxAbs(a), maxAbs(b)}) / toCrossing + lightTerm);
+            const double value = glm::dot(n, r - a);
+            const glm::dvec3 edge = b - a, w0 = r - a;
+            const double A = glm::dot(span, span), B = glm::dot(span, edge), C = glm::dot(edge, edge);
+            const double denom = A * C - B * B;
+            const double tClosest = denom > 0.0 ? (B * glm::dot(edge, w0) - C * glm::dot(span, w0)) / denom : 0.0;
+            const double toClosest = std::max(std::abs(tClosest) * spanLength, floorDistance);
+            const double skew = glm::length(glm::cross(span, edge));
+            const double angle = skew > 0.0 ? value / skew / toClosest : 0.0;
+            const double tol = uf * (std::max({rAbs, maxAbs(a), maxAbs(b)}) / toClosest + lightTerm);
             q[1 + e] = {RuleQuantity::Edge, e, angle, 0.0, tol, value >= 0.0};
         }
     };

@@ -69,7 +69,7 @@ int main(int argc, char** argv) {
     bake->add_option("--method", method, "hpc (default), reference or embree");
     bake->add_option("--threads", threads, "worker threads (default: all cores)");
     bake->add_option("--stats", statsPath, "write JSON stats to this file");
-    bake->add_option("--dump", dumpDir, "write receivers.npy, samples.npy and masks.npy to this directory");
+    bake->add_option("--dump", dumpDir, "write receivers.npy, samples.npy, masks.npy and rule.json to this directory");
     bake->add_option("--disable", disabled,
                      "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, closed-casters, all")
         ->delimiter(',');
