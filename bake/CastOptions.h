@@ -28,6 +28,10 @@ struct CastOptions {
     /// as no light sample lies inside a closed solid (except for ties of the blocking rule:
     /// segments that only graze the solid).
     bool closedCasters = true;
+    /// --method embree: accept a hit only when the blocking rule blocks (an occlusion filter), so
+    /// Embree decides like hpc but for float edge ties. Off: Embree's native answer, with the
+    /// epsilon as tnear along the ray, which also blocks grazing rays the rule does not.
+    bool embreeRuleFilter = true;
     int sampleTableAngles = 128;   ///< angle bins of each table
     int sampleTableOffsets = 128;  ///< offset bins of each table
     double rebuildThreshold = 0.25;  ///< rebuild when this fraction of live receivers is in umbra

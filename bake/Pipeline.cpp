@@ -343,7 +343,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         auto tick = [&](uint64_t n) { progress.update(n); };
         VisibilityMasks m = settings.method == Method::Reference
                                 ? castReference(p.samples, targets, sets, all, receiverEpsilonOf(p.options), tick)
-                                : castEmbree(p.samples, targets, sets, all, receiverEpsilonOf(p.options), &embree, tick);
+                                : castEmbree(p.samples, targets, sets, all, receiverEpsilonOf(p.options), &embree, tick,
+                                             p.options.embreeRuleFilter);
         progress.done();
         std::copy(m.words.begin(), m.words.end(), masks.words.begin() + size_t(first) * masks.groups);
         for (uint32_t r = first; r < p.receivers.size(); ++r) shader.shade(r, masks.row(r), false, results);
@@ -440,7 +441,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     if (settings.method == Method::Embree)
         stats["embree"] = {{"build_time_s", embree.buildSeconds}, {"trace_time_s", embree.traceSeconds},
                            {"rays", embree.rays}, {"scene_bytes", embree.sceneBytes},
-                           {"filter_calls", embree.filterCalls}, {"filter_rejected", embree.filterRejected}};
+                           {"filter_calls", embree.filterCalls}, {"filter_exact", embree.filterExact},
+                           {"filter_rejected", embree.filterRejected}};
     if (!settings.statsPath.empty()) {
         std::string text = stats.dump(2) + "\n";
         ensureParentDirectory(settings.statsPath);

@@ -79,7 +79,10 @@ int main(int argc, char** argv) {
     std::string sampleTable;
     bake->add_option("--sample-table", sampleTable, "on or off: sample mask tables (overrides bake.sample_table)")
         ->check(CLI::IsMember({"on", "off"}));
-    std::string closedCasters;
+    std::string closedCasters, embreeFilter;
+    bake->add_option("--embree-filter", embreeFilter,
+                     "--method embree: apply the blocking rule to every hit (on, default) or take Embree's native answer (off)")
+        ->check(CLI::IsMember({"on", "off"}));
     bake->add_option("--closed-casters", closedCasters,
                      "on or off: skip closed surfaces' triangles that face away from the light (overrides "
                      "bake.closed_casters)")
@@ -140,6 +143,7 @@ int main(int argc, char** argv) {
             if (!simd.empty()) scene.options.simd = parseSimdLevel(simd, "--simd");
             if (!sampleTable.empty()) scene.options.sampleTable = sampleTable == "on";
             if (!closedCasters.empty()) scene.options.closedCasters = closedCasters == "on";
+            if (!embreeFilter.empty()) scene.options.embreeRuleFilter = embreeFilter == "on";
             BakeSettings settings;
             settings.method = parseMethod(method);
             if (threads < 0) throw InputError(fmt::format("--threads: must not be negative, got {}", threads));
