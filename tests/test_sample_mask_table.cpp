@@ -90,7 +90,9 @@ void checkLight(const LightDesc& light, int angles, int offsets) {
             const int e = int(rng.next() % 3);
             const double s = i < 2 ? 0.0 : rng.uniform();  // through a vertex, or along the edge
             const glm::dvec3 onEdge = t.v[e] + s * (t.v[(e + 1) % 3] - t.v[e]);
-            const glm::dvec3 r(glm::vec3(onEdge + (0.5 + rng.uniform()) * (onEdge - l)));
+            // Away from the sample through the edge point: for a sun, against its direction.
+            const glm::dvec3 away = samples.w(0) == 0.0 ? -glm::normalize(l) : onEdge - l;
+            const glm::dvec3 r(glm::vec3(onEdge + (0.5 + rng.uniform()) * away));
             checkReceiver(samples, table, t, r, tally);
         }
     }
@@ -113,6 +115,12 @@ TEST_CASE("sample mask table cells bracket the exact decisions", "[table]") {
     SECTION("rect, coarse 16 x 8") { checkLight(rectLight({0, 4, 0}, {1.3, 0.2, 0}, {0, 0.1, 1.1}, 64, 4), 16, 8); }
     SECTION("disk") { checkLight(diskLight(), 64, 256); }
     SECTION("polygon") { checkLight(polygonLight(), 256, 64); }
+    SECTION("sun") {  // the table lives in the plane of the sun's directions
+        LightDesc sun;
+        sun.type = LightType::Sun, sun.direction = {0.3, -1, 0.2}, sun.angularDiameterDeg = 8;
+        sun.samples = 64, sun.sampleSets = 4;
+        checkLight(sun, 128, 128);
+    }
 }
 
 TEST_CASE("sample mask table refuses volumetric lights", "[table]") {
