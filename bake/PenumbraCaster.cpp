@@ -23,6 +23,10 @@ double secondsSince(std::chrono::steady_clock::time_point t0) {
 }
 
 constexpr uint32_t kAllPlanes = ~0u;  // "ALL": masked by the volume's own plane count when used
+/// A split blocker's table look-up (four lines) costs about as much as this many exact tests
+/// (docs/performance.md, "Blockers whose plane cuts the light"); with fewer open samples in the
+/// groups whose V_Gk holds the receiver, the exact tests decide them.
+constexpr uint32_t kSplitTableMinimumBits = 48;
 
 /// Every vertex of the light's bound strictly behind T's plane, beyond roundoff of the plane's
 /// evaluation (unit normal, anchored at T, so a margin relative to the quantities suffices). For a
@@ -87,7 +91,9 @@ struct PenumbraCaster::Tile {
     std::vector<uint32_t> hardReady;          // [set][group]: bit b set once block b is built
     std::vector<uint32_t> hardReadyList;
     std::vector<ActiveGroup> stack;
+    std::vector<ActiveGroup> candidates;  // castReceiver(): the groups a receiver still needs
     SampleMaskTable::Blocker tableBlocker;  // the current triangle against the current light
+    SampleMaskTable::SideCache sideCache;   // its plane's rows, when its plane cuts the light
     bool reachedRoot = false;
 
     double buildSeconds = 0;
@@ -129,7 +135,10 @@ struct PenumbraCaster::Tile {
     void buildGroupVolumes() {
         for (uint32_t k = samples.lightFirstGroup[currentLight]; k < samples.lightFirstGroup[currentLight + 1]; ++k)
             buildPenumbraVolume(samples.groups[k].bound, *tri, groupVolumes[k]);
-        if (tables) tableBlocker = (*tables)[currentLight].prepare(*tri);
+        if (tables) {
+            tableBlocker = (*tables)[currentLight].prepare(*tri);
+            if (tableBlocker.split) sideCache.reset(samples.sets), tableBlocker.sideCache = &sideCache;
+        }
         groupVolumesBuilt = true;
     }
 
@@ -254,29 +263,40 @@ struct PenumbraCaster::Tile {
 
         const uint32_t set = h.sampleSet[r];
         const SampleMaskTable* table = tables ? &(*tables)[currentLight] : nullptr;
-        SampleMaskTable::Rows rows;  // sample mask table: looked up when a group first needs it
-        auto lookup = SampleMaskTable::Lookup::Exact;
-        bool lookedUp = !table;
-        bool haveOffsets = false;
-        EdgeOffsets offsets;  // r - v_e for the exact tests, once per receiver
         uint64_t* bits = &h.groupUmbra[size_t(r) * umbraWords];
         uint64_t* mask = h.mask[r] != MaskPool::kNone ? pool.data(h.mask[r]) : nullptr;
+        // A blocker whose plane cuts the light reaches far more receivers than it shadows, and its
+        // table look-up takes four lines: V_Gk's point test first rejects most receivers more
+        // cheaply, and the look-up is only worth it for enough open samples. Otherwise, with table
+        // rows, the point test would only repeat what the rows decide.
+        const bool pointTestFirst = !table || tableBlocker.split;
+        candidates.clear();
+        uint32_t openBits = 0;
         for (size_t i = groupsBegin; i < groupsEnd; ++i) {  // lines 65-73
             const ActiveGroup g = stack[i];
             if (umbra() && h.groupUmbraBit(bits, g.group)) continue;
+            const uint64_t open = ~(mask ? mask[g.group] : 0) & samples.groups[g.group].fullMask();
+            if (!open) continue;
+            const PenumbraVolume& v = groupVolumes[g.group];
+            if (pointTestFirst && !contains(v, p, g.planes & v.all())) continue;
+            candidates.push_back(g);
+            openBits += uint32_t(__builtin_popcountll(open));
+        }
+        if (candidates.empty()) return;
+        SampleMaskTable::Rows rows;
+        auto lookup = SampleMaskTable::Lookup::Exact;
+        if (table && (!tableBlocker.split || openBits >= kSplitTableMinimumBits)) {
+            lookup = table->lookup(tableBlocker, set, p, dist, eps, rows);
+            if (lookup == SampleMaskTable::Lookup::NoneBlocked) return;  // no bit has changed yet
+        }
+        bool haveOffsets = false;
+        EdgeOffsets offsets;  // r - v_e for the exact tests, once per receiver
+        for (const ActiveGroup& g : candidates) {
             const LightSampleGroup& group = samples.groups[g.group];
             const uint64_t before = mask ? mask[g.group] : 0;
-            uint64_t word = before;
-            uint64_t open = ~word & group.fullMask();
-            if (!open) continue;
-            if (!lookedUp) {
-                lookedUp = true;
-                lookup = table->lookup(tableBlocker, set, p, dist, eps, rows);
-                if (lookup == SampleMaskTable::Lookup::NoneBlocked) return;  // no bit has changed yet
-            }
-            // With table rows, V_Gk's point test would only repeat what the rows decide.
+            uint64_t word = before, open = ~word & group.fullMask();
             const PenumbraVolume& v = groupVolumes[g.group];
-            if (lookup != SampleMaskTable::Lookup::Rows && !contains(v, p, g.planes & v.all())) continue;
+            if (!pointTestFirst && lookup != SampleMaskTable::Lookup::Rows && !contains(v, p, g.planes & v.all())) continue;
             if (lookup == SampleMaskTable::Lookup::Rows) {  // sure bits are blocked; bits outside maybe are not
                 const uint32_t k = g.group - table->firstGroup();
                 const uint64_t sure = rows.sureWord(k) & open, undecided = rows.maybeWord(k) & open & ~sure;

@@ -106,6 +106,7 @@ SampleMaskTable::SampleMaskTable(const LightSamples& samples, uint32_t light, in
         for (uint32_t j = 0; j < g.count; ++j) groupOf[g.first - first + j] = k, bitOf[g.first - first + j] = j;
     }
     cells_.assign(words, 0);
+    ones_.assign(2 * size_t(groups_) + 1, ~0ull);
     for (int set = 0; set < samples.sets; ++set)
         for (int a = 0; a < angles_; ++a) {
             const glm::dvec2 d0 = diamondDirection(4.0 * a / angles_), d1 = diamondDirection(4.0 * (a + 1) / angles_);
@@ -173,18 +174,24 @@ SampleMaskTable::Blocker SampleMaskTable::prepare(const BlockerTriangle& t) cons
     const double sideMargin = 64 * u * m;
     if (sideMin > sideMargin) out.side = -1.0;       // sl > 0 for every sample
     else if (sideMax < -sideMargin) out.side = 1.0;  // sl < 0 for every sample
-    else return out;
-    out.sigma = -out.side;
+    else out.split = true;                           // T's plane cuts the light: see lookup()
+    out.sigma = out.split ? 1.0 : -out.side;
+    if (out.split) {
+        const glm::dvec3& n = t.plane.n;
+        out.plane = {glm::dot(n, u_), glm::dot(n, v_), glm::dot(n, origin_ - w_ * t.v[0])};
+        out.planeNormal = glm::dot(n, n_);
+    }
     // E(l) = s (l - w a) . m with m = (b - a) x (r - a) = a x b - r x (b - a), so for a fixed
     // vector q, m . q = (a x b) . q - r . ((b - a) x q): affine in r. The line's coefficients are
     // m . u, m . v and m . (o - w a) = (a x b) . o - r . ((b - a) x (o - w a)), and m . n.
     for (int e = 0; e < 3; ++e) {
         const glm::dvec3 &a = t.v[e], &b = t.v[(e + 1) % 3];
         const glm::dvec3 ab = glm::cross(a, b), d = b - a;
-        const double s = out.sigma;
-        out.line[e][0] = {s * glm::dot(ab, u_), s * glm::cross(d, u_)};
-        out.line[e][1] = {s * glm::dot(ab, v_), s * glm::cross(d, v_)};
-        out.line[e][2] = {s * glm::dot(ab, origin_), s * glm::cross(d, origin_ - w_ * a)};
+        // Stored for orientation +1; lookup() applies the orientation (sigma, or per receiver
+        // for a split blocker).
+        out.line[e][0] = {glm::dot(ab, u_), glm::cross(d, u_)};
+        out.line[e][1] = {glm::dot(ab, v_), glm::cross(d, v_)};
+        out.line[e][2] = {glm::dot(ab, origin_), glm::cross(d, origin_ - w_ * a)};
         out.line[e][3] = {glm::dot(ab, n_), glm::cross(d, n_)};
     }
     out.usable = true;
@@ -195,7 +202,7 @@ SampleMaskTable::Lookup SampleMaskTable::lookup(const Blocker& b, uint32_t set, 
                                                 double eps, Rows& rows) const {
     if (!b.usable) return Lookup::Exact;
     // BlockingRule's first clause, with the side every sample shares: the same double expression.
-    if (!(b.side * dist > eps)) return Lookup::NoneBlocked;
+    if (!b.split && !(b.side * dist > eps)) return Lookup::NoneBlocked;
     const double m = std::max(b.maxAbs, maxAbs(r)), u = kRoundoff;
     // Error budget, every coordinate bounded by M (= m):
     //  - BlockingRule computes edge value E(l) = sigma * fl((l - w a) x (b - a) . (r - a)).
@@ -222,22 +229,61 @@ SampleMaskTable::Lookup SampleMaskTable::lookup(const Blocker& b, uint32_t set, 
     // and sigma*det < -beta whenever dot(dir, q) < tau - delta; then E(l) >= 0 (resp. < 0) for
     // certain. The code doubles delta and rounds the last term up to 1e-12 (u = 1.1e-16), which
     // costs nothing measurable: delta stays many orders of magnitude below a cell.
+    // Split blockers: only samples with s = sign(n . (l - w v0)) = -sign(dist) can pass the band
+    // test, all with edge orientation s. T's plane is a fourth half-plane of the light's plane,
+    // s (n.u s + n.v t + n.(o - w v0)) >= 0, whose value the rule computes with error under
+    // 8uM; its coefficients' rounding over |s| + |t| <= 8M adds under 32uM (64uM used).
+    double s = b.sigma;
+    if (b.split) {
+        if (!(-dist > eps) && !(dist > eps)) return Lookup::NoneBlocked;
+        s = -dist > eps ? 1.0 : -1.0;
+        if (!sideRows(b, set, s, m, rows.sure[3], rows.maybe[3])) return Lookup::Exact;
+    } else {
+        rows.sure[3] = ones_.data(), rows.maybe[3] = ones_.data() + 1;
+    }
     const double fixed = 4096 * u * m * m * m;
     for (int e = 0; e < 3; ++e) {
-        const double wx = b.line[e][0].at(r), wy = b.line[e][1].at(r), k = b.line[e][2].at(r);
-        // Normalised by g = |w|_1, so the direction has 1-norm 1 and its diamond angle is one
-        // component over g: one division per edge, no square root, no atan2.
-        const double ax = std::abs(wx), ay = std::abs(wy), invG = 1.0 / (ax + ay), tau = -k * invG;
-        const double norm1 = ax + ay + std::abs(b.line[e][3].at(r));
-        const double delta = 2.0 * (fixed + norm1 * (flatness_ + 128 * u * m)) * invG + 1e-12 * (radius_ + std::abs(tau));
-        // A line this uncertain (a plane nearly parallel to the light, or g == 0) decides little.
-        if (!(delta < radius_) || !std::isfinite(tau)) return Lookup::Exact;
-        const double diamond = wy >= 0 ? (wx >= 0 ? wy * invG : 1 + ax * invG) : (wx < 0 ? 2 + ay * invG : 3 + ax * invG);
-        const int a = std::clamp(int(diamond * (0.25 * angles_)), 0, angles_ - 1);
-        rows.sure[e] = &cells_[cell(set, a, offsetBin(tau + delta))];
-        rows.maybe[e] = &cells_[cell(set, a, offsetBin(tau - delta)) + 1];
+        const double wx = s * b.line[e][0].at(r), wy = s * b.line[e][1].at(r), k = s * b.line[e][2].at(r);
+        if (!lineRows(wx, wy, k, b.line[e][3].at(r), fixed, m, set, rows.sure[e], rows.maybe[e])) return Lookup::Exact;
     }
     return Lookup::Rows;
+}
+
+bool SampleMaskTable::sideRows(const Blocker& b, uint32_t set, double s, double m, const uint64_t*& sure,
+                               const uint64_t*& maybe) const {
+    // The plane line's margin uses the blocker's own scale, not the receiver's, so that the rows
+    // are the same for every receiver (any M that bounds the samples and T is valid here).
+    auto compute = [&] {
+        return lineRows(s * b.plane.x, s * b.plane.y, s * b.plane.z, b.planeNormal, 64 * kRoundoff * b.maxAbs, b.maxAbs,
+                        set, sure, maybe);
+    };
+    (void)m;
+    if (!b.sideCache) return compute();
+    const size_t i = size_t(set) * 2 + (s > 0.0);
+    uint8_t& state = b.sideCache->state[i];
+    if (state == 0) {
+        state = compute() ? 1 : 2;
+        if (state == 1) b.sideCache->rows[2 * i] = sure, b.sideCache->rows[2 * i + 1] = maybe;
+    }
+    sure = b.sideCache->rows[2 * i], maybe = b.sideCache->rows[2 * i + 1];
+    return state == 1;
+}
+
+bool SampleMaskTable::lineRows(double wx, double wy, double k, double mn, double fixed, double m, uint32_t set,
+                               const uint64_t*& sure, const uint64_t*& maybe) const {
+    // Normalised by g = |w|_1, so the direction has 1-norm 1 and its diamond angle is one
+    // component over g: one division per line, no square root, no atan2.
+    const double u = kRoundoff;
+    const double ax = std::abs(wx), ay = std::abs(wy), invG = 1.0 / (ax + ay), tau = -k * invG;
+    const double norm1 = ax + ay + std::abs(mn);
+    const double delta = 2.0 * (fixed + norm1 * (flatness_ + 128 * u * m)) * invG + 1e-12 * (radius_ + std::abs(tau));
+    // A line this uncertain (a plane nearly parallel to the light, or g == 0) decides little.
+    if (!(delta < radius_) || !std::isfinite(tau)) return false;
+    const double diamond = wy >= 0 ? (wx >= 0 ? wy * invG : 1 + ax * invG) : (wx < 0 ? 2 + ay * invG : 3 + ax * invG);
+    const int a = std::clamp(int(diamond * (0.25 * angles_)), 0, angles_ - 1);
+    sure = &cells_[cell(set, a, offsetBin(tau + delta))];
+    maybe = &cells_[cell(set, a, offsetBin(tau - delta)) + 1];
+    return true;
 }
 
 }  // namespace penumbra

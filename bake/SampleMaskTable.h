@@ -59,15 +59,31 @@ public:
     /// @brief Bytes held by the two mask arrays.
     size_t bytes() const { return cells_.size() * sizeof(uint64_t); }
 
+    /// @brief The rows of a split blocker's plane line per sample set and orientation: they do
+    /// not depend on the receiver, so a caller that looks up many receivers against one blocker
+    /// keeps them here (reset() before each blocker).
+    struct SideCache {
+        std::vector<const uint64_t*> rows;  ///< [set][orientation][sure, maybe]
+        std::vector<uint8_t> state;         ///< [set][orientation]: 0 unknown, 1 rows, 2 exact
+        void reset(int sets) { rows.resize(size_t(sets) * 4), state.assign(size_t(sets) * 2, 0); }
+    };
+
     /// @brief What a blocker contributes, independent of the receiver.
     struct Blocker {
-        bool usable = false;  ///< false: the light is not robustly on one side of T (fall back)
-        double side = 0;      ///< HardShadowVolume::side of every sample of the light
-        double sigma = 0;     ///< orientation of every edge plane: the side of the samples, -side
+        SideCache* sideCache = nullptr;  ///< optional, for split blockers (see SideCache)
+        bool usable = false;  ///< false: the table cannot help with this blocker (fall back)
+        /// T's plane cuts the samples' box: per receiver, only the samples on the far side of T
+        /// from it can be blocked, and they share one orientation; a fourth line (T's plane in
+        /// the light's plane) selects them.
+        bool split = false;
+        double side = 0;      ///< HardShadowVolume::side of every sample of the light (not split)
+        double sigma = 0;     ///< orientation of every edge plane (not split: -side; split: +1)
         double maxAbs = 0;    ///< largest |coordinate| of T and of the light's samples
-        /// Per edge (a, b): with m(r) = (b - a) x (r - a), the line's coefficients
-        /// wx = sigma m.u, wy = sigma m.v, k = sigma m.(o - w a) and mn = m.n (frame u, v, n,
-        /// origin o) are affine in r; each is stored as c0 - dot(c, r), [wx, wy, k, mn].
+        glm::dvec3 plane{0.0};  ///< split: T's plane in the light's frame, (n.u, n.v, n.(o - w v0))
+        double planeNormal = 0;  ///< split: n . (the light plane's normal), for the flatness term
+        /// Per edge (a, b): with m(r) = (b - a) x (r - a), the line's coefficients for
+        /// orientation +1, wx = m.u, wy = m.v, k = m.(o - w a) and mn = m.n (frame u, v, n,
+        /// origin o), are affine in r; each is stored as c0 - dot(c, r), [wx, wy, k, mn].
         struct Affine {
             double c0;
             glm::dvec3 c;
@@ -78,15 +94,20 @@ public:
     /// @brief Classifies the light against @p t's plane (8 corners of the samples' box).
     Blocker prepare(const BlockerTriangle& t) const;
 
-    /// @brief The three edges' cells for one receiver (each cell: sure and maybe word per group,
-    /// interleaved, so a cell of up to four groups is one cache line).
+    /// @brief The three edges' cells for one receiver, and a fourth line selecting the samples on
+    /// the far side of T (all samples unless the blocker is split). Each cell holds a sure and a
+    /// maybe word per group, interleaved, so a cell of up to four groups is one cache line.
     struct Rows {
-        const uint64_t* sure[3];
-        const uint64_t* maybe[3];
+        const uint64_t* sure[4];
+        const uint64_t* maybe[4];
         /// Sure-blocked samples of group @p k (index within the light's groups).
-        uint64_t sureWord(uint32_t k) const { return sure[0][2 * k] & sure[1][2 * k] & sure[2][2 * k]; }
+        uint64_t sureWord(uint32_t k) const {
+            return sure[0][2 * k] & sure[1][2 * k] & sure[2][2 * k] & sure[3][2 * k];
+        }
         /// Samples that may be blocked: every other sample of the group is certainly not blocked.
-        uint64_t maybeWord(uint32_t k) const { return maybe[0][2 * k] & maybe[1][2 * k] & maybe[2][2 * k]; }
+        uint64_t maybeWord(uint32_t k) const {
+            return maybe[0][2 * k] & maybe[1][2 * k] & maybe[2][2 * k] & maybe[3][2 * k];
+        }
         /// One edge's words (tests check each line on its own).
         uint64_t sureWord(int edge, uint32_t k) const { return sure[edge][2 * k]; }
         uint64_t maybeWord(int edge, uint32_t k) const { return maybe[edge][2 * k]; }
@@ -114,6 +135,12 @@ private:
     double upper(int bin) const;
     /// The bin holding @p offset, consistent with lower() and upper() whatever the rounding.
     int offsetBin(double offset) const;
+    /// The sure and maybe rows of the half-plane wx s + wy t + k >= 0 in sample set @p set, with
+    /// @p fixed the error bound that does not scale with the line and @p mn its flatness factor.
+    /// @return false when the line is too uncertain for the table to decide anything.
+    bool sideRows(const Blocker& b, uint32_t set, double s, double m, const uint64_t*& sure, const uint64_t*& maybe) const;
+    bool lineRows(double wx, double wy, double k, double mn, double fixed, double m, uint32_t set, const uint64_t*& sure,
+                  const uint64_t*& maybe) const;
 
     bool usable_ = false;
     int angles_, offsets_;
@@ -126,6 +153,7 @@ private:
     double w_ = 1.0;        ///< homogeneous weight of the light's samples (0: a sun's directions)
     glm::dvec3 lo_{0.0}, hi_{0.0};  ///< box of every sample (exact float values)
     std::vector<uint64_t> cells_;  ///< [set][angle][offset bin][group of the light][sure, maybe]
+    std::vector<uint64_t> ones_;   ///< a row of all-ones words: the fourth line of a blocker that is not split
 };
 
 }  // namespace penumbra
