@@ -15,6 +15,7 @@
 #include <glm/geometric.hpp>
 #include <tbb/global_control.h>
 
+#include <bit>
 #include <cmath>
 #include <numbers>
 
@@ -104,4 +105,122 @@ TEST_CASE("atlas: real meshes without UVs pack over 60% of the atlas", "[atlas]"
         WARN(name << " at 1024, padding 2: " << atlas.charts << " charts, " << 100 * used << "% covered");
         CHECK(used >= 0.60);
     }
+}
+
+TEST_CASE("atlas: the same UVs for one thread and for two", "[atlas]") {
+    std::vector<IndexedMesh> meshes{load(sharedData("meshes/teapot.obj")), load(example("room.obj")), sphere(24, 48)};
+    auto build = [&](int threads) {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+        return atlasOf(meshes, 1024, 3);
+    };
+    const LightmapAtlas one = build(1), two = build(2);
+    REQUIRE(one.width == two.width);
+    CHECK(one.texelsPerUnit == two.texelsPerUnit);
+    REQUIRE(one.meshes.size() == two.meshes.size());
+    for (size_t m = 0; m < one.meshes.size(); ++m) {
+        CHECK(one.meshes[m].uv1 == two.meshes[m].uv1);
+        CHECK(one.meshes[m].indices == two.meshes[m].indices);
+        CHECK(one.meshes[m].position == two.meshes[m].position);
+    }
+    requireSound(one, 3);
+}
+
+TEST_CASE("atlas: degenerate triangles, fins and duplicate faces are cut without overlap", "[atlas]") {
+    IndexedMesh mesh = cube();
+    const uint32_t n = uint32_t(mesh.position.size());
+    mesh.position.insert(mesh.position.end(), {{0, 0, 2}, {1, 0, 2}, {2, 0, 2}, {0.5f, 1, 2}, {0.5f, -1, 2}, {0.5f, 0, 3}});
+    mesh.indices.insert(mesh.indices.end(), {
+        n, n + 1, n + 2,      // collinear: zero area
+        n, n, n + 3,          // a repeated corner
+        n, n + 1, n + 3,      // three faces on edge (n, n+1): a non-manifold fin
+        n + 1, n, n + 4,
+        n, n + 1, n + 5,
+        n, n + 1, n + 3,      // a duplicate face
+        0, 2, 1,              // a duplicate of the cube's first face
+    });
+    for (int padding : {0, 1, 4}) {
+        LightmapAtlas atlas = atlasOf({mesh}, 64, padding);
+        INFO("padding " << padding);
+        requireSound(atlas, padding);
+        REQUIRE(atlas.meshes[0].triangleCount() == mesh.triangleCount());
+        for (size_t c = 0; c < mesh.indices.size(); ++c)  // split vertices keep their positions
+            CHECK(atlas.meshes[0].position[atlas.meshes[0].indices[c]] == mesh.position[mesh.indices[c]]);
+    }
+    IndexedMesh empty;
+    LightmapAtlas none = atlasOf({empty}, 16, 2);
+    CHECK(none.charts == 0);
+    CHECK(none.meshes.at(0).triangleCount() == 0);
+}
+
+TEST_CASE("atlas: a spiral ramp that overlaps itself in projection is split", "[atlas]") {
+    // Two turns of a gently sloped ramp: every normal is near +y, but the turns lie above each other.
+    IndexedMesh ramp;
+    const int steps = 160;
+    for (int i = 0; i <= steps; ++i) {
+        const double a = 4 * std::numbers::pi * i / steps, y = 0.05 * i / steps * 4;
+        for (double r : {1.0, 2.0}) ramp.position.emplace_back(r * std::cos(a), y, -r * std::sin(a));
+    }
+    for (uint32_t i = 0; i < steps; ++i) {
+        const uint32_t a = 2 * i, b = a + 1, c = a + 2, d = a + 3;
+        ramp.indices.insert(ramp.indices.end(), {a, c, b, b, c, d});
+    }
+    ChartLimits limits;
+    limits.coneDeg = 30;
+    std::vector<Chart> charts = makeCharts(ramp, 0, limits);
+    CHECK(charts.size() >= 2);
+    size_t triangles = 0;
+    for (const Chart& chart : charts) {
+        CHECK_FALSE(chartOverlapsItself(chart));
+        triangles += chart.triangles.size();
+    }
+    CHECK(triangles == ramp.triangleCount());
+    requireSound(atlasOf({ramp}, 256, 2), 2);
+}
+
+TEST_CASE("atlas: at a fixed density the size is the smallest found, powers of two when asked", "[atlas]") {
+    std::vector<IndexedMesh> meshes{load(example("room.obj")), load(example("room-blockers.obj"))};
+    AtlasOptions options;
+    options.pack.texelsPerUnit = 40, options.pack.padding = 2;
+    LightmapAtlas tight = buildLightmapAtlas(meshes, options);
+    CHECK(tight.texelsPerUnit == 40);
+    CHECK_FALSE(tight.densityLowered);
+    const double used = requireSound(tight, 2);
+    CHECK(used >= 0.6);
+    options.pack.powerOfTwo = true;
+    LightmapAtlas pow2 = buildLightmapAtlas(meshes, options);
+    CHECK(std::has_single_bit(unsigned(pow2.width)));
+    CHECK(std::has_single_bit(unsigned(pow2.height)));
+    CHECK(int64_t(pow2.width) * pow2.height >= int64_t(tight.width) * tight.height);
+    requireSound(pow2, 2);
+    // A cap below what the density needs lowers the density to fit the cap.
+    options.pack.powerOfTwo = false, options.pack.maxSide = 128;
+    LightmapAtlas capped = buildLightmapAtlas(meshes, options);
+    CHECK(capped.densityLowered);
+    CHECK(capped.width == 128);
+    CHECK(capped.texelsPerUnit < 40);
+    requireSound(capped, 2);
+}
+
+TEST_CASE("crease normals: a fine sphere shades smoothly, a cube keeps its hard edges", "[atlas][normals]") {
+    const IndexedMesh ball = withCreaseNormals(sphere(32, 64), kDefaultCreaseAngleDeg);
+    REQUIRE(ball.normal.size() == ball.position.size());
+    // Welded and smooth: no vertex split, and every normal is the radial direction.
+    CHECK(ball.position.size() == sphere(32, 64).position.size());
+    for (size_t v = 0; v < ball.position.size(); ++v) {
+        INFO("vertex " << v);
+        CHECK(glm::dot(glm::dvec3(ball.normal[v]), glm::normalize(glm::dvec3(ball.position[v]))) > 0.999);
+    }
+    const IndexedMesh box = withCreaseNormals(cube(), kDefaultCreaseAngleDeg);
+    CHECK(box.position.size() == 24);  // each corner once per face around it
+    for (size_t c = 0; c < box.indices.size(); ++c) {
+        const size_t t = c / 3;
+        const glm::vec3 a = box.position[box.indices[3 * t]], b = box.position[box.indices[3 * t + 1]],
+                        d = box.position[box.indices[3 * t + 2]];
+        CHECK(box.normal[box.indices[c]] == glm::normalize(glm::cross(b - a, d - a)));
+    }
+    // Past the crease angle the cube is smooth too: one normal per corner, along the diagonal.
+    const IndexedMesh round = withCreaseNormals(cube(), 120);
+    CHECK(round.position.size() == 8);
+    for (size_t v = 0; v < 8; ++v)
+        CHECK(glm::dot(glm::dvec3(round.normal[v]), glm::normalize(glm::dvec3(round.position[v]) - 0.5)) > 0.999);
 }
