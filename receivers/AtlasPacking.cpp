@@ -26,6 +26,7 @@ struct RowRuns {
 struct Mask {
     int width = 0, height = 0;
     RowRuns raw, dilated;
+    std::vector<int> widest;  ///< per raw row: its longest run
 };
 
 /// Points of polygon @p in with y in [y0, y1] (Sutherland-Hodgman on the two lines).
@@ -127,8 +128,11 @@ Mask makeMask(const Chart& chart, double s, int turns, int padding) {
     for (int j = 0; j < mask.height; ++j) {
         const size_t first = mask.raw.runs.size();
         raw.runs(j + padding, padding, mask.raw);
-        for (size_t r = first; r < mask.raw.runs.size(); ++r)
+        mask.widest.push_back(0);
+        for (size_t r = first; r < mask.raw.runs.size(); ++r) {
             wide.set(j + padding, mask.raw.runs[r].first, mask.raw.runs[r].second + 2 * padding);
+            mask.widest.back() = std::max(mask.widest.back(), mask.raw.runs[r].second - mask.raw.runs[r].first);
+        }
     }
     mask.dilated.start.push_back(0);
     for (int d = 0; d < rows; ++d) {
@@ -169,37 +173,57 @@ public:
         }
         return width_;
     }
+    /// The longest run of clear bits in row y.
+    int longestFree(int y) const { return size_t(y) < longest_.size() ? longest_[size_t(y)] : width_; }
     void set(int y, int a, int b) {
-        if (rows_.size() <= size_t(y)) rows_.resize(size_t(y) + 1, std::vector<uint64_t>(size_t(words_), 0));
+        if (rows_.size() <= size_t(y)) {
+            rows_.resize(size_t(y) + 1, std::vector<uint64_t>(size_t(words_), 0));
+            longest_.resize(size_t(y) + 1, width_);
+        }
         uint64_t* row = rows_[size_t(y)].data();
         for (int x = a; x < b;) {
             const int w = x / 64, bit = x % 64, n = std::min(64 - bit, b - x);
             row[w] |= (n == 64 ? ~uint64_t(0) : ((uint64_t(1) << n) - 1)) << bit;
             x += n;
         }
+        int longest = 0;
+        for (int x = firstClear(y, 0); x < width_;) {
+            const int end = firstSet(y, x, width_);
+            const int stop = end < 0 ? width_ : end;
+            longest = std::max(longest, stop - x);
+            x = stop < width_ ? firstClear(y, stop) : width_;
+        }
+        longest_[size_t(y)] = longest;
     }
 
 private:
     int width_, height_, words_;
     std::vector<std::vector<uint64_t>> rows_;
+    std::vector<int> longest_;  ///< per row: longestFree()
 };
 
-/// The lowest, then leftmost position where @p mask's reservation is free and the mask inside
-/// the atlas; false when there is none.
-bool findPosition(const Occupancy& occupied, const Mask& mask, int padding, int& px, int& py) {
+/// The lowest (at most @p yLimit), then leftmost position where @p mask's reservation is free
+/// and the mask inside the atlas; false when there is none.
+bool findPosition(const Occupancy& occupied, const Mask& mask, int padding, int yLimit, int& px, int& py) {
     const int W = occupied.width(), H = occupied.height();
     const RowRuns& d = mask.dilated;
-    for (int y = 0; y + mask.height <= H; ++y) {
+    for (int y = 0; y + mask.height <= H && y <= yLimit; ++y) {
+        // Quick rejection: a row of the mask wider than the longest free run of its atlas row.
+        bool room = true;
+        for (int j = 0; j < mask.height && room; ++j) room = occupied.longestFree(y + j) >= mask.widest[size_t(j)];
+        if (!room) continue;
+        int hint = 0;  // the row that blocked the last x: likely to block the next one too
         for (int x = 0; x + mask.width <= W;) {
             int next = -1;
-            for (int row = 0; row < d.rows() && next < 0; ++row) {
-                const int atlasRow = y + row - padding;
+            for (int k = 0; k < d.rows() && next < 0; ++k) {
+                const int row = (hint + k) % d.rows(), atlasRow = y + row - padding;
                 if (atlasRow < 0 || atlasRow >= H) continue;
                 for (uint32_t r = d.start[size_t(row)]; r < d.start[size_t(row) + 1]; ++r) {
                     const auto [lo, hi] = d.runs[r];
                     const int q = occupied.firstSet(atlasRow, std::max(0, x + lo), std::min(W, x + hi));
                     if (q < 0) continue;
                     next = std::max(x + 1, occupied.firstClear(atlasRow, q) - lo);
+                    hint = row;
                     break;
                 }
             }
@@ -255,7 +279,10 @@ bool placeAll(const Masks& masks, int padding, int width, int height, std::vecto
         std::array<int, 3> best{};
         for (int turn = 0; turn < kTurns; ++turn) {
             int x = 0, y = 0;
-            if (!findPosition(occupied, masks.of[c][size_t(turn)], padding, x, y)) continue;
+            const int height = masks.of[c][size_t(turn)].height;
+            // Only positions whose top is not above the best one's can win.
+            const int yLimit = bestTurn < 0 ? INT32_MAX : best[0] - height;
+            if (!findPosition(occupied, masks.of[c][size_t(turn)], padding, yLimit, x, y)) continue;
             const std::array<int, 3> key{y + masks.of[c][size_t(turn)].height, y, x};
             if (bestTurn < 0 || key < best) best = key, bestTurn = turn, placement[c] = ChartPlacement{x, y, turn};
         }
@@ -282,7 +309,7 @@ AtlasPacking packFixedSize(std::span<const Chart> charts, int padding, int width
     // their surface area (ChartParameterization.h): 1.5 is above 1 / sqrt(cos 55 deg).
     double lo = 0, hi = area > 0 ? 1.5 * std::sqrt(double(width) * height / area) : 1.0;
     std::vector<ChartPlacement> placement;
-    for (int iteration = 0; iteration < 18; ++iteration) {
+    for (int iteration = 0; iteration < 13; ++iteration) {
         const double s = iteration == 0 ? hi : 0.5 * (lo + hi);
         int usedWidth = 0, usedHeight = 0;
         if (placeAll(makeMasks(charts, s, padding), padding, width, height, placement, usedWidth, usedHeight)) {

@@ -274,8 +274,18 @@ TEST_CASE("bad lightmap parameters name the key", "[lightmap]") {
                Catch::Contains("receivers.resolution"));
     CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [5]})")),
                Catch::Contains("receivers.meshes[0]") && Catch::Contains("out of range"));
-    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0, 1]})")),
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0, 1], "uv": "mesh"})")),
                Catch::Contains("receivers.meshes[1]") && Catch::Contains("texture coordinates"));
+    CHECK(errorOf(scene(R"({"type": "lightmap", "meshes": [0, 1]})")) == "(no InputError thrown)");  // generated
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "uv": "xatlas"})")), Catch::Contains("receivers.uv"));
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "crease_angle_deg": 200})")),
+               Catch::Contains("receivers.crease_angle_deg"));
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "chart_angle_deg": 0})")),
+               Catch::Contains("receivers.chart_angle_deg"));
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "max_resolution": 0})")),
+               Catch::Contains("receivers.max_resolution"));
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "power_of_two": 1})")),
+               Catch::Contains("receivers.power_of_two"));
     CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [2]})")), Catch::Contains("receivers.meshes[0]"));
     CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "texels_per_unit": -1})")),
                Catch::Contains("receivers.texels_per_unit"));
