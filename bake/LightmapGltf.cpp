@@ -1,5 +1,7 @@
 #include "bake/LightmapGltf.h"
 
+#include "bake/GltfBuffers.h"
+
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
 
@@ -7,38 +9,15 @@
 
 #include <glm/geometric.hpp>
 
-#include <cstring>
 #include <filesystem>
 #include <sstream>
 
 namespace penumbra {
 namespace {
 
-/// Appends @p bytes to buffer 0 as a bufferView (4-byte aligned) and an accessor over it.
-int addAccessor(tinygltf::Model& model, const void* bytes, size_t size, int componentType, int type, size_t count,
-                int target) {
-    std::vector<unsigned char>& data = model.buffers[0].data;
-    data.resize((data.size() + 3) / 4 * 4, 0);
-    tinygltf::BufferView view;
-    view.buffer = 0;
-    view.byteOffset = data.size();
-    view.byteLength = size;
-    view.target = target;
-    data.resize(data.size() + size);
-    if (size > 0) std::memcpy(data.data() + view.byteOffset, bytes, size);
-    model.bufferViews.push_back(view);
-    tinygltf::Accessor accessor;
-    accessor.bufferView = int(model.bufferViews.size() - 1);
-    accessor.componentType = componentType;
-    accessor.type = type;
-    accessor.count = count;
-    model.accessors.push_back(accessor);
-    return int(model.accessors.size() - 1);
-}
-
 template <typename V>
 int addVectors(tinygltf::Model& model, const std::vector<V>& values, int type) {
-    return addAccessor(model, values.data(), values.size() * sizeof(V), TINYGLTF_COMPONENT_TYPE_FLOAT, type, values.size(),
+    return appendGltfAccessor(model, values.data(), values.size() * sizeof(V), TINYGLTF_COMPONENT_TYPE_FLOAT, type, values.size(),
                        TINYGLTF_TARGET_ARRAY_BUFFER);
 }
 
@@ -64,7 +43,7 @@ void addMesh(tinygltf::Model& model, const IndexedMesh& mesh) {
     const int uv1 = addVectors(model, mesh.uv1, TINYGLTF_TYPE_VEC2);
     primitive.attributes["TEXCOORD_0"] = mesh.uv0.empty() ? uv1 : addVectors(model, mesh.uv0, TINYGLTF_TYPE_VEC2);
     primitive.attributes["TEXCOORD_1"] = uv1;
-    primitive.indices = addAccessor(model, mesh.indices.data(), mesh.indices.size() * 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
+    primitive.indices = appendGltfAccessor(model, mesh.indices.data(), mesh.indices.size() * 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
                                     TINYGLTF_TYPE_SCALAR, mesh.indices.size(), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
     tinygltf::Mesh out;
     out.name = mesh.name;
