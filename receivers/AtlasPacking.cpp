@@ -12,6 +12,8 @@ namespace penumbra {
 namespace {
 
 constexpr int kTurns = 4;  ///< orientations tried: quarter turns
+constexpr int kMaxBisections = 24;
+constexpr double kDensityPrecision = 0.004;  ///< bisection stops when the bracket is this narrow (relative)
 
 /// Half-open runs [first, second) of texels per row.
 struct RowRuns {
@@ -27,6 +29,7 @@ struct Mask {
     int width = 0, height = 0;
     RowRuns raw, dilated;
     std::vector<int> widest;  ///< per raw row: its longest run
+    int widestRow = 0;        ///< the row with the longest run (the first of them)
 };
 
 /// Points of polygon @p in with y in [y0, y1] (Sutherland-Hodgman on the two lines).
@@ -134,6 +137,8 @@ Mask makeMask(const Chart& chart, double s, int turns, int padding) {
             mask.widest.back() = std::max(mask.widest.back(), mask.raw.runs[r].second - mask.raw.runs[r].first);
         }
     }
+    for (int j = 0; j < mask.height; ++j)
+        if (mask.widest[size_t(j)] > mask.widest[size_t(mask.widestRow)]) mask.widestRow = j;
     mask.dilated.start.push_back(0);
     for (int d = 0; d < rows; ++d) {
         for (int j = std::max(padding, d - padding); j <= std::min(rows - 1 - padding, d + padding); ++j) dilated.orRow(d, wide, j);
@@ -208,8 +213,9 @@ bool findPosition(const Occupancy& occupied, const Mask& mask, int padding, int 
     const int W = occupied.width(), H = occupied.height();
     const RowRuns& d = mask.dilated;
     for (int y = 0; y + mask.height <= H && y <= yLimit; ++y) {
-        // Quick rejection: a row of the mask wider than the longest free run of its atlas row.
-        bool room = true;
+        // Quick rejection: a row of the mask wider than the longest free run of its atlas row
+        // (the widest row first: in a filling atlas it is the one that fails most often).
+        bool room = occupied.longestFree(y + mask.widestRow) >= mask.widest[size_t(mask.widestRow)];
         for (int j = 0; j < mask.height && room; ++j) room = occupied.longestFree(y + j) >= mask.widest[size_t(j)];
         if (!room) continue;
         int hint = 0;  // the row that blocked the last x: likely to block the next one too
@@ -301,21 +307,30 @@ double totalArea(std::span<const Chart> charts) {
     return area;
 }
 
-/// The largest density (by bisection) at which every chart fits a width x height atlas.
+/// The largest density (by bisection, to kDensityPrecision) at which every chart fits a width x
+/// height atlas.
 AtlasPacking packFixedSize(std::span<const Chart> charts, int padding, int width, int height) {
     AtlasPacking best;
     const double area = totalArea(charts);
+    if (!(area > 0)) {  // nothing to lay out, or only degenerate charts: any density fits
+        std::vector<ChartPlacement> placement;
+        int usedWidth = 0, usedHeight = 0;
+        if (placeAll(makeMasks(charts, 1.0, padding), padding, width, height, placement, usedWidth, usedHeight))
+            best = AtlasPacking{width, height, 1.0, false, placement};
+        return best;
+    }
     // Covered texels hold at least the charts' projected area, which is at least cos(limit) of
     // their surface area (ChartParameterization.h): 1.5 is above 1 / sqrt(cos 55 deg).
-    double lo = 0, hi = area > 0 ? 1.5 * std::sqrt(double(width) * height / area) : 1.0;
+    const double bound = std::sqrt(double(width) * height / area);
+    double lo = 0, hi = 1.5 * bound;
     std::vector<ChartPlacement> placement;
-    for (int iteration = 0; iteration < 13; ++iteration) {
-        const double s = iteration == 0 ? hi : 0.5 * (lo + hi);
+    for (int iteration = 0; iteration < kMaxBisections && hi - lo > kDensityPrecision * hi; ++iteration) {
+        // Start near where packings of lightmap charts usually end.
+        const double s = iteration == 0 ? 0.8 * bound : 0.5 * (lo + hi);
         int usedWidth = 0, usedHeight = 0;
         if (placeAll(makeMasks(charts, s, padding), padding, width, height, placement, usedWidth, usedHeight)) {
             lo = s;
             best = AtlasPacking{width, height, s, false, placement};
-            if (iteration == 0) break;  // everything fits at full density (an empty atlas)
         } else {
             hi = s;
         }

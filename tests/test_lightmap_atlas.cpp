@@ -95,17 +95,22 @@ TEST_CASE("atlas: the lightmap example's meshes pack into one atlas without over
     CHECK(used >= 0.60);
 }
 
-TEST_CASE("atlas: real meshes without UVs pack over 60% of the atlas", "[atlas]") {
+namespace {
+
+/// A real mesh without UVs, alone in a 1024 x 1024 atlas with padding 2: over 60% covered.
+void requireWellUsed(const char* name) {
     const int padding = 2;
-    for (const char* name : {"cow.obj", "teapot.obj", "spot.obj"}) {
-        IndexedMesh mesh = load(sharedData(std::string("meshes/") + name));
-        LightmapAtlas atlas = atlasOf({mesh}, 1024, padding);
-        INFO(name);
-        const double used = requireSound(atlas, padding);
-        WARN(name << " at 1024, padding 2: " << atlas.charts << " charts, " << 100 * used << "% covered");
-        CHECK(used >= 0.60);
-    }
+    LightmapAtlas atlas = atlasOf({load(sharedData(std::string("meshes/") + name))}, 1024, padding);
+    const double used = requireSound(atlas, padding);
+    WARN(name << " at 1024, padding 2: " << atlas.charts << " charts, " << 100 * used << "% covered");
+    CHECK(used >= 0.60);
 }
+
+}  // namespace
+
+TEST_CASE("atlas: cow.obj packs over 60% of the atlas", "[atlas]") { requireWellUsed("cow.obj"); }
+TEST_CASE("atlas: teapot.obj packs over 60% of the atlas", "[atlas]") { requireWellUsed("teapot.obj"); }
+TEST_CASE("atlas: spot.obj packs over 60% of the atlas", "[atlas]") { requireWellUsed("spot.obj"); }
 
 TEST_CASE("atlas: the same UVs for one thread and for two", "[atlas]") {
     std::vector<IndexedMesh> meshes{load(sharedData("meshes/teapot.obj")), load(example("room.obj")), sphere(24, 48)};
