@@ -14,6 +14,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cctype>
 #include <filesystem>
 #include <set>
@@ -181,7 +182,9 @@ private:
         options.pack.texelsPerUnit = settings_.density;
         options.pack.width = settings_.width, options.pack.height = settings_.height;
         options.pack.maxSide = settings_.maxSide, options.pack.powerOfTwo = settings_.powerOfTwo;
+        const auto start = std::chrono::steady_clock::now();
         LightmapAtlas atlas = buildLightmapAtlas(meshes, options);
+        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         if (atlas.width == 0)
             fail(settings_.where, "the {} charts of {} do not fit a {}x{} atlas with padding {} (use a larger resolution or a smaller padding)",
                  atlas.charts, labels, settings_.density > 0 ? settings_.maxSide : settings_.width,
@@ -191,7 +194,7 @@ private:
                        settings_.where, settings_.density, settings_.maxSide, settings_.maxSide, atlas.texelsPerUnit);
         atlasStats_ = {{"width", atlas.width}, {"height", atlas.height}, {"charts", atlas.charts},
                        {"texels_per_unit", atlas.texelsPerUnit}, {"density_lowered", atlas.densityLowered},
-                       {"padding", settings_.padding}, {"meshes", parts_.size()}};
+                       {"padding", settings_.padding}, {"meshes", parts_.size()}, {"build_time_s", seconds}};
         Lightmap map;
         map.source = sources, map.label = "lightmap atlas (" + labels + ")", map.name = kAtlasName;
         map.width = atlas.width, map.height = atlas.height;
