@@ -259,6 +259,17 @@ struct Masks {
     std::vector<uint32_t> order;  ///< charts largest first
 };
 
+/// Whether every chart, at density s, fits a width x height atlas in one of its orientations:
+/// checked before any mask is made, so that a density far too high never allocates masks
+/// larger than the atlas.
+bool chartsFit(std::span<const Chart> charts, double s, int width, int height) {
+    for (const Chart& chart : charts) {
+        const glm::dvec2 e = chart.size * s + glm::dvec2(1.0);
+        if (!((e.x <= width && e.y <= height) || (e.y <= width && e.x <= height))) return false;
+    }
+    return true;
+}
+
 Masks makeMasks(std::span<const Chart> charts, double s, int padding) {
     Masks masks;
     masks.of.resize(charts.size());
@@ -328,7 +339,8 @@ AtlasPacking packFixedSize(std::span<const Chart> charts, int padding, int width
         // Start near where packings of lightmap charts usually end.
         const double s = iteration == 0 ? 0.8 * bound : 0.5 * (lo + hi);
         int usedWidth = 0, usedHeight = 0;
-        if (placeAll(makeMasks(charts, s, padding), padding, width, height, placement, usedWidth, usedHeight)) {
+        if (chartsFit(charts, s, width, height) &&
+            placeAll(makeMasks(charts, s, padding), padding, width, height, placement, usedWidth, usedHeight)) {
             lo = s;
             best = AtlasPacking{width, height, s, false, placement};
         } else {
@@ -344,6 +356,7 @@ int ceilPowerOfTwo(int64_t x) { return int(std::bit_ceil(uint64_t(std::max<int64
 AtlasPacking packFixedDensity(std::span<const Chart> charts, const AtlasPackOptions& options) {
     const int padding = options.padding;
     const double s = options.texelsPerUnit;
+    if (!chartsFit(charts, s, options.maxSide, options.maxSide)) return AtlasPacking{};
     const Masks masks = makeMasks(charts, s, padding);
     int64_t reserved = 0;
     int narrowest = 1;  // every chart fits this wide in some orientation

@@ -204,6 +204,11 @@ TEST_CASE("atlas: at a fixed density the size is the smallest found, powers of t
     CHECK(capped.width == 128);
     CHECK(capped.texelsPerUnit < 40);
     requireSound(capped, 2);
+    // A density no atlas could hold is lowered too, without making masks of its size.
+    options.pack.texelsPerUnit = 1e9;
+    LightmapAtlas huge = buildLightmapAtlas(meshes, options);
+    CHECK(huge.densityLowered);
+    requireSound(huge, 2);
 }
 
 TEST_CASE("crease normals: a fine sphere shades smoothly, a cube keeps its hard edges", "[atlas][normals]") {
