@@ -17,6 +17,7 @@
 
 #include <bit>
 #include <cmath>
+#include <filesystem>
 #include <numbers>
 
 using namespace penumbra;
@@ -233,4 +234,23 @@ TEST_CASE("crease normals: a fine sphere shades smoothly, a cube keeps its hard 
     CHECK(round.position.size() == 8);
     for (size_t v = 0; v < 8; ++v)
         CHECK(glm::dot(glm::dvec3(round.normal[v]), glm::normalize(glm::dvec3(round.position[v]) - 0.5)) > 0.999);
+}
+
+TEST_CASE("atlas: every mesh of the shared glTF corpus that loads packs soundly", "[atlas]") {
+    size_t packed = 0;
+    for (const auto& e : std::filesystem::recursive_directory_iterator(sharedData("gltf"))) {
+        const std::string ext = e.path().extension().string();
+        if (!e.is_regular_file() || (ext != ".gltf" && ext != ".glb")) continue;
+        std::vector<IndexedMesh> meshes;
+        try {
+            meshes = loadIndexedMeshes(e.path().string(), glm::mat4(1.f));
+        } catch (const InputError&) {
+            continue;  // malformed on purpose: the loader's tests cover the message
+        }
+        INFO(e.path().string());
+        for (IndexedMesh& mesh : meshes) mesh = withCreaseNormals(mesh, kDefaultCreaseAngleDeg);
+        requireSound(atlasOf(meshes, 128, 2), 2);
+        ++packed;
+    }
+    CHECK(packed > 0);
 }
