@@ -30,6 +30,7 @@ struct Mask {
     RowRuns raw, dilated;
     std::vector<int> widest;  ///< per raw row: its longest run
     int widestRow = 0;        ///< the row with the longest run (the first of them)
+    int narrowest = 0;        ///< the shortest longest run of a non-empty row
 };
 
 /// Points of polygon @p in with y in [y0, y1] (Sutherland-Hodgman on the two lines).
@@ -137,8 +138,12 @@ Mask makeMask(const Chart& chart, double s, int turns, int padding) {
             mask.widest.back() = std::max(mask.widest.back(), mask.raw.runs[r].second - mask.raw.runs[r].first);
         }
     }
-    for (int j = 0; j < mask.height; ++j)
+    mask.narrowest = INT32_MAX;
+    for (int j = 0; j < mask.height; ++j) {
         if (mask.widest[size_t(j)] > mask.widest[size_t(mask.widestRow)]) mask.widestRow = j;
+        if (mask.widest[size_t(j)] > 0) mask.narrowest = std::min(mask.narrowest, mask.widest[size_t(j)]);
+    }
+    if (mask.narrowest == INT32_MAX) mask.narrowest = 0;
     mask.dilated.start.push_back(0);
     for (int d = 0; d < rows; ++d) {
         for (int j = std::max(padding, d - padding); j <= std::min(rows - 1 - padding, d + padding); ++j) dilated.orRow(d, wide, j);
@@ -213,6 +218,16 @@ bool findPosition(const Occupancy& occupied, const Mask& mask, int padding, int 
     const int W = occupied.width(), H = occupied.height();
     const RowRuns& d = mask.dilated;
     for (int y = 0; y + mask.height <= H && y <= yLimit; ++y) {
+        // An atlas row too full for even the narrowest row of the mask rules out every position
+        // that covers it: continue above the highest such row (in the filled part of the atlas
+        // this steps a mask height at a time).
+        int above = -1;
+        for (int j = mask.height - 1; j >= 0 && above < 0; --j)
+            if (occupied.longestFree(y + j) < mask.narrowest) above = y + j;
+        if (above >= 0) {
+            y = above;  // the loop's ++y moves past it
+            continue;
+        }
         // Quick rejection: a row of the mask wider than the longest free run of its atlas row
         // (the widest row first: in a filling atlas it is the one that fails most often).
         bool room = occupied.longestFree(y + mask.widestRow) >= mask.widest[size_t(mask.widestRow)];
@@ -361,15 +376,17 @@ AtlasPacking packFixedDensity(std::span<const Chart> charts, const AtlasPackOpti
     int64_t reserved = 0;
     int narrowest = 1;  // every chart fits this wide in some orientation
     for (size_t c = 0; c < charts.size(); ++c) {
-        reserved += int64_t(masks.of[c][0].width + 2 * padding) * (masks.of[c][0].height + 2 * padding);
+        for (const auto& [lo, hi] : masks.of[c][0].dilated.runs) reserved += hi - lo;  // a lower bound of the area
         narrowest = std::max(narrowest, std::min(masks.of[c][0].width, masks.of[c][1].width));
     }
     std::vector<int> widths;
     const double side = std::sqrt(double(reserved));
     if (options.powerOfTwo) {
-        for (int64_t w = ceilPowerOfTwo(narrowest); w <= options.maxSide && w <= 4 * int64_t(side) + 64; w *= 2) widths.push_back(int(w));
+        // Sides from half to twice the area's: narrower or wider ones only make longer strips.
+        for (int64_t w = ceilPowerOfTwo(std::max<int64_t>(narrowest, int64_t(side / 2))); w <= options.maxSide && w <= 2 * int64_t(side) + 64; w *= 2)
+            widths.push_back(int(w));
     } else {
-        for (int k = 0; k <= 6; ++k) widths.push_back(std::max(narrowest, int(std::ceil(side * (1.0 + 0.1 * k)))));
+        for (int k = 0; k <= 4; ++k) widths.push_back(std::max(narrowest, int(std::ceil(side * (1.0 + 0.08 * k)))));
     }
     AtlasPacking best;
     std::vector<ChartPlacement> placement;
