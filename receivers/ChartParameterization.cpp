@@ -1,5 +1,7 @@
 #include "receivers/ChartParameterization.h"
 
+#include "receivers/ChartConformalMap.h"
+
 #include <glm/geometric.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>
@@ -241,6 +243,13 @@ std::vector<Chart> makeCharts(const IndexedMesh& mesh, uint32_t meshIndex, const
         const bool sprawling = flat && next.size() > 1 && std::max(chart.size.x, chart.size.y) > limits.largeExtent &&
                                chart.flatArea < kSparseChartFill * chart.size.x * chart.size.y;
         if (flat && !sprawling) {
+            // A conformal map unrolls what the projection squeezed, when it neither turns a
+            // triangle over nor overlaps itself.
+            Chart conformal = chart;
+            if (conformalMap(surface, conformal)) {
+                conformal.size = alignToRectangle(conformal.uv);
+                if (!chartOverlapsItself(conformal)) chart = std::move(conformal);
+            }
             charts.push_back(std::move(chart));
             continue;
         }

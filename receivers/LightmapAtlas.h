@@ -19,7 +19,7 @@
 
 namespace penumbra {
 
-inline constexpr double kDefaultChartConeDeg = 30.0;
+inline constexpr double kDefaultChartConeDeg = 45.0;
 
 /// @brief How to cut and pack.
 struct AtlasOptions {

@@ -6,6 +6,7 @@
 #include "AtlasChecks.h"
 #include "TestSupport.h"
 
+#include "receivers/ChartConformalMap.h"
 #include "receivers/ChartParameterization.h"
 #include "receivers/CreaseNormals.h"
 #include "receivers/LightmapAtlas.h"
@@ -253,4 +254,37 @@ TEST_CASE("atlas: every mesh of the shared glTF corpus that loads packs soundly"
         ++packed;
     }
     CHECK(packed > 0);
+}
+
+TEST_CASE("atlas: a conformal map unrolls a cylinder patch that a projection squeezes", "[atlas]") {
+    // A quarter of a cylinder of radius 1 and height 1: developable, so an unrolled chart keeps
+    // every length; projected onto its mean plane, its sides shrink by up to cos 45 degrees.
+    IndexedMesh patch;
+    const int segments = 24;
+    for (int i = 0; i <= segments; ++i) {
+        const double a = std::numbers::pi / 4 * (2.0 * i / segments - 1);
+        for (double y : {0.0, 1.0}) patch.position.emplace_back(std::sin(a), y, std::cos(a));
+    }
+    for (uint32_t i = 0; i < uint32_t(segments); ++i)
+        patch.indices.insert(patch.indices.end(), {2 * i, 2 * i + 2, 2 * i + 1, 2 * i + 1, 2 * i + 2, 2 * i + 3});
+    const ChartSurface surface(patch);
+    std::vector<uint32_t> all(patch.triangleCount());
+    for (uint32_t t = 0; t < all.size(); ++t) all[t] = t;
+    Chart chart;
+    REQUIRE(projectChart(surface, all, 60, chart));
+    CHECK(chart.size.x == Approx(std::sqrt(2.0)).epsilon(1e-6));  // the chord, not the arc
+    REQUIRE(conformalMap(surface, chart));
+    // Every edge keeps its length (to the chord error of the tessellation), so the unrolled
+    // patch is the arc's length long.
+    double longest = 0;
+    for (size_t t = 0; t < chart.corners.size(); ++t)
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t a = chart.corners[t][k], b = chart.corners[t][(k + 1) % 3];
+            const double flat = glm::length(chart.uv[a] - chart.uv[b]);
+            const double surfaceLength = glm::length(glm::dvec3(patch.position[chart.vertices[a]] - patch.position[chart.vertices[b]]));
+            CHECK(flat == Approx(surfaceLength).epsilon(1e-3));
+            longest = std::max(longest, glm::length(chart.uv[a] - chart.uv[0]));
+        }
+    CHECK(chart.area == Approx(chart.flatArea));
+    CHECK(longest > 1.85);  // the unrolled diagonal: sqrt(1 + (pi / 2)^2) = 1.862, the chord's is 1.732
 }
