@@ -194,7 +194,8 @@ private:
                        settings_.where, settings_.density, settings_.maxSide, settings_.maxSide, atlas.texelsPerUnit);
         atlasStats_ = {{"width", atlas.width}, {"height", atlas.height}, {"charts", atlas.charts},
                        {"texels_per_unit", atlas.texelsPerUnit}, {"density_lowered", atlas.densityLowered},
-                       {"padding", settings_.padding}, {"meshes", parts_.size()}, {"build_time_s", seconds}};
+                       {"padding", settings_.padding}, {"meshes", parts_.size()}, {"build_time_s", seconds},
+                       {"mean_stretch", atlas.meanStretch}, {"max_stretch", atlas.maxStretch}};
         Lightmap map;
         map.source = sources, map.label = "lightmap atlas (" + labels + ")", map.name = kAtlasName;
         map.width = atlas.width, map.height = atlas.height;

@@ -3,6 +3,7 @@
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cmath>
 
 namespace penumbra {
@@ -54,6 +55,30 @@ IndexedMesh splitAlongCharts(const IndexedMesh& mesh, std::span<const Chart> cha
     return out;
 }
 
+/// Adds each non-degenerate triangle's stretch (area-weighted) to @p sum and @p weight.
+void addStretch(const IndexedMesh& mesh, glm::dvec2 size, double& sum, double& weight, double& worst) {
+    for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+        const uint32_t* i = &mesh.indices[3 * t];
+        const glm::dvec3 e1 = glm::dvec3(mesh.position[i[1]]) - glm::dvec3(mesh.position[i[0]]);
+        const glm::dvec3 e2 = glm::dvec3(mesh.position[i[2]]) - glm::dvec3(mesh.position[i[0]]);
+        const glm::dvec3 n = glm::cross(e1, e2);
+        const double area = 0.5 * glm::length(n), length = glm::length(e1);
+        if (!(area > 0) || !(length > 0)) continue;
+        // The triangle in its own plane: q1 = (|e1|, 0), q2 = (e2.x, e2.y); J maps q to uv texels.
+        const glm::dvec3 x = e1 / length, y = glm::cross(glm::normalize(n), x);
+        const double q2x = glm::dot(e2, x), q2y = glm::dot(e2, y);
+        const glm::dvec2 d1 = (glm::dvec2(mesh.uv1[i[1]]) - glm::dvec2(mesh.uv1[i[0]])) * size;
+        const glm::dvec2 d2 = (glm::dvec2(mesh.uv1[i[2]]) - glm::dvec2(mesh.uv1[i[0]])) * size;
+        const glm::dvec2 column0 = d1 / length, column1 = (d2 - column0 * q2x) / q2y;
+        const double frobenius = glm::dot(column0, column0) + glm::dot(column1, column1);
+        const double det = std::abs(column0.x * column1.y - column0.y * column1.x);
+        if (!(det > 0)) continue;
+        const double s1 = std::sqrt(0.5 * (frobenius + std::sqrt(std::max(0.0, frobenius * frobenius - 4 * det * det))));
+        const double ratio = s1 * s1 / det;  // s1 / s2 with s2 = det / s1
+        sum += area * ratio, weight += area, worst = std::max(worst, ratio);
+    }
+}
+
 }  // namespace
 
 LightmapAtlas buildLightmapAtlas(std::span<const IndexedMesh> meshes, const AtlasOptions& options) {
@@ -86,6 +111,9 @@ LightmapAtlas buildLightmapAtlas(std::span<const IndexedMesh> meshes, const Atla
                                            atlas.chartOf[m]);
         first += count;
     }
+    double sum = 0, weight = 0, worst = 1;
+    for (const IndexedMesh& mesh : atlas.meshes) addStretch(mesh, glm::dvec2(atlas.width, atlas.height), sum, weight, worst);
+    if (weight > 0) atlas.meanStretch = sum / weight, atlas.maxStretch = worst;
     return atlas;
 }
 

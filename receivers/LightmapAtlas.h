@@ -40,6 +40,9 @@ struct LightmapAtlas {
     double texelsPerUnit = 0;
     bool densityLowered = false;        ///< see AtlasPacking::densityLowered
     uint32_t charts = 0;
+    /// Stretch of the map from surface to atlas: per triangle the ratio of the singular values
+    /// of its Jacobian (1 for a map that keeps angles), area-weighted mean and maximum.
+    double meanStretch = 1, maxStretch = 1;
     std::vector<IndexedMesh> meshes;    ///< per input mesh: split vertices, uv1 = atlas UVs in [0, 1]
     std::vector<std::vector<uint32_t>> chartOf;  ///< per mesh and triangle: its chart (atlas-wide id)
 };
