@@ -55,7 +55,8 @@ bool projectChart(const ChartSurface& surface, std::span<const uint32_t> triangl
 /// @brief Whether two of @p chart's triangles share interior points (touching is not overlap).
 bool chartOverlapsItself(const Chart& chart);
 
-/// @brief Segments, flattens and splits one mesh into charts.
+/// @brief Segments, flattens and splits one mesh into charts; each projection is relaxed into a
+/// conformal map (ChartConformalMap.h) when that map is valid.
 /// @return every triangle of the mesh in exactly one chart, in a deterministic order
 std::vector<Chart> makeCharts(const IndexedMesh& mesh, uint32_t meshIndex, const ChartLimits& limits);
 
