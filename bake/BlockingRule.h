@@ -2,22 +2,30 @@
 /// @file BlockingRule.h
 /// @brief The one definition of "triangle T blocks the relation from light sample l to receiver r".
 ///
-/// Every method (hierarchical penumbra casting, the brute-force reference, and the tie
-/// classifier used against Embree) decides individual relations with the functions in this file,
-/// evaluated in the same order in double precision, so that methods sharing them agree bit for bit.
+/// Every method (hierarchical penumbra casting, the brute-force reference, the Embree peer's hit
+/// filter and the tie classifier of `penumbra compare`) decides individual relations with the
+/// functions in this file, evaluated in the same order in double precision, so that methods
+/// sharing them agree bit for bit.
 ///
-/// The rule (docs/design.md, "Blocking rule"):
-///  - T blocks l -> r when the open segment from r to l passes through T (edges included) and r
-///    lies more than eps(r) behind T's plane, measured perpendicular to that plane on the side
-///    away from l. eps(r) = epsilon * max(1, max_i |r_i|) is the receiver-end epsilon.
-///  - A receiver lying on T (distance below eps) is never shadowed through T: this is what stops a
-///    surface from shadowing itself at the point where it was sampled.
-///  - A sample lying exactly in T's plane is never blocked by T (the segment only touches the plane
-///    at its open end), and a triangle with zero area blocks nothing.
-///  - Vertices are the float32 values of the stream, promoted to double; receivers and samples are
-///    float32 values promoted to double.
-/// A relation is a *tie* when one of the tested quantities is within roundoff of its threshold;
-/// only ties can differ between this rule and an independent float implementation such as Embree.
+/// A light sample is homogeneous: a point l (w = 1) or, for a sun, a direction d towards the
+/// light at infinity (w = 0). The rule, in exact arithmetic on the float inputs (docs/design.md,
+/// "The blocking rule"), with N = (v1 - v0) x (v2 - v0) and s = sign(N . (l - w v0)):
+///  - T blocks nothing when N = 0 (zero area), a vertex is not finite, or s = 0 (a point sample
+///    in T's plane, a direction parallel to it).
+///  - Otherwise T blocks l -> r when, for each edge (a, b) = (v_e, v_e+1),
+///      E_e = s det(l - w a, b - a, r - a) >= 0           (the segment or ray passes through T,
+///                                                          edges included)
+///    and r lies more than eps(r) behind T's plane on the side away from the light:
+///      -s N . (r - v0) / |N| > eps(r),   eps(r) = epsilon * max(|r|_inf, L).
+///    epsilon is relative (bake.epsilon) and L is the scene length fixed after the scan pass
+///    (the largest |coordinate| of any receiver), so a uniformly scaled scene has the same masks.
+/// Every plane is anchored at a vertex of T, never at the (possibly far) sample, so a far or
+/// infinite light loses no precision near the receivers. Vertices, receivers and samples are
+/// float32 values promoted to double; differences of two such values are exact in double for
+/// every scene whose coordinates span fewer than 29 binary orders of magnitude.
+/// A relation is a *tie* when one of the tested quantities is within roundoff of its threshold
+/// (bake/TieClassifier.h); only ties can differ between this rule and an independent float
+/// implementation such as Embree.
 
 #include "bake/Plane.h"
 #include "stream/Triangle.h"
@@ -27,10 +35,10 @@
 
 namespace penumbra {
 
-/// @brief A blocker triangle promoted to double, with its unit-normal plane.
+/// @brief A blocker triangle promoted to double, with its unit normal.
 struct BlockerTriangle {
     glm::dvec3 v[3];
-    Plane plane;          ///< unit normal, so eval() is a signed distance
+    Plane plane;          ///< unit normal through v[0]: eval() is a signed distance (box tests)
     bool valid = false;   ///< false for zero-area or non-finite triangles: they block nothing
 
     static BlockerTriangle from(const Triangle& t) {
@@ -42,58 +50,69 @@ struct BlockerTriangle {
         if (b.valid) b.plane = Plane::through(n / len, b.v[0]);
         return b;
     }
+
+    /// @brief N̂ . (p - w v0): signed distance of a point (w = 1) from T's plane, or the component
+    /// of a direction (w = 0) along the unit normal. Anchored at v0, so a far point loses nothing.
+    double side(const glm::dvec3& p, double w) const { return glm::dot(plane.n, p - w * v[0]); }
 };
 
-/// @brief The receiver-end epsilon for a receiver at @p r (scale-relative, see the rule above).
-inline double receiverEpsilon(const glm::dvec3& r, double epsilon) {
-    double m = std::max({1.0, std::abs(r.x), std::abs(r.y), std::abs(r.z)});
-    return epsilon * m;
-}
+/// @brief eps(r) = relative * max(|r|_inf, length): the receiver-end epsilon of the rule.
+struct ReceiverEpsilon {
+    double relative = 1e-5;  ///< bake.epsilon
+    double length = 1.0;     ///< L, the scene length (set by the pipeline after the scan pass)
+
+    double at(const glm::dvec3& r) const {
+        return relative * std::max({length, std::abs(r.x), std::abs(r.y), std::abs(r.z)});
+    }
+};
 
 /// @brief The hard-shadow volume V_l of one light sample and one triangle: three edge planes
-/// through the sample plus T's plane, oriented so that blocked receivers are on the positive side.
+/// through the sample, each anchored at its edge's first vertex, plus T's plane. Blocked receivers
+/// are on the non-negative side of every edge plane.
 struct HardShadowVolume {
-    Plane edge[3];
-    double side = 0.0;  ///< +1 or -1: the sign of T's plane on the far side from l; 0 blocks nothing
+    glm::dvec3 edge[3];   ///< normal of edge e's plane, anchored at t.v[e]
+    double side = 0.0;    ///< +1 or -1: the sign of T's plane on the far side from l; 0 blocks nothing
 };
 
-/// @brief Builds V_l for sample @p l and triangle @p t (which must be valid).
-inline HardShadowVolume makeHardShadowVolume(const glm::dvec3& l, const BlockerTriangle& t) {
+/// @brief Builds V_l for sample (@p l, @p w) and triangle @p t (which must be valid). Edge planes
+/// are oriented by the side of the sample (s above), never by evaluating the third vertex, so a
+/// thin triangle seen edge-on cannot flip one edge alone.
+inline HardShadowVolume makeHardShadowVolume(const glm::dvec3& l, double w, const BlockerTriangle& t) {
     HardShadowVolume h;
-    double sl = t.plane.eval(l);
-    if (sl == 0.0) return h;  // sample in T's plane: never blocked
+    const double sl = t.side(l, w);
+    if (!(sl > 0.0) && !(sl < 0.0)) return h;  // sample in T's plane (or NaN): never blocked
     h.side = sl > 0.0 ? -1.0 : 1.0;
+    const double s = -h.side;
     for (int e = 0; e < 3; ++e) {
         const glm::dvec3& a = t.v[e];
         const glm::dvec3& b = t.v[(e + 1) % 3];
-        const glm::dvec3& c = t.v[(e + 2) % 3];
-        glm::dvec3 n = glm::cross(a - l, b - l);
-        Plane p = Plane::through(n, l);
-        h.edge[e] = p.eval(c) >= 0.0 ? p : p.flipped();
+        h.edge[e] = s * glm::cross(l - w * a, b - a);
     }
     return h;
 }
 
-/// @brief Signed distance of @p r behind T as seen from samples on side @p side (precomputable
-/// per receiver: it does not depend on the sample beyond its side).
-inline double distanceBehind(const BlockerTriangle& t, const glm::dvec3& r) { return t.plane.eval(r); }
+/// @brief Signed distance of @p r from T's plane, anchored at v0 (precomputable per receiver: it
+/// does not depend on the sample beyond its side).
+inline double distanceBehind(const BlockerTriangle& t, const glm::dvec3& r) { return glm::dot(t.plane.n, r - t.v[0]); }
+
+/// @brief The value of edge @p e's plane at @p r (>= 0: inside).
+inline double edgeValue(const HardShadowVolume& h, const BlockerTriangle& t, int e, const glm::dvec3& r) {
+    return glm::dot(h.edge[e], r - t.v[e]);
+}
 
 /// @brief The rule itself, given the receiver's distance to T's plane (distanceBehind()).
-inline bool blocks(const HardShadowVolume& h, const glm::dvec3& r, double distToPlane, double eps) {
-    return h.side * distToPlane > eps && h.edge[0].eval(r) >= 0.0 && h.edge[1].eval(r) >= 0.0 &&
-           h.edge[2].eval(r) >= 0.0;
+inline bool blocks(const HardShadowVolume& h, const BlockerTriangle& t, const glm::dvec3& r, double distToPlane,
+                   double eps) {
+    return h.side * distToPlane > eps && edgeValue(h, t, 0, r) >= 0.0 && edgeValue(h, t, 1, r) >= 0.0 &&
+           edgeValue(h, t, 2, r) >= 0.0;
 }
 
-/// @brief Convenience form for one relation (the reference method and tests).
-inline bool blocks(const glm::dvec3& l, const glm::dvec3& r, const BlockerTriangle& t, double epsilon) {
+/// @brief Convenience form for one relation (the reference method, the Embree filter, tests).
+inline bool blocks(const glm::dvec3& l, double w, const glm::dvec3& r, const BlockerTriangle& t,
+                   const ReceiverEpsilon& epsilon) {
     if (!t.valid) return false;
-    HardShadowVolume h = makeHardShadowVolume(l, t);
-    return blocks(h, r, distanceBehind(t, r), receiverEpsilon(r, epsilon));
+    HardShadowVolume h = makeHardShadowVolume(l, w, t);
+    return blocks(h, t, r, distanceBehind(t, r), epsilon.at(r));
 }
-
-/// @brief True when the rule's decision for (l, r, t) sits within @p tolerance (relative) of a
-/// threshold, so an independent float implementation may legitimately decide it the other way.
-bool isTie(const glm::dvec3& l, const glm::dvec3& r, const BlockerTriangle& t, double epsilon,
-           double tolerance = 1e-5);
 
 }  // namespace penumbra

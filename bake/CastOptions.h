@@ -33,9 +33,15 @@ struct CastOptions {
     double rebuildThreshold = 0.25;  ///< rebuild when this fraction of live receivers is in umbra
     HierarchyParams hierarchy;
     double epsilon = 1e-5;     ///< receiver-end epsilon, relative (BlockingRule.h)
+    /// L of eps(r) = epsilon * max(|r|_inf, L): the largest |coordinate| of the first pass's
+    /// receivers, set by the pipeline after the scan pass (1 until then, and in unit tests).
+    double epsilonLength = 1.0;
     int groupSize = 64;        ///< light samples per group, 1..64
     SimdLevel simd = SimdLevel::Auto;  ///< instruction set of the hard-shadow tests (same bits for all)
 };
+
+/// @brief The rule's receiver epsilon for @p options.
+inline ReceiverEpsilon receiverEpsilonOf(const CastOptions& options) { return {options.epsilon, options.epsilonLength}; }
 
 /// @brief Counters and timers of one cast, summed over tiles (the paper's Table 2 columns).
 struct CastStats {

@@ -18,6 +18,11 @@ namespace penumbra {
 struct ConvexBound {
     std::vector<glm::dvec3> vertices;
     std::vector<std::array<int, 2>> edges;
+    /// 1: the vertices are points. 0: they are directions towards a light at infinity (a sun),
+    /// lying on the plane at unit distance along the sun's axis; the bound is then a cone of
+    /// directions, and every plane test takes them as homogeneous points (x, 0).
+    double w = 1.0;
+    bool directional() const { return w == 0.0; }
 };
 
 /// @brief Bounds points that lie (up to float rounding) in the plane through @p origin spanned by

@@ -1,30 +1,22 @@
 #include "bake/EmbreeCaster.h"
 
-// How this differs from the blocking rule (BlockingRule.h), and why only on ties:
+// How this relates to the blocking rule (BlockingRule.h):
 //
-//  - Precision. The rule evaluates in double from float inputs; Embree intersects in float.
-//    The ray direction l - r is computed in double and rounded to float, tnear and tfar are
-//    floats, and Embree's hit distance carries float roundoff. Decisions therefore differ only
-//    where a tested quantity is within roundoff of its threshold.
-//  - Edges. The rule includes every edge of every triangle (a segment through a shared edge is
-//    blocked by both triangles). Embree's float triangle test is not exactly inclusive: a ray
-//    through an edge or vertex, up to roundoff, may hit either, both or neither neighbour.
-//  - The receiver-end epsilon. The rule measures eps(r) perpendicular to T's plane; here it is
-//    the excluded start of the ray, tnear = eps(r) / |l - r|, i.e. eps(r) measured along the ray.
-//    Distance along the ray is never shorter than the perpendicular distance, so every relation
-//    the rule blocks through the band test is also beyond tnear; Embree can additionally block
-//    when r is within eps(r) of T's plane but the ray reaches T more than eps(r) away from r
-//    (grazing rays). Those relations are inside isTie()'s epsilon band. In the tests, this is
-//    where nearly all mismatches are: a receiver lying on a triangle, a ray nearly parallel to
-//    that triangle, and Embree's float hit distance (roundoff ~1e-7 x coordinates, divided by
-//    the cosine between ray and plane) landing beyond tnear, so Embree shadows the receiver
-//    with its own triangle where the rule does not.
-//  - The light end. The rule never blocks a sample by a triangle whose plane contains it; here
-//    the ray stops at tfar = 1 - 1e-6 (relative), so a triangle within that distance of the
-//    sample (including one containing it, up to Embree's roundoff) does not block. Both cases
-//    have the sample within isTie()'s tolerance of T's plane.
-//  - Degenerate relations (l == r, |l - r| <= eps(r), non-finite receivers) are not traced and
-//    count as unblocked, which is what the rule gives for them too.
+//  - Candidates. Embree intersects in float, with its own edge rules; its hits are only
+//    candidates. An occlusion filter function evaluates the rule in double for the relation and
+//    the candidate triangle, from the same float inputs as hpc (the receiver, the sample, the
+//    triangle's vertices), and rejects the hit when the rule does not block. So the receiver
+//    epsilon (perpendicular to T's plane), the open light end and sun directions mean exactly
+//    what they mean for hpc and reference.
+//  - What can still differ: a triangle the rule blocks but Embree's float test never reports,
+//    i.e. a segment within float roundoff of one of its edges. Those are ties of the rule's edge
+//    test (bake/TieClassifier.h). Embree never blocks a relation the rule does not.
+//  - The ray: from r, tnear = eps(r) / 2 along the ray (a triangle the rule counts is at least
+//    eps(r) away along the ray, since distance along the ray is never below the perpendicular
+//    distance), to just beyond the sample (tfar = 1 + 1e-5 of l - r; the filter rejects hits
+//    beyond l) or, for a direction, to infinity.
+//  - Degenerate relations (l == r, non-finite receivers) are not traced and count as unblocked,
+//    which is what the rule gives for them too.
 //
 // Build quality: RTC_BUILD_QUALITY_HIGH (spatial-split SAH BVH), the setting Embree recommends for
 // static, final-frame scenes. A bake builds once and traces receivers x samples rays (typically
@@ -142,8 +134,9 @@ private:
 };
 
 constexpr int kPacket = 16;
-/// Rays end just before the light sample (in units of l - r), so the sample itself is excluded.
-constexpr float kTfar = 1.0f - 1e-6f;
+/// Rays to a point sample end just beyond it (in units of l - r); the filter rejects what lies
+/// beyond the sample, so this only has to be past Embree's float rounding of t = 1.
+constexpr float kTfarPoint = 1.0f + 1e-5f;
 
 /// The triangles Embree gets: finite, with non-zero area (the rule's BlockerTriangle::valid).
 std::vector<const Triangle*> validTriangles(std::span<const Triangle> triangles) {
@@ -177,11 +170,17 @@ void fillBuffers(RTCGeometry geometry, const std::vector<const Triangle*>& kept)
 }
 
 /// One packet being filled: lane i answers bit laneBit[i] of word laneWord[i] of the receiver row.
+/// The filter reads the relation's exact inputs: the sample (and its weight) per lane, and the
+/// receiver and its epsilon, shared by the packet (packets never span receivers).
 struct Packet {
     RTCRay16 ray;  // RTC_ALIGN(64)
     alignas(64) int valid[kPacket];
     int laneWord[kPacket];
     int laneBit[kPacket];
+    glm::dvec3 sample[kPacket];
+    double w[kPacket];
+    glm::dvec3 receiver{0.0};
+    double eps = 0.0;
     int lanes = 0;
 
     Packet() { reset(); }
@@ -202,11 +201,42 @@ struct Packet {
     }
 };
 
+/// The intersect context Embree hands to the filter, extended with the packet being traced
+/// (Embree passes the pointer through unchanged; RTCIntersectContext must come first).
+struct FilterContext {
+    RTCIntersectContext context;
+    const Packet* packet = nullptr;
+    const float* vertices = nullptr;  ///< the geometry's vertex buffer: 9 floats per triangle
+    uint64_t calls = 0, rejected = 0;
+};
+
+/// Accepts a candidate hit only when the blocking rule blocks the relation with that triangle.
+void ruleFilter(const RTCFilterFunctionNArguments* args) {
+    auto* fc = reinterpret_cast<FilterContext*>(args->context);
+    const Packet& packet = *fc->packet;
+    for (unsigned i = 0; i < args->N; ++i) {
+        if (args->valid[i] == 0) continue;
+        const unsigned lane = RTCRayN_id(args->ray, args->N, i);
+        const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+        const float* v = fc->vertices + 9 * size_t(prim);
+        Triangle tri{{glm::vec3(v[0], v[1], v[2]), glm::vec3(v[3], v[4], v[5]), glm::vec3(v[6], v[7], v[8])}};
+        const BlockerTriangle t = BlockerTriangle::from(tri);
+        ++fc->calls;
+        bool blocked = false;
+        if (t.valid) {
+            const HardShadowVolume h = makeHardShadowVolume(packet.sample[lane], packet.w[lane], t);
+            blocked = blocks(h, t, packet.receiver, distanceBehind(t, packet.receiver), packet.eps);
+        }
+        if (!blocked) args->valid[i] = 0, ++fc->rejected;
+    }
+}
+
 }  // namespace
 
 VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& receivers,
                            std::span<const uint32_t> sampleSetOf, std::span<const Triangle> triangles,
-                           double epsilon, EmbreeStats* stats, const std::function<void(uint64_t)>& progress) {
+                           const ReceiverEpsilon& epsilon, EmbreeStats* stats,
+                           const std::function<void(uint64_t)>& progress) {
     EmbreeStats local;
     const auto buildStart = Clock::now();
     DenormalsOff denormals;  // the calling thread takes part in the build and in parallel_for
@@ -232,6 +262,7 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
     rtcSetSceneFlags(scene.scene, RTC_SCENE_FLAG_NONE);
     rtcSetSceneBuildQuality(scene.scene, RTC_BUILD_QUALITY_HIGH);
 
+    const float* vertices = nullptr;  // owned by the geometry, which the scene keeps alive
     {
         const std::vector<const Triangle*> kept = validTriangles(triangles);  // freed before tracing
         local.sceneBytes = uint64_t(kept.size()) * (9 * sizeof(float) + 3 * sizeof(uint32_t));
@@ -242,6 +273,8 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
             rtcSetGeometryBuildQuality(geometry.geometry, RTC_BUILD_QUALITY_HIGH);
             fillBuffers(geometry.geometry, kept);
             errors.check(device.device, "buffer allocation");
+            vertices = static_cast<const float*>(rtcGetGeometryBufferData(geometry.geometry, RTC_BUFFER_TYPE_VERTEX, 0));
+            rtcSetGeometryOccludedFilterFunction(geometry.geometry, ruleFilter);
             rtcCommitGeometry(geometry.geometry);
             rtcAttachGeometry(scene.scene, geometry.geometry);  // the scene holds its own reference
             errors.check(device.device, "geometry commit");
@@ -253,14 +286,16 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
 
     const auto traceStart = Clock::now();
     VisibilityMasks masks(receivers.size(), samples.groupCount());
-    std::atomic<uint64_t> rays{0};
+    std::atomic<uint64_t> rays{0}, filterCalls{0}, filterRejected{0};
     RTCScene rtcScene = scene.scene;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, receivers.size(), 16), [&](const tbb::blocked_range<size_t>& range) {
         DenormalsOff threadDenormals;
-        RTCIntersectContext context;
-        rtcInitIntersectContext(&context);
-        context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // one receiver's rays share their origin
         Packet packet;
+        FilterContext fc;
+        rtcInitIntersectContext(&fc.context);
+        fc.context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // one receiver's rays share their origin
+        fc.packet = &packet;
+        fc.vertices = vertices;
         uint64_t traced = 0;
 
         for (size_t r = range.begin(); r != range.end(); ++r) {
@@ -268,12 +303,13 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
             const glm::vec3 p = receivers.position[r];
             const glm::dvec3 pd(p);
             if (!std::isfinite(pd.x) || !std::isfinite(pd.y) || !std::isfinite(pd.z)) continue;
-            const double eps = receiverEpsilon(pd, epsilon);
+            const double eps = epsilon.at(pd);
             const int set = int(sampleSetOf[r]);
+            packet.receiver = pd, packet.eps = eps;
 
             auto flush = [&] {
                 if (packet.lanes == 0) return;
-                rtcOccluded16(packet.valid, rtcScene, &context, &packet.ray);
+                rtcOccluded16(packet.valid, rtcScene, &fc.context, &packet.ray);
                 for (int i = 0; i < packet.lanes; ++i)
                     if (packet.valid[i] && packet.ray.tfar[i] == -std::numeric_limits<float>::infinity())
                         row[packet.laneWord[i]] |= 1ull << packet.laneBit[i];
@@ -282,18 +318,21 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
 
             for (int k = 0; k < samples.groupCount(); ++k) {
                 const LightSampleGroup& g = samples.groups[k];
+                const double w = samples.w(g.light);
                 for (uint32_t j = 0; j < g.count; ++j) {
                     const glm::dvec3 l(samples.position(set, int(g.first + j)));
-                    const glm::dvec3 d = l - pd;
+                    const glm::dvec3 d = l - w * pd;  // towards the point, or the direction itself
                     const double len = glm::length(d);
-                    // |l - r| <= eps(r): no point of the segment is beyond the receiver band.
-                    if (!(len > eps) || !std::isfinite(len)) continue;
-                    const float tnear = float(eps / len);
-                    if (!(tnear < kTfar)) continue;
+                    if (!(len > 0.0) || !std::isfinite(len)) continue;
+                    const float tnear = float(0.5 * eps / len);
+                    const float tfar = w == 0.0 ? std::numeric_limits<float>::infinity() : kTfarPoint;
+                    if (!(tnear < tfar)) continue;
                     const int i = packet.lanes++;
                     packet.valid[i] = -1;
                     packet.laneWord[i] = k;
                     packet.laneBit[i] = int(j);
+                    packet.sample[i] = l;
+                    packet.w[i] = w;
                     packet.ray.org_x[i] = p.x;
                     packet.ray.org_y[i] = p.y;
                     packet.ray.org_z[i] = p.z;
@@ -301,7 +340,7 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
                     packet.ray.dir_y[i] = float(d.y);
                     packet.ray.dir_z[i] = float(d.z);
                     packet.ray.tnear[i] = tnear;
-                    packet.ray.tfar[i] = kTfar;
+                    packet.ray.tfar[i] = tfar;
                     ++traced;
                     if (packet.lanes == kPacket) flush();
                 }
@@ -309,11 +348,15 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
             flush();  // packets never span receivers: the row being written belongs to r
         }
         rays.fetch_add(traced, std::memory_order_relaxed);
+        filterCalls.fetch_add(fc.calls, std::memory_order_relaxed);
+        filterRejected.fetch_add(fc.rejected, std::memory_order_relaxed);
         if (progress) progress(range.size());
     });
     errors.check(device.device, "tracing");
     local.traceSeconds = secondsSince(traceStart);
     local.rays = rays.load();
+    local.filterCalls = filterCalls.load();
+    local.filterRejected = filterRejected.load();
     if (stats) *stats = local;
     return masks;
 }

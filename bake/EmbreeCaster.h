@@ -2,16 +2,15 @@
 /// @file EmbreeCaster.h
 /// @brief `--method embree`: the ray-tracing peer. Intel Embree 3 traces one shadow ray per
 /// receiver-sample relation with rtcOccluded16 packets, over exactly the receivers and samples
-/// the other methods use. Embree decides in float with its own edge rules, so it may differ from
-/// the blocking rule on ties only; `penumbra compare --scene` counts those. The ties (all within
-/// isTie()'s tolerance, details in EmbreeCaster.cpp):
-///  - float ray and hit distance versus the rule's double evaluation;
-///  - rays through a triangle edge or vertex (Embree's float test is not exactly edge-inclusive);
-///  - receivers within eps(r) of a triangle's plane: the rule measures eps(r) perpendicular to the
-///    plane, Embree along the ray (tnear), so grazing rays may be blocked by Embree only;
-///  - samples within 1e-6 |l - r| of a triangle's plane (the ray ends at tfar = 1 - 1e-6).
+/// the other methods use: a ray towards each point sample, and a ray to infinity along each sun
+/// direction. Embree finds the candidate triangles in float; an occlusion filter function then
+/// accepts a hit only when the one blocking rule (BlockingRule.h) blocks the relation with that
+/// triangle, so the receiver epsilon and the open light end mean the same as for hpc. Embree can
+/// then differ from the rule on one kind of tie only: a segment within float roundoff of a
+/// triangle's edge, which Embree's float test may miss (bake/TieClassifier.h classifies them).
 /// The BVH is built with RTC_BUILD_QUALITY_HIGH: one build, many rays per triangle.
 
+#include "bake/BlockingRule.h"
 #include "bake/Light.h"
 #include "bake/VisibilityMasks.h"
 #include "receivers/ReceiverSet.h"
@@ -27,17 +26,20 @@ struct EmbreeStats {
     double buildSeconds = 0;  ///< device + scene + BVH build
     double traceSeconds = 0;
     uint64_t rays = 0;
+    uint64_t filterCalls = 0;  ///< candidate hits the blocking-rule filter judged
+    uint64_t filterRejected = 0;  ///< of those, hits the rule does not count (epsilon band, edges)
     uint64_t sceneBytes = 0;  ///< vertex and index buffers handed to Embree (its BVH comes on top)
 };
 
 /// @brief Casts every relation. The ray of receiver r and sample l starts at r with
-/// tnear = eps(r) (the receiver-end epsilon, BlockingRule.h) and ends at l (tfar just below 1
-/// in units of l - r, so the light sample itself is never hit).
+/// tnear = eps(r) / 2 (no triangle nearer along the ray can pass the rule's epsilon band) and ends
+/// just beyond l (tfar = 1 + 1e-5 in units of l - r; the filter rejects what lies beyond l), or at
+/// infinity for a direction.
 /// @param progress optional, called with the number of receivers finished.
 /// @throw InputError when Embree reports an error (the message carries Embree's error code).
 VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& receivers,
                            std::span<const uint32_t> sampleSetOf, std::span<const Triangle> triangles,
-                           double epsilon, EmbreeStats* stats = nullptr,
+                           const ReceiverEpsilon& epsilon, EmbreeStats* stats = nullptr,
                            const std::function<void(uint64_t)>& progress = {});
 
 }  // namespace penumbra

@@ -13,31 +13,32 @@ constexpr int kLanes = HardShadowBlock::kLanes;
 
 // ---- scalar: the reference formulation, one lane at a time -------------------------------------
 
-void buildScalar(HardShadowBlock& out, const glm::vec3* samples, int count, const BlockerTriangle& t) {
+void buildScalar(HardShadowBlock& out, const glm::vec3* samples, int count, double w, const BlockerTriangle& t) {
     for (int i = 0; i < kLanes; ++i) {
         HardShadowVolume h;
-        if (i < count) h = makeHardShadowVolume(glm::dvec3(samples[i]), t);
+        if (i < count) h = makeHardShadowVolume(glm::dvec3(samples[i]), w, t);
         out.side[i] = h.side;
         for (int e = 0; e < 3; ++e) {
             // makeHardShadowVolume leaves the edges unset when side is 0; store zeros then.
             const bool set = h.side != 0.0;
-            out.nx[e][i] = set ? h.edge[e].n.x : 0.0;
-            out.ny[e][i] = set ? h.edge[e].n.y : 0.0;
-            out.nz[e][i] = set ? h.edge[e].n.z : 0.0;
-            out.d[e][i] = set ? h.edge[e].d : 0.0;
+            out.nx[e][i] = set ? h.edge[e].x : 0.0;
+            out.ny[e][i] = set ? h.edge[e].y : 0.0;
+            out.nz[e][i] = set ? h.edge[e].z : 0.0;
         }
     }
 }
 
-uint64_t testScalar(const HardShadowBlock* blocks, uint32_t which, const glm::dvec3& r, double dist, double eps) {
+uint64_t testScalar(const HardShadowBlock* blocks, uint32_t which, const EdgeOffsets& at, double dist, double eps) {
     uint64_t word = 0;
     for (; which; which &= which - 1) {
         const int b = __builtin_ctz(which);
         const HardShadowBlock& h = blocks[b];
         for (int i = 0; i < kLanes; ++i) {
             bool blocked = h.side[i] * dist > eps;
-            for (int e = 0; e < 3 && blocked; ++e)
-                blocked = ((h.nx[e][i] * r.x + h.ny[e][i] * r.y) + h.nz[e][i] * r.z) + h.d[e][i] >= 0.0;
+            for (int e = 0; e < 3 && blocked; ++e) {
+                const glm::dvec3& q = at.rel[e];
+                blocked = (h.nx[e][i] * q.x + h.ny[e][i] * q.y) + h.nz[e][i] * q.z >= 0.0;
+            }
             word |= uint64_t(blocked) << (4 * b + i);
         }
     }
@@ -46,8 +47,10 @@ uint64_t testScalar(const HardShadowBlock* blocks, uint32_t which, const glm::dv
 
 // ---- SSE2: two lanes per register, two registers per block -------------------------------------
 
-uint64_t testSse2(const HardShadowBlock* blocks, uint32_t which, const glm::dvec3& r, double dist, double eps) {
-    const __m128d rx = _mm_set1_pd(r.x), ry = _mm_set1_pd(r.y), rz = _mm_set1_pd(r.z);
+uint64_t testSse2(const HardShadowBlock* blocks, uint32_t which, const EdgeOffsets& at, double dist, double eps) {
+    __m128d qx[3], qy[3], qz[3];
+    for (int e = 0; e < 3; ++e)
+        qx[e] = _mm_set1_pd(at.rel[e].x), qy[e] = _mm_set1_pd(at.rel[e].y), qz[e] = _mm_set1_pd(at.rel[e].z);
     const __m128d vd = _mm_set1_pd(dist), ve = _mm_set1_pd(eps), zero = _mm_setzero_pd();
     uint64_t word = 0;
     for (; which; which &= which - 1) {
@@ -57,10 +60,9 @@ uint64_t testSse2(const HardShadowBlock* blocks, uint32_t which, const glm::dvec
             const int o = 2 * half;
             __m128d m = _mm_cmpgt_pd(_mm_mul_pd(_mm_load_pd(h.side + o), vd), ve);
             for (int e = 0; e < 3; ++e) {
-                __m128d v = _mm_add_pd(_mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_load_pd(h.nx[e] + o), rx),
-                                                             _mm_mul_pd(_mm_load_pd(h.ny[e] + o), ry)),
-                                                  _mm_mul_pd(_mm_load_pd(h.nz[e] + o), rz)),
-                                       _mm_load_pd(h.d[e] + o));
+                __m128d v = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_load_pd(h.nx[e] + o), qx[e]),
+                                                  _mm_mul_pd(_mm_load_pd(h.ny[e] + o), qy[e])),
+                                       _mm_mul_pd(_mm_load_pd(h.nz[e] + o), qz[e]));
                 m = _mm_and_pd(m, _mm_cmpge_pd(v, zero));
             }
             word |= uint64_t(_mm_movemask_pd(m)) << (4 * b + o);
@@ -78,7 +80,7 @@ __attribute__((target("avx2"))) inline __m256d dot3(__m256d ax, __m256d ay, __m2
     return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(ax, bx), _mm256_mul_pd(ay, by)), _mm256_mul_pd(az, bz));
 }
 
-__attribute__((target("avx2"))) void buildAvx2(HardShadowBlock& out, const glm::vec3* samples, int count,
+__attribute__((target("avx2"))) void buildAvx2(HardShadowBlock& out, const glm::vec3* samples, int count, double w,
                                                const BlockerTriangle& t) {
     alignas(32) double px[kLanes], py[kLanes], pz[kLanes];
     for (int i = 0; i < kLanes; ++i) {  // unused lanes repeat a real sample; their side is zeroed
@@ -86,43 +88,43 @@ __attribute__((target("avx2"))) void buildAvx2(HardShadowBlock& out, const glm::
         px[i] = s.x, py[i] = s.y, pz[i] = s.z;
     }
     const __m256d lx = _mm256_load_pd(px), ly = _mm256_load_pd(py), lz = _mm256_load_pd(pz);
-    const __m256d zero = _mm256_setzero_pd(), signBit = _mm256_set1_pd(-0.0);
+    const __m256d zero = _mm256_setzero_pd(), signBit = _mm256_set1_pd(-0.0), vw = _mm256_set1_pd(w);
 
-    // side: sign of T's plane at the sample, negated; 0 for a sample in the plane.
-    const __m256d sl = _mm256_add_pd(dot3(_mm256_set1_pd(t.plane.n.x), _mm256_set1_pd(t.plane.n.y),
-                                          _mm256_set1_pd(t.plane.n.z), lx, ly, lz),
-                                     _mm256_set1_pd(t.plane.d));
-    __m256d side = _mm256_or_pd(_mm256_and_pd(_mm256_cmp_pd(sl, zero, _CMP_GT_OQ), _mm256_set1_pd(-1.0)),
-                                _mm256_and_pd(_mm256_cmp_pd(sl, zero, _CMP_LT_OQ), _mm256_set1_pd(1.0)));
+    // sl = n . (l - w v0): the side is its sign, negated (0 for a sample in the plane), and the edge
+    // normals take its sign.
+    const glm::dvec3& v0 = t.v[0];
+    const __m256d sl = dot3(_mm256_set1_pd(t.plane.n.x), _mm256_set1_pd(t.plane.n.y), _mm256_set1_pd(t.plane.n.z),
+                            _mm256_sub_pd(lx, _mm256_mul_pd(vw, _mm256_set1_pd(v0.x))),
+                            _mm256_sub_pd(ly, _mm256_mul_pd(vw, _mm256_set1_pd(v0.y))),
+                            _mm256_sub_pd(lz, _mm256_mul_pd(vw, _mm256_set1_pd(v0.z))));
+    const __m256d positive = _mm256_cmp_pd(sl, zero, _CMP_GT_OQ);
+    const __m256d side = _mm256_or_pd(_mm256_and_pd(positive, _mm256_set1_pd(-1.0)),
+                                      _mm256_and_pd(_mm256_cmp_pd(sl, zero, _CMP_LT_OQ), _mm256_set1_pd(1.0)));
     const __m256d live = _mm256_cmp_pd(_mm256_set_pd(3, 2, 1, 0), _mm256_set1_pd(double(count)), _CMP_LT_OQ);
     _mm256_store_pd(out.side, _mm256_and_pd(side, live));
 
     for (int e = 0; e < 3; ++e) {
         const glm::dvec3& a = t.v[e];
-        const glm::dvec3& b = t.v[(e + 1) % 3];
-        const glm::dvec3& c = t.v[(e + 2) % 3];
-        // x = a - l, y = b - l; n = cross(x, y) in glm's order.
-        const __m256d xx = _mm256_sub_pd(_mm256_set1_pd(a.x), lx), xy = _mm256_sub_pd(_mm256_set1_pd(a.y), ly),
-                      xz = _mm256_sub_pd(_mm256_set1_pd(a.z), lz);
-        const __m256d yx = _mm256_sub_pd(_mm256_set1_pd(b.x), lx), yy = _mm256_sub_pd(_mm256_set1_pd(b.y), ly),
-                      yz = _mm256_sub_pd(_mm256_set1_pd(b.z), lz);
+        const glm::dvec3 y = t.v[(e + 1) % 3] - a;
+        // x = l - w a, y = b - a; n = cross(x, y) in glm's order, negated where sl < 0.
+        const __m256d xx = _mm256_sub_pd(lx, _mm256_mul_pd(vw, _mm256_set1_pd(a.x)));
+        const __m256d xy = _mm256_sub_pd(ly, _mm256_mul_pd(vw, _mm256_set1_pd(a.y)));
+        const __m256d xz = _mm256_sub_pd(lz, _mm256_mul_pd(vw, _mm256_set1_pd(a.z)));
+        const __m256d yx = _mm256_set1_pd(y.x), yy = _mm256_set1_pd(y.y), yz = _mm256_set1_pd(y.z);
         const __m256d nx = _mm256_sub_pd(_mm256_mul_pd(xy, yz), _mm256_mul_pd(yy, xz));
         const __m256d ny = _mm256_sub_pd(_mm256_mul_pd(xz, yx), _mm256_mul_pd(yz, xx));
         const __m256d nz = _mm256_sub_pd(_mm256_mul_pd(xx, yy), _mm256_mul_pd(yx, xy));
-        const __m256d d = _mm256_xor_pd(dot3(nx, ny, nz, lx, ly, lz), signBit);  // Plane::through
-        const __m256d atC = _mm256_add_pd(
-            dot3(nx, ny, nz, _mm256_set1_pd(c.x), _mm256_set1_pd(c.y), _mm256_set1_pd(c.z)), d);
-        const __m256d keep = _mm256_cmp_pd(atC, zero, _CMP_GE_OQ);  // else Plane::flipped()
-        _mm256_store_pd(out.nx[e], _mm256_blendv_pd(_mm256_xor_pd(nx, signBit), nx, keep));
-        _mm256_store_pd(out.ny[e], _mm256_blendv_pd(_mm256_xor_pd(ny, signBit), ny, keep));
-        _mm256_store_pd(out.nz[e], _mm256_blendv_pd(_mm256_xor_pd(nz, signBit), nz, keep));
-        _mm256_store_pd(out.d[e], _mm256_blendv_pd(_mm256_xor_pd(d, signBit), d, keep));
+        _mm256_store_pd(out.nx[e], _mm256_blendv_pd(_mm256_xor_pd(nx, signBit), nx, positive));
+        _mm256_store_pd(out.ny[e], _mm256_blendv_pd(_mm256_xor_pd(ny, signBit), ny, positive));
+        _mm256_store_pd(out.nz[e], _mm256_blendv_pd(_mm256_xor_pd(nz, signBit), nz, positive));
     }
 }
 
-__attribute__((target("avx2"))) uint64_t testAvx2(const HardShadowBlock* blocks, uint32_t which, const glm::dvec3& r,
+__attribute__((target("avx2"))) uint64_t testAvx2(const HardShadowBlock* blocks, uint32_t which, const EdgeOffsets& at,
                                                   double dist, double eps) {
-    const __m256d rx = _mm256_set1_pd(r.x), ry = _mm256_set1_pd(r.y), rz = _mm256_set1_pd(r.z);
+    __m256d qx[3], qy[3], qz[3];
+    for (int e = 0; e < 3; ++e)
+        qx[e] = _mm256_set1_pd(at.rel[e].x), qy[e] = _mm256_set1_pd(at.rel[e].y), qz[e] = _mm256_set1_pd(at.rel[e].z);
     const __m256d vd = _mm256_set1_pd(dist), ve = _mm256_set1_pd(eps), zero = _mm256_setzero_pd();
     uint64_t word = 0;
     for (; which; which &= which - 1) {
@@ -130,9 +132,7 @@ __attribute__((target("avx2"))) uint64_t testAvx2(const HardShadowBlock* blocks,
         const HardShadowBlock& h = blocks[b];
         __m256d m = _mm256_cmp_pd(_mm256_mul_pd(_mm256_load_pd(h.side), vd), ve, _CMP_GT_OQ);
         for (int e = 0; e < 3; ++e) {
-            __m256d v = _mm256_add_pd(dot3(_mm256_load_pd(h.nx[e]), _mm256_load_pd(h.ny[e]),
-                                           _mm256_load_pd(h.nz[e]), rx, ry, rz),
-                                      _mm256_load_pd(h.d[e]));
+            __m256d v = dot3(_mm256_load_pd(h.nx[e]), _mm256_load_pd(h.ny[e]), _mm256_load_pd(h.nz[e]), qx[e], qy[e], qz[e]);
             m = _mm256_and_pd(m, _mm256_cmp_pd(v, zero, _CMP_GE_OQ));
         }
         word |= uint64_t(_mm256_movemask_pd(m)) << (4 * b);

@@ -4,8 +4,8 @@
 /// receiver four samples at a time with SSE2 or AVX2 (chosen at run time).
 ///
 /// Exactness: the kernels evaluate exactly the double-precision expressions of BlockingRule.h,
-/// operation for operation and in the same order (dot products as ((x + y) + z) + d, cross
-/// products as glm computes them), with no fused multiply-add (the AVX2 code is compiled for
+/// operation for operation and in the same order (dot products as (x + y) + z, cross products as
+/// glm computes them, every edge plane evaluated at r - v_e), with no fused multiply-add (the AVX2 code is compiled for
 /// "avx2" without "fma", and the project builds with -ffp-contract=off). IEEE arithmetic is then
 /// the same in every lane as in the scalar code, so the SIMD result equals blocks() bit for bit;
 /// tests/test_hard_shadow_block.cpp checks it lane by lane and through the whole caster.
@@ -26,21 +26,32 @@ namespace penumbra {
 enum class SimdLevel : uint8_t { Scalar, Sse2, Avx2, Auto };
 
 /// @brief Hard-shadow volumes (BlockingRule.h) of up to four light samples and one triangle.
-/// Lane i holds edge plane e as (nx[e][i], ny[e][i], nz[e][i], d[e][i]) and the side sign in
-/// side[i]. Unused lanes and samples in T's plane have side 0, which blocks nothing.
+/// Lane i holds the normal of edge plane e as (nx[e][i], ny[e][i], nz[e][i]) (anchored at the
+/// triangle's vertex e) and the side sign in side[i]. Unused lanes and samples in T's plane have
+/// side 0, which blocks nothing.
 struct alignas(32) HardShadowBlock {
     static constexpr int kLanes = 4;
-    double nx[3][kLanes], ny[3][kLanes], nz[3][kLanes], d[3][kLanes];
+    double nx[3][kLanes], ny[3][kLanes], nz[3][kLanes];
     double side[kLanes];
 };
 
-/// @brief Builds the block for @p count (1..4) consecutive samples starting at @p samples.
-using BuildBlockFn = void (*)(HardShadowBlock& out, const glm::vec3* samples, int count, const BlockerTriangle& t);
+/// @brief Builds the block for @p count (1..4) consecutive samples starting at @p samples, all of
+/// homogeneous weight @p w (1: points, 0: directions; one light's samples share it).
+using BuildBlockFn = void (*)(HardShadowBlock& out, const glm::vec3* samples, int count, double w,
+                              const BlockerTriangle& t);
 
-/// @brief Tests receiver @p r against the blocks selected by @p which (bit b: blocks[b]).
-/// @param dist distanceBehind(t, r); @param eps the receiver's epsilon.
+/// @brief The receiver relative to each edge plane's anchor: rel[e] = r - t.v[e].
+struct EdgeOffsets {
+    glm::dvec3 rel[3];
+    EdgeOffsets() = default;
+    EdgeOffsets(const BlockerTriangle& t, const glm::dvec3& r) : rel{r - t.v[0], r - t.v[1], r - t.v[2]} {}
+};
+
+/// @brief Tests a receiver against the blocks selected by @p which (bit b: blocks[b]).
+/// @param at the receiver relative to the edge anchors; @param dist distanceBehind(t, r);
+/// @param eps the receiver's epsilon.
 /// @return bit 4b+i set when lane i of block b blocks r (the sample blocks the relation).
-using TestBlocksFn = uint64_t (*)(const HardShadowBlock* blocks, uint32_t which, const glm::dvec3& r, double dist,
+using TestBlocksFn = uint64_t (*)(const HardShadowBlock* blocks, uint32_t which, const EdgeOffsets& at, double dist,
                                   double eps);
 
 /// @brief The build and test kernels of one instruction set.

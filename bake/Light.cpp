@@ -4,6 +4,8 @@
 
 #include <glm/geometric.hpp>
 #include <glm/gtc/constants.hpp>
+#include <glm/trigonometric.hpp>
+#include <glm/vec2.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -40,7 +42,7 @@ Frame planarFrame(const LightDesc& l) {
             f.u = glm::normalize(l.u);
             break;
         case LightType::Disk:
-        case LightType::Sun:
+        case LightType::Sun:  // (a sun arrives here as its disk of directions, sunDirectionDisk())
             f.origin = l.center;
             f.n = glm::normalize(l.normal);
             f.u = anyPerpendicular(f.n);
@@ -139,7 +141,7 @@ double LightDesc::area() const {
     switch (type) {
         case LightType::Rect: return glm::length(glm::cross(u, v));
         case LightType::Disk:
-        case LightType::Sun: return glm::pi<double>() * radius * radius;
+        case LightType::Sun: return 0.0;  // a cone of directions: no emitting area
         case LightType::Sphere: return 4.0 * glm::pi<double>() * radius * radius;
         case LightType::Polygon: return 0.5 * glm::length(polygonNormal(polygon));
     }
@@ -155,52 +157,105 @@ glm::dvec3 LightDesc::emitterNormal() const {
     }
 }
 
+namespace {
+
+/// Light coordinates and sizes must stay far from overflow: samples are float32, and the
+/// blocking rule multiplies three coordinates (docs/scene-format.md, "Lights").
+constexpr double kMaxLightCoordinate = 1e15;
+/// Radiance and irradiance are written as float32; with this bound no sum over samples overflows.
+constexpr double kMaxRadiance = 1e30;
+
+void checkRange(const LightDesc& l, const char* key, const glm::dvec3& p, double bound) {
+    for (int i = 0; i < 3; ++i)
+        if (!(std::abs(p[i]) <= bound))
+            fail(l.where, "{} [{}, {}, {}] is out of range (every component must be finite and at most {:g} in magnitude)",
+                 key, p.x, p.y, p.z, bound);
+}
+
+void checkColour(const LightDesc& l, const char* key, const glm::dvec3& c) {
+    for (int i = 0; i < 3; ++i)
+        if (!(c[i] >= 0 && c[i] <= kMaxRadiance))
+            fail(l.where, "{} [{}, {}, {}] must be finite, non-negative and at most {:g} per channel", key, c.x, c.y, c.z,
+                 kMaxRadiance);
+}
+
+/// A convex polygon winds once: every vertex is on or left of every edge (seen along the normal),
+/// no edge has zero length, and the exterior angles sum to one full turn (a doubled square and a
+/// pentagram have every turn convex but wind twice).
+void checkConvexPolygon(const LightDesc& l, const glm::dvec3& n, double scale) {
+    const auto& p = l.polygon;
+    const size_t m = p.size();
+    const glm::dvec3 u = glm::normalize(glm::abs(n.x) < 0.9 ? glm::cross(n, glm::dvec3(1, 0, 0)) : glm::cross(n, glm::dvec3(0, 1, 0)));
+    const glm::dvec3 v = glm::cross(n, u);
+    double turning = 0.0;
+    for (size_t i = 0; i < m; ++i) {
+        const glm::dvec3 &a = p[i], &b = p[(i + 1) % m], &c = p[(i + 2) % m];
+        if (!(glm::length(b - a) > 1e-12 * scale)) fail(l.where, "polygon vertices {} and {} coincide", i, (i + 1) % m);
+        if (std::abs(glm::dot(a - p[0], n)) > 1e-6 * scale)
+            fail(l.where, "polygon vertex {} is not in the plane of the others", i);
+        for (size_t j = 0; j < m; ++j)
+            if (glm::dot(glm::cross(b - a, p[j] - a), n) < -1e-12 * scale * scale)
+                fail(l.where, "polygon is not convex: vertex {} lies outside edge {}-{} (vertices must be in order, "
+                              "winding once)", j, i, (i + 1) % m);
+        const glm::dvec2 e0(glm::dot(b - a, u), glm::dot(b - a, v)), e1(glm::dot(c - b, u), glm::dot(c - b, v));
+        turning += std::atan2(e0.x * e1.y - e0.y * e1.x, e0.x * e1.x + e0.y * e1.y);
+    }
+    if (std::abs(turning - glm::two_pi<double>()) > 1e-6)
+        fail(l.where, "polygon winds {:.3g} times around its centre: list each vertex once, in order",
+             turning / glm::two_pi<double>());
+}
+
+}  // namespace
+
 void validateLight(const LightDesc& l) {
-    auto finite = [](const glm::dvec3& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); };
-    if (!finite(l.center) || !finite(l.u) || !finite(l.v) || !finite(l.normal) || !std::isfinite(l.radius))
-        fail(l.where, "non-finite light parameter");
     if (l.samples < 1 || l.samples > 65536) fail(l.where, "samples must be in 1..65536, got {}", l.samples);
     if (l.sampleSets < 1 || l.sampleSets > 256) fail(l.where, "sample_sets must be in 1..256, got {}", l.sampleSets);
     switch (l.type) {
         case LightType::Rect:
+            checkRange(l, "center", l.center, kMaxLightCoordinate);
+            checkRange(l, "u", l.u, kMaxLightCoordinate), checkRange(l, "v", l.v, kMaxLightCoordinate);
             if (!(glm::length(glm::cross(l.u, l.v)) > 1e-12))
                 fail(l.where, "zero-area light: u x v is zero (u=[{},{},{}], v=[{},{},{}])", l.u.x, l.u.y, l.u.z,
                      l.v.x, l.v.y, l.v.z);
             break;
         case LightType::Sun:
-            if (!(glm::length(l.direction) > 0) || !finite(l.direction))
-                fail(l.where, "direction must be a finite non-zero vector");
+            checkRange(l, "direction", l.direction, kMaxLightCoordinate);
+            if (!(glm::length(l.direction) > 0)) fail(l.where, "direction must be a finite non-zero vector");
             if (!(l.angularDiameterDeg > 0 && l.angularDiameterDeg <= 20))
                 fail(l.where, "angular_diameter_deg must be in (0, 20], got {}", l.angularDiameterDeg);
-            if (!l.placed) break;
-            [[fallthrough]];
+            checkColour(l, "irradiance", l.irradiance);
+            return;
         case LightType::Disk:
+            checkRange(l, "normal", l.normal, kMaxLightCoordinate);
             if (!(glm::length(l.normal) > 0)) fail(l.where, "normal is the zero vector");
             [[fallthrough]];
         case LightType::Sphere:
-            if (!(l.radius > 0)) fail(l.where, "zero-area light: radius must be positive, got {}", l.radius);
+            checkRange(l, "center", l.center, kMaxLightCoordinate);
+            if (!(l.radius > 0 && l.radius <= kMaxLightCoordinate))
+                fail(l.where, "radius must be positive and at most {:g}, got {}", kMaxLightCoordinate, l.radius);
             break;
         case LightType::Polygon: {
             if (l.polygon.size() < 3) fail(l.where, "polygon needs at least 3 vertices, got {}", l.polygon.size());
-            for (const auto& p : l.polygon)
-                if (!finite(p)) fail(l.where, "non-finite polygon vertex");
+            for (size_t i = 0; i < l.polygon.size(); ++i)
+                checkRange(l, fmt::format("vertices[{}]", i).c_str(), l.polygon[i], kMaxLightCoordinate);
             glm::dvec3 n = polygonNormal(l.polygon);
             double len = glm::length(n);
             if (!(len > 1e-12)) fail(l.where, "zero-area light: polygon has no area");
-            n /= len;
             double scale = 0;
             for (const auto& p : l.polygon) scale = std::max(scale, glm::length(p - l.polygon[0]));
-            for (size_t i = 0; i < l.polygon.size(); ++i) {
-                const auto& a = l.polygon[i];
-                const auto& b = l.polygon[(i + 1) % l.polygon.size()];
-                const auto& c = l.polygon[(i + 2) % l.polygon.size()];
-                if (std::abs(glm::dot(a - l.polygon[0], n)) > 1e-6 * scale)
-                    fail(l.where, "polygon vertex {} is not in the plane of the others", i);
-                if (glm::dot(glm::cross(b - a, c - b), n) < -1e-12 * scale * scale)
-                    fail(l.where, "polygon is not convex at vertex {}", (i + 1) % l.polygon.size());
-            }
+            checkConvexPolygon(l, n / len, scale);
         }
     }
+    checkColour(l, "radiance", l.radiance);
+}
+
+LightDesc sunDirectionDisk(const LightDesc& sun) {
+    LightDesc d = sun;
+    const glm::dvec3 travel = glm::normalize(sun.direction);
+    d.center = -travel;  // towards the sun, at unit distance
+    d.normal = travel;   // the disk "emits" towards the scene
+    d.radius = std::tan(glm::radians(sun.angularDiameterDeg) * 0.5);
+    return d;
 }
 
 LightSamples generateLightSamples(const std::vector<LightDesc>& lights, int groupSize, uint64_t seed) {
@@ -212,10 +267,9 @@ LightSamples generateLightSamples(const std::vector<LightDesc>& lights, int grou
 
     int firstSample = 0;
     for (size_t li = 0; li < lights.size(); ++li) {
-        const LightDesc& l = lights[li];
-        validateLight(l);
-        if (l.type == LightType::Sun && !l.placed)
-            throw InputError(l.where + ": sun light was not placed before sampling (placeSuns)");
+        validateLight(lights[li]);
+        const bool directional = lights[li].type == LightType::Sun;
+        const LightDesc l = directional ? sunDirectionDisk(lights[li]) : lights[li];
         bool volumetric = l.type == LightType::Sphere;
         Frame frame = volumetric ? Frame{} : planarFrame(l);
         std::vector<int> dims = gridDims(l.samples, volumetric ? 3 : 2);
@@ -263,12 +317,14 @@ LightSamples generateLightSamples(const std::vector<LightDesc>& lights, int grou
 
         out.lightFirstGroup.push_back(uint32_t(out.groups.size()));
         out.lightBounds.push_back(bound(gather(0, l.samples), true));
+        out.lightBounds.back().w = directional ? 0.0 : 1.0;
         for (auto [begin, end] : ranges) {
             LightSampleGroup g;
             g.light = uint32_t(li);
             g.first = uint32_t(firstSample + begin);
             g.count = uint32_t(end - begin);
             g.bound = bound(gather(begin, end), false);
+            g.bound.w = directional ? 0.0 : 1.0;
             out.groups.push_back(std::move(g));
         }
         out.sampleLight.insert(out.sampleLight.end(), size_t(l.samples), uint32_t(li));

@@ -12,7 +12,7 @@
 
 namespace penumbra {
 
-/// Sun: a directional light, realized as a far disk before sampling (see placeSuns in SunLight.h).
+/// Sun: a directional light; its samples are directions (w = 0), see LightSamples.
 enum class LightType { Rect, Disk, Sphere, Polygon, Sun };
 
 /// @brief A light as described in the scene file.
@@ -27,7 +27,6 @@ struct LightDesc {
     glm::dvec3 direction{0, -1, 0};     ///< sun: direction the light travels (sun -> scene)
     double angularDiameterDeg = 0.53;   ///< sun: apparent diameter of its disk
     glm::dvec3 irradiance{1.0};         ///< sun: RGB irradiance (W/m^2) on a surface facing it
-    bool placed = false;                ///< sun: center/normal/radius set by placeSuns()
     int samples = 256;
     int sampleSets = 8;
     std::string where = "light";  ///< "scene.json: lights[0]", for messages
@@ -51,7 +50,12 @@ struct LightSampleGroup {
 
 /// @brief Every light's samples in every set. Sample k of set s is positions[s * sampleCount + k];
 /// the samples of all lights are concatenated in light order, and each group's samples are
-/// contiguous. Positions are float32 (as dumped) so every method casts from identical points.
+/// contiguous. Positions are float32 (as dumped) so every method casts from identical samples.
+///
+/// A sample is homogeneous (BlockingRule.h): a point (w = 1) for area lights, a direction towards
+/// the light (w = 0) for suns. A sun's directions lie on the plane at unit distance along its axis
+/// (axis + tan(radius) * disk offset, not normalised), so its groups have planar bounds like any
+/// disk light's and the sample mask table applies unchanged.
 struct LightSamples {
     int sets = 1;
     int sampleCount = 0;  ///< K: samples per set, all lights together
@@ -64,16 +68,24 @@ struct LightSamples {
     const glm::vec3& position(int set, int k) const { return positions[size_t(set) * sampleCount + k]; }
     int lightCount() const { return int(lightBounds.size()); }
     int groupCount() const { return int(groups.size()); }
+    /// The homogeneous weight of light @p light's samples: 1 (points) or 0 (directions).
+    double w(uint32_t light) const { return lightBounds[light].w; }
+    /// The homogeneous weight of global sample @p k.
+    double sampleW(uint32_t k) const { return w(sampleLight[k]); }
 };
 
 /// @brief Checks a light description; throws InputError naming light.where and the bad value
 /// (zero area, non-unit-count samples, non-planar or non-convex polygon...).
 void validateLight(const LightDesc& light);
 
+/// @brief A sun as the disk of directions it is sampled as: centre at the unit vector towards the
+/// sun, normal along the direction of travel, radius tan(angular diameter / 2).
+LightDesc sunDirectionDisk(const LightDesc& sun);
+
 /// @brief Stratified, jittered samples for every light, @p groupSize (<= 64) per group.
 /// Deterministic in @p seed. Sets beyond a light's own sampleSets repeat its sets cyclically.
-/// Sun lights must have been placed (placeSuns()); they are sampled as the disk they became.
-/// @throw InputError for an invalid light or an unplaced sun.
+/// A sun is sampled as a disk of directions (stratified like a disk light).
+/// @throw InputError for an invalid light.
 LightSamples generateLightSamples(const std::vector<LightDesc>& lights, int groupSize, uint64_t seed);
 
 /// @brief The sample set a receiver uses: a hash of its index, so it is independent of tiling.

@@ -25,14 +25,34 @@ double secondsSince(std::chrono::steady_clock::time_point t0) {
 constexpr uint32_t kAllPlanes = ~0u;  // "ALL": masked by the volume's own plane count when used
 
 /// Every vertex of the light's bound strictly behind T's plane, beyond roundoff of the plane's
-/// evaluation (unit normal, so a scale-relative margin suffices).
+/// evaluation (unit normal, anchored at T, so a margin relative to the quantities suffices). For a
+/// sun, every direction of the cone points away from T's front side.
 bool facesAway(const BlockerTriangle& t, const ConvexBound& bound) {
-    const double scale = std::max({1.0, std::abs(t.v[0].x), std::abs(t.v[0].y), std::abs(t.v[0].z)});
+    const glm::dvec3& v0 = t.v[0];
     for (const glm::dvec3& v : bound.vertices) {
-        const double m = std::max({scale, std::abs(v.x), std::abs(v.y), std::abs(v.z)});
-        if (!(t.plane.eval(v) < -1e-9 * m)) return false;
+        const glm::dvec3 d = v - bound.w * v0;
+        const double m = std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)});
+        if (!(glm::dot(t.plane.n, d) < -1e-9 * m)) return false;
     }
     return !bound.vertices.empty();
+}
+
+/// The box around the receivers and the light's bound. A sun's rays leave the receivers towards
+/// infinity: along every axis on which some direction of the bound has a positive (negative)
+/// component, the box is unbounded above (below).
+Box reachBox(const Box& receivers, const ConvexBound& bound) {
+    Box reach = receivers;
+    for (const glm::dvec3& v : bound.vertices) {
+        if (!bound.directional()) {
+            reach.lo = glm::min(reach.lo, roundToFloat(v, true)), reach.hi = glm::max(reach.hi, roundToFloat(v, false));
+            continue;
+        }
+        for (int a = 0; a < 3; ++a) {
+            if (v[a] > 0.0) reach.hi[a] = INFINITY;
+            if (v[a] < 0.0) reach.lo[a] = -INFINITY;
+        }
+    }
+    return reach;
 }
 
 struct ActiveGroup {
@@ -135,7 +155,7 @@ struct PenumbraCaster::Tile {
             for (; missing; missing &= missing - 1) {
                 const int b = __builtin_ctz(missing), lane0 = b * HardShadowBlock::kLanes;
                 kernels.build(blocks[b], first + lane0, std::min<int>(HardShadowBlock::kLanes, int(g.count) - lane0),
-                              *tri);
+                              samples.w(g.light), *tri);
             }
         }
         return blocks;
@@ -237,6 +257,8 @@ struct PenumbraCaster::Tile {
         SampleMaskTable::Rows rows;  // sample mask table: looked up when a group first needs it
         auto lookup = SampleMaskTable::Lookup::Exact;
         bool lookedUp = !table;
+        bool haveOffsets = false;
+        EdgeOffsets offsets;  // r - v_e for the exact tests, once per receiver
         uint64_t* bits = &h.groupUmbra[size_t(r) * umbraWords];
         uint64_t* mask = h.mask[r] != MaskPool::kNone ? pool.data(h.mask[r]) : nullptr;
         for (size_t i = groupsBegin; i < groupsEnd; ++i) {  // lines 65-73
@@ -266,7 +288,8 @@ struct PenumbraCaster::Tile {
                 uint32_t which;
                 const HardShadowBlock* hard = hardShadowBlocks(set, g.group, open, which);
                 hardTests += uint64_t(__builtin_popcountll(open));
-                word |= kernels.test(hard, which, p, dist, eps) & open;
+                if (!haveOffsets) offsets = EdgeOffsets(*tri, p), haveOffsets = true;
+                word |= kernels.test(hard, which, offsets, dist, eps) & open;
             }
             if (word != before) {
                 if (!mask) {  // line 59, deferred until a bit is really set
@@ -349,7 +372,7 @@ PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& r
         inputs.reserve(parts[t].size());
         for (uint32_t id : parts[t]) {
             glm::dvec3 p(receivers.position[id]);
-            inputs.push_back({p, receiverEpsilon(p, options_.epsilon), id, sampleSetOf[id]});
+            inputs.push_back({p, receiverEpsilonOf(options_).at(p), id, sampleSetOf[id]});
         }
         tiles_[t]->build(std::move(inputs));
     });
@@ -360,15 +383,13 @@ PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& r
             receiversBox_.lo = glm::min(receiversBox_.lo, tile->hierarchy.nodes[0].lo);
             receiversBox_.hi = glm::max(receiversBox_.hi, tile->hierarchy.nodes[0].hi);
         }
+    const glm::dvec3 lo(receiversBox_.lo), hi(receiversBox_.hi);
+    const glm::dvec3 corners[8] = {{lo.x, lo.y, lo.z}, {hi.x, lo.y, lo.z}, {lo.x, hi.y, lo.z}, {hi.x, hi.y, lo.z},
+                                   {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z}, {lo.x, hi.y, hi.z}, {hi.x, hi.y, hi.z}};
     for (const ConvexBound& bound : samples_.lightBounds) {
-        Box reach = receiversBox_;
-        for (const glm::dvec3& v : bound.vertices)
-            reach.lo = glm::min(reach.lo, roundToFloat(v, true)), reach.hi = glm::max(reach.hi, roundToFloat(v, false));
-        reach_.push_back(reach);
-        const glm::dvec3 lo(receiversBox_.lo), hi(receiversBox_.hi);
-        const glm::dvec3 corners[8] = {{lo.x, lo.y, lo.z}, {hi.x, lo.y, lo.z}, {lo.x, hi.y, lo.z}, {hi.x, hi.y, lo.z},
-                                       {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z}, {lo.x, hi.y, hi.z}, {hi.x, hi.y, hi.z}};
-        reachHull_.emplace_back(boundingBall(bound.vertices), boundingBall(corners));
+        reach_.push_back(reachBox(receiversBox_, bound));
+        if (bound.directional()) reachHull_.emplace_back(boundingCone(bound.vertices), boundingBall(corners));
+        else reachHull_.emplace_back(boundingBall(bound.vertices), boundingBall(corners));
     }
     // With several tiles, one can fall ringChunks() - 1 chunks behind the fastest before the
     // caller stops preparing and helps.

@@ -1,5 +1,7 @@
 #include "bake/Pipeline.h"
 
+#include "bake/BakeDump.h"
+#include "bake/ClosedSolids.h"
 #include "bake/EmbreeCaster.h"
 #include "bake/MemoryPlan.h"
 #include "bake/PenumbraCaster.h"
@@ -26,8 +28,10 @@ namespace {
 
 /// Everything the casting stage needs, gathered by the streaming pass.
 struct Prepared {
-    std::vector<LightDesc> lights;  ///< the scene's lights with suns placed (as sampled)
+    std::vector<LightDesc> lights;  ///< the scene's lights
     LightSamples samples;
+    CastOptions options;            ///< the scene's, with the rule's epsilon length L set
+    OpenedSolids openedSolids;      ///< closed solids a light reaches inside: cast as open
     ReceiverSet receivers;
     std::vector<uint32_t> sampleSets;
     TriangleSourcePtr blockers;           ///< replayable, largest first when sorting is on
@@ -37,7 +41,7 @@ struct Prepared {
 };
 
 /// Rejects NaN/inf vertices as they stream by, naming the triangle's position in the stream, and
-/// grows the scene's bounding box (a sun is placed beyond it).
+/// grows the scene's bounding box.
 class FiniteCheck {
 public:
     explicit FiniteCheck(const SceneDesc& scene) : scene_(scene) {}
@@ -61,6 +65,29 @@ private:
     glm::vec3 lo_{INFINITY}, hi_{-INFINITY};
 };
 
+/// L of the rule's receiver epsilon (BlockingRule.h): the largest |coordinate| of any receiver,
+/// else of any triangle (a bake whose receivers all sit at the origin), else 1.
+double epsilonLength(const ReceiverSet& receivers, const SceneBox& geometry) {
+    double length = 0.0;
+    for (const glm::vec3& r : receivers.position)
+        length = std::max({length, double(std::abs(r.x)), double(std::abs(r.y)), double(std::abs(r.z))});
+    if (length > 0.0) return length;
+    if (!geometry.empty())
+        for (const glm::dvec3& c : {geometry.lo, geometry.hi})
+            length = std::max({length, std::abs(c.x), std::abs(c.y), std::abs(c.z)});
+    return length > 0.0 ? length : 1.0;
+}
+
+/// One line per light that reaches inside closed solids: their triangles are cast as open
+/// surfaces, which keeps every shadow (bake/ClosedSolids.h).
+void reportOpenedSolids(const OpenedSolids& opened, const std::vector<LightDesc>& lights, bool quiet) {
+    if (quiet) return;
+    for (size_t l = 0; l < opened.perLight.size(); ++l)
+        if (opened.perLight[l])
+            printNote("{} reaches inside {} closed solid(s); their triangles are cast as open surfaces",
+                      lights[l].where, opened.perLight[l]);
+}
+
 /// Pass 1 over the stream: camera receivers are rasterized (or points loaded) while the area
 /// histogram is built and every vertex is checked. Pass 2 streams the blockers into area buckets
 /// on disk; casting then replays the buckets, largest first, once per memory tile. So the source
@@ -68,6 +95,9 @@ private:
 Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverKind& kind, double& streamSeconds,
                  BucketStats& buckets) {
     Prepared p;
+    p.lights = scene.lights;
+    p.samples = generateLightSamples(p.lights, scene.options.groupSize, scene.seed);
+    p.options = scene.options;
     // Read ahead on a thread of its own, so parsing or generation overlaps with rasterizing
     // receivers (scan pass) and writing bucket files (bucket pass).
     TriangleSourcePtr source = std::make_unique<PrefetchSource>(openSceneGeometry(scene));
@@ -76,28 +106,30 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
         ScopedTimer timer(streamSeconds);
         ProgressReporter progress("scan", source->sizeHint().value_or(0), settings.quiet);
         FiniteCheck check(scene);
+        ClosedSolidScan solids(p.samples);
         std::vector<Triangle> chunk(kTriangleChunk);
         while (size_t n = source->read(chunk)) {
             std::span<const Triangle> part(chunk.data(), n);
             check(part);
             histogram.add(part);
             kind.scan(part);
+            if (scene.options.closedCasters) solids.scan(part);
             progress.update(n);
         }
         p.receivers = kind.receivers();
         progress.done();
-        // Samples are made once the scene's extent is known: a sun is placed beyond it.
-        SceneBox box = check.box();
-        for (const glm::vec3& r : p.receivers.position) box.add(glm::dvec3(r));
-        p.lights = placeSuns(scene.lights, box.lo, box.hi);
-        p.samples = generateLightSamples(p.lights, scene.options.groupSize, scene.seed);
+        p.openedSolids = solids.finish();
+        p.options.epsilonLength = epsilonLength(p.receivers, check.box());
     }
+    reportOpenedSolids(p.openedSolids, p.lights, settings.quiet);
     returnFreedMemory();  // the z-buffer is gone; keep it from inflating the casting phase's RSS
     p.sampleSets.resize(p.receivers.size());
     for (size_t i = 0; i < p.receivers.size(); ++i) p.sampleSets[i] = uint32_t(sampleSetOf(i, p.samples.sets, scene.seed));
     p.triangleCount = histogram.count();
 
     source->rewind();
+    if (!p.openedSolids.ordinals.empty())
+        source = std::make_unique<OpenSolidsSource>(std::move(source), p.openedSolids.ordinals);
     if (!scene.options.sortBlockers) {  // stream order: replay the source itself
         if (kind.wantsRescan()) {  // no bucket pass to ride along with: a read of its own
             std::vector<Triangle> chunk(kTriangleChunk);
@@ -125,28 +157,6 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     p.bucketBufferBytes = options.writeMemoryBytes() + options.readBufferBytes;
     p.blockers = std::make_unique<PrefetchSource>(std::move(replay));
     return p;
-}
-
-void writeDump(const std::string& dir, const Prepared& p, const VisibilityMasks& masks) {
-    std::filesystem::path base(dir);
-    std::error_code ec;
-    std::filesystem::create_directories(base, ec);
-    if (ec) fail(dir, "cannot create dump directory: {}", ec.message());
-    const uint64_t n = p.receivers.size(), k = uint64_t(p.samples.sampleCount);
-    std::vector<float> rec(n * 7);
-    for (size_t i = 0; i < n; ++i) {
-        const glm::vec3 &x = p.receivers.position[i], &nn = p.receivers.normal[i];
-        float row[7] = {x.x, x.y, x.z, nn.x, nn.y, nn.z, float(p.sampleSets[i])};
-        std::copy(row, row + 7, rec.begin() + i * 7);
-    }
-    uint64_t recShape[2] = {n, 7};
-    writeNpy((base / "receivers.npy").string(), "<f4", recShape, rec.data(), rec.size() * sizeof(float));
-    uint64_t sampleShape[3] = {uint64_t(p.samples.sets), k, 3};
-    writeNpy((base / "samples.npy").string(), "<f4", sampleShape, p.samples.positions.data(),
-             p.samples.positions.size() * sizeof(glm::vec3));
-    std::vector<uint64_t> dense = masks.toDumpLayout(p.samples);
-    uint64_t maskShape[2] = {n, (k + 63) / 64};
-    writeNpy((base / "masks.npy").string(), "<u8", maskShape, dense.data(), dense.size() * sizeof(uint64_t));
 }
 
 /// Adds the stats of one more tile or cast pass to @p total; they run one after another, so
@@ -191,7 +201,7 @@ CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettin
     for (size_t t = 0; t < tiles.size(); ++t) {
         const auto& tile = tiles[t];
         double readSeconds = 0;
-        PenumbraCaster caster(p.samples, p.receivers, p.sampleSets, scene.options, subTiles(threads), tile);
+        PenumbraCaster caster(p.samples, p.receivers, p.sampleSets, p.options, subTiles(threads), tile);
         if (t > 0 || rewindFirst) p.blockers->rewind();
         for (;;) {
             size_t n;
@@ -332,8 +342,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         ProgressReporter progress(methodName(settings.method), targets.size(), settings.quiet);
         auto tick = [&](uint64_t n) { progress.update(n); };
         VisibilityMasks m = settings.method == Method::Reference
-                                ? castReference(p.samples, targets, sets, all, scene.options.epsilon, tick)
-                                : castEmbree(p.samples, targets, sets, all, scene.options.epsilon, &embree, tick);
+                                ? castReference(p.samples, targets, sets, all, receiverEpsilonOf(p.options), tick)
+                                : castEmbree(p.samples, targets, sets, all, receiverEpsilonOf(p.options), &embree, tick);
         progress.done();
         std::copy(m.words.begin(), m.words.end(), masks.words.begin() + size_t(first) * masks.groups);
         for (uint32_t r = first; r < p.receivers.size(); ++r) shader.shade(r, masks.row(r), false, results);
@@ -372,7 +382,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     }
 
     kind->write(OutputContext{scene, p.receivers, p.samples, results, scene.output, firstPass});
-    if (dump) writeDump(settings.dumpDir, p, masks);
+    if (dump) writeBakeDump(settings.dumpDir, p.receivers, p.sampleSets, p.samples, masks, receiverEpsilonOf(p.options));
 
     uint64_t blocked = 0;
     for (float v : results.visibility) blocked += uint64_t(std::llround((1.0 - v) * p.samples.sampleCount));
@@ -385,6 +395,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         {"light_samples", p.samples.sampleCount},
         {"sample_sets", p.samples.sets},
         {"light_sample_groups", p.samples.groupCount()},
+        {"epsilon", {{"relative", p.options.epsilon}, {"length", p.options.epsilonLength}}},
         {"blocked_relations", blocked},
         {"table2",
          {{"sort_time_s", buckets.seconds},
@@ -399,6 +410,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
          {{"triangles_read", p.triangleCount},
           {"triangles_culled_at_root", cast.trianglesCulledAtRoot},
           {"closed_back_faces_skipped", cast.closedBackFaces},
+          {"closed_solids_opened", p.openedSolids.ordinals.size()},
+          {"closed_triangles_opened", p.openedSolids.triangles},
           {"rebuilds", cast.rebuilds},
           {"peak_live_masks", cast.peakLiveMasks},
           {"hard_shadow_tests", cast.hardShadowTests},
@@ -426,7 +439,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     if (refineSeconds > 0) stats["antialias"]["refine_scan_time_s"] = refineSeconds;
     if (settings.method == Method::Embree)
         stats["embree"] = {{"build_time_s", embree.buildSeconds}, {"trace_time_s", embree.traceSeconds},
-                           {"rays", embree.rays}, {"scene_bytes", embree.sceneBytes}};
+                           {"rays", embree.rays}, {"scene_bytes", embree.sceneBytes},
+                           {"filter_calls", embree.filterCalls}, {"filter_rejected", embree.filterRejected}};
     if (!settings.statsPath.empty()) {
         std::string text = stats.dump(2) + "\n";
         ensureParentDirectory(settings.statsPath);

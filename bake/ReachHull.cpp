@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 namespace penumbra {
 
@@ -38,7 +39,40 @@ ReachHull::ReachHull(const Ball& light, const Ball& receivers) : a_(light), b_(r
     cos_ = std::sqrt(std::max(0.0, 1.0 - sin_ * sin_));
 }
 
+DirectionCone boundingCone(std::span<const glm::dvec3> directions) {
+    DirectionCone c;
+    glm::dvec3 sum(0.0);
+    for (const glm::dvec3& d : directions) sum += glm::normalize(d);
+    if (!(glm::length(sum) > 0.0)) return c.all = true, c;
+    c.axis = glm::normalize(sum);
+    double cosHalf = 1.0;
+    for (const glm::dvec3& d : directions) cosHalf = std::min(cosHalf, glm::dot(glm::normalize(d), c.axis));
+    const double half = std::acos(std::clamp(cosHalf, -1.0, 1.0)) + 1e-9;
+    if (!(half < 0.5 * std::numbers::pi)) return c.all = true, c;
+    c.cosHalf = std::cos(half), c.sinHalf = std::sin(half);
+    return c;
+}
+
+ReachHull::ReachHull(const DirectionCone& light, const Ball& receivers) : b_(receivers) {
+    single_ = false, cone_ = true, everywhere_ = light.all;
+    axis_ = light.axis, cos_ = light.cosHalf, sin_ = light.sinHalf;
+    margin_ = 1e-9 * std::max({1.0, std::abs(b_.center.x), std::abs(b_.center.y), std::abs(b_.center.z), b_.radius});
+}
+
 double ReachHull::distance(const glm::dvec3& p) const {
+    if (everywhere_) return -INFINITY;
+    if (cone_) {
+        // Distance from q = p - centre to the cone (apex 0), in the plane of the axis and q; then
+        // the ball's radius. Inside when q is within the half angle of the axis; nearest to the
+        // apex when q is more than 90 degrees beyond the cone's boundary ray.
+        const glm::dvec3 q = p - b_.center;
+        const double t = glm::dot(q, axis_);
+        const double rho = std::sqrt(std::max(0.0, glm::dot(q, q) - t * t));
+        const double beside = rho * cos_ - t * sin_;
+        if (beside <= 0.0) return -b_.radius;
+        if (t * cos_ + rho * sin_ <= 0.0) return std::sqrt(glm::dot(q, q)) - b_.radius;
+        return beside - b_.radius;
+    }
     const glm::dvec3 v = p - a_.center;
     if (single_) return glm::length(v) - a_.radius;
     // In the plane of the axis and p: q = (x, r). The hull's boundary there is an arc of a's

@@ -2,8 +2,10 @@
 /// @file ReachHull.h
 /// @brief The convex hull of two balls, one around a light and one around every receiver: every
 /// segment from a light sample to a receiver lies inside it, so a blocker whose bounding ball
-/// misses it blocks nothing. A few dozen flops per blocker, against hundreds for a penumbra
-/// volume: this is the root cull for blockers inside the reach box but beside the light.
+/// misses it blocks nothing. For a sun the light is a cone of directions, and the hull is the
+/// receivers' ball swept to infinity along the cone. A few dozen flops per blocker, against
+/// hundreds for a penumbra volume: this is the root cull for blockers inside the reach box but
+/// beside the light.
 
 #include <glm/vec3.hpp>
 
@@ -21,10 +23,24 @@ struct Ball {
 /// a relative 1e-9 so that roundoff never leaves a point outside.
 Ball boundingBall(std::span<const glm::dvec3> points);
 
+/// A cone of directions with its apex at the origin: every d with angle(d, axis) <= the half angle.
+struct DirectionCone {
+    glm::dvec3 axis{0, 0, 1};  ///< unit
+    double cosHalf = 1.0, sinHalf = 0.0;
+    bool all = false;  ///< the half angle reaches 90 degrees: treated as every direction
+};
+
+/// @brief A cone containing every direction of @p directions (not necessarily unit), widened by
+/// a relative 1e-9 rad so that roundoff never leaves one outside.
+DirectionCone boundingCone(std::span<const glm::dvec3> directions);
+
 class ReachHull {
 public:
     ReachHull() = default;
     ReachHull(const Ball& light, const Ball& receivers);
+    /// The receivers' ball swept to infinity along @p light: every ray from a receiver towards a
+    /// sun sample lies inside it.
+    ReachHull(const DirectionCone& light, const Ball& receivers);
 
     /// @brief Distance from @p p to the hull (negative inside), exact up to roundoff.
     double distance(const glm::dvec3& p) const;
@@ -38,6 +54,8 @@ private:
     double length_ = 0.0;
     double sin_ = 0.0, cos_ = 1.0;  // outer tangent's normal in the (axial, radial) plane
     bool single_ = true;           // one ball contains the other: the hull is that ball
+    bool cone_ = false;            // b_ swept along the cone axis_ / cos_ / sin_ (a sun)
+    bool everywhere_ = false;      // a cone of 90 degrees or more: nothing is culled
     double margin_ = 0.0;
 };
 

@@ -53,7 +53,9 @@ void ReceiverShader::shade(uint32_t r, const uint64_t* groupWords, bool fullUmbr
             const uint64_t word = fullUmbra ? g.fullMask() : (groupWords ? groupWords[k] : 0);
             lightBlocked += uint64_t(std::popcount(word));
             for (uint64_t visible = ~word & g.fullMask(); visible; visible &= visible - 1) {
-                glm::dvec3 d = glm::dvec3(samples_.position(set, int(g.first) + std::countr_zero(visible))) - p;
+                // A sun's sample is a direction (w = 0): the receiver's position does not matter.
+                const glm::dvec3 l(samples_.position(set, int(g.first) + std::countr_zero(visible)));
+                glm::dvec3 d = light.sun ? l : l - p;
                 double dist2 = glm::dot(d, d);
                 if (!(dist2 > 0)) continue;
                 glm::dvec3 w = d / std::sqrt(dist2);

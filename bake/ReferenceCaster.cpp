@@ -8,7 +8,7 @@ namespace penumbra {
 
 VisibilityMasks castReference(const LightSamples& samples, const ReceiverSet& receivers,
                               std::span<const uint32_t> sampleSetOf, std::span<const Triangle> triangles,
-                              double epsilon, const std::function<void(uint64_t)>& progress) {
+                              const ReceiverEpsilon& epsilon, const std::function<void(uint64_t)>& progress) {
     std::vector<BlockerTriangle> blockers;
     blockers.reserve(triangles.size());
     for (const Triangle& t : triangles) {
@@ -22,11 +22,12 @@ VisibilityMasks castReference(const LightSamples& samples, const ReceiverSet& re
             const int set = int(sampleSetOf[r]);
             for (int k = 0; k < samples.groupCount(); ++k) {
                 const LightSampleGroup& g = samples.groups[k];
+                const double w = samples.w(g.light);
                 uint64_t word = 0;
                 for (uint32_t j = 0; j < g.count; ++j) {
                     const glm::dvec3 l(samples.position(set, int(g.first + j)));
                     for (const BlockerTriangle& t : blockers)
-                        if (blocks(l, p, t, epsilon)) {
+                        if (blocks(l, w, p, t, epsilon)) {
                             word |= 1ull << j;
                             break;
                         }

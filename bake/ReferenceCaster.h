@@ -4,6 +4,7 @@
 /// every triangle, deciding each relation with the shared blocking rule (BlockingRule.h).
 /// O(receivers x samples x triangles): a correctness oracle for small scenes, not a renderer.
 
+#include "bake/BlockingRule.h"
 #include "bake/Light.h"
 #include "bake/VisibilityMasks.h"
 #include "receivers/ReceiverSet.h"
@@ -17,6 +18,6 @@ namespace penumbra {
 /// @brief Fills masks for all receivers. @p progress (optional) is called with receivers done.
 VisibilityMasks castReference(const LightSamples& samples, const ReceiverSet& receivers,
                               std::span<const uint32_t> sampleSetOf, std::span<const Triangle> triangles,
-                              double epsilon, const std::function<void(uint64_t)>& progress = {});
+                              const ReceiverEpsilon& epsilon, const std::function<void(uint64_t)>& progress = {});
 
 }  // namespace penumbra

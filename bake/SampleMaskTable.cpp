@@ -47,6 +47,7 @@ glm::dvec2 diamondDirection(double p) {
 SampleMaskTable::SampleMaskTable(const LightSamples& samples, uint32_t light, int angles, int offsets)
     : angles_(angleBins(angles)), offsets_(std::max(1, offsets)) {
     firstGroup_ = samples.lightFirstGroup[light];
+    w_ = samples.w(light);
     groups_ = samples.lightFirstGroup[light + 1] - firstGroup_;
     if (groups_ == 0) return;
     const uint32_t first = samples.groups[firstGroup_].first;
@@ -158,37 +159,33 @@ SampleMaskTable::Blocker SampleMaskTable::prepare(const BlockerTriangle& t) cons
     if (!usable_ || !t.valid) return out;
     out.maxAbs = std::max({maxAbs_, maxAbs(t.v[0]), maxAbs(t.v[1]), maxAbs(t.v[2])});
     const double m = out.maxAbs, u = kRoundoff;
-    // Every sample lies in the box [lo_, hi_]; an affine function's extremes over the box are at
-    // its corners. BlockingRule's per-sample values differ from the real affine ones by at most
-    // ~18 u M (the side, T's plane at l) and ~384 u M^3 (det(a-l, b-l, c-l), see lookup()); the
-    // corners are evaluated with similar error. Demanding 64 u M and 2048 u M^3 at every corner
-    // leaves the sign of every sample's computed value certain, so side and sigma are the same for
-    // all samples of the light, as makeHardShadowVolume() will compute them.
-    const glm::dvec3 normal = glm::cross(t.v[0] - t.v[2], t.v[1] - t.v[2]);  // G(l) = -normal . (l - v2)
-    double sideMin = INFINITY, sideMax = -INFINITY, gMin = INFINITY, gMax = -INFINITY;
+    // Every sample lies in the box [lo_, hi_]; T's side value n . (l - w v0) is affine in l, so its
+    // extremes over the box are at the corners. The rule's per-sample value differs from the real
+    // one by at most ~8 u M, and the corners are evaluated with similar error: demanding 64 u M at
+    // every corner leaves the sign of every sample's computed value certain. That sign is the
+    // orientation s of every edge plane too (BlockingRule.h), so all samples share side and s.
+    double sideMin = INFINITY, sideMax = -INFINITY;
     for (int c = 0; c < 8; ++c) {
         glm::dvec3 x((c & 1) ? hi_.x : lo_.x, (c & 2) ? hi_.y : lo_.y, (c & 4) ? hi_.z : lo_.z);
-        double s = t.plane.eval(x), g = -glm::dot(normal, x - t.v[2]);
-        sideMin = std::min(sideMin, s), sideMax = std::max(sideMax, s);
-        gMin = std::min(gMin, g), gMax = std::max(gMax, g);
+        const double e = t.side(x, w_);
+        sideMin = std::min(sideMin, e), sideMax = std::max(sideMax, e);
     }
-    const double sideMargin = 64 * u * m, gMargin = 2048 * u * m * m * m;
+    const double sideMargin = 64 * u * m;
     if (sideMin > sideMargin) out.side = -1.0;       // sl > 0 for every sample
     else if (sideMax < -sideMargin) out.side = 1.0;  // sl < 0 for every sample
     else return out;
-    if (gMin > gMargin) out.sigma = 1.0;
-    else if (gMax < -gMargin) out.sigma = -1.0;
-    else return out;
-    // m(r) = a x b - (a - b) x r, so m.c = (a x b).c - r.(c x (a - b)) and
-    // m.(o - r) = (a x b).o - r.(o x (a - b) + a x b)   (as (a x b).r is the only r.r-free term).
+    out.sigma = -out.side;
+    // E(l) = s (l - w a) . m with m = (b - a) x (r - a) = a x b - r x (b - a), so for a fixed
+    // vector q, m . q = (a x b) . q - r . ((b - a) x q): affine in r. The line's coefficients are
+    // m . u, m . v and m . (o - w a) = (a x b) . o - r . ((b - a) x (o - w a)), and m . n.
     for (int e = 0; e < 3; ++e) {
         const glm::dvec3 &a = t.v[e], &b = t.v[(e + 1) % 3];
-        const glm::dvec3 ab = glm::cross(a, b), d = a - b;
-        const double s = -out.sigma;
-        out.line[e][0] = {s * glm::dot(ab, u_), s * glm::cross(u_, d)};
-        out.line[e][1] = {s * glm::dot(ab, v_), s * glm::cross(v_, d)};
-        out.line[e][2] = {s * glm::dot(ab, origin_), s * (glm::cross(origin_, d) + ab)};
-        out.line[e][3] = {glm::dot(ab, n_), glm::cross(n_, d)};
+        const glm::dvec3 ab = glm::cross(a, b), d = b - a;
+        const double s = out.sigma;
+        out.line[e][0] = {s * glm::dot(ab, u_), s * glm::cross(d, u_)};
+        out.line[e][1] = {s * glm::dot(ab, v_), s * glm::cross(d, v_)};
+        out.line[e][2] = {s * glm::dot(ab, origin_), s * glm::cross(d, origin_ - w_ * a)};
+        out.line[e][3] = {glm::dot(ab, n_), glm::cross(d, n_)};
     }
     out.usable = true;
     return out;
@@ -201,18 +198,20 @@ SampleMaskTable::Lookup SampleMaskTable::lookup(const Blocker& b, uint32_t set, 
     if (!(b.side * dist > eps)) return Lookup::NoneBlocked;
     const double m = std::max(b.maxAbs, maxAbs(r)), u = kRoundoff;
     // Error budget, every coordinate bounded by M (= m):
-    //  - BlockingRule computes edge value E(l) = sigma * fl(det(a-l, b-l, r-l)). Differences are
-    //    within 2M, the cross product's components within 8M^2 with error 32uM^2, the two dot
-    //    products and the sum add 192uM^3, and the cross product's error times |r-l|_1 <= 6M adds
-    //    192uM^3: |E(l) - sigma*det| <= 384uM^3 =: beta (the code uses 2048uM^3 for beta).
-    //  - In real arithmetic det(a-l, b-l, r-l) = -m . (l - r) with m = (a-r) x (b-r), and
-    //    l - o = s u + t v + h n + e with |h| <= H (flatness_), |e| <= 8u|l-o|; the table holds
-    //    the computed (s, t). So sigma*det = wx s + wy t + k - sigma (m.n) h - sigma m.e with
-    //    w = -sigma (m.u, m.v), k = -sigma m.(o-r): the h and e terms are at most |m| (H + 64uM),
-    //    and |m| <= |wx| + |wy| + |m.n| (u, v, n orthonormal).
+    //  - BlockingRule computes edge value E(l) = sigma * fl((l - w a) x (b - a) . (r - a)).
+    //    Differences are within 2M with error 2uM, the cross product's components within 8M^2
+    //    with error 40uM^2, the dot product's rounding adds 240uM^3, the cross product's error
+    //    times |r-a|_1 <= 6M adds 240uM^3 and the error of r - a adds 48uM^3:
+    //    |E(l) - sigma*det| <= 530uM^3 =: beta (the code uses 2048uM^3 for beta).
+    //  - In real arithmetic det(l - w a, b - a, r - a) = m . (l - w a) with m = (b-a) x (r-a),
+    //    and l - o = s u + t v + h n + e with |h| <= H (flatness_), |e| <= 8u|l-o|; the table
+    //    holds the computed (s, t). So sigma*det = wx s + wy t + k + sigma (m.n) h + sigma m.e
+    //    with w = sigma (m.u, m.v), k = sigma m.(o - w a): the h and e terms are at most
+    //    |m| (H + 64uM), and |m| <= |wx| + |wy| + |m.n| (u, v, n orthonormal).
     //  - wx, wy, m.n, k come from prepare()'s affine forms: coefficients within 6M^2 and 6M
-    //    (constant and linear part; 6M^3 and 6M^2 for k), rounding at most 160uM^2 on wx, wy, m.n
-    //    and 200uM^3 on k; times |s| + |t| <= 2R <= 8M that is below 1500uM^3 =: 2048uM^3.
+    //    (constant and linear part; 6M^3 and 8M^2 for k), rounding at most 160uM^2 on wx, wy, m.n
+    //    and 240uM^3 on k; times |s| + |t| <= 2R <= 8M that is below 1600uM^3 =: 2048uM^3.
+    //    (M bounds every coordinate of T, r and the samples; a sun's directions are about 1.)
     //    (Their own rounding on the |m| bound is O(u^2) and absorbed in 64uM -> 128uM.)
     //  - Normalising by g = |w|_1 (so the offset is tau = -k/g; any norm gives the same
     //    half-plane), the angle binning (covered in the table by kAngleSlack) and the offset

@@ -4,12 +4,13 @@
 /// planar light, made exact: it only decides relations that BlockingRule.h would decide the same
 /// way despite roundoff, and leaves every other relation to the exact per-sample test.
 ///
-/// For a receiver r and a blocker T with the light entirely on one side of T's plane, sample l is
-/// blocked when, for each edge (a, b) of T, the edge plane through l, a, b (oriented towards T's
-/// third vertex) has r on its non-negative side. In real arithmetic that edge value is
-/// sigma * det(a - l, b - l, r - l) = -sigma * m . (l - r) with m = (a - r) x (b - r) and sigma the
-/// (per light constant) sign of det(a - l, b - l, c - l): an affine function of l. Restricted to
-/// the light's plane it is a half-plane, "the inner side of a line". The table is indexed by the
+/// For a receiver r and a blocker T with the light entirely on one side of T's plane, sample l
+/// (homogeneous weight w) is blocked when, for each edge (a, b) of T, the edge plane through a, b
+/// and l has r on its non-negative side. In real arithmetic that edge value is
+/// sigma * det(l - w a, b - a, r - a) = sigma * m . (l - w a) with m = (b - a) x (r - a) and sigma
+/// the (per light constant) side of the samples: an affine function of l. Restricted to the
+/// light's plane (for a sun, the plane of its directions) it is a half-plane, "the inner side of a
+/// line". The table is indexed by the
 /// line's direction (as a diamond angle, see SampleMaskTable.cpp) and signed offset in a 2D frame
 /// of the light plane, and each cell holds, per group
 /// of samples (one 64-bit word, same layout as LightSampleGroup), two masks:
@@ -62,10 +63,10 @@ public:
     struct Blocker {
         bool usable = false;  ///< false: the light is not robustly on one side of T (fall back)
         double side = 0;      ///< HardShadowVolume::side of every sample of the light
-        double sigma = 0;     ///< orientation of every edge plane (sign of det(a-l, b-l, c-l))
+        double sigma = 0;     ///< orientation of every edge plane: the side of the samples, -side
         double maxAbs = 0;    ///< largest |coordinate| of T and of the light's samples
-        /// Per edge (a, b): with m(r) = (a - r) x (b - r), the line's coefficients
-        /// wx = -sigma m.u, wy = -sigma m.v, k = -sigma m.(o - r) and mn = m.n (frame u, v, n,
+        /// Per edge (a, b): with m(r) = (b - a) x (r - a), the line's coefficients
+        /// wx = sigma m.u, wy = sigma m.v, k = sigma m.(o - w a) and mn = m.n (frame u, v, n,
         /// origin o) are affine in r; each is stored as c0 - dot(c, r), [wx, wy, k, mn].
         struct Affine {
             double c0;
@@ -122,6 +123,7 @@ private:
     double width_ = 0, invWidth_ = 0;  ///< of an offset bin: 2R / offsets_, and its inverse
     double flatness_ = 0;   ///< H: bound on every sample's distance from the plane
     double maxAbs_ = 0;     ///< largest |coordinate| of any sample
+    double w_ = 1.0;        ///< homogeneous weight of the light's samples (0: a sun's directions)
     glm::dvec3 lo_{0.0}, hi_{0.0};  ///< box of every sample (exact float values)
     std::vector<uint64_t> cells_;  ///< [set][angle][offset bin][group of the light][sure, maybe]
 };

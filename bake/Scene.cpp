@@ -159,7 +159,7 @@ TriangleSourcePtr openSceneGeometry(const SceneDesc& scene) {
             source = std::make_unique<TransformedSource>(std::move(source), g.transform.matrix());
         if (g.closed)
             source = std::make_unique<FlagSource>(std::move(source), *g.closed ? kTriangleClosed : 0u,
-                                                  *g.closed ? 0u : kTriangleClosed);
+                                                  *g.closed ? 0u : kTriangleClosed | kTriangleSolidStart);
         parts.push_back(std::move(source));
     }
     return std::make_unique<ConcatSource>(std::move(parts));

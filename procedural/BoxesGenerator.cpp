@@ -24,7 +24,9 @@ protected:
         glm::vec3 corner[8];
         for (int c = 0; c < 8; ++c)
             corner[c] = glm::vec3(float(c & 1 ? b.hi.x : b.lo.x), float(c & 2 ? b.hi.y : b.lo.y), float(c & 4 ? b.hi.z : b.lo.z));
-        for (int t = 0; t < 12; ++t) out[t] = Triangle{{corner[kBoxFaceTriangles[t][0]], corner[kBoxFaceTriangles[t][1]], corner[kBoxFaceTriangles[t][2]]}, kTriangleClosed};
+        for (int t = 0; t < 12; ++t)
+            out[t] = Triangle{{corner[kBoxFaceTriangles[t][0]], corner[kBoxFaceTriangles[t][1]], corner[kBoxFaceTriangles[t][2]]},
+                              kTriangleClosed | (t == 0 ? kTriangleSolidStart : 0u)};
     }
 
 private:

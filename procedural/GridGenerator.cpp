@@ -63,7 +63,7 @@ protected:
             return;
         }
         const double y0 = y - 0.5 * p_.thickness, y1 = y + 0.5 * p_.thickness;
-        out.flags = kTriangleClosed;  // a bar is a box
+        out.flags = kTriangleClosed | (t == 0 ? kTriangleSolidStart : 0u);  // a bar is a box
         auto corner = [&](int c) { return place(c & 1 ? x1 : x0, c & 2 ? y1 : y0, c & 4 ? z1 : z0); };
         out.v = {corner(kBoxFaceTriangles[t][0]), corner(kBoxFaceTriangles[t][1]), corner(kBoxFaceTriangles[t][2])};
     }

@@ -24,4 +24,14 @@ template <typename... Args>
     throw InputError(where + ": " + fmt::format(format, std::forward<Args>(args)...));
 }
 
+/// @brief Prints "penumbra: note: MESSAGE" on stderr. A diagnostic must never change how a bake
+/// ends, so a failing stderr is ignored.
+template <typename... Args>
+void printNote(fmt::format_string<Args...> format, Args&&... args) noexcept {
+    try {
+        fmt::print(stderr, "penumbra: note: {}\n", fmt::format(format, std::forward<Args>(args)...));
+    } catch (...) {
+    }
+}
+
 }  // namespace penumbra

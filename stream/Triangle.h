@@ -19,6 +19,11 @@ enum TriangleFlag : uint32_t {
     /// the segment's far end, so a triangle that faces away from the whole light can be skipped
     /// (Sintorn et al. 2008, "closed casters"; bake.closed_casters).
     kTriangleClosed = 1u << 1,
+    /// The first triangle of one closed solid: the solid is this triangle and the closed ones that
+    /// follow it in the stream up to the next solid start or open triangle. Lets the bake find the
+    /// solids a light reaches inside (bake/ClosedSolids.h) without storing anything per solid.
+    /// A run of closed triangles without it is taken as one solid, which is conservative.
+    kTriangleSolidStart = 1u << 2,
 };
 
 /// @brief One triangle in world space. 40 bytes, trivially copyable, so chunks of them can be

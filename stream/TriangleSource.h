@@ -69,7 +69,8 @@ private:
 };
 
 /// @brief Sets and clears bits of Triangle::flags on everything another source delivers (a scene
-/// entry's "closed": true or false).
+/// entry's "closed": true or false). Marking a source closed also starts a solid at its first
+/// triangle (kTriangleSolidStart), so the entry is at least one solid of its own.
 class FlagSource final : public TriangleSource {
 public:
     FlagSource(TriangleSourcePtr inner, uint32_t set, uint32_t clear)
@@ -77,15 +78,18 @@ public:
     size_t read(std::span<Triangle> out) override {
         const size_t n = inner_->read(out);
         for (size_t i = 0; i < n; ++i) out[i].flags = (out[i].flags & keep_) | set_;
+        if (n && first_ && (set_ & kTriangleClosed)) out[0].flags |= kTriangleSolidStart;
+        if (n) first_ = false;
         return n;
     }
-    void rewind() override { inner_->rewind(); }
+    void rewind() override { inner_->rewind(), first_ = true; }
     std::string name() const override { return inner_->name(); }
     std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
 
 private:
     TriangleSourcePtr inner_;
     uint32_t set_, keep_;
+    bool first_ = true;
 };
 
 /// Reads a whole source into memory. For tests and small scenes only.

@@ -174,7 +174,7 @@ inline void requireMatchesReference(const std::string& scene, const std::vector<
                                     const ReceiverSet& receivers, const std::vector<Triangle>& triangles, int groupSize = 64) {
     LightSamples samples = generateLightSamples(lights, groupSize, 7);
     std::vector<uint32_t> sets = assignSets(receivers, samples.sets);
-    VisibilityMasks reference = castReference(samples, receivers, sets, triangles, CastOptions().epsilon);
+    VisibilityMasks reference = castReference(samples, receivers, sets, triangles, receiverEpsilonOf(CastOptions()));
     INFO(scene << ": " << reference.blockedCount() << " blocked of " << receivers.size() * samples.sampleCount);
     REQUIRE(reference.blockedCount() > 0);
     REQUIRE(reference.blockedCount() < uint64_t(receivers.size()) * samples.sampleCount);

@@ -38,7 +38,7 @@ bool hasTempFiles(const std::filesystem::path& dir) {
 
 }  // namespace
 
-TEST_CASE("bake writes the EXR, PNG, dump and stats; hpc matches reference via compare", "[cli]") {
+TEST_CASE("bake writes the EXR, PNG, dump and stats, and hpc matches reference via compare", "[cli]") {
     ScratchDir dir("bake");
     write(dir / "scene.json", kSmallScene);
     RunResult hpc = runPenumbra("bake " + (dir / "scene.json") + " --quiet --dump " + (dir / "hpc") + " --stats " + (dir / "stats.json"));
@@ -60,7 +60,7 @@ TEST_CASE("bake writes the EXR, PNG, dump and stats; hpc matches reference via c
     CHECK(rec.dtype == "<f4");
     REQUIRE(rec.shape.size() == 2);
     CHECK(rec.shape[1] == 7);
-    CHECK(smp.shape == std::vector<uint64_t>{4, 64, 3});
+    CHECK(smp.shape == std::vector<uint64_t>{4, 64, 4});
     CHECK(msk.dtype == "<u8");
     CHECK(msk.shape == std::vector<uint64_t>{rec.shape[0], 1});
 

@@ -53,30 +53,33 @@ TEST_CASE("every SIMD level decides each relation like the blocking rule", "[hpc
     for (uint64_t seed = 1; seed <= 40; ++seed) {
         Case c = randomCase(seed);
         if (!c.t.valid) continue;
-        const double eps = 1e-5;
-        for (SimdLevel level : supportedLevels()) {
-            INFO("seed " << seed << ", " << simdName(level));
-            HardShadowKernels k = hardShadowKernels(level);
-            REQUIRE(k.level == level);
-            std::vector<HardShadowBlock> hard(3);  // 11 samples: 4 + 4 + 3, last lane unused
-            for (int b = 0; b < 3; ++b)
-                k.build(hard[b], &c.samples[4 * b], std::min(4, int(c.samples.size()) - 4 * b), c.t);
-            for (const glm::dvec3& r : c.receivers) {
-                const double dist = distanceBehind(c.t, r), e = receiverEpsilon(r, eps);
-                uint64_t expected = 0;
-                for (size_t i = 0; i < c.samples.size(); ++i)
-                    expected |= uint64_t(blocks(glm::dvec3(c.samples[i]), r, c.t, eps)) << i;
-                const uint64_t word = k.test(hard.data(), 0b111, r, dist, e);
-                REQUIRE(word == expected);
-                REQUIRE(k.test(hard.data(), 0b010, r, dist, e) == (expected & 0xF0));  // only block 1
-                blocked += __builtin_popcountll(word);
-                tested += c.samples.size();
+        const ReceiverEpsilon eps{1e-5, 1.0};
+        // w = 1: the samples are points; w = 0: the same vectors are sun directions.
+        for (double w : {1.0, 0.0})
+            for (SimdLevel level : supportedLevels()) {
+                INFO("seed " << seed << ", " << simdName(level) << ", w " << w);
+                HardShadowKernels k = hardShadowKernels(level);
+                REQUIRE(k.level == level);
+                std::vector<HardShadowBlock> hard(3);  // 11 samples: 4 + 4 + 3, last lane unused
+                for (int b = 0; b < 3; ++b)
+                    k.build(hard[b], &c.samples[4 * b], std::min(4, int(c.samples.size()) - 4 * b), w, c.t);
+                for (const glm::dvec3& r : c.receivers) {
+                    const double dist = distanceBehind(c.t, r), e = eps.at(r);
+                    const EdgeOffsets at(c.t, r);
+                    uint64_t expected = 0;
+                    for (size_t i = 0; i < c.samples.size(); ++i)
+                        expected |= uint64_t(blocks(glm::dvec3(c.samples[i]), w, r, c.t, eps)) << i;
+                    const uint64_t word = k.test(hard.data(), 0b111, at, dist, e);
+                    REQUIRE(word == expected);
+                    REQUIRE(k.test(hard.data(), 0b010, at, dist, e) == (expected & 0xF0));  // only block 1
+                    blocked += __builtin_popcountll(word);
+                    tested += c.samples.size();
+                }
             }
-        }
     }
     // The cases must exercise both outcomes.
     CHECK(blocked > 500);
-    CHECK(blocked < tested / 2);  // (about 1100 of 330000 with these seeds)
+    CHECK(blocked < tested / 2);
 }
 
 TEST_CASE("the AVX2 build gives the scalar planes bit for bit", "[hpc][simd]") {
@@ -88,21 +91,22 @@ TEST_CASE("the AVX2 build gives the scalar planes bit for bit", "[hpc][simd]") {
     for (uint64_t seed = 1; seed <= 40; ++seed) {
         Case c = randomCase(seed);
         if (!c.t.valid) continue;
-        HardShadowBlock a, b;
-        scalar.build(a, c.samples.data(), 3, c.t);
-        avx2.build(b, c.samples.data(), 3, c.t);
-        for (int i = 0; i < 4; ++i) {
-            INFO("seed " << seed << " lane " << i);
-            REQUIRE(a.side[i] == b.side[i]);
-            if (a.side[i] == 0.0) continue;  // the edges of a plane-lying sample are never read
-            for (int e = 0; e < 3; ++e) {
-                REQUIRE(a.nx[e][i] == b.nx[e][i]);
-                REQUIRE(a.ny[e][i] == b.ny[e][i]);
-                REQUIRE(a.nz[e][i] == b.nz[e][i]);
-                REQUIRE(a.d[e][i] == b.d[e][i]);
+        for (double w : {1.0, 0.0}) {
+            HardShadowBlock a, b;
+            scalar.build(a, c.samples.data(), 3, w, c.t);
+            avx2.build(b, c.samples.data(), 3, w, c.t);
+            for (int i = 0; i < 4; ++i) {
+                INFO("seed " << seed << " lane " << i << " w " << w);
+                REQUIRE(a.side[i] == b.side[i]);
+                if (a.side[i] == 0.0) continue;  // the edges of a plane-lying sample are never read
+                for (int e = 0; e < 3; ++e) {
+                    REQUIRE(a.nx[e][i] == b.nx[e][i]);
+                    REQUIRE(a.ny[e][i] == b.ny[e][i]);
+                    REQUIRE(a.nz[e][i] == b.nz[e][i]);
+                }
             }
+            CHECK(b.side[3] == 0.0);  // the unused lane blocks nothing
         }
-        CHECK(b.side[3] == 0.0);  // the unused lane blocks nothing
     }
 }
 

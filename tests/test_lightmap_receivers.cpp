@@ -212,7 +212,7 @@ TEST_CASE("a unit quad lit head-on gets the analytic irradiance in every texel",
     }
 }
 
-TEST_CASE("overlapping UVs are counted; shared edges are not overlaps", "[lightmap]") {
+TEST_CASE("overlapping UVs are counted but shared edges are not overlaps", "[lightmap]") {
     ScratchDir dir("lightmap");
     writeText(dir / "quad.obj", kQuadObj);
     IndexedMesh quad = loadIndexedMeshes(dir / "quad.obj", glm::mat4(1.f)).at(0);

@@ -14,7 +14,7 @@
 using namespace penumbra;
 using namespace penumbra::test;
 
-TEST_CASE("no budget means one tile; a tight budget means more tiles", "[memory]") {
+TEST_CASE("no budget means one tile and a tight budget means more tiles", "[memory]") {
     MemoryDemand d;
     d.receivers = 1'000'000, d.scanBytes = 16'000'000, d.groups = 4, d.umbraWords = 1;
     MemoryPlan unlimited = planMemory(d, 0);

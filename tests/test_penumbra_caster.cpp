@@ -31,7 +31,7 @@ struct GridCase {
         addReceiversOnTriangles(receivers, std::vector<Triangle>(tris.begin() + 2, tris.end()), 6, 1);
         samples = generateLightSamples({light}, 64, 7);
         sets = assignSets(receivers, samples.sets);
-        reference = castReference(samples, receivers, sets, tris, CastOptions().epsilon);
+        reference = castReference(samples, receivers, sets, tris, receiverEpsilonOf(CastOptions()));
         REQUIRE(reference.blockedCount() > 0);
         REQUIRE(reference.blockedCount() < uint64_t(receivers.size()) * samples.sampleCount);
     }

@@ -35,7 +35,7 @@ void checkConservative(const std::vector<LightDesc>& lights, uint64_t seed) {
                     inAny = inAny || contains(vl, p, vl.all());
                     for (uint32_t j = 0; j < g.count; ++j) {
                         glm::dvec3 l(samples.position(set, int(g.first + j)));
-                        if (!blocks(l, p, t, 1e-5)) continue;
+                        if (!blocks(l, samples.w(g.light), p, t, ReceiverEpsilon{1e-5, 1.0})) continue;
                         ++blocked;
                         REQUIRE(contains(vl, p, vl.all()));
                         REQUIRE(contains(vg, p, vg.all()));

@@ -25,7 +25,8 @@ TEST_CASE("boxes: 12 outward-facing triangles per box", "[procedural]") {
         const glm::dvec3 a(t.v[0]), b(t.v[1]), c(t.v[2]);
         const glm::dvec3 n = glm::cross(b - a, c - a);
         CHECK(glm::dot(n, (a + b + c) / 3.0 - centres[i / 12]) > 0);
-        CHECK(t.flags == kTriangleClosed);
+        // Each box is one closed solid: its first triangle starts it.
+        CHECK(t.flags == (kTriangleClosed | (i % 12 == 0 ? kTriangleSolidStart : 0u)));
         area[i / 12] += 0.5 * glm::length(n);
     }
     CHECK(area[0] == Approx(2 * (1 * 2 + 2 * 3 + 1 * 3)));

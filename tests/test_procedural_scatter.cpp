@@ -27,7 +27,7 @@ nlohmann::json scatterOf(nlohmann::json source, nlohmann::json extra = nlohmann:
 
 }  // namespace
 
-TEST_CASE("scatter: deterministic; cached and re-streamed sources give the same bytes", "[procedural]") {
+TEST_CASE("scatter: deterministic, and cached and re-streamed sources give the same bytes", "[procedural]") {
     const nlohmann::json tree = {{"type", "tree"}, {"depth", 2}};
     requireDeterministic(scatterOf(tree));
     requireDeterministic(scatterOf(tree, {{"cache_triangles", 0}}));

@@ -116,7 +116,7 @@ TEST_CASE("terrain: terrainHeight() lies on the emitted triangles", "[procedural
     CHECK(terrainHeight(p, -3.0, -2.0) == double(terrainVertexHeight(p, 0, 0)));
 }
 
-TEST_CASE("terrain: a single resolution number and defaults work; bad parameters are named", "[procedural]") {
+TEST_CASE("terrain: a single resolution number and defaults work, and bad parameters are named", "[procedural]") {
     TriangleSourcePtr source = openEntry({{"type", "terrain"}, {"resolution", 8}});
     CHECK(source->sizeHint() == 2u * 8 * 8);
     CHECK(openEntry({{"type", "terrain"}})->sizeHint() == 2u * 64 * 64);

@@ -90,7 +90,7 @@ TEST_CASE("a straight occluder edge gives the analytic penumbra profile", "[radi
     }
     LightSamples samples = generateLightSamples({rect}, 64, 5);
     std::vector<uint32_t> sets = assignSets(receivers, samples.sets);
-    VisibilityMasks masks = castReference(samples, receivers, sets, blocker, CastOptions{}.epsilon);
+    VisibilityMasks masks = castReference(samples, receivers, sets, blocker, receiverEpsilonOf(CastOptions{}));
     ReceiverShader shader({rect}, samples, receivers, sets);
     ReceiverResults out;
     out.resize(receivers.size(), 1);
@@ -135,16 +135,18 @@ TEST_CASE("power converts to radiance by the emitter's area", "[radiometry]") {
     CHECK_THROWS_AS(radianceFromPower(sun({0, -1, 0}, 0.53), glm::dvec3(1)), InputError);
 }
 
-TEST_CASE("a sun is placed as a far disk and gives irradiance x cos", "[sun][radiometry]") {
+TEST_CASE("a sun's samples are directions and give irradiance x cos", "[sun][radiometry]") {
     LightDesc s = sun({0.3, -1, 0.2}, 0.53, 256);
-    CHECK_THROWS_WITH(generateLightSamples({s}, 64, 1), Catch::Contains("not placed"));
-    std::vector<LightDesc> placed = placeSuns({s}, {-2, 0, -2}, {2, 1, 2});
-    const LightDesc& d = placed[0];
+    std::vector<LightDesc> placed = {s};
     glm::dvec3 dir = glm::normalize(s.direction);
-    double distance = glm::length(d.center - glm::dvec3(0, 0.5, 0));
-    CHECK(distance == Approx(kSunDistanceFactor * std::sqrt(33.0)));
-    CHECK(glm::dot(glm::normalize(glm::dvec3(0, 0.5, 0) - d.center), dir) == Approx(1.0));
-    CHECK(std::atan(d.radius / distance) * 2 == Approx(0.53 * glm::pi<double>() / 180));
+    LightSamples samples = generateLightSamples(placed, 64, 1);
+    CHECK(samples.w(0) == 0.0);
+    CHECK(samples.lightBounds[0].directional());
+    for (const glm::vec3& d : samples.positions) {  // within the cone, on the plane at unit distance
+        const glm::dvec3 x(d);
+        CHECK(glm::dot(x, -dir) == Approx(1.0).epsilon(1e-6));
+        CHECK(std::acos(glm::dot(glm::normalize(x), -dir)) <= 0.5 * glm::radians(0.53) * (1 + 1e-6));
+    }
 
     ReceiverSet receivers;
     for (glm::dvec3 n : {glm::dvec3(0, 1, 0), -dir, {1, 0.2, 0}, {0, 0.5, 1}}) {
@@ -171,14 +173,11 @@ TEST_CASE("sun shadows from hpc match the reference bit for bit", "[sun][hpc][ex
     addReceiversOnTriangles(receivers, floor, 22, 400);
     addReceiversOnTriangles(receivers, tris, 23, 2);
     tris.insert(tris.end(), floor.begin(), floor.end());
-    SceneBox box;
-    for (const Triangle& t : tris)
-        for (const glm::vec3& v : t.v) box.add(glm::dvec3(v));
     for (double diameter : {0.53, 6.0}) {
-        std::vector<LightDesc> lights = placeSuns({sun({0.4, -1, 0.25}, diameter, 128)}, box.lo, box.hi);
+        std::vector<LightDesc> lights = {sun({0.4, -1, 0.25}, diameter, 128)};
         LightSamples samples = generateLightSamples(lights, 64, 7);
         std::vector<uint32_t> sets = assignSets(receivers, samples.sets);
-        VisibilityMasks reference = castReference(samples, receivers, sets, tris, CastOptions{}.epsilon);
+        VisibilityMasks reference = castReference(samples, receivers, sets, tris, receiverEpsilonOf(CastOptions{}));
         INFO("diameter " << diameter << ": " << reference.blockedCount() << " blocked");
         REQUIRE(reference.blockedCount() > 0);
         REQUIRE(reference.blockedCount() < uint64_t(receivers.size()) * samples.sampleCount);

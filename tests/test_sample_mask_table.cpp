@@ -28,9 +28,10 @@ struct Tally {
 /// rule's decision lies between the AND of the sure rows and the AND of the maybe rows.
 void checkReceiver(const LightSamples& samples, const SampleMaskTable& table, const BlockerTriangle& t,
                    const glm::dvec3& r, Tally& tally) {
-    const double epsilon = CastOptions().epsilon;
+    const ReceiverEpsilon epsilon = receiverEpsilonOf(CastOptions());
     const SampleMaskTable::Blocker blocker = table.prepare(t);
-    const double dist = distanceBehind(t, r), eps = receiverEpsilon(r, epsilon);
+    const double dist = distanceBehind(t, r), eps = epsilon.at(r);
+    const double w = samples.w(samples.groups[table.firstGroup()].light);
     for (uint32_t set = 0; set < uint32_t(samples.sets); ++set) {
         SampleMaskTable::Rows rows;
         const SampleMaskTable::Lookup lookup = table.lookup(blocker, set, r, dist, eps, rows);
@@ -40,17 +41,17 @@ void checkReceiver(const LightSamples& samples, const SampleMaskTable& table, co
             const uint32_t local = k - table.firstGroup();
             for (uint32_t j = 0; j < group.count; ++j) {
                 const glm::dvec3 l(samples.position(int(set), int(group.first + j)));
-                const bool blocked = blocks(l, r, t, epsilon);
+                const bool blocked = blocks(l, w, r, t, epsilon);
                 const uint64_t bit = 1ull << j;
                 if (lookup == SampleMaskTable::Lookup::NoneBlocked) {
                     if (blocked) FAIL("a blocked relation in a receiver the table said nothing blocks");
                     ++tally.excluded;
                     continue;
                 }
-                const HardShadowVolume h = makeHardShadowVolume(l, t);
+                const HardShadowVolume h = makeHardShadowVolume(l, w, t);
                 // (FAIL only on a violation: a REQUIRE per bit would dominate the test's time.)
                 for (int e = 0; e < 3; ++e) {
-                    const bool inside = h.edge[e].eval(r) >= 0.0;
+                    const bool inside = edgeValue(h, t, e, r) >= 0.0;
                     INFO("set " << set << " group " << k << " sample " << j << " edge " << e);
                     if ((rows.sureWord(e, local) & bit) && !inside) FAIL("sure, but outside the edge plane");
                     if (!(rows.maybeWord(e, local) & bit) && inside) FAIL("not maybe, but inside the edge plane");
@@ -150,7 +151,7 @@ TEST_CASE("penumbra casting with the sample mask table matches the reference", "
     for (const auto& [scene, lights] : scenes) {
         LightSamples samples = generateLightSamples(lights, 32, 7);
         std::vector<uint32_t> sets = assignSets(receivers, samples.sets);
-        VisibilityMasks reference = castReference(samples, receivers, sets, tris, CastOptions().epsilon);
+        VisibilityMasks reference = castReference(samples, receivers, sets, tris, receiverEpsilonOf(CastOptions()));
         INFO(scene << ": " << reference.blockedCount() << " blocked");
         REQUIRE(reference.blockedCount() > 0);
         for (auto [name, options] : optionVariants()) {

@@ -93,7 +93,7 @@ TEST_CASE("unknown geometry types and bad generator parameters name the entry", 
     CHECK_THROWS_WITH(openSceneGeometry(scene), Catch::Contains("missing.obj"));
 }
 
-TEST_CASE("\"closed\" marks or unmarks every triangle of an entry", "[scene]") {
+TEST_CASE("the closed key marks or unmarks every triangle of an entry", "[scene]") {
     registerProceduralGenerators();
     json s = minimal();
     auto flagsOf = [&](const json& entry) {
@@ -106,10 +106,16 @@ TEST_CASE("\"closed\" marks or unmarks every triangle of an entry", "[scene]") {
     std::vector<uint32_t> plain = flagsOf(grid);  // the generator marks its bars, not its floor
     REQUIRE(plain.size() == 2u + 9u * 12);
     CHECK(plain[0] == 0u);
-    CHECK(plain[2] == kTriangleClosed);
+    CHECK(plain[2] == (kTriangleClosed | kTriangleSolidStart));  // each bar is a solid of its own
+    CHECK(plain[3] == kTriangleClosed);
     json closed = grid, open = grid;
     closed["closed"] = true, open["closed"] = false;
-    for (uint32_t f : flagsOf(closed)) CHECK(f == kTriangleClosed);
+    // Marked closed, the entry is one solid at least (its first triangle starts one); the bars
+    // keep their own starts.
+    std::vector<uint32_t> marked = flagsOf(closed);
+    for (uint32_t f : marked) CHECK((f & kTriangleClosed) != 0u);
+    CHECK((marked[0] & kTriangleSolidStart) != 0u);
+    CHECK((marked[2] & kTriangleSolidStart) != 0u);
     for (uint32_t f : flagsOf(open)) CHECK(f == 0u);
     s["geometry"][0]["closed"] = "yes";
     CHECK_THROWS_WITH(parseScene(s, "dir/scene.json"), Catch::Contains("geometry[0].closed"));

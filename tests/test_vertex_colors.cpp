@@ -98,7 +98,7 @@ TEST_CASE("vertices: COLOR_0 and _VISIBILITY match a points bake of the same ver
     CHECK(ev == v);
 }
 
-TEST_CASE("vertices: an existing COLOR_0 is kept and the result goes to _VISIBILITY; .gltf output", "[vertices]") {
+TEST_CASE("vertices: an existing COLOR_0 is kept and the result goes to _VISIBILITY, also as .gltf", "[vertices]") {
     ScratchDir dir("vertices-color");
     // A copy of the example whose floor already has vertex colours.
     tinygltf::Model model = load(kFloor);

@@ -1,14 +1,25 @@
 #pragma once
 /// @file Compare.h
-/// @brief `penumbra compare DUMP_A DUMP_B [--scene SCENE]`: relations, blocked counts and
-/// mismatches both ways between two --dump directories of the same receivers and samples.
-/// Dumps are read in blocks of receivers, so dumps of millions of receivers (hundreds of MB)
-/// are compared in a few MB; `penumbra bench table2` uses this for its mismatch column.
+/// @brief `penumbra compare DUMP_A DUMP_B [--scene SCENE] [--list N] [--mismatches FILE]`:
+/// relations, blocked counts and mismatches both ways between two --dump directories of the same
+/// receivers, samples and rule. Dumps are read in blocks of receivers, so dumps of millions of
+/// receivers (hundreds of MB) are compared in a few MB; `penumbra bench table2` uses this for its
+/// mismatch column.
+
+#include "bake/TieClassifier.h"
 
 #include <cstdint>
+#include <map>
 #include <string>
 
 namespace penumbra {
+
+struct CompareOptions {
+    std::string dirA, dirB;
+    std::string scenePath;      ///< classify mismatches against this scene's triangles
+    uint64_t list = 10;         ///< mismatches printed with their verdict (classified only)
+    std::string mismatchesCsv;  ///< every mismatch with its verdict, as CSV (optional)
+};
 
 struct CompareResult {
     uint64_t receivers = 0, samples = 0, relations = 0;
@@ -16,17 +27,15 @@ struct CompareResult {
     uint64_t onlyA = 0, onlyB = 0;  ///< blocked in one dump and not the other
     uint64_t ties = 0;              ///< mismatches the blocking rule explains (needs a scene)
     bool classified = false;        ///< ties were counted (a scene was given)
+    std::map<std::string, uint64_t> tiesByQuantity;  ///< "edge", "band", "sample_in_plane"
     uint64_t unexplained() const { return onlyA + onlyB - ties; }
 };
 
-/// @brief Compares two dumps; with @p scenePath, mismatches are classified as ties or not.
-///
-/// A mismatch is a tie when isTie() (tolerance 1e-4) holds for a scene triangle whose box,
-/// grown by that tolerance and twice eps(r), the segment from receiver to sample meets: only a
-/// triangle near the segment can be what one method found and the other did not. The scene's
-/// triangles are held in memory (with a bounding-volume hierarchy) only when classifying.
+/// @brief Compares two dumps. With a scene, each mismatch is classified by TieClassifier as a tie
+/// of the blocking rule or a real mismatch (TieClassifier.h says exactly when), and the first
+/// options.list mismatches are printed to stdout with their verdicts.
 /// @throw InputError when a dump is missing, malformed, or the two dumps are not of the same
-/// receivers and samples.
-CompareResult compareDumps(const std::string& dirA, const std::string& dirB, const std::string& scenePath);
+/// receivers, samples and rule.
+CompareResult compareDumps(const CompareOptions& options);
 
 }  // namespace penumbra

@@ -69,7 +69,7 @@ int main(int argc, char** argv) {
     bake->add_option("--method", method, "hpc (default), reference or embree");
     bake->add_option("--threads", threads, "worker threads (default: all cores)");
     bake->add_option("--stats", statsPath, "write JSON stats to this file");
-    bake->add_option("--dump", dumpDir, "write receivers.npy, samples.npy and masks.npy to this directory");
+    bake->add_option("--dump", dumpDir, "write receivers.npy, samples.npy, masks.npy and rule.json to this directory");
     bake->add_option("--disable", disabled,
                      "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, closed-casters, all")
         ->delimiter(',');
@@ -90,11 +90,13 @@ int main(int argc, char** argv) {
     bake->add_option("--tmp", tmpDir, "directory for temporary bucket files (default: the system temp dir)");
     bake->add_flag("--keep-buckets", keepBuckets, "keep the bucket files (for debugging)");
 
-    std::string dumpA, dumpB, compareScene;
+    CompareOptions compareOptions;
     CLI::App* compare = app.add_subcommand("compare", "compare two --dump directories relation by relation");
-    compare->add_option("dump_a", dumpA)->required();
-    compare->add_option("dump_b", dumpB)->required();
-    compare->add_option("--scene", compareScene, "scene file: classify mismatches as ties of the blocking rule");
+    compare->add_option("dump_a", compareOptions.dirA)->required();
+    compare->add_option("dump_b", compareOptions.dirB)->required();
+    compare->add_option("--scene", compareOptions.scenePath, "scene file: classify mismatches as ties of the blocking rule");
+    compare->add_option("--list", compareOptions.list, "print this many mismatches with their verdicts (default 10)");
+    compare->add_option("--mismatches", compareOptions.mismatchesCsv, "write every mismatch and its verdict as CSV");
 
     std::string infoPath;
     CLI::App* info = app.add_subcommand("info", "print triangle count, bounds and total area of a geometry file");
@@ -155,10 +157,13 @@ int main(int argc, char** argv) {
                            stats["counters"]["triangles_read"].get<uint64_t>(),
                            stats["table2"]["total_time_s"].get<double>(), scene.output);
         } else if (*compare) {
-            CompareResult r = compareDumps(dumpA, dumpB, compareScene);
+            CompareResult r = compareDumps(compareOptions);
             fmt::print("receivers {}\nsamples {}\nrelations {}\nblocked_a {}\nblocked_b {}\nonly_a {}\nonly_b {}\n",
                        r.receivers, r.samples, r.relations, r.blockedA, r.blockedB, r.onlyA, r.onlyB);
-            if (r.classified) fmt::print("ties {}\nunexplained {}\n", r.ties, r.unexplained());
+            if (r.classified) {
+                fmt::print("ties {}\nunexplained {}\n", r.ties, r.unexplained());
+                for (const auto& [quantity, count] : r.tiesByQuantity) fmt::print("ties_{} {}\n", quantity, count);
+            }
             bool same = r.classified ? r.unexplained() == 0 : r.onlyA + r.onlyB == 0;
             return same ? 0 : 3;
         } else if (*info) {
