@@ -311,11 +311,11 @@ bool placeAll(const Masks& masks, int padding, int width, int height, std::vecto
         std::array<int, 3> best{};
         for (int turn = 0; turn < kTurns; ++turn) {
             int x = 0, y = 0;
-            const int height = masks.of[c][size_t(turn)].height;
+            const int maskHeight = masks.of[c][size_t(turn)].height;
             // Only positions whose top is not above the best one's can win.
-            const int yLimit = bestTurn < 0 ? INT32_MAX : best[0] - height;
+            const int yLimit = bestTurn < 0 ? INT32_MAX : best[0] - maskHeight;
             if (!findPosition(occupied, masks.of[c][size_t(turn)], padding, yLimit, x, y)) continue;
-            const std::array<int, 3> key{y + masks.of[c][size_t(turn)].height, y, x};
+            const std::array<int, 3> key{y + maskHeight, y, x};
             if (bestTurn < 0 || key < best) best = key, bestTurn = turn, placement[c] = ChartPlacement{x, y, turn};
         }
         if (bestTurn < 0) return false;
