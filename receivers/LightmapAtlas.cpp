@@ -85,7 +85,7 @@ LightmapAtlas buildLightmapAtlas(std::span<const IndexedMesh> meshes, const Atla
     const double density = expectedDensity(meshes, options.pack);
     ChartLimits limits;
     limits.coneDeg = options.coneDeg;
-    limits.smallArea = kSmallChartTexels(options.pack.padding) / (density * density);
+    limits.smallArea = smallChartTexels(options.pack.padding) / (density * density);
     double area = 0;
     for (const IndexedMesh& mesh : meshes) area += surfaceArea(mesh);
     limits.largeExtent = kLargeChartExtent * std::sqrt(area);

@@ -5,7 +5,7 @@
 /// one atlas (AtlasPacking.h); each mesh comes back with its vertices split at chart borders and
 /// the atlas coordinates in uv1 (glTF TEXCOORD_1).
 ///
-/// Charts smaller than kSmallChartTexels(padding) texels at the expected density merge into a
+/// Charts smaller than smallChartTexels(padding) texels at the expected density merge into a
 /// neighbour where the normals allow it: below that, a chart's gutter costs more atlas than the
 /// chart itself. Meshes are cut in parallel, each on its own; the result is the same for any
 /// thread count.
@@ -32,7 +32,7 @@ struct AtlasOptions {
 inline constexpr double kLargeChartExtent = 0.5;
 
 /// @brief Area in texels below which a chart merges into a neighbour when it can.
-inline double kSmallChartTexels(int padding) { return 16.0 * (padding + 1) * (padding + 1); }
+inline double smallChartTexels(int padding) { return 16.0 * (padding + 1) * (padding + 1); }
 
 /// @brief The generated atlas.
 struct LightmapAtlas {
