@@ -1,8 +1,11 @@
 #include "bake/LightmapKind.h"
 
 #include "bake/ImageWriters.h"
+#include "bake/LightmapGltf.h"
 #include "bake/ReceiverKind.h"
 #include "bake/Scene.h"
+#include "receivers/CreaseNormals.h"
+#include "receivers/LightmapAtlas.h"
 #include "receivers/LightmapReceivers.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
@@ -11,6 +14,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cctype>
 #include <filesystem>
 #include <set>
@@ -19,6 +23,23 @@ namespace penumbra {
 namespace {
 
 constexpr int64_t kMaxSide = 16384;  // 1 GiB of float channels per map is already generous
+constexpr const char* kAtlasName = "atlas";  ///< the generated atlas's output suffix
+
+/// Where a mesh's lightmap UVs come from (the "uv" key).
+enum class UvSource { Auto, Mesh, Generate };
+
+/// The lightmap keys of the scene's "receivers" object.
+struct LightmapSettings {
+    UvSource uv = UvSource::Auto;
+    int width = 256, height = 256;  ///< "resolution": per mesh, or the atlas's size
+    double density = 0;             ///< "texels_per_unit" (instead of resolution)
+    int padding = 4;
+    double creaseDeg = kDefaultCreaseAngleDeg;
+    double chartDeg = kDefaultChartConeDeg;
+    bool powerOfTwo = false;
+    int maxSide = int(kMaxSide);
+    std::string where;              ///< the receivers object, for messages
+};
 
 /// One lightmap to bake: a mesh, its size, and after the scan its texel layout.
 struct Lightmap {
@@ -45,17 +66,35 @@ std::string derivedPath(const std::string& output, const std::string& name, cons
     return (path.parent_path() / (stem + "-" + name + extension)).string();
 }
 
+/// All meshes in one mesh (the atlas's receivers come from one rasterization); attributes that
+/// some mesh lacks are dropped.
+IndexedMesh concatenate(std::span<const IndexedMesh> meshes) {
+    IndexedMesh all;
+    bool normals = true;
+    for (const IndexedMesh& mesh : meshes) normals &= mesh.normal.size() == mesh.position.size();
+    for (const IndexedMesh& mesh : meshes) {
+        const uint32_t base = uint32_t(all.position.size());
+        all.position.insert(all.position.end(), mesh.position.begin(), mesh.position.end());
+        if (normals) all.normal.insert(all.normal.end(), mesh.normal.begin(), mesh.normal.end());
+        all.uv1.insert(all.uv1.end(), mesh.uv1.begin(), mesh.uv1.end());
+        for (uint32_t i : mesh.indices) all.indices.push_back(base + i);
+    }
+    return all;
+}
+
 class LightmapKind final : public ReceiverKind {
 public:
-    LightmapKind(std::vector<Lightmap> maps, int padding) : maps_(std::move(maps)), padding_(padding) {}
+    LightmapKind(std::vector<Lightmap> maps, std::vector<Lightmap> atlasParts, LightmapSettings settings)
+        : maps_(std::move(maps)), parts_(std::move(atlasParts)), settings_(std::move(settings)), padding_(settings_.padding) {}
 
     ReceiverSet receivers() override {
+        if (!parts_.empty()) maps_.push_back(makeAtlas());
         ReceiverSet all;
         for (Lightmap& map : maps_) {
             map.layout = rasterizeLightmap(map.mesh, map.width, map.height);
             map.mesh = IndexedMesh{};  // the layout is all the writer needs
             if (map.layout.overlapping > 0)
-                fmt::print(stderr, "penumbra: warning: {}: {} texels covered by more than one triangle (overlapping UVs)\n",
+                fmt::print(stderr, "penumbra: warning: {}: {} texels covered by more than one triangle (overlapping UVs; \"uv\": \"generate\" makes new ones)\n",
                            map.label, map.layout.overlapping);
             map.first = all.size();
             ReceiverSet& set = map.layout.receivers;
@@ -67,11 +106,31 @@ public:
     }
 
     void write(const OutputContext& c) override {
+        outputs_.clear();
         for (const Lightmap& map : maps_) writeMap(c, map);
+        if (!atlasMeshes_.empty()) {
+            const std::string gltf = derivedPath(c.output, "uv1", ".glb");
+            writeLightmapGltf(gltf, atlasMeshes_, std::filesystem::path(derivedPath(c.output, "atlas", ".exr")).filename().string());
+            outputs_.push_back(gltf);
+        }
+    }
+
+    nlohmann::json stats() const override {
+        nlohmann::json maps = nlohmann::json::array();
+        for (const Lightmap& map : maps_) {
+            const uint64_t texels = uint64_t(map.width) * uint64_t(map.height);
+            maps.push_back({{"name", map.name}, {"width", map.width}, {"height", map.height},
+                            {"covered_texels", map.layout.texel.size()},
+                            {"utilisation", texels ? double(map.layout.texel.size()) / double(texels) : 0.0},
+                            {"generated_uvs", map.name == kAtlasName && !atlasMeshes_.empty()}});
+        }
+        nlohmann::json lightmap = {{"maps", maps}};
+        if (!atlasMeshes_.empty()) lightmap["atlas"] = atlasStats_;
+        return {{"lightmap", lightmap}, {"outputs", outputs_}};
     }
 
 private:
-    void writeMap(const OutputContext& c, const Lightmap& map) const {
+    void writeMap(const OutputContext& c, const Lightmap& map) {
         const LightmapLayout& layout = map.layout;
         const size_t texels = size_t(map.width) * map.height;
         std::vector<float> V(texels, 0.f), ER(texels, 0.f), EG(texels, 0.f), EB(texels, 0.f);
@@ -104,6 +163,47 @@ private:
         ensureParentDirectory(exr);
         writeExr(exr, map.width, map.height, channels, attributes);
         writePreview(derivedPath(c.output, map.name, ".png"), map, ER, EG, EB, filled);
+        outputs_.push_back(exr);
+        outputs_.push_back(derivedPath(c.output, map.name, ".png"));
+    }
+
+    /// Cuts and packs the meshes without usable UVs into one atlas, which becomes one more map.
+    Lightmap makeAtlas() {
+        std::vector<IndexedMesh> meshes;
+        std::string sources, labels;
+        for (Lightmap& part : parts_) {
+            meshes.push_back(std::move(part.mesh));
+            sources += (sources.empty() ? "" : ", ") + part.source;
+            labels += (labels.empty() ? "" : ", ") + part.label;
+        }
+        AtlasOptions options;
+        options.coneDeg = settings_.chartDeg;
+        options.pack.padding = settings_.padding;
+        options.pack.texelsPerUnit = settings_.density;
+        options.pack.width = settings_.width, options.pack.height = settings_.height;
+        options.pack.maxSide = settings_.maxSide, options.pack.powerOfTwo = settings_.powerOfTwo;
+        const auto start = std::chrono::steady_clock::now();
+        LightmapAtlas atlas = buildLightmapAtlas(meshes, options);
+        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        if (atlas.width == 0)
+            fail(settings_.where, "the {} charts of {} do not fit a {}x{} atlas with padding {} (use a larger resolution or a smaller padding)",
+                 atlas.charts, labels, settings_.density > 0 ? settings_.maxSide : settings_.width,
+                 settings_.density > 0 ? settings_.maxSide : settings_.height, settings_.padding);
+        if (atlas.densityLowered)
+            fmt::print(stderr, "penumbra: warning: {}: texels_per_unit {} needs an atlas larger than {}x{}; baking at {:.4g} instead\n",
+                       settings_.where, settings_.density, settings_.maxSide, settings_.maxSide, atlas.texelsPerUnit);
+        atlasStats_ = {{"width", atlas.width}, {"height", atlas.height}, {"charts", atlas.charts},
+                       {"texels_per_unit", atlas.texelsPerUnit}, {"density_lowered", atlas.densityLowered},
+                       {"padding", settings_.padding}, {"meshes", parts_.size()}, {"build_time_s", seconds},
+                       {"mean_stretch", atlas.meanStretch}, {"max_stretch", atlas.maxStretch}};
+        Lightmap map;
+        map.source = sources, map.label = "lightmap atlas (" + labels + ")", map.name = kAtlasName;
+        map.width = atlas.width, map.height = atlas.height;
+        map.mesh = concatenate(atlas.meshes);
+        atlasMeshes_ = std::move(atlas.meshes);
+        for (size_t m = 0; m < atlasMeshes_.size(); ++m) atlasMeshes_[m].name = parts_[m].name;
+        parts_.clear();
+        return map;
     }
 
     /// The irradiance, exposed so that the 99th percentile of the baked texels' luminance sits
@@ -134,7 +234,12 @@ private:
     }
 
     std::vector<Lightmap> maps_;
+    std::vector<Lightmap> parts_;  ///< meshes waiting for the atlas (until receivers())
+    LightmapSettings settings_;
     int padding_;
+    std::vector<IndexedMesh> atlasMeshes_;  ///< the atlas's meshes with their generated uv1
+    nlohmann::json atlasStats_;
+    std::vector<std::string> outputs_;      ///< files written
 };
 
 /// The file behind geometry entry @p index, which must be an obj/gltf/glb file.
@@ -155,15 +260,10 @@ std::string meshFile(const JsonParams& j, const SceneDesc& scene, size_t slot, i
     return file;
 }
 
-std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneDesc& scene) {
-    const nlohmann::json* meshes = j.raw("meshes");
-    if (!meshes) fail(j.where("meshes"), "missing required field");
-    if (!meshes->is_array() || meshes->empty())
-        fail(j.where("meshes"), "expected a non-empty array of geometry indices");
-
-    // Size: a fixed resolution, or a texel density (exactly one of them).
-    int64_t width = 256, height = 256;
-    double density = 0;
+/// The size, padding and UV keys.
+LightmapSettings parseSettings(const JsonParams& j) {
+    LightmapSettings settings;
+    settings.where = j.where();
     const nlohmann::json* resolution = j.raw("resolution");
     const nlohmann::json* perUnit = j.raw("texels_per_unit");
     if (resolution && resolution->is_null()) resolution = nullptr;
@@ -174,20 +274,55 @@ std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneD
             if (!x.is_number_integer() || x.get<int64_t>() < 1 || x.get<int64_t>() > kMaxSide)
                 fail(j.where("resolution"), "expected an integer in [1, {}] or [width, height] of such, got {}",
                      kMaxSide, resolution->dump());
-            return x.get<int64_t>();
+            return int(x.get<int64_t>());
         };
-        if (resolution->is_array() && resolution->size() == 2) width = side((*resolution)[0]), height = side((*resolution)[1]);
-        else width = height = side(*resolution);
+        if (resolution->is_array() && resolution->size() == 2)
+            settings.width = side((*resolution)[0]), settings.height = side((*resolution)[1]);
+        else
+            settings.width = settings.height = side(*resolution);
     }
     if (perUnit) {
-        density = perUnit->is_number() ? perUnit->get<double>() : 0.0;
-        if (!(density > 0) || !std::isfinite(density))
+        settings.density = perUnit->is_number() ? perUnit->get<double>() : 0.0;
+        if (!(settings.density > 0) || !std::isfinite(settings.density))
             fail(j.where("texels_per_unit"), "expected a positive number, got {}", perUnit->dump());
     }
-    const int padding = int(j.integer("padding", 4, 0, 1024));
+    settings.padding = int(j.integer("padding", 4, 0, 1024));
+    const std::string uv = j.string("uv", "auto");
+    if (uv == "auto") settings.uv = UvSource::Auto;
+    else if (uv == "mesh") settings.uv = UvSource::Mesh;
+    else if (uv == "generate") settings.uv = UvSource::Generate;
+    else fail(j.where("uv"), "expected \"auto\", \"mesh\" or \"generate\", got \"{}\"", uv);
+    auto angle = [&](const char* key, double fallback, double lo, double hi) {
+        const double x = j.number(key, fallback);
+        if (!(x >= lo && x <= hi)) fail(j.where(key), "expected an angle in [{}, {}] degrees, got {}", lo, hi, x);
+        return x;
+    };
+    settings.creaseDeg = angle("crease_angle_deg", kDefaultCreaseAngleDeg, 0, 180);
+    settings.chartDeg = angle("chart_angle_deg", kDefaultChartConeDeg, 1, 80);
+    settings.powerOfTwo = j.boolean("power_of_two", false);
+    settings.maxSide = int(j.integer("max_resolution", kMaxSide, 1, kMaxSide));
+    return settings;
+}
 
-    std::vector<Lightmap> maps;
-    std::set<std::string> names;
+/// The per-mesh map's size from the density, for a mesh that keeps its own UVs.
+void sizeFromDensity(const JsonParams& j, const std::string& key, const LightmapSettings& settings, Lightmap& map) {
+    const int64_t side = lightmapSideForDensity(map.mesh, settings.density);
+    if (side == 0) fail(j.where(key), "{}: every UV triangle is degenerate", map.label);
+    if (side > kMaxSide)
+        fail(j.where("texels_per_unit"), "{} gives {} a {}x{} lightmap (at most {})", settings.density, map.label, side,
+             side, kMaxSide);
+    map.width = map.height = int(side);
+}
+
+std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneDesc& scene) {
+    const nlohmann::json* meshes = j.raw("meshes");
+    if (!meshes) fail(j.where("meshes"), "missing required field");
+    if (!meshes->is_array() || meshes->empty())
+        fail(j.where("meshes"), "expected a non-empty array of geometry indices");
+    const LightmapSettings settings = parseSettings(j);
+
+    std::vector<Lightmap> maps, atlasParts;
+    std::set<std::string> names{kAtlasName};
     for (size_t slot = 0; slot < meshes->size(); ++slot) {
         const std::string key = fmt::format("meshes[{}]", slot);
         const nlohmann::json& entry = (*meshes)[slot];
@@ -200,17 +335,9 @@ std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneD
             Lightmap map;
             map.source = file;
             map.label = loaded.size() == 1 ? file : fmt::format("{} (mesh \"{}\")", file, loaded[m].name);
-            if (!lightmapUvs(loaded[m]))
-                fail(j.where(key), "{} has no texture coordinates (needs OBJ vt, or glTF TEXCOORD_0/TEXCOORD_1)", map.label);
-            map.width = int(width), map.height = int(height);
-            if (perUnit) {
-                int64_t side = lightmapSideForDensity(loaded[m], density);
-                if (side == 0) fail(j.where(key), "{}: every UV triangle is degenerate", map.label);
-                if (side > kMaxSide)
-                    fail(j.where("texels_per_unit"), "{} gives {} a {}x{} lightmap (at most {})", density, map.label,
-                         side, side, kMaxSide);
-                map.width = map.height = int(side);
-            }
+            if (settings.uv == UvSource::Mesh && !lightmapUvs(loaded[m]))
+                fail(j.where(key), "{} has no texture coordinates (needs OBJ vt, or glTF TEXCOORD_0/TEXCOORD_1; \"uv\": \"auto\" generates them)",
+                     map.label);
             // The mesh's own name when it has one, else its position in "meshes".
             std::string base = loaded[m].name.empty() ? std::to_string(index) : fileSafe(loaded[m].name);
             if (loaded[m].name.empty() && loaded.size() > 1) base += "-" + std::to_string(m);
@@ -218,11 +345,18 @@ std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneD
             for (int n = 2; names.count(name); ++n) name = base + "-" + std::to_string(n);
             names.insert(name);
             map.name = name;
-            map.mesh = std::move(loaded[m]);
+            const bool generate = settings.uv == UvSource::Generate || (settings.uv == UvSource::Auto && !usableLightmapUvs(loaded[m]));
+            map.mesh = loaded[m].normal.empty() ? withCreaseNormals(loaded[m], settings.creaseDeg) : std::move(loaded[m]);
+            map.width = settings.width, map.height = settings.height;
+            if (generate) {
+                atlasParts.push_back(std::move(map));
+                continue;
+            }
+            if (settings.density > 0) sizeFromDensity(j, key, settings, map);
             maps.push_back(std::move(map));
         }
     }
-    return std::make_unique<LightmapKind>(std::move(maps), padding);
+    return std::make_unique<LightmapKind>(std::move(maps), std::move(atlasParts), settings);
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 #include "bake/VertexColorKind.h"
 
+#include "bake/GltfBuffers.h"
 #include "bake/ReceiverKind.h"
 #include "bake/Scene.h"
 #include "stream/AtomicFile.h"
@@ -140,27 +141,10 @@ void addPrimitive(VertexFile& file, const std::vector<GltfAccessorView>& accesso
     file.primitives.push_back({m, p, first, n});
 }
 
-/// Appends @p bytes to buffer 0 as a new bufferView and accessor; returns the accessor index.
+/// Appends float @p values as a vertex attribute accessor; returns its index.
 int appendAccessor(tinygltf::Model& model, const std::vector<float>& values, int type, size_t count) {
-    if (model.buffers.empty()) model.buffers.emplace_back();
-    std::vector<unsigned char>& data = model.buffers[0].data;
-    data.resize((data.size() + 3) / 4 * 4, 0);  // float accessors need 4-byte alignment
-    tinygltf::BufferView view;
-    view.buffer = 0;
-    view.byteOffset = data.size();
-    view.byteLength = values.size() * sizeof(float);
-    view.target = TINYGLTF_TARGET_ARRAY_BUFFER;
-    data.resize(data.size() + view.byteLength);
-    if (!values.empty()) std::memcpy(data.data() + view.byteOffset, values.data(), view.byteLength);
-    model.bufferViews.push_back(view);
-
-    tinygltf::Accessor accessor;
-    accessor.bufferView = int(model.bufferViews.size() - 1);
-    accessor.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
-    accessor.type = type;
-    accessor.count = count;
-    model.accessors.push_back(accessor);
-    return int(model.accessors.size() - 1);
+    return appendGltfAccessor(model, values.data(), values.size() * sizeof(float), TINYGLTF_COMPONENT_TYPE_FLOAT, type, count,
+                              TINYGLTF_TARGET_ARRAY_BUFFER);
 }
 
 bool keepImageUri(const std::string*, const std::string*, const tinygltf::Image*, bool, std::string*, void*) {

@@ -25,6 +25,13 @@ namespace penumbra {
 /// else TEXCOORD_0 / OBJ vt; nullptr when it has neither.
 const std::vector<glm::vec2>* lightmapUvs(const IndexedMesh& mesh);
 
+/// @brief Whether @p mesh's lightmapUvs() can lay out a lightmap: present, inside [0, 1]^2 (to
+/// within kUvTolerance: lightmaps do not wrap, so tiling texture coordinates are no layout), and
+/// with a positive total UV area.
+bool usableLightmapUvs(const IndexedMesh& mesh);
+
+inline constexpr float kUvTolerance = 1e-3f;
+
 /// @brief The receivers of one lightmap.
 struct LightmapLayout {
     int width = 0, height = 0;

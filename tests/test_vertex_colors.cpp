@@ -2,6 +2,7 @@
 // against a points bake of the same vertices, and (when installed) the Khronos validator.
 
 #include "CliRunner.h"
+#include "GltfValidator.h"
 
 #include "bake/Pipeline.h"
 #include "bake/Scene.h"
@@ -61,23 +62,6 @@ std::vector<float> floats(const tinygltf::Model& model, int index) {
     std::vector<float> out(n);
     std::memcpy(out.data(), model.buffers[size_t(view.buffer)].data.data() + view.byteOffset + a.byteOffset, n * 4);
     return out;
-}
-
-/// Runs tools/validate-gltf.mjs when node and the npm package are there; false with a warning otherwise.
-bool validatorAvailable(std::string& dir) {
-    dir = (std::filesystem::path(PENUMBRA_BINARY).parent_path() / "npm").string();
-    if (const char* env = std::getenv("PENUMBRA_GLTF_VALIDATOR_DIR")) dir = env;
-    return std::filesystem::exists(std::filesystem::path(dir) / "node_modules/gltf-validator") &&
-           std::system("node --version >/dev/null 2>&1") == 0;
-}
-
-int validate(const std::string& file, const std::string& dir, std::string& log) {
-    ScratchDir io("validate");
-    std::string cmd = "node " + std::string(PENUMBRA_SOURCE_DIR) + "/tools/validate-gltf.mjs '" + file + "' '" + dir +
-                      "' >" + (io / "log") + " 2>&1";
-    int status = std::system(cmd.c_str());
-    log = slurp(io / "log");
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
 }  // namespace
@@ -151,7 +135,7 @@ TEST_CASE("vertices: an existing COLOR_0 is kept and the result goes to _VISIBIL
     }
     bake(dir, sceneJson(kFloor, dir / "out/floor.glb"));
     for (const std::string& file : {dir / "out/coloured.gltf", dir / "out/floor.glb"}) {
-        int code = validate(file, validatorDir, log);
+        int code = validateGltf(file, validatorDir, log);
         INFO(log);
         CHECK(code == 0);
     }
