@@ -1,20 +1,15 @@
 #pragma once
 /// @file PenumbraCaster.h
-/// @brief Hierarchical penumbra casting (Laine & Aila 2005, Figure 3) over tiles of receivers.
+/// @brief Hierarchical penumbra casting (Laine & Aila 2005) over tiles of receivers: the public
+/// face of the method. The traversal of Figure 3 is TileCaster.h; the root culls and V_L are
+/// BlockerBatch.h; this class cuts the receivers into tiles and schedules chunks of blockers
+/// over them.
 
-#include "bake/BlockingRule.h"
 #include "bake/CastOptions.h"
-#include "bake/PenumbraVolume.h"
-#include "bake/ReachHull.h"
 #include "bake/Light.h"
-#include "bake/SampleMaskTable.h"
 #include "receivers/ReceiverSet.h"
 #include "stream/Triangle.h"
 
-#include <tbb/task_group.h>
-
-#include <atomic>
-#include <chrono>
 #include <functional>
 #include <memory>
 #include <span>
@@ -62,50 +57,8 @@ public:
     static size_t preparedChunkBytes(size_t lights);
 
 private:
-    struct Tile;
-    const LightSamples& samples_;
-    CastOptions options_;
-    std::vector<std::unique_ptr<Tile>> tiles_;
-    std::vector<SampleMaskTable> tables_;  ///< per light when options_.sampleTable; shared by tiles
-    CastStats stats_;
-    /// Per light: the box around the light's bound and every receiver. A blocker can only block a
-    /// segment from a receiver to a sample if it meets their convex hull, so a blocker whose box
-    /// misses this box is culled before its penumbra volume is built.
-    std::vector<Box> reach_;
-    /// Per light: the hull of a ball around the light and one around the receivers (ReachHull.h),
-    /// the finer second test for blockers inside reach_.
-    std::vector<ReachHull> reachHull_;
-    Box receiversBox_;  ///< around every tile's receivers
-    /// A chunk of blockers ready to cast: promoted to double, with V_L per light, and which tiles
-    /// still have to cast it. Kept in a ring so tiles need not wait for one another: each tile
-    /// casts the chunks in order at its own pace, and a tile may run up to the ring's length
-    /// behind the others (the per-chunk barrier this replaces left a thread idle at the end of
-    /// every chunk). Buffers are kept to avoid reallocation.
-    struct Batch {
-        size_t n = 0;
-        std::vector<BlockerTriangle> prepared;
-        std::vector<PenumbraVolume> lightVolumes;  ///< [triangle][light]
-        std::vector<uint8_t> lightActive;          ///< [triangle][light]: in reach and not capped away
-        std::vector<uint8_t> reached;              ///< [tile][triangle]: V_L met the tile's root box
-        std::atomic<int> remaining{0};             ///< tiles that have not cast this chunk yet
-    };
-    std::vector<std::unique_ptr<Batch>> ring_;
-    std::atomic<uint64_t> published_{0};  ///< chunks prepared and handed to the tiles
-    /// Per tile: the next chunk it casts. Only the holder of the tile's busy flag touches it.
-    std::vector<uint64_t> tileNext_;
-    std::unique_ptr<std::atomic<bool>[]> tileBusy_;
-    std::atomic<bool> failed_{false};  ///< a tile threw; flush() rethrows it
-    std::atomic<uint64_t> culledAtRoot_{0};
-    tbb::task_group group_;
-    bool started_ = false;
-    std::chrono::steady_clock::time_point castStart_;
-
-    void prepare(Batch& batch, std::span<const Triangle> blockers);
-    /// Casts every published chunk that tile @p t has not cast yet, unless another thread holds
-    /// the tile (that thread then sees the new chunks before it lets go).
-    void drain(size_t t);
-    /// The tile's part of a chunk; the last tile to finish it counts the chunk's root culls.
-    void castOnTile(size_t t, Batch& batch);
+    struct Impl;  // tiles, tables, culls and the ring of prepared chunks (PenumbraCaster.cpp)
+    std::unique_ptr<Impl> impl_;
 };
 
 /// @brief Splits receivers into @p count spatially compact parts of near-equal size by recursive

@@ -1,5 +1,7 @@
 #include "bake/ReachHull.h"
 
+#include "stream/Triangle.h"
+
 #include <glm/geometric.hpp>
 
 #include <algorithm>
@@ -87,5 +89,38 @@ double ReachHull::distance(const glm::dvec3& p) const {
     if (u > length_ * cos_) return std::sqrt((x - length_) * (x - length_) + r * r) - b_.radius;
     return x * sin_ + r * cos_ - a_.radius;
 }
+
+namespace {
+
+/// The box around the receivers and the light's bound. A sun's rays leave the receivers towards
+/// infinity: along every axis on which some direction of the bound has a positive (negative)
+/// component, the box is unbounded above (below).
+Box reachBox(const Box& receivers, const ConvexBound& bound) {
+    Box reach = receivers;
+    for (const glm::dvec3& v : bound.vertices) {
+        if (!bound.directional()) {
+            reach.lo = glm::min(reach.lo, roundToFloat(v, true)), reach.hi = glm::max(reach.hi, roundToFloat(v, false));
+            continue;
+        }
+        for (int a = 0; a < 3; ++a) {
+            if (v[a] > 0.0) reach.hi[a] = INFINITY;
+            if (v[a] < 0.0) reach.lo[a] = -INFINITY;
+        }
+    }
+    return reach;
+}
+
+ReachHull reachHull(const Box& receivers, const ConvexBound& bound) {
+    const glm::dvec3 lo(receivers.lo), hi(receivers.hi);
+    const glm::dvec3 corners[8] = {{lo.x, lo.y, lo.z}, {hi.x, lo.y, lo.z}, {lo.x, hi.y, lo.z}, {hi.x, hi.y, lo.z},
+                                   {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z}, {lo.x, hi.y, hi.z}, {hi.x, hi.y, hi.z}};
+    if (bound.directional()) return ReachHull(boundingCone(bound.vertices), boundingBall(corners));
+    return ReachHull(boundingBall(bound.vertices), boundingBall(corners));
+}
+
+}  // namespace
+
+LightReach::LightReach(const Box& receivers, const ConvexBound& bound)
+    : box(reachBox(receivers, bound)), hull(reachHull(receivers, bound)) {}
 
 }  // namespace penumbra

@@ -7,6 +7,9 @@
 /// hundreds for a penumbra volume: this is the root cull for blockers inside the reach box but
 /// beside the light.
 
+#include "bake/ConvexBound.h"
+#include "bake/Plane.h"
+
 #include <glm/vec3.hpp>
 
 #include <span>
@@ -57,6 +60,24 @@ private:
     bool cone_ = false;            // b_ swept along the cone axis_ / cos_ / sin_ (a sun)
     bool everywhere_ = false;      // a cone of 90 degrees or more: nothing is culled
     double margin_ = 0.0;
+};
+
+/// @brief Where a light's blockers can be. A blocker can only block a segment (or ray) from a
+/// receiver to a sample of the light if it meets their convex hull: this is the box around the
+/// light's bound and the receivers (for a sun, unbounded along every axis its directions point
+/// along) and, finer, the ReachHull of a ball around each (the receivers' ball swept along a
+/// sun's cone). Both the caster's root cull and the bucket pass's cull before spill use it.
+struct LightReach {
+    Box box;
+    ReachHull hull;
+
+    LightReach(const Box& receivers, const ConvexBound& bound);
+    /// @brief False when a blocker with box @p b and bounding ball @p ball blocks nothing here.
+    bool mayReach(const Box& b, const Ball& ball) const { return boxMeets(b) && !hull.misses(ball); }
+    bool boxMeets(const Box& b) const {
+        return b.lo.x <= box.hi.x && b.hi.x >= box.lo.x && b.lo.y <= box.hi.y && b.hi.y >= box.lo.y &&
+               b.lo.z <= box.hi.z && b.hi.z >= box.lo.z;
+    }
 };
 
 }  // namespace penumbra

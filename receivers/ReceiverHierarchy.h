@@ -68,6 +68,10 @@ public:
     std::vector<uint32_t> retired;  ///< ids of receivers dropped in full umbra
 
     bool groupUmbraBit(const uint64_t* bits, uint32_t k) const { return (bits[k >> 6] >> (k & 63)) & 1u; }
+    /// @brief Recomputes node @p i's umbra bits from its receivers (a leaf) or its two children:
+    /// a group is in umbra at a node when it is at every receiver below it (lines 50-54 and
+    /// 77-80 of Laine & Aila's Figure 3).
+    void foldUmbra(uint32_t i);
     /// Bytes of the hierarchy proper (nodes and node bits), the "hierarchy mem" column.
     size_t hierarchyBytes() const { return nodes.capacity() * sizeof(Node) + nodeFullUmbra.capacity() + nodeGroupUmbra.capacity() * 8; }
     /// Bytes of the per-receiver arrays, the "samples mem" column.

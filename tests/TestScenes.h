@@ -15,6 +15,7 @@
 #include "stream/Triangle.h"
 
 #include <catch2/catch.hpp>
+#include <glm/vec2.hpp>
 #include <glm/geometric.hpp>
 
 #include <string>
