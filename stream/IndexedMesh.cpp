@@ -1,7 +1,9 @@
 #include "stream/IndexedMesh.h"
 
 #include "stream/Error.h"
-#include "stream/GltfModel.h"
+#include "stream/GltfBytes.h"
+#include "stream/GltfDocument.h"
+#include "stream/GltfPrimitive.h"
 
 #include <glm/geometric.hpp>
 #include <glm/mat3x3.hpp>
@@ -146,120 +148,51 @@ IndexedMesh loadObjMesh(const std::string& path) {
 // ---------------------------------------------------------------------------------------------
 // glTF
 
+/// The receiver meshes of a glTF file: one per node that draws a mesh, every triangle primitive
+/// of it merged, read through the shared walker (GltfPrimitive.h).
 class GltfMeshReader {
 public:
-    explicit GltfMeshReader(std::string path) : path_(std::move(path)) {
-        loadGltfModel(path_, model_);
-        accessors_ = checkGltfAccessors(path_, model_);
-    }
+    explicit GltfMeshReader(const std::string& path) : doc_(loadGltfDocument(path)), bytes_(doc_, UINT64_MAX) {}
 
     std::vector<IndexedMesh> read(const glm::dmat4& transform) {
         std::vector<IndexedMesh> meshes;
-        for (const GltfMeshNode& placed : walkGltfScene(path_, model_)) {
+        for (const GltfMeshNode& placed : walkGltfScene(doc_)) {
             IndexedMesh mesh = meshOf(placed.mesh);
             if (mesh.indices.empty()) continue;
-            const tinygltf::Node& node = model_.nodes[size_t(placed.node)];
-            mesh.name = !model_.meshes[size_t(placed.mesh)].name.empty() ? model_.meshes[size_t(placed.mesh)].name : node.name;
-            place(mesh, transform * placed.world, path_);
+            const std::string& meshName = doc_.meshes[size_t(placed.mesh)].name;
+            mesh.name = !meshName.empty() ? meshName : doc_.nodes[size_t(placed.node)].name;
+            place(mesh, transform * placed.world, doc_.path);
             meshes.push_back(std::move(mesh));
         }
         return meshes;
     }
 
 private:
-    /// The checked view of accessor @p index of an attribute of @p components floats.
-    const GltfAccessorView& attribute(int index, int components, size_t vertices, const std::string& where,
-                                      const std::string& name) const {
-        const GltfAccessorView& view = accessors_[size_t(index)];
-        if (view.components != components)
-            fail(where, "{} accessor {} is not VEC{}", name, index, components);
-        if (view.sparse) fail(where, "{} accessor {} uses sparse storage, which penumbra does not support", name, index);
-        if (view.count != vertices)
-            fail(where, "{} accessor {} has {} elements, POSITION has {}", name, index, view.count, vertices);
-        if (!view.data && view.count > 0) fail(where, "{} accessor {} has no bufferView", name, index);
-        int type = view.componentType;
-        if (type == TINYGLTF_COMPONENT_TYPE_INT || type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
-            fail(where, "{} accessor {} has componentType {}, which glTF does not allow", name, index, type);
-        return view;
-    }
-
-    IndexedMesh meshOf(int meshIndex) const {
+    IndexedMesh meshOf(int meshIndex) {
         IndexedMesh mesh;
         bool allNormals = true, allUv0 = true, allUv1 = true;
-        const tinygltf::Mesh& source = model_.meshes[size_t(meshIndex)];
-        for (size_t p = 0; p < source.primitives.size(); ++p) {
-            const tinygltf::Primitive& primitive = source.primitives[p];
-            const std::string where = fmt::format("{}: mesh {} primitive {}", path_, meshIndex, p);
-            for (const auto& [name, accessor] : primitive.attributes)
-                if (accessor < 0 || size_t(accessor) >= accessors_.size())
-                    fail(where, "attribute {} refers to accessor {} (file has {})", name, accessor, accessors_.size());
-            if (primitive.indices < -1 || primitive.indices >= int(accessors_.size()))
-                fail(where, "indices refer to accessor {} (file has {})", primitive.indices, accessors_.size());
-            const int mode = primitive.mode < 0 ? TINYGLTF_MODE_TRIANGLES : primitive.mode;
-            auto found = primitive.attributes.find("POSITION");
-            if (found == primitive.attributes.end() ||
-                (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN))
-                continue;  // not drawn as triangles: no surface to bake on (the blocker reader warns)
-
-            const GltfAccessorView& positions = accessors_[size_t(found->second)];
-            if (positions.components != 3) fail(where, "POSITION accessor {} is not VEC3", found->second);
-            const size_t vertices = positions.count;
-            attribute(found->second, 3, vertices, where, "POSITION");
+        for (size_t p = 0; p < doc_.meshes[size_t(meshIndex)].primitives.size(); ++p) {
+            // Points, lines and primitives without POSITION have no surface to bake on (the
+            // blocker reader warns about them).
+            const auto layout = gltfTrianglePrimitive(doc_, meshIndex, int(p));
+            if (!layout) continue;
+            GltfPrimitiveReader reader(doc_, bytes_, *layout, true);
             const uint32_t base = uint32_t(mesh.position.size());
-            if (uint64_t(base) + vertices > UINT32_MAX) fail(where, "more than 2^32 vertices in one mesh");
-            for (size_t i = 0; i < vertices; ++i) {
-                glm::vec3 x(readGltfElement(positions, i));
-                if (!finite(x)) fail(where, "POSITION accessor {} element {} is not finite", found->second, i);
-                mesh.position.push_back(x);
-            }
+            if (uint64_t(base) + layout->vertices > UINT32_MAX) fail(layout->where(doc_), "more than 2^32 vertices in one mesh");
+            for (uint64_t i = 0; i < layout->vertices; ++i) mesh.position.push_back(reader.position(i));
             auto optional = [&](const char* name, int components, bool& all, auto&& store) {
-                auto it = primitive.attributes.find(name);
-                if (it == primitive.attributes.end()) {
+                if (!reader.has(name)) {
                     all = false;
                     return;
                 }
-                const GltfAccessorView& view = attribute(it->second, components, vertices, where, name);
-                for (size_t i = 0; i < vertices; ++i) {
-                    glm::vec4 x = readGltfElement(view, i);
-                    if (!std::isfinite(x.x) || !std::isfinite(x.y) || !std::isfinite(x.z))
-                        fail(where, "{} accessor {} element {} is not finite", name, it->second, i);
-                    store(x);
-                }
+                for (uint64_t i = 0; i < layout->vertices; ++i) store(reader.attribute(name, components, i));
             };
             optional("NORMAL", 3, allNormals, [&](glm::vec4 x) { mesh.normal.emplace_back(x); });
             optional("TEXCOORD_0", 2, allUv0, [&](glm::vec4 x) { mesh.uv0.emplace_back(x); });
             optional("TEXCOORD_1", 2, allUv1, [&](glm::vec4 x) { mesh.uv1.emplace_back(x); });
-
-            // The drawing sequence, validated, then turned into a triangle list.
-            std::vector<uint32_t> sequence;
-            if (primitive.indices >= 0) {
-                const GltfAccessorView& indices = accessors_[size_t(primitive.indices)];
-                int type = indices.componentType;
-                if (indices.components != 1 || indices.sparse ||
-                    (type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
-                     type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT))
-                    fail(where, "indices accessor {} is not a dense SCALAR of unsigned integers", primitive.indices);
-                for (size_t i = 0; i < indices.count; ++i) {
-                    uint32_t index = readGltfIndex(indices, i);
-                    if (index >= vertices)
-                        fail(where, "accessor {} element {} is index {}, but POSITION has {} vertices", primitive.indices,
-                             i, index, vertices);
-                    sequence.push_back(index);
-                }
-            } else {
-                for (size_t i = 0; i < vertices; ++i) sequence.push_back(uint32_t(i));
-            }
-            auto add = [&](uint32_t a, uint32_t b, uint32_t c) { mesh.indices.insert(mesh.indices.end(), {base + a, base + b, base + c}); };
-            if (mode == TINYGLTF_MODE_TRIANGLES) {
-                if (sequence.size() % 3 != 0)
-                    fail(where, "TRIANGLES primitive has {} vertices, not a multiple of 3", sequence.size());
-                for (size_t t = 0; t < sequence.size(); t += 3) add(sequence[t], sequence[t + 1], sequence[t + 2]);
-            } else {
-                for (size_t t = 0; t + 2 < sequence.size(); ++t) {
-                    if (mode == TINYGLTF_MODE_TRIANGLE_FAN) add(sequence[t + 1], sequence[t + 2], sequence[0]);
-                    else if (t % 2 == 0) add(sequence[t], sequence[t + 1], sequence[t + 2]);
-                    else add(sequence[t], sequence[t + 2], sequence[t + 1]);  // strips alternate winding
-                }
+            for (uint64_t t = 0; t < layout->triangles; ++t) {
+                const std::array<uint32_t, 3> v = reader.triangle(t);
+                mesh.indices.insert(mesh.indices.end(), {base + v[0], base + v[1], base + v[2]});
             }
         }
         if (!allNormals) mesh.normal.clear();
@@ -272,9 +205,8 @@ private:
         return mesh;
     }
 
-    std::string path_;
-    tinygltf::Model model_;
-    std::vector<GltfAccessorView> accessors_;
+    GltfDocument doc_;
+    GltfBytes bytes_;
 };
 
 }  // namespace

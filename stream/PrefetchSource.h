@@ -28,6 +28,11 @@ public:
     void rewind() override;
     std::string name() const override { return inner_->name(); }
     std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
+    /// The inner source's bytes, the chunks held ahead and the one being handed out.
+    uint64_t residentBytes() const override {
+        return inner_->residentBytes() + (depth_ + 2) * chunkTriangles_ * sizeof(Triangle);
+    }
+    std::string residentDetail() const override { return inner_->residentDetail(); }
 
 private:
     void start();

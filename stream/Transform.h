@@ -47,6 +47,8 @@ public:
     void rewind() override { inner_->rewind(); }
     std::string name() const override { return inner_->name(); }
     std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
+    uint64_t residentBytes() const override { return inner_->residentBytes(); }
+    std::string residentDetail() const override { return inner_->residentDetail(); }
 
 private:
     TriangleSourcePtr inner_;

@@ -34,6 +34,19 @@ std::optional<uint64_t> ConcatSource::sizeHint() const {
     return total;
 }
 
+uint64_t ConcatSource::residentBytes() const {
+    uint64_t total = 0;
+    for (const auto& p : parts_) total += p->residentBytes();
+    return total;
+}
+
+std::string ConcatSource::residentDetail() const {
+    const TriangleSource* largest = nullptr;
+    for (const auto& p : parts_)
+        if (!p->residentDetail().empty() && (!largest || p->residentBytes() > largest->residentBytes())) largest = p.get();
+    return largest ? largest->residentDetail() : std::string();
+}
+
 std::vector<Triangle> readAll(TriangleSource& source) {
     std::vector<Triangle> all;
     std::vector<Triangle> chunk(kTriangleChunk);

@@ -34,6 +34,14 @@ public:
 
     /// The triangle count when known up front (a .ptri header, a glTF accessor sum).
     virtual std::optional<uint64_t> sizeHint() const { return std::nullopt; }
+
+    /// @brief Heap bytes the source holds at most while open (document tables, block caches,
+    /// decoder buffers, read-ahead chunks), whatever the triangle count: its part of the memory
+    /// plan. Known right after the source is opened, before any triangle is read.
+    virtual uint64_t residentBytes() const { return 0; }
+    /// @brief What dominates residentBytes() when one item does (a compressed primitive that
+    /// must be decoded whole), for messages; empty otherwise.
+    virtual std::string residentDetail() const { return {}; }
 };
 
 using TriangleSourcePtr = std::unique_ptr<TriangleSource>;
@@ -62,6 +70,9 @@ public:
     void rewind() override;
     std::string name() const override { return "scene"; }
     std::optional<uint64_t> sizeHint() const override;
+    /// Parts are read one after another, but all stay open: their resident bytes add up.
+    uint64_t residentBytes() const override;
+    std::string residentDetail() const override;
 
 private:
     std::vector<TriangleSourcePtr> parts_;
@@ -82,6 +93,8 @@ public:
     void rewind() override { inner_->rewind(); }
     std::string name() const override { return inner_->name(); }
     std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
+    uint64_t residentBytes() const override { return inner_->residentBytes(); }
+    std::string residentDetail() const override { return inner_->residentDetail(); }
 
 private:
     TriangleSourcePtr inner_;
