@@ -9,6 +9,7 @@
 #include "bake/SampleMaskTable.h"
 #include "bake/SunLight.h"
 #include "bucket/BucketPlan.h"
+#include "stream/AnonymousFile.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
 #include "stream/Memory.h"
@@ -271,6 +272,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     const int threads = settings.threads > 0 ? settings.threads : int(tbb::info::default_concurrency());
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(threads));
     const bool dump = !settings.dumpDir.empty();
+    setScratchDirectory(settings.tmpDir);  // spilled OBJ vertices go where the buckets go
 
     // Check before any work that the scan pass fits; the receiver count is known after it, and
     // the full plan is checked again then, before casting.

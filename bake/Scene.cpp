@@ -99,13 +99,26 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
 
 }  // namespace
 
+std::vector<std::string> geometryParts(const JsonParams& entry) {
+    std::vector<std::string> parts;
+    const nlohmann::json* raw = entry.raw("parts");
+    if (!raw) return parts;
+    if (!raw->is_array() || raw->empty()) fail(entry.where("parts"), "expected a non-empty array of o/g group names");
+    for (const nlohmann::json& name : *raw) {
+        if (!name.is_string()) fail(entry.where("parts"), "expected a non-empty array of o/g group names");
+        parts.push_back(name.get<std::string>());
+    }
+    return parts;
+}
+
 void registerFileSourceTypes() {
     for (const char* type : {"obj", "gltf", "glb", "ptri", "file"})
         registerSourceType(type, [](const SourceRequest& r) {
             JsonParams j(r.params, r.file, r.path);
             std::string path = resolveScenePath(r.baseDir, j.string("path"));
+            const std::vector<std::string> parts = geometryParts(j);
             j.finish();
-            return openGeometryFile(path);
+            return openGeometryFile(path, parts);
         });
 }
 

@@ -4,14 +4,16 @@
 #include "stream/GltfBytes.h"
 #include "stream/GltfDocument.h"
 #include "stream/GltfPrimitive.h"
+#include "stream/ObjTokenizer.h"
+#include "stream/Transform.h"
 
 #include <glm/geometric.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
-#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -26,10 +28,10 @@ bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y
 
 /// Applies the load transform (and a node's world matrix) to a finished mesh. Normals use the
 /// inverse transpose so that non-uniform scales keep them perpendicular to the surface.
-void place(IndexedMesh& mesh, const glm::dmat4& m, const std::string& path) {
+void place(IndexedMesh& mesh, const glm::dmat4& m, const std::string& path, bool positions = true) {
     const glm::dmat3 normalMatrix = glm::transpose(glm::inverse(glm::dmat3(m)));
     for (glm::vec3& p : mesh.position) {
-        p = glm::vec3(m * glm::dvec4(p, 1.0));
+        if (positions) p = glm::vec3(m * glm::dvec4(p, 1.0));
         if (!finite(p)) fail(path, "a transformed vertex position is not finite");
     }
     for (glm::vec3& n : mesh.normal) {
@@ -44,105 +46,99 @@ void place(IndexedMesh& mesh, const glm::dmat4& m, const std::string& path) {
 // ---------------------------------------------------------------------------------------------
 // OBJ
 
-struct ObjParser {
-    std::string path;
-    size_t line = 0;
-    std::vector<glm::vec3> v, vn;
-    std::vector<glm::vec2> vt;
+/// One o/g group of an OBJ: a mesh of its own, its corners deduplicated by (v, vt, vn).
+struct ObjPart {
+    std::string name;
     std::map<std::array<int64_t, 3>, uint32_t> corners;  // (v, vt, vn), -1 when absent -> vertex
     IndexedMesh mesh;
     bool allHaveUv = true, allHaveNormal = true;
+};
 
-    [[noreturn]] void error(const std::string& what) const { fail(fmt::format("{}:{}", path, line), "{}", what); }
+/// Reads statements through the tokenizer the blocker stream uses (ObjTokenizer.h), so a file
+/// gives both the same coordinates and the same errors.
+struct ObjParser {
+    std::string path;
+    std::string where;  // "path:line" of the current statement
+    std::vector<glm::vec3> v, vn;
+    std::vector<glm::vec2> vt;
+    std::vector<ObjPart> parts;
+    size_t current = 0;
+    std::vector<ObjCorner> face;
 
-    double number(std::string_view token) const {
-        double x = 0;
-        auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), x);
-        if (ec != std::errc() || end != token.data() + token.size())
-            error(fmt::format("cannot parse number \"{}\"", token));
-        if (!std::isfinite(x)) error(fmt::format("coordinate \"{}\" is not finite", token));
-        return x;
-    }
+    ObjParser(const std::string& file) : path(file) { parts.emplace_back(); }
 
-    /// A 1-based (or negative, relative) OBJ index into a list of @p count entries.
-    int64_t resolve(std::string_view token, size_t count, const char* what) const {
-        int64_t i = 0;
-        auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), i);
-        if (ec != std::errc() || end != token.data() + token.size())
-            error(fmt::format("cannot parse {} index \"{}\"", what, token));
-        int64_t resolved = i < 0 ? int64_t(count) + i : i - 1;
-        if (i == 0 || resolved < 0 || resolved >= int64_t(count))
-            error(fmt::format("face {} index {} out of range ({} {}s)", what, i, count, what));
-        return resolved;
-    }
-
-    uint32_t corner(std::string_view token) {
-        std::array<std::string_view, 3> part{};
-        size_t n = 0;
-        while (n < 3) {
-            size_t slash = token.find('/');
-            part[n++] = token.substr(0, slash);
-            if (slash == std::string_view::npos) break;
-            token.remove_prefix(slash + 1);
-        }
-        std::array<int64_t, 3> key{resolve(part[0], v.size(), "vertex"), -1, -1};
-        if (!part[1].empty()) key[1] = resolve(part[1], vt.size(), "texture coordinate");
-        if (!part[2].empty()) key[2] = resolve(part[2], vn.size(), "normal");
-        allHaveUv &= key[1] >= 0, allHaveNormal &= key[2] >= 0;
-        auto [it, added] = corners.emplace(key, uint32_t(mesh.position.size()));
+    uint32_t corner(ObjPart& part, const ObjCorner& c) {
+        auto [it, added] = part.corners.emplace(std::array<int64_t, 3>{c.v, c.vt, c.vn}, uint32_t(part.mesh.position.size()));
         if (added) {
-            mesh.position.push_back(v[size_t(key[0])]);
-            mesh.uv0.push_back(key[1] >= 0 ? vt[size_t(key[1])] : glm::vec2(0.0f));
-            mesh.normal.push_back(key[2] >= 0 ? vn[size_t(key[2])] : glm::vec3(0.0f));
+            if (part.mesh.position.size() == UINT32_MAX) fail(where, "more than 2^32 vertices in one mesh");
+            part.mesh.position.push_back(v[size_t(c.v)]);
+            part.mesh.uv0.push_back(c.vt >= 0 ? vt[size_t(c.vt)] : glm::vec2(0.0f));
+            part.mesh.normal.push_back(c.vn >= 0 ? vn[size_t(c.vn)] : glm::vec3(0.0f));
         }
+        part.allHaveUv &= c.vt >= 0, part.allHaveNormal &= c.vn >= 0;
         return it->second;
     }
 
     void statement(std::string_view text) {
-        std::vector<std::string_view> tokens;
-        for (size_t i = 0; i < text.size();) {
-            while (i < text.size() && (text[i] == ' ' || text[i] == '\t' || text[i] == '\r')) ++i;
-            size_t start = i;
-            while (i < text.size() && text[i] != ' ' && text[i] != '\t' && text[i] != '\r') ++i;
-            if (i > start) tokens.push_back(text.substr(start, i - start));
-        }
-        if (tokens.empty() || tokens[0][0] == '#') return;
-        const std::string_view kind = tokens[0];
-        if (kind == "v" || kind == "vn") {
-            if (tokens.size() < 4) error(fmt::format("\"{}\" needs three coordinates", kind));
-            glm::vec3 p(number(tokens[1]), number(tokens[2]), number(tokens[3]));
-            (kind == "v" ? v : vn).push_back(p);
+        ObjTokens tokens(text);
+        const std::string_view kind = tokens.next();
+        if (kind == "v") {
+            v.push_back(parseObjVector(tokens, 3, "vertex", where));
+        } else if (kind == "vn") {
+            vn.push_back(parseObjVector(tokens, 3, "normal", where));
         } else if (kind == "vt") {
-            if (tokens.size() < 3) error("\"vt\" needs two coordinates");
-            vt.emplace_back(number(tokens[1]), 1.0 - number(tokens[2]));  // to glTF's top-left origin
+            const glm::vec3 t = parseObjVector(tokens, 2, "texture coordinate", where);
+            vt.emplace_back(t.x, float(1.0 - double(t.y)));  // to glTF's top-left origin
+        } else if (kind == "o" || kind == "g") {
+            const std::string name(tokens.rest());
+            current = parts.size();
+            for (size_t i = 0; i < parts.size(); ++i)
+                if (parts[i].name == name && (i > 0 || !name.empty())) current = i;
+            if (current == parts.size()) parts.emplace_back().name = name;
         } else if (kind == "f") {
-            if (tokens.size() < 4) error(fmt::format("face has {} corners (needs at least 3)", tokens.size() - 1));
-            const uint32_t first = corner(tokens[1]);
-            uint32_t previous = corner(tokens[2]);
-            for (size_t c = 3; c < tokens.size(); ++c) {
-                uint32_t next = corner(tokens[c]);
-                mesh.indices.insert(mesh.indices.end(), {first, previous, next});
+            const uint64_t counts[3] = {v.size(), vt.size(), vn.size()};
+            parseObjFace(tokens, counts, face, where);
+            ObjPart& part = parts[current];
+            const uint32_t first = corner(part, face[0]);
+            uint32_t previous = corner(part, face[1]);
+            for (size_t c = 2; c < face.size(); ++c) {
+                uint32_t next = corner(part, face[c]);
+                part.mesh.indices.insert(part.mesh.indices.end(), {first, previous, next});
                 previous = next;
             }
         }
     }
 };
 
-IndexedMesh loadObjMesh(const std::string& path) {
+/// The meshes of an OBJ: one per o/g group that has faces (only those named in @p wanted when it
+/// is not empty). A file of one group gives one mesh named after the file's stem.
+std::vector<IndexedMesh> loadObjMeshes(const std::string& path, const std::vector<std::string>& wanted) {
     std::ifstream in(path, std::ios::binary);
     if (!in) fail(path, "cannot open: {}", std::strerror(errno));
-    ObjParser parser;
-    parser.path = path;
+    ObjParser parser(path);
+    uint64_t line = 0;
     for (std::string text; std::getline(in, text);) {
-        ++parser.line;
+        parser.where = path + ":" + std::to_string(++line);
         parser.statement(text);
     }
     if (in.bad()) fail(path, "read error");
-    IndexedMesh mesh = std::move(parser.mesh);
-    if (!parser.allHaveUv) mesh.uv0.clear();
-    if (!parser.allHaveNormal) mesh.normal.clear();
-    mesh.name = std::filesystem::path(path).stem().string();
-    return mesh;
+    for (const std::string& name : wanted)
+        if (std::none_of(parser.parts.begin(), parser.parts.end(), [&](const ObjPart& p) { return p.name == name; }))
+            fail(path, "has no o/g group named \"{}\" (it has {})", name, parser.parts.size() - 1);
+    std::vector<IndexedMesh> meshes;
+    size_t withFaces = 0;
+    for (const ObjPart& part : parser.parts) withFaces += !part.mesh.indices.empty();
+    const std::string stem = std::filesystem::path(path).stem().string();
+    for (ObjPart& part : parser.parts) {
+        if (part.mesh.indices.empty()) continue;
+        if (!wanted.empty() && std::find(wanted.begin(), wanted.end(), part.name) == wanted.end()) continue;
+        IndexedMesh mesh = std::move(part.mesh);
+        if (!part.allHaveUv) mesh.uv0.clear();
+        if (!part.allHaveNormal) mesh.normal.clear();
+        mesh.name = withFaces == 1 || part.name.empty() ? stem : part.name;
+        meshes.push_back(std::move(mesh));
+    }
+    return meshes;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -211,21 +207,26 @@ private:
 
 }  // namespace
 
-std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::mat4& transform) {
+std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::mat4& transform,
+                                           const std::vector<std::string>& parts) {
     std::string ext = std::filesystem::path(path).extension().string();
     for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-    if (ext == ".obj") {
-        IndexedMesh mesh = loadObjMesh(path);
+    if (ext != ".obj") {
+        if (!parts.empty()) fail(path, "\"parts\" selects o/g groups of OBJ files only");
+        return GltfMeshReader(path).read(glm::dmat4(transform));
+    }
+    std::vector<IndexedMesh> meshes = loadObjMeshes(path, parts);
+    for (IndexedMesh& mesh : meshes) {
         for (glm::vec3& n : mesh.normal) {
             float length = glm::length(n);
             n = length > 0 ? n / length : glm::vec3(0.0f);
         }
-        place(mesh, glm::dmat4(transform), path);
-        std::vector<IndexedMesh> meshes;
-        meshes.push_back(std::move(mesh));
-        return meshes;
+        // Positions go through the same float arithmetic as the blocker stream's
+        // TransformedSource, so receivers and blockers of one OBJ have the same bits.
+        for (glm::vec3& p : mesh.position) p = transformPoint(transform, p);
+        place(mesh, glm::dmat4(transform), path, false);
     }
-    return GltfMeshReader(path).read(glm::dmat4(transform));
+    return meshes;
 }
 
 }  // namespace penumbra
