@@ -86,6 +86,7 @@ public:
         if (smooth_) raster_->recordTriangles();
         return true;
     }
+    bool mayRefine() const override { return aa_.samples > 0; }
     uint64_t refineBytes() const override {
         return refinedPixels_ * uint64_t(aa_.samples) * (CameraRasterizer::kBytesPerPixel + (smooth_ ? 36 : 0) + 32) +
                uint64_t(camera_.width) * camera_.height * 4;

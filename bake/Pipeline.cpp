@@ -3,6 +3,7 @@
 #include "bake/EmbreeCaster.h"
 #include "bake/MemoryPlan.h"
 #include "bake/PenumbraCaster.h"
+#include "bake/ReachCull.h"
 #include "bake/ReceiverKind.h"
 #include "bake/ReceiverShading.h"
 #include "bake/ReferenceCaster.h"
@@ -115,11 +116,16 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     // A receiver kind that wants a second look at the geometry (smooth shading) gets it during
     // the bucket pass, so the source is still read only twice.
     const bool rescan = kind.wantsRescan();
+    // What cannot block is never written: the reach culls, against every receiver, once the scan
+    // has found them (refinement receivers are not known yet, so a kind that refines keeps all).
+    BlockerFilter keep;
+    if (scene.options.cullBeforeSpill && !kind.mayRefine()) keep = makeReachCull(p.samples.lightBounds, p.receivers);
     auto set = std::make_shared<BucketSet>(writeBuckets(*source, planBucketRanges(options, &histogram), options, &buckets,
                                                         [&](std::span<const Triangle> c) {
                                                             if (rescan) kind.rescan(c);
                                                             progress.update(c.size());
-                                                        }));
+                                                        },
+                                                        keep));
     progress.done();
     auto replay = std::make_unique<BucketReplaySource>(set, options.readBufferBytes);
     p.replay = replay.get();
@@ -186,7 +192,7 @@ CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettin
     std::vector<uint32_t> ids(p.receivers.size() - first);
     for (uint32_t i = 0; i < ids.size(); ++i) ids[i] = first + i;
     const auto tiles = partitionReceivers(p.receivers, ids, plan.tiles);
-    ProgressReporter progress("cast", p.triangleCount * tiles.size(), settings.quiet);
+    ProgressReporter progress("cast", p.blockers->sizeHint().value_or(p.triangleCount) * tiles.size(), settings.quiet);
     const bool feedKind = kind.wantsCastChunks();
     std::vector<Triangle> chunk(kTriangleChunk);
     for (size_t t = 0; t < tiles.size(); ++t) {
@@ -399,7 +405,9 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
           {"total_time_s", total.seconds()}}},
         {"counters",
          {{"triangles_read", p.triangleCount},
-          {"triangles_culled_at_root", cast.trianglesCulledAtRoot},
+          // Culled by the reach tests, whether in the bucket pass (never written) or by the caster.
+          {"triangles_culled_at_root", cast.trianglesCulledAtRoot + buckets.culledTriangles},
+          {"triangles_culled_before_spill", buckets.culledTriangles},
           {"closed_back_faces_skipped", cast.closedBackFaces},
           {"rebuilds", cast.rebuilds},
           {"peak_live_masks", cast.peakLiveMasks},
@@ -417,6 +425,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         {"buckets",
          {{"files", buckets.nonEmptyFiles},
           {"bytes_written", buckets.bytesWritten},
+          {"triangles_culled", buckets.culledTriangles},
           {"bytes_read", p.replay ? p.replay->bytesRead() : 0},
           {"bytes_per_triangle", buckets.bytesPerTriangle()},
           {"write_mb_per_s", buckets.megabytesPerSecond()},

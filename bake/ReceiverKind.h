@@ -70,6 +70,9 @@ public:
     /// refinedReceivers() returns (once) to the set and casts only those, with the same light
     /// samples and method; write() then gets both passes (OutputContext::firstPass).
     virtual bool refine(const ReceiverSet& receivers, const ReceiverResults& results) { return false; }
+    /// True when refine() may add receivers (which can lie outside the first pass's receivers, so
+    /// the bucket pass must not cull blockers by the first pass's reach).
+    virtual bool mayRefine() const { return false; }
     virtual void refineScan(std::span<const Triangle> chunk) {}
     virtual ReceiverSet refinedReceivers() { return {}; }
     /// Bytes held during refineScan(), for the memory plan (asked after refine()).

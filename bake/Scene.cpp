@@ -81,6 +81,7 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
     o.sortBlockers = j.boolean("sort_blockers", o.sortBlockers);
     o.sampleTable = j.boolean("sample_table", o.sampleTable);
     o.closedCasters = j.boolean("closed_casters", o.closedCasters);
+    o.cullBeforeSpill = j.boolean("cull_before_spill", o.cullBeforeSpill);
     o.sampleTableAngles = int(j.integer("sample_table_angles", o.sampleTableAngles, 4, 4096));
     o.sampleTableOffsets = int(j.integer("sample_table_offsets", o.sampleTableOffsets, 1, 4096));
     o.rebuildThreshold = j.number("rebuild_threshold", o.rebuildThreshold);

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <mutex>
 #include <string_view>
 
 namespace penumbra {
@@ -105,7 +106,8 @@ public:
     void rewind() override;
     std::string name() const override { return path_; }
     std::optional<uint64_t> sizeHint() const override {
-        const_cast<ObjSource*>(this)->scan();
+        // The scan may be running on a read-ahead thread (PrefetchSource): once, for both.
+        std::call_once(scanOnce_, [this] { const_cast<ObjSource*>(this)->scan(); });
         return triangleCount_;
     }
     uint64_t residentBytes() const override { return VertexStore::residentBytes() + (1u << 16); }
@@ -120,6 +122,7 @@ private:
     LineReader lines_;
     VertexStore vertices_;  // the only per-mesh data kept, in bounded memory
     std::vector<std::string> parts_;  // o/g groups streamed; empty: all
+    mutable std::once_flag scanOnce_;
     bool scanned_ = false;
     uint64_t triangleCount_ = 0;
 
@@ -145,7 +148,6 @@ bool ObjSource::selected(std::string_view part) const {
 /// One pass over the file: every statement is checked (so all errors surface before the first
 /// triangle is handed out and sizeHint() is exact), vertices are stored, faces are counted.
 void ObjSource::scan() {
-    if (scanned_) return;
     scanned_ = true;
     lines_.open();
     std::string_view line;
@@ -223,7 +225,7 @@ bool ObjSource::nextPolygon() {
 }
 
 size_t ObjSource::read(std::span<Triangle> out) {
-    scan();
+    std::call_once(scanOnce_, [this] { scan(); });
     size_t written = 0;
     while (written < out.size() && !finished_) {
         if (nextFan_ + 1 >= polygon_.size() && !nextPolygon()) {
