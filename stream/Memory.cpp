@@ -34,6 +34,25 @@ uint64_t currentRssBytes() {
     return residentPages * static_cast<uint64_t>(page > 0 ? page : 4096);
 }
 
+uint64_t addressSpaceLimit() {
+    struct rlimit limit {};
+    if (::getrlimit(RLIMIT_AS, &limit) != 0 || limit.rlim_cur == RLIM_INFINITY) return 0;
+    return uint64_t(limit.rlim_cur);
+}
+
+uint64_t mappedNotResidentBytes() {
+    std::FILE* f = std::fopen("/proc/self/statm", "r");
+    if (!f) return 0;
+    unsigned long long sizePages = 0, residentPages = 0;
+    int got = std::fscanf(f, "%llu %llu", &sizePages, &residentPages);
+    std::fclose(f);
+    if (got != 2 || residentPages > sizePages) return 0;
+    long page = ::sysconf(_SC_PAGESIZE);
+    return (sizePages - residentPages) * static_cast<uint64_t>(page > 0 ? page : 4096);
+}
+
+void useOneMallocArena() { ::mallopt(M_ARENA_MAX, 1); }
+
 uint64_t parseByteSize(const std::string& text, const std::string& what) {
     auto bad = [&](std::string_view why) -> uint64_t {
         fail(what, "'{}' is not a byte size ({}; expected e.g. 1000, 512k, 256M or 1.5GiB)", text, why);

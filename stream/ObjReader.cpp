@@ -6,6 +6,7 @@
 #include "stream/VertexStore.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -89,16 +90,13 @@ private:
     uint64_t lineNumber_ = 0;
 };
 
-/// @p path, once it is known to open as a regular file (a directory would fail only when read).
-const std::string& regularFile(const std::string& path) {
-    RegularFile check(path);
-    return path;
-}
+/// The size of @p path, which must open as a regular file (a directory would fail only when read).
+uint64_t regularFileSize(const std::string& path) { return RegularFile(path).size(); }
 
 class ObjSource final : public TriangleSource {
 public:
     ObjSource(const std::string& path, std::vector<std::string> parts)
-        : path_(path), lines_(regularFile(path)), vertices_(path), parts_(std::move(parts)) {
+        : path_(path), fileBytes_(regularFileSize(path)), lines_(path), vertices_(path), parts_(std::move(parts)) {
         lines_.close();  // opened again by the scan, on the first read() or sizeHint()
     }
 
@@ -110,7 +108,12 @@ public:
         std::call_once(scanOnce_, [this] { const_cast<ObjSource*>(this)->scan(); });
         return triangleCount_;
     }
-    uint64_t residentBytes() const override { return VertexStore::residentBytes() + (1u << 16); }
+    std::optional<uint64_t> knownSize() const override {
+        return scanned_ ? std::optional<uint64_t>(triangleCount_) : std::nullopt;
+    }
+    /// The vertex store's bound for the vertices the file can hold (a `v` line has at least 8
+    /// bytes), and the line buffer.
+    uint64_t residentBytes() const override { return VertexStore::residentBytes(fileBytes_ / 8) + (1u << 16); }
 
 private:
     void scan();
@@ -119,11 +122,12 @@ private:
     void counts(uint64_t c[3]) const { c[0] = verticesSeen_, c[1] = c[2] = UINT32_MAX; }
 
     std::string path_;
+    uint64_t fileBytes_;
     LineReader lines_;
     VertexStore vertices_;  // the only per-mesh data kept, in bounded memory
     std::vector<std::string> parts_;  // o/g groups streamed; empty: all
     mutable std::once_flag scanOnce_;
-    bool scanned_ = false;
+    std::atomic<bool> scanned_{false};
     uint64_t triangleCount_ = 0;
 
     // Where the streaming pass starts: the first `f` line and what precedes it.

@@ -5,7 +5,8 @@
 /// Memory contract: the vertex array (`v` lines, 12 bytes per vertex) is kept in a VertexStore
 /// (VertexStore.h): the first million vertices in memory, the rest spilled to an anonymous
 /// scratch file and read back through a 3 MiB block cache, so a reader holds at most about
-/// 15 MiB (residentBytes()) whatever the file size. Faces are never stored. The first read() (or
+/// 27 MiB (residentBytes(); less for files too small to hold a million vertices) whatever the
+/// file size. Faces are never stored. The first read() (or
 /// sizeHint()) makes one pass that stores the vertices and validates every statement (so all
 /// errors surface before the first triangle and sizeHint() is exact); opening the reader only
 /// checks that the file opens. Each read() continues a second, streaming pass over the file that

@@ -51,6 +51,7 @@ public:
     void rewind() override { inner_->rewind(); }
     std::string name() const override { return inner_->name(); }
     std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
+    std::optional<uint64_t> knownSize() const override { return inner_->knownSize(); }
     uint64_t residentBytes() const override { return inner_->residentBytes(); }
     std::string residentDetail() const override { return inner_->residentDetail(); }
 

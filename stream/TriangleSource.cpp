@@ -34,6 +34,16 @@ std::optional<uint64_t> ConcatSource::sizeHint() const {
     return total;
 }
 
+std::optional<uint64_t> ConcatSource::knownSize() const {
+    uint64_t total = 0;
+    for (const auto& p : parts_) {
+        auto n = p->knownSize();
+        if (!n) return std::nullopt;
+        total += *n;
+    }
+    return total;
+}
+
 uint64_t ConcatSource::residentBytes() const {
     uint64_t total = 0;
     for (const auto& p : parts_) total += p->residentBytes();

@@ -18,8 +18,9 @@ VertexStore::~VertexStore() {
     if (fd_ >= 0) ::close(fd_);
 }
 
-uint64_t VertexStore::residentBytes(uint64_t residentVertices) {
-    return (residentVertices + kVertexBlock * (kVertexCacheBlocks + 1)) * sizeof(glm::vec3);
+uint64_t VertexStore::residentBytes(uint64_t vertices) {
+    if (vertices <= kResidentVertices) return vertices * sizeof(glm::vec3) * 2;  // vector growth: twice the size at worst
+    return (2 * kResidentVertices + kVertexBlock * (kVertexCacheBlocks + 1)) * sizeof(glm::vec3);
 }
 
 void VertexStore::clear() {

@@ -7,7 +7,8 @@
 /// blocks of kVertexBlock (4096 vertices, 48 KiB) and read back through a cache of
 /// kVertexCacheBlocks blocks (64, 3 MiB), least recently used first out. Faces of real exports
 /// refer to vertices near one another, so the cache serves them; a file whose faces jump
-/// anywhere is slower, never larger. residentBytes() is the bound: 15 MiB, whatever the file.
+/// anywhere is slower, never larger. residentBytes() is the bound: 15 MiB held, 27 MiB at most while
+/// the resident array grows (a vector doubles), whatever the file.
 
 #include <glm/vec3.hpp>
 
@@ -40,8 +41,9 @@ public:
     uint64_t size() const { return count_; }
     /// Bytes written to the scratch file so far.
     uint64_t spilledBytes() const { return spilled_; }
-    /// Heap bytes held at most, for memory plans (see the contract above).
-    static uint64_t residentBytes(uint64_t residentVertices = kResidentVertices);
+    /// @brief Heap bytes held at most for @p vertices vertices (at most the contract above), for
+    /// memory plans.
+    static uint64_t residentBytes(uint64_t vertices);
     /// Drops everything (back to empty).
     void clear();
 
