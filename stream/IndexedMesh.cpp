@@ -223,7 +223,9 @@ std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::m
         }
         // Positions go through the same float arithmetic as the blocker stream's
         // TransformedSource, so receivers and blockers of one OBJ have the same bits.
-        for (glm::vec3& p : mesh.position) p = transformPoint(transform, p);
+        // (An identity is not applied at all, as the blocker stream skips it: -0 stays -0.)
+        if (transform != glm::mat4(1.0f))
+            for (glm::vec3& p : mesh.position) p = transformPoint(transform, p);
         place(mesh, glm::dmat4(transform), path, false);
     }
     return meshes;

@@ -100,7 +100,7 @@ TEST_CASE("glb and obj at 1M and 10M triangles: flat peak RSS, budgets honoured,
     }
 }
 
-TEST_CASE("--memory-budget 256M holds for a procedural scene and a 1600x1200 camera", "[outofcore][memory]") {
+TEST_CASE("a 256M memory budget holds for a procedural scene and a 1600x1200 camera", "[outofcore][memory]") {
     ScratchDir dir("budget-256");
     constexpr double kBudget = 256.0 * (1 << 20);
     const Bake procedural = bake(dir, scene(grass(2'000'000)), "--memory-budget 256M");
