@@ -288,3 +288,12 @@ TEST_CASE("damaged instanced files and external buffers fail cleanly", "[gltf][i
     const std::string message = errorOf([&] { readAll(*source); });
     CHECK_THAT(message, Catch::Contains("ext.bin") && Catch::Contains("shorter"));
 }
+
+TEST_CASE("a data: URI buffer above the limit is refused, naming the buffer", "[gltf][robustness]") {
+    ScratchDir dir("data-uri");
+    const Json doc = {{"asset", {{"version", "2.0"}}},
+                      {"buffers", {{{"byteLength", 20'000'000}, {"uri", "data:application/octet-stream;base64,AAAA"}}}}};
+    std::ofstream(dir / "big.gltf") << doc.dump();
+    CHECK_THAT(errorOf([&] { openGltf(dir / "big.gltf"); }),
+               Catch::StartsWith(dir / "big.gltf: buffer 0: an embedded data: URI of 20000000 bytes is above the 16 MiB limit"));
+}

@@ -157,3 +157,50 @@ TEST_CASE("cull before spill: the culled fraction is never written, and the mask
     CHECK(on["counters"]["triangles_culled_at_root"] == off["counters"]["triangles_culled_at_root"]);
     CHECK(readNpy(dir / "on/masks.npy").data == readNpy(dir / "off/masks.npy").data);
 }
+
+TEST_CASE("OBJ: every truncated prefix and damaged byte fails cleanly, the same way for both readers", "[obj][robustness]") {
+    ScratchDir dir("obj-damage");
+    const std::string good = kAwkward;
+    auto check = [&](const std::string& text, const std::string& what) {
+        INFO(what);
+        std::ofstream(dir / "d.obj", std::ios::binary) << text;
+        std::string blocker = "ok", receiver = "ok";
+        try {
+            for (const Triangle& t : readAll(*openObj(dir / "d.obj"))) CHECK(isFinite(t));
+        } catch (const InputError& e) {
+            blocker = e.what();
+        }
+        try {
+            loadIndexedMeshes(dir / "d.obj", glm::mat4(1.0f));
+        } catch (const InputError& e) {
+            receiver = e.what();
+        }
+        CHECK(blocker.find('\n') == std::string::npos);
+        if (blocker != "ok") CHECK_THAT(blocker, Catch::StartsWith(dir / "d.obj"));
+        CHECK(blocker == receiver);
+    };
+    for (size_t length = 0; length < good.size(); ++length) check(good.substr(0, length), "prefix of " + std::to_string(length));
+    for (size_t i = 0; i < good.size(); ++i) {
+        std::string text = good;
+        text[i] = char(text[i] ^ 0x21);
+        check(text, "byte " + std::to_string(i) + " damaged");
+    }
+}
+
+TEST_CASE("OBJ: a full disk while spilling vertices is one clean line", "[obj][outofcore][robustness]") {
+    ScratchDir dir("obj-spill-full");
+    nlohmann::json gen = {{"geometry", {{{"type", "grass"}, {"count", 120'000}, {"area", {{40, 40}, {80, 80}}}, {"seed", 2}}}},
+                          {"lights", {{{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {1, 0, 0}}, {"v", {0, 0, 1}}}}},
+                          {"receivers", {{"type", "camera"}, {"eye", {0, 4, 5}}, {"target", {0, 0, 0}}, {"width", 16}, {"height", 12}}},
+                          {"output", "out.exr"}};
+    std::ofstream(dir / "gen.json") << gen.dump();
+    REQUIRE(runPenumbra("generate " + (dir / "gen.json") + " -q -o " + (dir / "g.obj")).exitCode == 0);  // 1.8M vertices
+    gen["geometry"] = {{{"type", "obj"}, {"path", dir / "g.obj"}}};
+    std::ofstream(dir / "bake.json") << gen.dump();
+    RunResult r = runPenumbra("bake " + (dir / "bake.json") + " -q --tmp " + dir.path.string(), "prlimit --fsize=1000000");
+    INFO(r.err);
+    CHECK(r.exitCode == 1);
+    CHECK(lineCount(r.err) == 1);
+    CHECK_THAT(r.err, Catch::Contains("cannot write the scratch file for the vertices of") && Catch::Contains("g.obj"));
+    CHECK_FALSE(std::filesystem::exists(dir / "out.exr"));
+}
