@@ -58,19 +58,19 @@ struct ObjPart {
 /// gives both the same coordinates and the same errors.
 struct ObjParser {
     std::string path;
-    std::string where;  // "path:line" of the current statement
+    ObjLocation where;  // "path:line" of the current statement
     std::vector<glm::vec3> v, vn;
     std::vector<glm::vec2> vt;
     std::vector<ObjPart> parts;
     size_t current = 0;
     std::vector<ObjCorner> face;
 
-    ObjParser(const std::string& file) : path(file) { parts.emplace_back(); }
+    ObjParser(const std::string& file) : path(file), where{path, 0} { parts.emplace_back(); }
 
     uint32_t corner(ObjPart& part, const ObjCorner& c) {
         auto [it, added] = part.corners.emplace(std::array<int64_t, 3>{c.v, c.vt, c.vn}, uint32_t(part.mesh.position.size()));
         if (added) {
-            if (part.mesh.position.size() == UINT32_MAX) fail(where, "more than 2^32 vertices in one mesh");
+            if (part.mesh.position.size() == UINT32_MAX) fail(where.text(), "more than 2^32 vertices in one mesh");
             part.mesh.position.push_back(v[size_t(c.v)]);
             part.mesh.uv0.push_back(c.vt >= 0 ? vt[size_t(c.vt)] : glm::vec2(0.0f));
             part.mesh.normal.push_back(c.vn >= 0 ? vn[size_t(c.vn)] : glm::vec3(0.0f));
@@ -118,7 +118,7 @@ std::vector<IndexedMesh> loadObjMeshes(const std::string& path, const std::vecto
     ObjParser parser(path);
     uint64_t line = 0;
     for (std::string text; std::getline(in, text);) {
-        parser.where = path + ":" + std::to_string(++line);
+        parser.where.line = ++line;
         parser.statement(text);
     }
     if (in.bad()) fail(path, "read error");

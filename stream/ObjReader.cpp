@@ -78,7 +78,9 @@ public:
     /// 1-based number of the line last returned by next().
     uint64_t lineNumber() const { return lineNumber_; }
     /// "path:line" of the line last returned, the location every message starts with.
-    std::string where() const { return path_ + ":" + std::to_string(lineNumber_); }
+    std::string where() const { return location().text(); }
+    /// The same, built only when a message needs it.
+    ObjLocation location() const { return {path_, lineNumber_}; }
 
 private:
     std::string path_;
@@ -163,18 +165,18 @@ void ObjSource::scan() {
         ObjTokens tokens(line);
         std::string_view keyword = tokens.next();
         if (keyword == "v") {
-            vertices_.push(parseObjVector(tokens, 3, "vertex", lines_.where()));
+            vertices_.push(parseObjVector(tokens, 3, "vertex", lines_.location()));
             if (++counts[0] > std::numeric_limits<uint32_t>::max()) fail(lines_.where(), "more than 2^32 vertices");
         } else if (keyword == "vt" || keyword == "vn") {
             // Not kept for blockers, but read exactly as the receiver meshes read them, so that one
             // file is good or bad for both.
-            parseObjVector(tokens, keyword == "vt" ? 2 : 3, keyword == "vt" ? "texture coordinate" : "normal", lines_.where());
+            parseObjVector(tokens, keyword == "vt" ? 2 : 3, keyword == "vt" ? "texture coordinate" : "normal", lines_.location());
             ++counts[keyword == "vt" ? 1 : 2];
         } else if (keyword == "o" || keyword == "g") {
             part = std::string(tokens.rest());
             if (std::find(seen.begin(), seen.end(), part) == seen.end()) seen.push_back(part);
         } else if (keyword == "f") {
-            parseObjFace(tokens, counts, corners, lines_.where());
+            parseObjFace(tokens, counts, corners, lines_.location());
             if (!hasFaces_) {
                 hasFaces_ = true;
                 firstFaceOffset_ = lines_.lineStart();
@@ -220,7 +222,7 @@ bool ObjSource::nextPolygon() {
             part_ = std::string(tokens.rest());
         } else if (keyword == "f" && selected(part_)) {
             this->counts(counts);  // vt and vn were checked by scan()
-            parseObjFace(tokens, counts, polygon_, lines_.where());
+            parseObjFace(tokens, counts, polygon_, lines_.location());
             nextFan_ = 1;
             return true;
         }

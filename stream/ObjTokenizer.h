@@ -22,6 +22,13 @@
 
 namespace penumbra {
 
+/// Where a statement is, for messages ("file.obj:12"), built only when one is needed.
+struct ObjLocation {
+    const std::string& path;
+    uint64_t line = 0;
+    std::string text() const { return path + ":" + std::to_string(line); }
+};
+
 /// Splits a line into whitespace-separated tokens, stopping at a '#' comment.
 class ObjTokens {
 public:
@@ -38,12 +45,12 @@ private:
 
 /// @brief Parses one coordinate. @p where ("file.obj:12") starts every message.
 /// @throw InputError "WHERE: unparsable number 'TOKEN'" or "WHERE: non-finite coordinate 'TOKEN'".
-float parseObjNumber(std::string_view token, const std::string& where);
+float parseObjNumber(std::string_view token, const ObjLocation& where);
 
 /// @brief Parses @p count coordinates from @p tokens (`v`, `vn`: 3; `vt`: 2), then checks that
 /// whatever follows is numbers too (`v x y z w`, vertex colours, `vt u v w`).
 /// @throw InputError "WHERE: KIND has N coordinates (needs COUNT)" or a number error.
-glm::vec3 parseObjVector(ObjTokens& tokens, int count, const char* kind, const std::string& where);
+glm::vec3 parseObjVector(ObjTokens& tokens, int count, const char* kind, const ObjLocation& where);
 
 /// One face corner: zero-based indices, -1 when the corner has no vt (vn).
 struct ObjCorner {
@@ -53,6 +60,6 @@ struct ObjCorner {
 /// @brief Parses the corners of an `f` statement.
 /// @param counts the v, vt and vn entries defined above the face: the ranges indices address.
 /// @throw InputError naming the corner: unparsable, index 0, out of range, fewer than 3 corners.
-void parseObjFace(ObjTokens& tokens, const uint64_t counts[3], std::vector<ObjCorner>& corners, const std::string& where);
+void parseObjFace(ObjTokens& tokens, const uint64_t counts[3], std::vector<ObjCorner>& corners, const ObjLocation& where);
 
 }  // namespace penumbra
