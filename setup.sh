@@ -9,7 +9,8 @@ mode=${1:-bake}
 packages=(build-essential cmake ninja-build ccache pkg-config
   libopenvdb-dev libboost-iostreams-dev libopenexr-dev libimath-dev libtinygltf-dev
   libglm-dev libtbb-dev catch2 libembree-dev nlohmann-json3-dev libcli11-dev
-  libfmt-dev libstb-dev)
+  libfmt-dev libstb-dev libdraco-dev libmeshoptimizer-dev gltfpack draco
+  zlib1g-dev)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -40,7 +40,8 @@ namespace {
 class CameraKind final : public ReceiverKind {
 public:
     CameraKind(const CameraDesc& camera, const CameraAntialias& aa, const SceneDesc& scene)
-        : camera_(camera), aa_(aa), smooth_(scene.smoothShading), lights_(lightDirections(scene.lights)) {
+        : camera_(camera), aa_(aa), smooth_(scene.smoothShading), lights_(lightDirections(scene.lights)),
+          lightCount_(scene.lights.size()) {
         validateCamera(camera);
     }
     uint64_t scanBytes() const override {
@@ -51,11 +52,14 @@ public:
         return uint64_t(camera_.width) * camera_.height * camera_.layers * perPixel;
     }
     uint64_t outputBytes(uint64_t receivers) const override {
-        // Nine full-frame float channels (more with per-light or deep layers), the RGB preview and
-        // stb's in-memory PNG encoding of it (filtered rows and zlib output, about twice the
-        // image), the luminance copy the exposure is sorted from, and OpenEXR's block buffers.
-        const uint64_t pixels = uint64_t(camera_.width) * camera_.height;
-        return pixels * (9 * 4 * uint64_t(camera_.layers) + 3 + 2 * 3) + receivers * 4 + (2ull << 20);
+        // Strips of rows, never the full frame (CameraOutput.h).
+        return cameraOutputBytes(camera_.width, camera_.layers, int(lightCount_), receivers);
+    }
+    uint64_t maxReceivers() const override { return uint64_t(camera_.width) * camera_.height * camera_.layers; }
+    uint64_t maxResidentBytes(uint64_t receivers, std::optional<uint64_t> triangles) const override {
+        if (!smooth_) return 0;
+        if (bend_) return bend_->plannedBytes();  // the visible triangles are known
+        return VertexBend::boundBytes(receivers, triangles.value_or(receivers), lights_.size());
     }
     void scan(std::span<const Triangle> chunk) override { raster().add(chunk); }
     ReceiverSet receivers() override {
@@ -86,6 +90,7 @@ public:
         if (smooth_) raster_->recordTriangles();
         return true;
     }
+    bool mayRefine() const override { return aa_.samples > 0; }
     uint64_t refineBytes() const override {
         return refinedPixels_ * uint64_t(aa_.samples) * (CameraRasterizer::kBytesPerPixel + (smooth_ ? 36 : 0) + 32) +
                uint64_t(camera_.width) * camera_.height * 4;
@@ -126,6 +131,7 @@ private:
     CameraAntialias aa_;
     bool smooth_;
     std::vector<LightDirection> lights_;
+    size_t lightCount_;
     std::optional<CameraRasterizer> raster_;
     std::optional<VertexBend> bend_;
     uint64_t refinedPixels_ = 0, addedReceivers_ = 0;

@@ -28,7 +28,8 @@ struct CameraRefinement {
     int subPixels = 1;
 };
 
-/// @brief Writes @p output (EXR: V, E.R/E.G/E.B, Z, N.X/N.Y/N.Z, A) and its PNG preview.
+/// @brief Writes @p output (EXR: V, E.R/E.G/E.B, Z, N.X/N.Y/N.Z, A) and its PNG preview, both in
+/// strips of 64 rows (ExrStripWriter, PngStripWriter), so no full-frame array is ever held.
 /// Pixels without a receiver have A = 0 and V = 0. A refined pixel's V and E (total and per
 /// light) are the mean over its covered sub-pixel receivers, A is the covered fraction of its
 /// sub-pixels, and Z and N stay the pixel centre's (the first covered sub-pixel's where the
@@ -38,6 +39,11 @@ struct CameraRefinement {
 void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, const LightSamples& samples,
                         const ReceiverResults& results, const std::string& output, const VertexBend* smooth = nullptr,
                         const CameraRefinement& refinement = {});
+
+/// @brief Bytes writeCameraOutputs() holds for a @p width wide image with @p layers depth layers and
+/// @p lights lights: per receiver (its pixel order) and per strip of rows, never per pixel of the
+/// whole frame.
+uint64_t cameraOutputBytes(int width, int layers, int lights, uint64_t receivers);
 
 /// @brief The irradiance a shaded preview shows for receiver @p r: the baked irradiance, or with
 /// @p smooth each light's irradiance scaled by its smooth-shading factor.

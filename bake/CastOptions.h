@@ -18,6 +18,9 @@ struct CastOptions {
     bool lazyMasks = true;     ///< D: allocate masks on demand, release them in full umbra
     bool rebuild = true;       ///< rebuild the hierarchy without umbra receivers (needs A)
     bool sortBlockers = true;  ///< process blockers largest first
+    /// The bucket pass drops blockers out of every light's reach (bake/ReachCull.h) instead of
+    /// writing them to disk for the caster to cull; masks do not change.
+    bool cullBeforeSpill = true;
     /// Sintorn et al. 2008 plane-to-bitmask tables (SampleMaskTable.h) decide most of a group's
     /// bits before the per-sample test; exact, so masks do not change. Measured faster on GRIDS
     /// and flowers: docs/performance.md, "Sample mask table".

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -39,6 +40,52 @@ struct ExrAttribute {
 ///        failure; no file is left at @p path or next to it in that case.
 void writeExr(const std::string& path, int width, int height, std::span<const ExrChannel> channels,
               std::span<const ExrAttribute> stringAttributes = {});
+
+/// @brief Writes a scanline OpenEXR (32-bit FLOAT channels, ZIP) strip by strip, top to bottom,
+/// so that no full-frame array is needed: the caller fills a few rows of every channel at a
+/// time. Same checks and messages as writeExr(), which is this writer with one strip.
+class ExrStripWriter {
+public:
+    /// @param channelNames at least one, distinct and non-empty, in the order write() takes them.
+    /// @throw InputError naming @p path as writeExr() does.
+    ExrStripWriter(const std::string& path, int width, int height, std::span<const std::string> channelNames,
+                   std::span<const ExrAttribute> stringAttributes = {});
+    ~ExrStripWriter();
+    ExrStripWriter(const ExrStripWriter&) = delete;
+    ExrStripWriter& operator=(const ExrStripWriter&) = delete;
+
+    /// @brief Writes the next @p rows rows; @p channels[c] points at rows x width floats of
+    /// channel c (in the constructor's order), row-major.
+    void write(int rows, std::span<const float* const> channels);
+    /// @brief Finishes the file and renames it into place; every row must have been written.
+    void commit();
+
+private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
+
+/// @brief Writes an 8-bit PNG strip by strip (zlib deflate as rows arrive, one IDAT chunk per
+/// 64 KiB of compressed data), so that no full-frame buffer is needed. Goes through AtomicFile.
+class PngStripWriter {
+public:
+    /// @param channels 1 = grey, 2 = grey+alpha, 3 = RGB, 4 = RGBA
+    PngStripWriter(const std::string& path, int width, int height, int channels);
+    ~PngStripWriter();
+    PngStripWriter(const PngStripWriter&) = delete;
+    PngStripWriter& operator=(const PngStripWriter&) = delete;
+
+    /// @brief Appends @p rows rows of width x channels bytes each, interleaved.
+    void write(int rows, std::span<const uint8_t> pixels);
+    /// @brief Finishes the file and renames it into place; every row must have been written.
+    void commit();
+    /// Heap bytes a writer holds (zlib's deflate state and the output buffer).
+    static uint64_t bytes(int width, int channels);
+
+private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
 
 /// @brief Writes an 8-bit PNG (1 = grey, 2 = grey+alpha, 3 = RGB, 4 = RGBA channels).
 /// @param pixels width*height*channels bytes, row-major, top row first, interleaved.

@@ -2,15 +2,18 @@
 
 #include "bake/BakeDump.h"
 #include "bake/ClosedSolids.h"
+#include "bake/BakeMemory.h"
 #include "bake/EmbreeCaster.h"
 #include "bake/MemoryPlan.h"
 #include "bake/PenumbraCaster.h"
+#include "bake/ReachCull.h"
 #include "bake/ReceiverKind.h"
 #include "bake/ReceiverShading.h"
 #include "bake/ReferenceCaster.h"
 #include "bake/SampleMaskTable.h"
 #include "bake/SunLight.h"
 #include "bucket/BucketPlan.h"
+#include "stream/AnonymousFile.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
 #include "stream/Memory.h"
@@ -37,7 +40,6 @@ struct Prepared {
     TriangleSourcePtr blockers;           ///< replayable, largest first when sorting is on
     BucketReplaySource* replay = nullptr; ///< inside `blockers` when bucketed, for I/O counters
     uint64_t triangleCount = 0;
-    uint64_t bucketBufferBytes = 0;
 };
 
 /// Rejects NaN/inf vertices as they stream by, naming the triangle's position in the stream, and
@@ -92,7 +94,8 @@ void reportOpenedSolids(const OpenedSolids& opened, const std::vector<LightDesc>
 /// histogram is built and every vertex is checked. Pass 2 streams the blockers into area buckets
 /// on disk; casting then replays the buckets, largest first, once per memory tile. So the source
 /// is read at most twice and no pass holds more than a bounded window of triangles.
-Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverKind& kind, double& streamSeconds,
+Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverKind& kind, TriangleSourcePtr geometry,
+                 const std::function<void(const Prepared&, uint64_t triangles)>& afterScan, double& streamSeconds,
                  BucketStats& buckets) {
     Prepared p;
     p.lights = scene.lights;
@@ -100,7 +103,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     p.options = scene.options;
     // Read ahead on a thread of its own, so parsing or generation overlaps with rasterizing
     // receivers (scan pass) and writing bucket files (bucket pass).
-    TriangleSourcePtr source = std::make_unique<PrefetchSource>(openSceneGeometry(scene));
+    TriangleSourcePtr source = std::make_unique<PrefetchSource>(std::move(geometry));
     AreaHistogram histogram;
     {
         ScopedTimer timer(streamSeconds);
@@ -126,6 +129,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     p.sampleSets.resize(p.receivers.size());
     for (size_t i = 0; i < p.receivers.size(); ++i) p.sampleSets[i] = uint32_t(sampleSetOf(i, p.samples.sets, scene.seed));
     p.triangleCount = histogram.count();
+    afterScan(p, p.triangleCount);  // the exact memory check, before the bucket pass writes anything
 
     source->rewind();
     if (!p.openedSolids.ordinals.empty())
@@ -146,15 +150,19 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     // A receiver kind that wants a second look at the geometry (smooth shading) gets it during
     // the bucket pass, so the source is still read only twice.
     const bool rescan = kind.wantsRescan();
+    // What cannot block is never written: the reach culls, against every receiver, once the scan
+    // has found them (refinement receivers are not known yet, so a kind that refines keeps all).
+    BlockerFilter keep;
+    if (scene.options.cullBeforeSpill && !kind.mayRefine()) keep = makeReachCull(p.samples.lightBounds, p.receivers);
     auto set = std::make_shared<BucketSet>(writeBuckets(*source, planBucketRanges(options, &histogram), options, &buckets,
                                                         [&](std::span<const Triangle> c) {
                                                             if (rescan) kind.rescan(c);
                                                             progress.update(c.size());
-                                                        }));
+                                                        },
+                                                        keep));
     progress.done();
     auto replay = std::make_unique<BucketReplaySource>(set, options.readBufferBytes);
     p.replay = replay.get();
-    p.bucketBufferBytes = options.writeMemoryBytes() + options.readBufferBytes;
     p.blockers = std::make_unique<PrefetchSource>(std::move(replay));
     return p;
 }
@@ -195,7 +203,7 @@ CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettin
     std::vector<uint32_t> ids(p.receivers.size() - first);
     for (uint32_t i = 0; i < ids.size(); ++i) ids[i] = first + i;
     const auto tiles = partitionReceivers(p.receivers, ids, plan.tiles);
-    ProgressReporter progress("cast", p.triangleCount * tiles.size(), settings.quiet);
+    ProgressReporter progress("cast", p.blockers->sizeHint().value_or(p.triangleCount) * tiles.size(), settings.quiet);
     const bool feedKind = kind.wantsCastChunks();
     std::vector<Triangle> chunk(kTriangleChunk);
     for (size_t t = 0; t < tiles.size(); ++t) {
@@ -278,39 +286,34 @@ const char* methodName(Method m) {
 
 nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     Stopwatch total;
-    const int threads = settings.threads > 0 ? settings.threads : int(tbb::info::default_concurrency());
+    int threads = settings.threads > 0 ? settings.threads : int(tbb::info::default_concurrency());
+    BakeBudget budget = fitAddressSpace(settings.memoryBudget, threads, settings.quiet);
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    tbb::global_control stacks(tbb::global_control::thread_stack_size, size_t(kWorkerStackBytes));
     const bool dump = !settings.dumpDir.empty();
+    setScratchDirectory(settings.tmpDir);  // spilled OBJ vertices go where the buckets go
 
-    // Check before any work that the scan pass fits; the receiver count is known after it, and
-    // the full plan is checked again then, before casting.
+    // Check before any work that the bake fits (BakeMemory.h): the worst case now, exactly once the
+    // scan has found the receivers.
     std::unique_ptr<ReceiverKind> kind = makeReceiverKind(scene.receivers, scene);
-    MemoryDemand demand;
-    demand.scanBytes = kind->scanBytes();
-    int samplesTotal = 0;
-    for (const LightDesc& l : scene.lights) samplesTotal += l.samples;
-    demand.groups = (samplesTotal + scene.options.groupSize - 1) / scene.options.groupSize;
-    demand.umbraWords = (demand.groups + 63) / 64;
-    demand.dumpMasks = dump;
-    planMemory(demand, settings.memoryBudget);
+    TriangleSourcePtr geometry = openSceneGeometry(scene);
+    MemoryDemand demand = demandBeforeScan(scene, *kind, *geometry, dump);
+    checkBeforeScan(demand, budget);
+    uint64_t scanMinimum = 0;  // the smallest budget that works, as the check after the scan found it
+    auto afterScan = [&](const Prepared& prepared, uint64_t triangles) {
+        demand.receivers = prepared.receivers.size();
+        demand.kindBytes = kind->maxResidentBytes(demand.receivers, triangles);
+        demand.outputBytes = kind->outputBytes(demand.receivers);
+        addSampleDemand(demand, prepared.samples, scene);
+        scanMinimum = budget.plan(demand).minimumBudget;
+    };
 
     double streamSeconds = 0;
     BucketStats buckets;
-    Prepared p = prepare(scene, settings, *kind, streamSeconds, buckets);
-    demand.receivers = p.receivers.size();
-    demand.outputBytes = kind->outputBytes(p.receivers.size());
-    demand.groups = p.samples.groupCount();
-    demand.umbraWords = (demand.groups + 63) / 64;
-    demand.sampleBytes = p.samples.positions.size() * sizeof(glm::vec3);
-    if (scene.options.sampleTable)  // one copy per caster; casters (memory tiles) run one at a time
-        for (uint32_t l = 0; l < uint32_t(p.samples.lightCount()); ++l)
-            demand.sampleBytes += SampleMaskTable::plannedBytes(p.samples, l, scene.options.sampleTableAngles,
-                                                                scene.options.sampleTableOffsets);
-    // Bucket buffers, the prefetch queue and the caster's ring of prepared chunks are fixed buffers.
-    demand.bufferBytes = p.bucketBufferBytes + 8 * kTriangleChunk * sizeof(Triangle) +
-                         PenumbraCaster::kMaxRingChunks * PenumbraCaster::preparedChunkBytes(scene.lights.size());
+    Prepared p = prepare(scene, settings, *kind, std::move(geometry), afterScan, streamSeconds, buckets);
     demand.kindBytes = kind->residentBytes();
-    MemoryPlan plan = planMemory(demand, settings.memoryBudget);
+    MemoryPlan plan = budget.plan(demand);
+    plan.minimumBudget = std::max(plan.minimumBudget, scanMinimum);
 
     ReceiverResults results;
     results.resize(p.receivers.size(), int(p.lights.size()));
@@ -357,7 +360,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     if (kind->refine(p.receivers, results)) {
         demand.kindBytes = kind->residentBytes() + kind->refineBytes();
         // The refinement's rasterizer fits, or a clear error; the stats report the largest minimum.
-        const uint64_t refineMinimum = planMemory(demand, settings.memoryBudget).minimumBudget;
+        const uint64_t refineMinimum = budget.plan(demand).minimumBudget;
         {
             ScopedTimer timer(refineSeconds);
             if (settings.method == Method::Hpc) {
@@ -377,8 +380,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         demand.receivers = p.receivers.size();
         demand.kindBytes = kind->residentBytes();
         demand.outputBytes = kind->outputBytes(p.receivers.size());
-        plan = planMemory(demand, settings.memoryBudget);
-        plan.minimumBudget = std::max(plan.minimumBudget, refineMinimum);
+        plan = budget.plan(demand);
+        plan.minimumBudget = std::max({plan.minimumBudget, refineMinimum, scanMinimum});
         castPass(uint32_t(firstPass), true);
     }
 
@@ -409,7 +412,9 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
           {"total_time_s", total.seconds()}}},
         {"counters",
          {{"triangles_read", p.triangleCount},
-          {"triangles_culled_at_root", cast.trianglesCulledAtRoot},
+          // Culled by the reach tests, whether in the bucket pass (never written) or by the caster.
+          {"triangles_culled_at_root", cast.trianglesCulledAtRoot + buckets.culledTriangles},
+          {"triangles_culled_before_spill", buckets.culledTriangles},
           {"closed_back_faces_skipped", cast.closedBackFaces},
           {"closed_solids_opened", p.openedSolids.ordinals.size()},
           {"closed_triangles_opened", p.openedSolids.triangles},
@@ -424,11 +429,13 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
           {"tiles", plan.tiles},
           {"resident_bytes", plan.residentBytes},
           {"per_receiver_bytes", plan.perReceiverBytes},
-          {"minimum_budget_bytes", plan.minimumBudget}}},
+          {"minimum_budget_bytes", plan.minimumBudget},
+          {"source_bytes", demand.sourceBytes}}},
         {"stream", {{"scan_time_s", streamSeconds}, {"triangles", p.triangleCount}}},
         {"buckets",
          {{"files", buckets.nonEmptyFiles},
           {"bytes_written", buckets.bytesWritten},
+          {"triangles_culled", buckets.culledTriangles},
           {"bytes_read", p.replay ? p.replay->bytesRead() : 0},
           {"bytes_per_triangle", buckets.bytesPerTriangle()},
           {"write_mb_per_s", buckets.megabytesPerSecond()},

@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -47,6 +48,13 @@ public:
     virtual uint64_t scanBytes() const { return 0; }
     /// Bytes held while writing outputs for @p receivers receivers, for the memory plan.
     virtual uint64_t outputBytes(uint64_t receivers) const { return 0; }
+    /// The most receivers the scan can make (a camera's pixels times layers), for the plan made
+    /// before the scan; 0 when the kind cannot tell before it has run.
+    virtual uint64_t maxReceivers() const { return 0; }
+    /// @brief The most residentBytes() can reach with @p receivers receivers over @p triangles
+    /// triangles (unknown: nullopt), for plans made before the rescan. After receivers() it may
+    /// use what the scan found.
+    virtual uint64_t maxResidentBytes(uint64_t receivers, std::optional<uint64_t> triangles) const { return 0; }
     /// Every chunk of the scene stream, in stream order, during the scan pass.
     virtual void scan(std::span<const Triangle> chunk) {}
     /// The receivers, after the scan pass. Called once.
@@ -70,6 +78,9 @@ public:
     /// refinedReceivers() returns (once) to the set and casts only those, with the same light
     /// samples and method; write() then gets both passes (OutputContext::firstPass).
     virtual bool refine(const ReceiverSet& receivers, const ReceiverResults& results) { return false; }
+    /// True when refine() may add receivers (which can lie outside the first pass's receivers, so
+    /// the bucket pass must not cull blockers by the first pass's reach).
+    virtual bool mayRefine() const { return false; }
     virtual void refineScan(std::span<const Triangle> chunk) {}
     virtual ReceiverSet refinedReceivers() { return {}; }
     /// Bytes held during refineScan(), for the memory plan (asked after refine()).

@@ -82,6 +82,7 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
     o.sampleTable = j.boolean("sample_table", o.sampleTable);
     o.closedCasters = j.boolean("closed_casters", o.closedCasters);
     o.embreeRuleFilter = j.boolean("embree_rule_filter", o.embreeRuleFilter);
+    o.cullBeforeSpill = j.boolean("cull_before_spill", o.cullBeforeSpill);
     o.sampleTableAngles = int(j.integer("sample_table_angles", o.sampleTableAngles, 4, 4096));
     o.sampleTableOffsets = int(j.integer("sample_table_offsets", o.sampleTableOffsets, 1, 4096));
     o.rebuildThreshold = j.number("rebuild_threshold", o.rebuildThreshold);
@@ -100,13 +101,26 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
 
 }  // namespace
 
+std::vector<std::string> geometryParts(const JsonParams& entry) {
+    std::vector<std::string> parts;
+    const nlohmann::json* raw = entry.raw("parts");
+    if (!raw) return parts;
+    if (!raw->is_array() || raw->empty()) fail(entry.where("parts"), "expected a non-empty array of o/g group names");
+    for (const nlohmann::json& name : *raw) {
+        if (!name.is_string()) fail(entry.where("parts"), "expected a non-empty array of o/g group names");
+        parts.push_back(name.get<std::string>());
+    }
+    return parts;
+}
+
 void registerFileSourceTypes() {
     for (const char* type : {"obj", "gltf", "glb", "ptri", "file"})
         registerSourceType(type, [](const SourceRequest& r) {
             JsonParams j(r.params, r.file, r.path);
             std::string path = resolveScenePath(r.baseDir, j.string("path"));
+            const std::vector<std::string> parts = geometryParts(j);
             j.finish();
-            return openGeometryFile(path);
+            return openGeometryFile(path, parts);
         });
 }
 

@@ -5,6 +5,7 @@
 
 #include "bake/CastOptions.h"
 #include "bake/Light.h"
+#include "stream/JsonParams.h"
 #include "stream/Transform.h"
 #include "stream/TriangleSource.h"
 
@@ -54,6 +55,10 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file);
 
 /// @brief Opens every geometry entry as one stream, in scene order, with transforms applied.
 TriangleSourcePtr openSceneGeometry(const SceneDesc& scene);
+
+/// @brief The "parts" of a geometry entry: the OBJ o/g groups it takes (empty: the whole file).
+/// @throw InputError naming the key when it is not a non-empty array of strings.
+std::vector<std::string> geometryParts(const JsonParams& entry);
 
 /// @brief Registers the file-backed geometry types: obj, gltf, glb, ptri and "file" (by extension).
 void registerFileSourceTypes();

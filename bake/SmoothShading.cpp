@@ -182,6 +182,22 @@ double VertexBend::factor(size_t r, const glm::dvec3& position, const glm::dvec3
     return smoothShadingFactor(lf, bend);
 }
 
+uint64_t VertexBend::boundBytes(uint64_t receivers, uint64_t triangles, size_t lights) {
+    // Per receiver: its corner slots (12), its triangle id and place in the id order while they
+    // are recovered (12). Per slot, at most three per distinct triangle: a hash-map node and its
+    // bucket (48), next/vertex/owner/sign/bend (32 + 4 per light, twice for vector growth) and
+    // 16 filter bits, with the filter's 8 KiB floor.
+    const uint64_t slots = 3 * std::min(receivers, triangles);
+    return receivers * 24 + slots * (48 + 2 * (32 + 4 * uint64_t(lights)) + 2) + (8u << 10);
+}
+
+uint64_t VertexBend::plannedBytes() const {
+    const uint64_t mask = ~CameraRasterizer::kFlippedBit;
+    uint64_t distinct = 0;
+    for (size_t i = 0; i < order_.size(); ++i) distinct += i == 0 || (ids_[order_[i]] & mask) != (ids_[order_[i - 1]] & mask);
+    return boundBytes(corners_.size(), distinct, lights_.size());
+}
+
 uint64_t VertexBend::bytes() const {
     // An unordered_map node is the key and value plus a next pointer and the cached hash, and
     // each node has a bucket pointer.

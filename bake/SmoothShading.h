@@ -81,6 +81,12 @@ public:
     double factor(size_t r, const glm::dvec3& position, const glm::dvec3& normal, int light) const;
     /// Bytes held (for the memory plan and stats).
     uint64_t bytes() const;
+    /// @brief The most bytes() can reach for @p receivers receivers whose visible triangles are
+    /// among @p triangles distinct ones (each gives at most three vertex slots), with @p lights
+    /// lights, for memory plans made before the table is filled.
+    static uint64_t boundBytes(uint64_t receivers, uint64_t triangles, size_t lights);
+    /// @brief boundBytes() with the distinct triangles expectTriangleIds() named (call after it).
+    uint64_t plannedBytes() const;
     /// Vertex slots (distinct visible vertices, once per distinct owner face normal).
     size_t vertices() const { return vertex_.size(); }
 

@@ -5,7 +5,10 @@
 #include "bake/Scene.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
-#include "stream/GltfModel.h"
+#include "stream/GltfBytes.h"
+#include "stream/GltfDocument.h"
+#include "stream/GltfPrimitive.h"
+#include "stream/TinyGltfLoad.h"
 
 #include <tiny_gltf.h>
 
@@ -34,7 +37,7 @@ struct VertexFile {
     size_t entry = 0;  ///< index into the scene's geometry list
     std::string input, output, where;
     glm::dmat4 sceneMatrix{1.0};
-    tinygltf::Model model;
+    uint64_t fileBytes = 0;
     std::vector<PrimitiveRange> primitives;
 };
 
@@ -44,62 +47,12 @@ std::string lowerExtension(const std::string& path) {
     return ext;
 }
 
-/// Corner indices (into the vertex list) of triangle t of a primitive drawn in @p mode.
-void corners(int mode, uint64_t t, uint64_t c[3]) {
-    if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) c[0] = t, c[1] = t + 1 + t % 2, c[2] = t + 2 - t % 2;
-    else if (mode == TINYGLTF_MODE_TRIANGLE_FAN) c[0] = t + 1, c[1] = t + 2, c[2] = 0;
-    else c[0] = 3 * t, c[1] = 3 * t + 1, c[2] = 3 * t + 2;
-}
-
-/// Adds receivers for one primitive placed by @p world. Positions are read through the shared
-/// validated accessor views; the checks here are the ones specific to reading vertex attributes.
-void addPrimitive(VertexFile& file, const std::vector<GltfAccessorView>& accessors, int m, int p,
-                  const glm::dmat4& world, ReceiverSet& out) {
-    const tinygltf::Primitive& prim = file.model.meshes[size_t(m)].primitives[size_t(p)];
-    const std::string where = fmt::format("{}: mesh {} primitive {}", file.input, m, p);
-    const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
-    if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN)
-        return;  // points and lines carry no surface to shade
-    auto attribute = [&](const char* name) -> const GltfAccessorView* {
-        auto it = prim.attributes.find(name);
-        if (it == prim.attributes.end()) return nullptr;
-        if (it->second < 0 || size_t(it->second) >= accessors.size())
-            fail(where, "attribute {} refers to accessor {} (file has {})", name, it->second, accessors.size());
-        const GltfAccessorView& v = accessors[size_t(it->second)];
-        if (v.components != 3 || v.sparse || (!v.data && v.count > 0) ||
-            v.componentType == TINYGLTF_COMPONENT_TYPE_INT || v.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
-            fail(where, "attribute {} (accessor {}) must be a dense VEC3 of floats or quantized integers", name,
-                 it->second);
-        return &v;
-    };
-    const GltfAccessorView* positions = attribute("POSITION");
-    if (!positions) return;  // not rendered, per the spec
-    const GltfAccessorView* normals = attribute("NORMAL");
-    const size_t n = positions->count;
-    if (normals && normals->count != n)
-        fail(where, "NORMAL has {} elements but POSITION has {}", normals->count, n);
-
-    // The vertex sequence in drawing order, checked against the vertex count.
-    std::vector<uint32_t> sequence;
-    if (prim.indices >= 0) {
-        if (size_t(prim.indices) >= accessors.size())
-            fail(where, "indices refer to accessor {} (file has {})", prim.indices, accessors.size());
-        const GltfAccessorView& iv = accessors[size_t(prim.indices)];
-        if (iv.components != 1 || iv.sparse ||
-            (iv.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
-             iv.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
-             iv.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT))
-            fail(where, "indices accessor {} must be a dense SCALAR of unsigned integers", prim.indices);
-        sequence.resize(iv.count);
-        for (size_t i = 0; i < iv.count; ++i) {
-            sequence[i] = readGltfIndex(iv, i);
-            if (sequence[i] >= n) fail(where, "index {} at element {} is past the {} vertices", sequence[i], i, n);
-        }
-    } else {
-        sequence.resize(n);
-        for (size_t i = 0; i < n; ++i) sequence[i] = uint32_t(i);
-    }
-
+/// Adds receivers for one primitive placed by @p world, read through the shared glTF walker
+/// (GltfPrimitive.h), which does every check of positions, normals and indices.
+void addPrimitive(VertexFile& file, GltfPrimitiveReader& reader, const glm::dmat4& world, ReceiverSet& out) {
+    const GltfPrimitiveLayout& layout = reader.layout();
+    const size_t n = size_t(layout.vertices);
+    const bool normals = reader.has("NORMAL");
     const glm::dmat3 linear(world);
     const glm::dmat3 normalMatrix = glm::transpose(glm::inverse(linear));
     const bool mirrored = glm::determinant(linear) < 0;
@@ -107,12 +60,12 @@ void addPrimitive(VertexFile& file, const std::vector<GltfAccessorView>& accesso
     out.position.resize(first + n);
     out.normal.resize(first + n, glm::vec3(0.f));
     for (size_t v = 0; v < n; ++v) {
-        glm::dvec3 x = world * glm::dvec4(glm::dvec3(readGltfElement(*positions, v)), 1.0);
+        glm::dvec3 x = world * glm::dvec4(glm::dvec3(reader.position(v)), 1.0);
         if (!std::isfinite(x.x) || !std::isfinite(x.y) || !std::isfinite(x.z))
-            fail(where, "vertex {} is not finite after its transforms", v);
+            fail(file.input, "mesh {} primitive {}: vertex {} is not finite after its transforms", layout.mesh, layout.primitive, v);
         out.position[first + v] = glm::vec3(x);
         if (normals) {
-            glm::dvec3 nn = normalMatrix * glm::dvec3(readGltfElement(*normals, v));
+            glm::dvec3 nn = normalMatrix * glm::dvec3(glm::vec3(reader.attribute("NORMAL", 3, v)));
             double len = glm::length(nn);
             // A zero normal means "no receiver cosine" (ReceiverShading), the honest fallback.
             if (len > 0 && std::isfinite(len)) out.normal[first + v] = glm::vec3(nn / len);
@@ -121,24 +74,19 @@ void addPrimitive(VertexFile& file, const std::vector<GltfAccessorView>& accesso
     if (!normals) {
         // Area-weighted face normals: the unnormalized cross product is twice the area.
         std::vector<glm::dvec3> sum(n, glm::dvec3(0.0));
-        const uint64_t triangles = mode == TINYGLTF_MODE_TRIANGLES ? sequence.size() / 3
-                                   : sequence.size() >= 3          ? sequence.size() - 2
-                                                                   : 0;
-        for (uint64_t t = 0; t < triangles; ++t) {
-            uint64_t c[3];
-            corners(mode, t, c);
-            const uint32_t a = sequence[c[0]], b = sequence[c[1]], d = sequence[c[2]];
-            glm::dvec3 pa(out.position[first + a]), pb(out.position[first + b]), pd(out.position[first + d]);
+        for (uint64_t t = 0; t < layout.triangles; ++t) {
+            const std::array<uint32_t, 3> c = reader.triangle(t);
+            glm::dvec3 pa(out.position[first + c[0]]), pb(out.position[first + c[1]]), pd(out.position[first + c[2]]);
             // World-space winding of a mirrored node is reversed; its front face is not.
             glm::dvec3 face = glm::cross(pb - pa, pd - pa) * (mirrored ? -1.0 : 1.0);
-            sum[a] += face, sum[b] += face, sum[d] += face;
+            sum[c[0]] += face, sum[c[1]] += face, sum[c[2]] += face;
         }
         for (size_t v = 0; v < n; ++v) {
             double len = glm::length(sum[v]);
             if (len > 0 && std::isfinite(len)) out.normal[first + v] = glm::vec3(sum[v] / len);
         }
     }
-    file.primitives.push_back({m, p, first, n});
+    file.primitives.push_back({layout.mesh, layout.primitive, first, n});
 }
 
 /// Appends float @p values as a vertex attribute accessor; returns its index.
@@ -153,7 +101,8 @@ bool keepImageUri(const std::string*, const std::string*, const tinygltf::Image*
 
 /// Writes the copy with the results of receivers [0, n) of each primitive range.
 void writeCopy(VertexFile& file, const ReceiverResults& results) {
-    tinygltf::Model& model = file.model;
+    tinygltf::Model model;
+    loadTinyGltf(file.input, model);
     for (const PrimitiveRange& r : file.primitives) {
         std::vector<float> v(results.visibility.begin() + long(r.first), results.visibility.begin() + long(r.first + r.count));
         std::vector<float> e, colour;
@@ -195,26 +144,42 @@ public:
     ReceiverSet receivers() override {
         ReceiverSet set;
         for (VertexFile& file : files_) {
-            loadGltfModel(file.input, file.model);
-            const std::vector<GltfAccessorView> accessors = checkGltfAccessors(file.input, file.model);
-            const std::vector<GltfMeshNode> nodes = walkGltfScene(file.input, file.model);
+            const GltfDocument doc = loadGltfDocument(file.input);
+            GltfBytes bytes(doc, UINT64_MAX);
+            const std::vector<GltfMeshNode> nodes = walkGltfScene(doc);
             // A vertex attribute holds one value per vertex, so a mesh drawn by two nodes (two
             // different shadows) cannot be written back; say so instead of picking one.
             std::map<int, int> drawnBy;
-            for (const GltfMeshNode& node : nodes)
+            for (const GltfMeshNode& node : nodes) {
                 if (auto [it, fresh] = drawnBy.emplace(node.mesh, node.node); !fresh)
                     fail(file.input, "mesh {} is drawn by nodes {} and {}; vertex results need one placement per mesh",
                          node.mesh, it->second, node.node);
-            for (const GltfMeshNode& node : nodes) {
-                if (node.mesh < 0 || size_t(node.mesh) >= file.model.meshes.size())
-                    fail(file.input, "node {} refers to mesh {} (file has {})", node.node, node.mesh,
-                         file.model.meshes.size());
-                const glm::dmat4 world = file.sceneMatrix * node.world;
-                for (size_t p = 0; p < file.model.meshes[size_t(node.mesh)].primitives.size(); ++p)
-                    addPrimitive(file, accessors, node.mesh, int(p), world, set);
+                if (doc.nodes[size_t(node.node)].instanced())
+                    fail(file.input, "node {} uses EXT_mesh_gpu_instancing; vertex results need one placement per mesh", node.node);
             }
+            for (const GltfMeshNode& node : nodes) {
+                const glm::dmat4 world = file.sceneMatrix * node.world;
+                for (size_t p = 0; p < doc.meshes[size_t(node.mesh)].primitives.size(); ++p) {
+                    const auto layout = gltfTrianglePrimitive(doc, node.mesh, int(p));
+                    if (!layout) continue;  // points and lines carry no surface to shade
+                    if (layout->draco || layout->decodeBytes > 0)
+                        fail(layout->where(doc), "is compressed; vertex results can only be written into an uncompressed "
+                             "glTF (decompress it with gltfpack -noq, or bake a lightmap)");
+                    GltfPrimitiveReader reader(doc, bytes, *layout);
+                    addPrimitive(file, reader, world, set);
+                }
+            }
+            file.fileBytes = std::filesystem::file_size(file.input);
         }
         return set;
+    }
+
+    uint64_t outputBytes(uint64_t receivers) const override {
+        // The copy is built in memory: the model with every buffer (tinygltf), the appended
+        // accessors (28 bytes per vertex), and the serialized file, about the input again.
+        uint64_t bytes = receivers * 28 * 2;
+        for (const VertexFile& file : files_) bytes = std::max(bytes, 3 * file.fileBytes + receivers * 56);
+        return bytes;
     }
 
     void write(const OutputContext& c) override {

@@ -133,9 +133,10 @@ void writeGltf(TriangleSource& in, const std::string& outPath, bool binary) {
 
 }  // namespace
 
-TriangleSourcePtr openGeometryFile(const std::string& path) {
+TriangleSourcePtr openGeometryFile(const std::string& path, const std::vector<std::string>& parts) {
     std::string ext = lowercaseExtension(path);
-    if (ext == ".obj") return openObj(path);
+    if (ext == ".obj") return openObj(path, parts);
+    if (!parts.empty()) fail(path, "\"parts\" selects o/g groups of OBJ files only");
     if (ext == ".gltf" || ext == ".glb") return openGltf(path);
     if (ext == ".ptri") return openPtri(path);
     fail(path, "unknown geometry file extension '{}' (expected .obj, .gltf, .glb or .ptri)", ext);

@@ -9,13 +9,15 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace penumbra {
 
 /// @brief Opens a geometry file, choosing the reader by extension (case-insensitive):
 /// .obj (ObjReader.h), .gltf / .glb (GltfReader.h), .ptri (PtriFormat.h).
+/// @param parts OBJ o/g groups to read (empty: all); an error for other formats.
 /// @throw InputError naming @p path for an unknown extension, or whatever the reader throws.
-TriangleSourcePtr openGeometryFile(const std::string& path);
+TriangleSourcePtr openGeometryFile(const std::string& path, const std::vector<std::string>& parts = {});
 
 /// What a pass over a source found.
 struct GeometryInfo {

@@ -37,12 +37,13 @@ void disableOptimizations(CastOptions& o, const std::vector<std::string>& names)
         else if (name == "sort") o.sortBlockers = false;
         else if (name == "sample-table") o.sampleTable = false;
         else if (name == "closed-casters") o.closedCasters = false;
+        else if (name == "cull-before-spill") o.cullBeforeSpill = false;
         else if (name == "all")
             o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = o.sampleTable =
-                o.closedCasters = false;
+                o.closedCasters = o.cullBeforeSpill = false;
         else
             throw InputError("--disable: unknown optimization \"" + name +
-                             "\" (known: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, closed-casters, all)");
+                             "\" (known: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, closed-casters, cull-before-spill, all)");
     }
 }
 
@@ -71,7 +72,8 @@ int main(int argc, char** argv) {
     bake->add_option("--stats", statsPath, "write JSON stats to this file");
     bake->add_option("--dump", dumpDir, "write receivers.npy, samples.npy, masks.npy and rule.json to this directory");
     bake->add_option("--disable", disabled,
-                     "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, closed-casters, all")
+                     "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, closed-casters, "
+                     "cull-before-spill, all")
         ->delimiter(',');
     bake->add_flag("-q,--quiet", quiet, "no progress on stderr");
     std::string simd;
