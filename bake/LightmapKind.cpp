@@ -329,7 +329,10 @@ std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneD
         if (!entry.is_number_integer()) fail(j.where(key), "expected a geometry index, got {}", entry.dump());
         const int64_t index = entry.get<int64_t>();
         const std::string file = meshFile(j, scene, slot, index);
-        std::vector<IndexedMesh> loaded = loadIndexedMeshes(file, scene.geometry[size_t(index)].transform.matrix());
+        const GeometryDesc& geometry = scene.geometry[size_t(index)];
+        // The entry's OBJ "parts" pick its o/g groups here too: one lightmap mesh per group.
+        const std::vector<std::string> parts = geometryParts(JsonParams(geometry.params, scene.file, geometry.path));
+        std::vector<IndexedMesh> loaded = loadIndexedMeshes(file, geometry.transform.matrix(), parts);
         if (loaded.empty()) fail(j.where(key), "{} has no triangle meshes", file);
         for (size_t m = 0; m < loaded.size(); ++m) {
             Lightmap map;

@@ -178,3 +178,23 @@ TEST_CASE("lightmap atlas: charts that cannot fit are an error naming the key", 
     CHECK(lineCount(r.err) == 1);
     CHECK(dir.find("lightmap").empty());
 }
+
+TEST_CASE("lightmap: an OBJ entry's parts pick the o/g groups that get lightmaps", "[lightmap][cli]") {
+    ScratchDir dir("atlas-parts");
+    writeText(dir / "quad.obj", kQuadObj);
+    // Two groups: the box and a second, separate box above it.
+    std::string two = "o lower\n" + std::string(kBoxObj) + "o upper\n";
+    two += "v 0 2 0\nv 1 2 0\nv 1 3 0\nv 0 3 0\nv 0 2 1\nv 1 2 1\nv 1 3 1\nv 0 3 1\n"
+           "f 9 12 11 10\nf 13 14 15 16\nf 9 10 14 13\nf 12 16 15 11\nf 9 13 16 12\nf 10 11 15 14\n";
+    writeText(dir / "box.obj", two);
+    std::string scene = sceneJson(R"({"type": "lightmap", "meshes": [1], "resolution": 64, "padding": 2})");
+    const std::string entry = R"("path": "box.obj",)";
+    scene.replace(scene.find(entry), entry.size(), entry + R"( "parts": ["upper"],)");
+    writeText(dir / "scene.json", scene);
+    bake(dir, "--stats " + (dir / "stats.json"));
+    const nlohmann::json stats = nlohmann::json::parse(slurp(dir / "stats.json"));
+    std::vector<IndexedMesh> meshes = loadIndexedMeshes(dir / "out/lightmap-uv1.glb", glm::mat4(1.f));
+    REQUIRE(meshes.size() == 1);  // only the group the entry names
+    CHECK(meshes[0].name == "upper");
+    CHECK(stats["lightmap"]["atlas"]["charts"] == 6);
+}
