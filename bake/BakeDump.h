@@ -13,9 +13,9 @@
 /// Receivers and masks are read a block of rows at a time, so dumps of millions of receivers are
 /// compared in a few MB.
 
-#include "bake/BlockingRule.h"
-#include "bake/Light.h"
-#include "bake/VisibilityMasks.h"
+#include "bake/rule/BlockingRule.h"
+#include "bake/light/Light.h"
+#include "bake/cast/VisibilityMasks.h"
 #include "receivers/ReceiverSet.h"
 #include "stream/Npy.h"
 

@@ -1,8 +1,8 @@
 #include "bake/BakeMemory.h"
 
-#include "bake/PenumbraCaster.h"
-#include "bake/SampleMaskTable.h"
-#include "bake/SunLight.h"
+#include "bake/cast/PenumbraCaster.h"
+#include "bake/cast/SampleMaskTable.h"
+#include "bake/light/SunLight.h"
 #include "bucket/BucketOptions.h"
 #include "stream/Error.h"
 #include "stream/Memory.h"

@@ -3,7 +3,7 @@
 /// @brief What a camera bake writes: a multi-channel OpenEXR and a shaded PNG preview.
 
 #include "bake/ImageWriters.h"
-#include "bake/Light.h"
+#include "bake/light/Light.h"
 #include "bake/Scene.h"
 #include "bake/ReceiverShading.h"
 #include "bake/SmoothShading.h"

@@ -9,7 +9,7 @@
 /// them, (4) lets it refine: ask for more receivers after seeing the first results (camera
 /// antialiasing), casting only those, and (5) hands it the per-receiver results to write.
 
-#include "bake/Light.h"
+#include "bake/light/Light.h"
 #include "bake/ReceiverShading.h"
 #include "receivers/ReceiverSet.h"
 #include "stream/JsonParams.h"

@@ -4,7 +4,7 @@
 /// and the irradiance (Heckbert & Herf 1997, Eq. 2). Done as each receiver's result becomes final,
 /// so a bake never has to hold every receiver's mask at once.
 
-#include "bake/Light.h"
+#include "bake/light/Light.h"
 #include "receivers/ReceiverSet.h"
 
 #include <glm/vec3.hpp>

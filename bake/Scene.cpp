@@ -2,7 +2,7 @@
 
 #include "bake/ReceiverKind.h"
 #include "bake/ReceiverShading.h"
-#include "bake/SunLight.h"
+#include "bake/light/SunLight.h"
 #include "stream/Error.h"
 #include "stream/GeometryFile.h"
 #include "stream/JsonParams.h"

@@ -3,8 +3,8 @@
 /// @brief The scene file (JSON): geometry, lights, receivers, output and bake options.
 /// docs/scene-format.md is the reference for every key.
 
-#include "bake/CastOptions.h"
-#include "bake/Light.h"
+#include "bake/cast/CastOptions.h"
+#include "bake/light/Light.h"
 #include "stream/JsonParams.h"
 #include "stream/Transform.h"
 #include "stream/TriangleSource.h"

@@ -20,7 +20,7 @@
 /// oriented like the visible triangle that owns the vertex (its winding sign relative to the
 /// camera-facing normal), so meshes must be consistently wound for exact results.
 
-#include "bake/Light.h"
+#include "bake/light/Light.h"
 
 #include <glm/vec3.hpp>
 

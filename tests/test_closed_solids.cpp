@@ -4,7 +4,7 @@
 #include "CliRunner.h"
 #include "TestSupport.h"
 
-#include "bake/ClosedSolids.h"
+#include "bake/cast/ClosedSolids.h"
 #include "stream/Npy.h"
 
 #include <catch2/catch.hpp>

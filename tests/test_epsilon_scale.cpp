@@ -7,7 +7,7 @@
 #include "TestSupport.h"
 
 #include "bake/BakeDump.h"
-#include "bake/TieClassifier.h"
+#include "bake/rule/TieClassifier.h"
 #include "stream/Npy.h"
 #include "stream/ObjReader.h"
 

@@ -5,7 +5,7 @@
 #include "LightmapTestMeshes.h"
 
 #include "bake/ImageWriters.h"
-#include "bake/Light.h"
+#include "bake/light/Light.h"
 #include "bake/ReceiverKind.h"
 #include "bake/ReceiverShading.h"
 #include "bake/Scene.h"
