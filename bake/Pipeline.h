@@ -11,15 +11,9 @@
 
 namespace penumbra {
 
-enum class Method { Hpc, Reference, Embree };
-
-/// @brief Parses "hpc", "reference" or "embree". @throw InputError otherwise.
-Method parseMethod(const std::string& name);
-const char* methodName(Method method);
-
 /// @brief How to run a bake (the CLI's flags); the scene says what to bake.
 struct BakeSettings {
-    Method method = Method::Hpc;
+    std::string method = "hpc";  ///< a registered method (bake/cast/Caster.h: casterNames())
     int threads = 0;          ///< 0: all cores
     std::string statsPath;    ///< JSON stats, optional
     std::string dumpDir;      ///< receivers.npy, samples.npy, masks.npy, optional

@@ -158,7 +158,10 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
     scene.receivers = *receivers;
 
     scene.output = resolveScenePath(scene.baseDir, j.string("output", scene.output));
-    if (const nlohmann::json* bake = j.raw("bake")) parseOptions(JsonParams(*bake, file, "bake"), scene);
+    if (const nlohmann::json* bake = j.raw("bake")) {
+        scene.bakeOptions = *bake;
+        parseOptions(JsonParams(*bake, file, "bake"), scene);
+    }
     j.finish();
     makeReceiverKind(scene.receivers, scene);  // validates the receivers now; the bake makes its own
     return scene;

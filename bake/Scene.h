@@ -39,6 +39,8 @@ struct SceneDesc {
     nlohmann::json receivers;  ///< the "receivers" object; ReceiverKind.h makes the kind from it
     std::string output = "out/shadows.exr";
     CastOptions options;
+    /// The scene's "bake" object as written, for the keys a method reads itself (Caster.h).
+    nlohmann::json bakeOptions = nlohmann::json::object();
     uint64_t seed = 1;
     /// bake.smooth_shading: smooth coherent shading in the camera's PNG preview (the EXR keeps the
     /// plain irradiance). On by default: it costs 8 bytes per pixel during the scan (the visible

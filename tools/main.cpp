@@ -7,6 +7,7 @@
 #include "TableBench.h"
 
 #include "bake/Pipeline.h"
+#include "bake/cast/Caster.h"
 #include "bake/Scene.h"
 #include "bake/VolumeKind.h"
 #include "procedural/Generators.h"
@@ -67,7 +68,9 @@ int main(int argc, char** argv) {
     CLI::App* bake = app.add_subcommand("bake", "bake soft shadows for a scene file");
     bake->add_option("scene", scenePath, "scene file (JSON)")->required();
     bake->add_option("-o,--output", output, "output file (overrides the scene's \"output\")");
-    bake->add_option("--method", method, "hpc (default), reference or embree");
+    std::string methods;
+    for (const std::string& name : casterNames()) methods += (methods.empty() ? "" : ", ") + name;
+    bake->add_option("--method", method, "shadow method: " + methods + " (default hpc)");
     bake->add_option("--threads", threads, "worker threads (default: all cores)");
     bake->add_option("--stats", statsPath, "write JSON stats to this file");
     bake->add_option("--dump", dumpDir, "write receivers.npy, samples.npy, masks.npy and rule.json to this directory");
@@ -147,7 +150,7 @@ int main(int argc, char** argv) {
             if (!closedCasters.empty()) scene.options.closedCasters = closedCasters == "on";
             if (!embreeFilter.empty()) scene.options.embreeRuleFilter = embreeFilter == "on";
             BakeSettings settings;
-            settings.method = parseMethod(method);
+            settings.method = casterEntry(method).name;
             if (threads < 0) throw InputError(fmt::format("--threads: must not be negative, got {}", threads));
             settings.threads = threads;
             settings.statsPath = statsPath;

@@ -70,4 +70,8 @@ struct CastStats {
     uint64_t sampleTableBytes = 0;       ///< memory of the sample mask tables
 };
 
+/// @brief Adds the stats of one more tile or cast pass to @p total. Tiles and passes run one
+/// after another, so peaks are the largest one's, not the sum.
+void addSequential(CastStats& total, const CastStats& s);
+
 }  // namespace penumbra

@@ -1,6 +1,7 @@
 #include "bake/peers/ReferenceCaster.h"
 
 #include "bake/rule/BlockingRule.h"
+#include "bake/cast/SceneCaster.h"
 
 #include <tbb/parallel_for.h>
 
@@ -40,4 +41,25 @@ VisibilityMasks castReference(const LightSamples& samples, const ReceiverSet& re
     return masks;
 }
 
+}  // namespace penumbra
+
+namespace penumbra {
+namespace {
+
+const CasterRegistration kReference{{"reference",
+                                     {.holdsScene = true, .summary = "every segment against every triangle: a correctness oracle, slow"},
+                                     [](const CastContext& c) {
+                                         return std::make_unique<SceneCaster>(
+                                             c, "reference",
+                                             [eps = receiverEpsilonOf(c.options), &samples = c.samples](const ReceiverSet& targets, std::span<const uint32_t> sets,
+                                                                                       std::span<const Triangle> all, const auto& progress) {
+                                                 return castReference(samples, targets, sets, all, eps, progress);
+                                             });
+                                     },
+                                     [](uint64_t triangles, const LightSamples&, const nlohmann::json&) {
+                                         return triangles * (sizeof(Triangle) + sizeof(BlockerTriangle));
+                                     },
+                                     nullptr}};
+
+}  // namespace
 }  // namespace penumbra
