@@ -10,6 +10,7 @@
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
 #include "stream/Npy.h"
+#include "stream/SafePath.h"
 
 #include <fmt/ranges.h>
 
@@ -43,9 +44,8 @@ private:
 
 }  // namespace
 
-std::string resolveScenePath(const std::filesystem::path& base, const std::string& p) {
-    std::filesystem::path path(p);
-    return (path.is_absolute() ? path : base / path).lexically_normal().string();
+std::string resolveScenePath(const std::filesystem::path& base, const std::string& p, const std::string& where) {
+    return containedPath(base, p, where.empty() ? p : where);
 }
 
 void registerReceiverKind(const std::string& type, ReceiverKindFactory factory) {
@@ -58,7 +58,7 @@ void registerBuiltinReceiverKinds() {
     std::call_once(once, [] {
         registerReceiverKind("camera", makeCameraKind);
         registerReceiverKind("points", [](const JsonParams& j, const SceneDesc& scene) {
-            return std::make_unique<PointsKind>(resolveScenePath(scene.baseDir, j.string("path")));
+            return std::make_unique<PointsKind>(resolveScenePath(scene.baseDir, j.string("path"), j.where("path")));
         });
         registerVertexColorKind();
         registerVolumeKind();

@@ -95,7 +95,9 @@ std::unique_ptr<ReceiverKind> makeReceiverKind(const nlohmann::json& receivers, 
 /// makeReceiverKind itself, so only other stages' kinds need registering explicitly.
 void registerBuiltinReceiverKinds();
 
-/// A path from a scene file resolved against the scene's folder.
-std::string resolveScenePath(const std::filesystem::path& baseDir, const std::string& path);
+/// @brief A path from a scene file resolved against the scene's folder, which it must not leave
+/// (SafePath.h; `--allow-outside-uris` lifts the rule). @p where names the key in messages.
+/// @throw InputError naming @p where (or the path) when the path leaves the folder.
+std::string resolveScenePath(const std::filesystem::path& baseDir, const std::string& path, const std::string& where = "");
 
 }  // namespace penumbra

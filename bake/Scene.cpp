@@ -92,7 +92,7 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
     o.epsilon = j.number("epsilon", o.epsilon);
     if (!(o.epsilon >= 0)) fail(j.where("epsilon"), "must not be negative, got {}", o.epsilon);
     if (j.has("simd")) o.simd = parseSimdLevel(j.string("simd"), j.where("simd"));
-    scene.seed = uint64_t(j.integer("seed", int64_t(scene.seed), 0, INT64_MAX));
+    scene.seed = j.seed("seed", scene.seed);
     scene.smoothShading = j.boolean("smooth_shading", scene.smoothShading);
     j.finish();
 }
@@ -101,11 +101,20 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
 
 void registerFileSourceTypes() {
     for (const char* type : {"obj", "gltf", "glb", "ptri", "file"})
-        registerSourceType(type, [](const SourceRequest& r) {
+        registerSourceType(type, [type = std::string(type)](const SourceRequest& r) {
             JsonParams j(r.params, r.file, r.path);
-            std::string path = resolveScenePath(r.baseDir, j.string("path"));
+            std::string path = resolveScenePath(r.baseDir, j.string("path"), j.where("path"));
             j.finish();
-            return openGeometryFile(path);
+            if (type == "file") return openGeometryFile(path);
+            // The entry's type decides the reader; an extension that names another format is a
+            // mistake worth stopping for, not a hint to follow.
+            const GeometryFormat format = type == "obj" ? GeometryFormat::Obj
+                                          : type == "ptri" ? GeometryFormat::Ptri
+                                                           : GeometryFormat::Gltf;
+            if (std::optional<GeometryFormat> named = geometryFormatOf(path); named && *named != format)
+                fail(r.where() + ".type", "\"{}\" does not match the file {} (use the type of its format, or \"file\")",
+                     type, path);
+            return openGeometryFile(path, format);
         });
 }
 
@@ -142,11 +151,18 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
     if (!receivers) fail(j.where("receivers"), "missing required field");
     scene.receivers = *receivers;
 
-    scene.output = resolveScenePath(scene.baseDir, j.string("output", scene.output));
+    // Resolved now, checked against the scene's directory only by a bake that writes it (-o
+    // replaces it): checkSceneOutput().
+    scene.output = (scene.baseDir / j.string("output", scene.output)).lexically_normal().string();
     if (const nlohmann::json* bake = j.raw("bake")) parseOptions(JsonParams(*bake, file, "bake"), scene);
     j.finish();
     makeReceiverKind(scene.receivers, scene);  // validates the receivers now; the bake makes its own
     return scene;
+}
+
+void checkSceneOutput(const SceneDesc& scene) {
+    if (!scene.outputFromScene) return;
+    resolveScenePath(scene.baseDir, std::filesystem::absolute(scene.output).string(), scene.file + ": output");
 }
 
 SceneDesc loadScene(const std::string& path) { return parseScene(readJsonFile(path), path); }

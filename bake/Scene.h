@@ -37,6 +37,8 @@ struct SceneDesc {
     std::vector<LightDesc> lights;
     nlohmann::json receivers;  ///< the "receivers" object; ReceiverKind.h makes the kind from it
     std::string output = "out/shadows.exr";
+    /// True while `output` is the scene's own (not -o), which must stay in the scene's directory.
+    bool outputFromScene = true;
     CastOptions options;
     uint64_t seed = 1;
     /// bake.smooth_shading: smooth coherent shading in the camera's PNG preview (the EXR keeps the
@@ -51,6 +53,11 @@ struct SceneDesc {
 SceneDesc loadScene(const std::string& path);
 /// @brief Same, from JSON text already in memory; @p file is used in messages and for paths.
 SceneDesc parseScene(const nlohmann::json& root, const std::string& file);
+
+/// @brief Refuses a scene-named output outside the scene's directory (SafePath.h), unless -o
+/// replaced it (outputFromScene false) or `--allow-outside-uris` was given.
+/// @throw InputError "scene.json: output: "../x.exr" leaves the scene's directory ...".
+void checkSceneOutput(const SceneDesc& scene);
 
 /// @brief Opens every geometry entry as one stream, in scene order, with transforms applied.
 TriangleSourcePtr openSceneGeometry(const SceneDesc& scene);

@@ -1,6 +1,7 @@
 #include "procedural/TreeGenerator.h"
 
 #include "procedural/IndexedSource.h"
+#include "stream/CheckedMath.h"
 #include "stream/Error.h"
 #include "stream/JsonParams.h"
 #include "stream/Random.h"
@@ -186,7 +187,7 @@ TreeParams readTreeKeys(const JsonParams& j) {
     p.leafSize = j.number("leaf_size", p.leafSize);
     p.alphaMatte = j.boolean("alpha_matte", p.alphaMatte);
     p.jitter = j.number("jitter", p.jitter);
-    p.seed = uint64_t(j.integer("seed", int64_t(p.seed), 0, INT64_MAX));
+    p.seed = j.seed("seed", p.seed);
     return p;
 }
 
@@ -238,7 +239,7 @@ ForestParams parseForestParams(const SourceRequest& request) {
     f.tree = readTreeKeys(j);
     f.seed = f.tree.seed;
     validateTree(j, f.tree);
-    f.placement = parsePlacement(j, 100, (uint64_t(1) << 62) / treeTriangleCount(f.tree));
+    f.placement = parsePlacement(j, 100, kMaxSceneTriangles / treeTriangleCount(f.tree));
     f.variants = int(j.integer("variants", f.variants, 1, 64));
     f.scale = j.range("scale", f.scale);
     j.finish();

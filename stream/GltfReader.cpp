@@ -2,6 +2,7 @@
 
 #include "stream/Error.h"
 #include "stream/GltfModel.h"
+#include "stream/GltfPrecheck.h"
 
 #include <tiny_gltf.h>
 
@@ -185,6 +186,7 @@ size_t checkGlbContainer(const std::string& path, const std::vector<unsigned cha
 /// Loads the model with tinygltf, turning every failure into an InputError.
 void loadModel(const std::string& path, tinygltf::Model& model) {
     std::vector<unsigned char> bytes = readWholeFile(path);
+    checkGltfBeforeParsing(path, bytes);
     if (bytes.size() > std::numeric_limits<unsigned int>::max())  // grew while being read
         fail(path, "file is larger than 4 GiB, which tinygltf cannot address");
     std::string baseDir = std::filesystem::path(path).parent_path().string();

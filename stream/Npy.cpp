@@ -2,6 +2,7 @@
 
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
+#include "stream/InputFile.h"
 
 #include <fmt/ranges.h>
 
@@ -270,11 +271,9 @@ struct OpenedNpy {
 };
 
 OpenedNpy openNpy(const std::string& path) {
-    std::unique_ptr<std::FILE, FileCloser> file(std::fopen(path.c_str(), "rb"));
-    if (!file) fail(path, "cannot open: {}", errnoText(errno));
+    std::unique_ptr<std::FILE, FileCloser> file(openInputStream(path));
     struct stat st {};
     if (::fstat(::fileno(file.get()), &st) != 0) fail(path, "cannot stat: {}", errnoText(errno));
-    if (S_ISDIR(st.st_mode)) fail(path, "is a directory, not a .npy file");
     const uint64_t fileBytes = static_cast<uint64_t>(st.st_size);
 
     auto readExact = [&](void* dst, size_t n, const char* what) { readFully(file.get(), path, dst, n, what); };

@@ -2,6 +2,7 @@
 
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
+#include "stream/InputFile.h"
 
 #include <glm/common.hpp>
 
@@ -85,8 +86,7 @@ struct OpenFile {
 
 /// Opens @p path and verifies everything the header promises (see readPtriHeader).
 OpenFile openVerified(const std::string& path) {
-    std::FILE* file = std::fopen(path.c_str(), "rb");
-    if (!file) fail(path, "cannot open: {}", std::strerror(errno));
+    std::FILE* file = openInputStream(path);  // regular files only: a FIFO would block here
     // Closes the file on every throw below.
     std::unique_ptr<std::FILE, int (*)(std::FILE*)> guard(file, &std::fclose);
 
