@@ -1,5 +1,6 @@
 #include "bake/Pipeline.h"
 
+#include "bake/BakeOutputs.h"
 #include "bake/EmbreeCaster.h"
 #include "bake/MemoryPlan.h"
 #include "bake/PenumbraCaster.h"
@@ -11,6 +12,7 @@
 #include "bucket/BucketPlan.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
+#include "stream/InputFile.h"
 #include "stream/Memory.h"
 #include "stream/Npy.h"
 #include "stream/PrefetchSource.h"
@@ -267,6 +269,10 @@ const char* methodName(Method m) {
 }
 
 nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
+    InputScope inputs;  // no output may replace a file this bake reads
+    if (settings.threads < 0 || settings.threads > kMaxThreads)
+        fail("--threads", "must be in 0..{} (0: all cores), got {}", kMaxThreads, settings.threads);
+    checkBakeOutputs(scene, settings.statsPath, settings.dumpDir);
     Stopwatch total;
     const int threads = settings.threads > 0 ? settings.threads : int(tbb::info::default_concurrency());
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(threads));
@@ -371,6 +377,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         castPass(uint32_t(firstPass), true);
     }
 
+    OutputSet outputs;  // every output of the bake appears together, or none does
     kind->write(OutputContext{scene, p.receivers, p.samples, results, scene.output, firstPass});
     if (dump) writeDump(settings.dumpDir, p, masks);
 
@@ -432,6 +439,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         ensureParentDirectory(settings.statsPath);
         writeFileAtomically(settings.statsPath, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
     }
+    outputs.commit();
     return stats;
 }
 

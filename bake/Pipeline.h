@@ -17,10 +17,14 @@ enum class Method { Hpc, Reference, Embree };
 Method parseMethod(const std::string& name);
 const char* methodName(Method method);
 
+/// Most worker threads a bake or `generate` accepts (`--threads`); more is a typing mistake, and
+/// four sub-tiles per thread must stay countable.
+inline constexpr int kMaxThreads = 4096;
+
 /// @brief How to run a bake (the CLI's flags); the scene says what to bake.
 struct BakeSettings {
     Method method = Method::Hpc;
-    int threads = 0;          ///< 0: all cores
+    int threads = 0;          ///< 0: all cores; at most kMaxThreads
     std::string statsPath;    ///< JSON stats, optional
     std::string dumpDir;      ///< receivers.npy, samples.npy, masks.npy, optional
     bool quiet = false;

@@ -39,13 +39,15 @@ int writeAll(int fd, const uint8_t* data, size_t bytes, size_t& written) {
 /// elsewhere create-then-unlink, with the name registered for signal cleanup in between.
 /// Returns the descriptor, or -1 with errno set.
 int createAnonymousFile(const std::string& dir, size_t index) {
-    int fd = ::open(dir.c_str(), O_RDWR | O_TMPFILE | O_CLOEXEC, 0600);
-    if (fd >= 0) return fd;
-    // EISDIR / EOPNOTSUPP / EINVAL: no O_TMPFILE here (old kernel, some network file systems).
-    if (errno != EISDIR && errno != EOPNOTSUPP && errno != EINVAL) return -1;
+    if (!anonymousFilesDisabled()) {  // PENUMBRA_NO_TMPFILE forces the fallback, for its tests
+        int fd = ::open(dir.c_str(), O_RDWR | O_TMPFILE | O_CLOEXEC, 0600);
+        if (fd >= 0) return fd;
+        // EISDIR / EOPNOTSUPP / EINVAL: no O_TMPFILE here (old kernel, some network file systems).
+        if (errno != EISDIR && errno != EOPNOTSUPP && errno != EINVAL) return -1;
+    }
     std::string path = dir + "/anonymous-" + std::to_string(index) + ".tri";
     registerTempFile(path);
-    fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
     int err = errno;
     ::unlink(path.c_str());
     unregisterTempFile(path);

@@ -18,6 +18,7 @@ namespace {
 std::string errnoText(int err) { return std::error_code(err, std::generic_category()).message(); }
 
 std::mutex inputsMutex;
+int g_scopes = 0;  // guarded by inputsMutex
 std::map<std::pair<dev_t, ino_t>, std::string>& inputs() {
     static std::map<std::pair<dev_t, ino_t>, std::string> recorded;
     return recorded;
@@ -25,7 +26,7 @@ std::map<std::pair<dev_t, ino_t>, std::string>& inputs() {
 
 void record(const struct stat& st, const std::string& path) {
     std::lock_guard lock(inputsMutex);
-    inputs().emplace(std::pair(st.st_dev, st.st_ino), path);
+    if (g_scopes > 0) inputs().emplace(std::pair(st.st_dev, st.st_ino), path);
 }
 
 void requireRegular(const struct stat& st, const std::string& path) {
@@ -89,9 +90,14 @@ std::optional<std::string> recordedInput(dev_t device, ino_t inode) {
     return it->second;
 }
 
-void clearRecordedInputs() {
+InputScope::InputScope() {
     std::lock_guard lock(inputsMutex);
-    inputs().clear();
+    ++g_scopes;
+}
+
+InputScope::~InputScope() {
+    std::lock_guard lock(inputsMutex);
+    if (--g_scopes == 0) inputs().clear();
 }
 
 }  // namespace penumbra

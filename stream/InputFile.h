@@ -3,7 +3,7 @@
 /// @brief Inputs are regular files. Opening one refuses FIFOs, devices, sockets and directories,
 /// which would hang a reader or be read until memory runs out (`/dev/zero` as an OBJ), and
 /// records the file's identity (device and inode), so that an output is never written over an
-/// input, whatever name it is given (AtomicFile.h asks isRecordedInput()).
+/// input, whatever name it is given (AtomicFile.h asks recordedInput()).
 
 #include <sys/types.h>
 
@@ -33,10 +33,18 @@ void checkInputFile(const std::string& path);
 /// @brief What kind of file a stat mode is, for messages: "a directory", "a FIFO", ...
 const char* fileKindName(mode_t mode);
 
-/// @brief The path of the input recorded with this device and inode, if one was.
-std::optional<std::string> recordedInput(dev_t device, ino_t inode);
+/// @brief The inputs of one job (a bake, a conversion): inputs are recorded only while a scope
+/// is alive, and forgotten when the outermost one ends, so that a process running several jobs
+/// (the tests, a benchmark) may write in one job what it read in an earlier one.
+class InputScope {
+public:
+    InputScope();
+    ~InputScope();
+    InputScope(const InputScope&) = delete;
+    InputScope& operator=(const InputScope&) = delete;
+};
 
-/// @brief Forgets every recorded input (for tests, and for tools that run several jobs).
-void clearRecordedInputs();
+/// @brief The path of the input recorded with this device and inode in the current scope, if any.
+std::optional<std::string> recordedInput(dev_t device, ino_t inode);
 
 }  // namespace penumbra

@@ -31,8 +31,14 @@ public:
     std::string text() const {
         std::string out;
         for (const Frame& f : frames_) {
-            if (f.array) out += "[" + std::to_string(f.elements) + "]";
-            else if (!f.key.empty()) out += (out.empty() ? "" : ".") + f.key;
+            if (f.array) {
+                out += '[';
+                out += std::to_string(f.elements);
+                out += ']';
+            } else if (!f.key.empty()) {
+                if (!out.empty()) out += '.';
+                out += f.key;
+            }
         }
         return out;
     }
@@ -87,11 +93,11 @@ nlohmann::json parseJsonText(std::string_view text, const std::string& where) {
     };
     auto at = [&] {
         std::string key = path.text();
-        return key.empty() ? where : where + ": " + key;
+        return key.empty() ? where : fmt::format("{}: {}", where, key);
     };
     auto in = [&] {
         std::string key = path.text();
-        return key.empty() ? std::string() : " (in " + key + ")";
+        return key.empty() ? key : fmt::format(" (in {})", key);
     };
     try {
         return nlohmann::json::parse(text.begin(), text.end(), track);
