@@ -57,6 +57,9 @@ public:
         const uint64_t pixels = uint64_t(camera_.width) * camera_.height;
         return pixels * (9 * 4 * uint64_t(camera_.layers) + 3 + 2 * 3) + receivers * 4 + (2ull << 20);
     }
+    std::optional<uint64_t> receiverBound() const override {
+        return uint64_t(camera_.width) * camera_.height * camera_.layers;
+    }
     void scan(std::span<const Triangle> chunk) override { raster().add(chunk); }
     ReceiverSet receivers() override {
         ReceiverSet set = raster().finish();

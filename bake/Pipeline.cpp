@@ -9,6 +9,7 @@
 #include "bake/ReferenceCaster.h"
 #include "bake/SampleMaskTable.h"
 #include "bake/SunLight.h"
+#include "bake/WorkPlan.h"
 #include "bucket/BucketPlan.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
@@ -73,6 +74,10 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     // Read ahead on a thread of its own, so parsing or generation overlaps with rasterizing
     // receivers (scan pass) and writing bucket files (bucket pass).
     TriangleSourcePtr source = std::make_unique<PrefetchSource>(openSceneGeometry(scene));
+    // Before any triangle is read: the bucket files must fit on disk, and hours of work are announced.
+    checkBucketDisk(settings.tmpDir, source->sizeHint(), scene.options.sortBlockers);
+    noteLongBake(source->sizeHint().value_or(0), 1,
+                 int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)), settings.quiet);
     AreaHistogram histogram;
     {
         ScopedTimer timer(streamSeconds);
@@ -288,7 +293,12 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     demand.groups = (samplesTotal + scene.options.groupSize - 1) / scene.options.groupSize;
     demand.umbraWords = (demand.groups + 63) / 64;
     demand.dumpMasks = dump;
-    planMemory(demand, settings.memoryBudget);
+    checkMemoryFits(scene.file, "the scan pass", planMemory(demand, settings.memoryBudget).minimumBudget);
+    if (std::optional<uint64_t> bound = kind->receiverBound()) {
+        MemoryDemand receivers = demand;
+        receivers.receivers = *bound;
+        checkMemoryFits(scene.file, fmt::format("casting {} receivers", *bound).c_str(), planMemory(receivers, 0).minimumBudget);
+    }
 
     double streamSeconds = 0;
     BucketStats buckets;
@@ -307,6 +317,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
                          PenumbraCaster::kMaxRingChunks * PenumbraCaster::preparedChunkBytes(scene.lights.size());
     demand.kindBytes = kind->residentBytes();
     MemoryPlan plan = planMemory(demand, settings.memoryBudget);
+    checkMemoryFits(scene.file, "casting", plan.minimumBudget);
 
     ReceiverResults results;
     results.resize(p.receivers.size(), int(p.lights.size()));

@@ -31,6 +31,15 @@ std::map<std::string, ReceiverKindFactory>& registry() {
 class PointsKind final : public ReceiverKind {
 public:
     explicit PointsKind(std::string path) : path_(std::move(path)) {}
+    std::optional<uint64_t> receiverBound() const override {
+        if (std::filesystem::path(path_).extension() != ".npy") return std::nullopt;  // a CSV tells by its lines
+        try {
+            const NpyRowReader rows(path_);
+            return rows.header().shape.empty() ? 0 : rows.header().shape[0];
+        } catch (const InputError&) {
+            return std::nullopt;  // receivers() reports what is wrong with the file
+        }
+    }
     ReceiverSet receivers() override { return loadPointReceivers(path_); }
     void write(const OutputContext& c) override {
         uint64_t shape[1] = {c.results.visibility.size()};

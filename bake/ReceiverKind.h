@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -47,6 +48,10 @@ public:
     virtual uint64_t scanBytes() const { return 0; }
     /// Bytes held while writing outputs for @p receivers receivers, for the memory plan.
     virtual uint64_t outputBytes(uint64_t receivers) const { return 0; }
+    /// At most this many receivers, known before the scan pass (a camera's pixels, a lightmap's
+    /// texels, a box's voxels, a point file's rows), so that the plan refuses a request that
+    /// cannot fit before making a single receiver; nullopt when only the scan can tell.
+    virtual std::optional<uint64_t> receiverBound() const { return std::nullopt; }
     /// Every chunk of the scene stream, in stream order, during the scan pass.
     virtual void scan(std::span<const Triangle> chunk) {}
     /// The receivers, after the scan pass. Called once.
