@@ -3,11 +3,13 @@
 #include "bake/ReceiverKind.h"
 #include "bake/ReceiverShading.h"
 #include "bake/SunLight.h"
+#include "stream/CheckedMath.h"
 #include "stream/Error.h"
 #include "stream/GeometryFile.h"
 #include "stream/JsonParams.h"
 #include "stream/SourceRegistry.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace penumbra {
@@ -90,7 +92,9 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
     o.hierarchy.medianSplitAbove = int(j.integer("median_split_above", o.hierarchy.medianSplitAbove, 1, 1 << 30));
     o.groupSize = int(j.integer("group_size", o.groupSize, 1, 64));
     o.epsilon = j.number("epsilon", o.epsilon);
-    if (!(o.epsilon >= 0)) fail(j.where("epsilon"), "must not be negative, got {}", o.epsilon);
+    // Beyond a tenth of the scene's scale the receiver-end margin would hide most shadows.
+    if (!(o.epsilon >= 0 && o.epsilon <= kMaxEpsilon))
+        fail(j.where("epsilon"), "must be in 0..{}, got {}", kMaxEpsilon, o.epsilon);
     if (j.has("simd")) o.simd = parseSimdLevel(j.string("simd"), j.where("simd"));
     scene.seed = j.seed("seed", scene.seed);
     scene.smoothShading = j.boolean("smooth_shading", scene.smoothShading);
@@ -144,8 +148,15 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
     const nlohmann::json* lights = j.raw("lights");
     if (!lights) fail(j.where("lights"), "missing required field");
     if (!lights->is_array() || lights->empty()) fail(j.where("lights"), "expected a non-empty array of lights");
-    for (size_t i = 0; i < lights->size(); ++i)
+    uint64_t samples = 0, sets = 1;
+    for (size_t i = 0; i < lights->size(); ++i) {
         scene.lights.push_back(parseLight(JsonParams((*lights)[i], file, indexed("lights", i))));
+        // Every receiver holds a bit per sample of all lights, and every set a position per sample.
+        samples = checkedSum(samples, uint64_t(scene.lights.back().samples), kMaxSceneSamples, j.where("lights"),
+                             "light samples in all");
+        sets = std::max(sets, uint64_t(scene.lights.back().sampleSets));
+    }
+    checkedProduct({samples, sets}, kMaxSamplePositions, j.where("lights"), "sample positions (samples x sets)");
 
     const nlohmann::json* receivers = j.raw("receivers");
     if (!receivers) fail(j.where("receivers"), "missing required field");

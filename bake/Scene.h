@@ -18,6 +18,14 @@
 
 namespace penumbra {
 
+/// Largest bake.epsilon: the receiver-end margin is epsilon * max(1, |r|), and a tenth of the
+/// scene's scale already removes almost every shadow.
+inline constexpr double kMaxEpsilon = 0.1;
+/// Most light samples of all lights together: every receiver keeps a bit per sample.
+inline constexpr uint64_t kMaxSceneSamples = uint64_t(1) << 20;
+/// Most sample positions (samples of all lights x the largest number of sets), 768 MiB of them.
+inline constexpr uint64_t kMaxSamplePositions = uint64_t(1) << 26;
+
 /// @brief One "geometry" entry: a file or a generator, with its placement.
 struct GeometryDesc {
     std::string type;

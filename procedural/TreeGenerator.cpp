@@ -16,6 +16,8 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 /// Per-tree triangle cap: a tree is held in memory (a forest holds `variants` of them).
 constexpr uint64_t kMaxTreeTriangles = uint64_t(1) << 20;
+/// Triangles of all of a forest's variants together (160 MB of them, held in memory).
+constexpr uint64_t kMaxForestVariantTriangles = uint64_t(1) << 22;
 constexpr uint64_t kVariantStream = 0x7472656573ull;  // "trees"
 
 uint64_t power(uint64_t base, int exponent) {
@@ -241,6 +243,9 @@ ForestParams parseForestParams(const SourceRequest& request) {
     validateTree(j, f.tree);
     f.placement = parsePlacement(j, 100, kMaxSceneTriangles / treeTriangleCount(f.tree));
     f.variants = int(j.integer("variants", f.variants, 1, 64));
+    // The variants are built and kept whole: bound their memory like one big tree's.
+    checkedProduct({uint64_t(f.variants), treeTriangleCount(f.tree)}, kMaxForestVariantTriangles, j.where("variants"),
+                   "triangles kept for the variants");
     f.scale = j.range("scale", f.scale);
     j.finish();
     if (!(f.scale.x > 0 && f.scale.y <= 1e3)) fail(j.where("scale"), "must lie in (0, 1000], got [{}, {}]", f.scale.x, f.scale.y);

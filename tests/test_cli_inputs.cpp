@@ -190,3 +190,23 @@ TEST_CASE("out-of-range command-line values are errors, not silent defaults", "[
     requireCleanError(runPenumbra("generate " + (dir / "scene.json") + " -o " + (dir / "g.ptri") + " --threads 99999"),
                       "--threads: must be in 0..4096");
 }
+
+TEST_CASE("scene numbers out of range are errors naming the key", "[cli][inputs]") {
+    ScratchDir dir("scene-numbers");
+    requireCleanError(bake(dir, withRaw("/bake", R"({"epsilon": 1e308})")), "bake.epsilon: must be in 0..0.1");
+    // Masks hold a bit per sample of every light: their total is bounded, and so are the positions.
+    nlohmann::json s = nlohmann::json::parse(kScene);
+    for (int i = 0; i < 17; ++i) s["lights"][i] = s["lights"][0], s["lights"][i]["samples"] = 65536;
+    requireCleanError(bake(dir, s.dump()), "lights: 1048576 + 65536 = 1114112 light samples in all, more than the limit");
+    s["lights"] = {s["lights"][0], s["lights"][0], s["lights"][0], s["lights"][0], s["lights"][0]};
+    s["lights"][0]["sample_sets"] = 256;
+    requireCleanError(bake(dir, s.dump()), "lights: 327680 x 256 = 83886080 sample positions (samples x sets), more than");
+    // Forest variants are kept in memory; a grid's coordinates must stay finite as floats.
+    s = nlohmann::json::parse(kScene);
+    s["geometry"] = {{{"type", "forest"}, {"count", 1}, {"depth", 8}, {"branches", 3}, {"sides", 8}, {"variants", 64}}};
+    requireCleanError(bake(dir, s.dump()), "geometry[0].variants:");
+    s["geometry"] = {{{"type", "grid"}, {"size", 1e300}}};
+    requireCleanError(bake(dir, s.dump()), "geometry[0].size: must be in (0, 1e9]");
+    s["geometry"] = {{{"type", "grid"}, {"spacing", 1e8}, {"levels", 1000}}};
+    requireCleanError(bake(dir, s.dump()), "geometry[0].spacing");
+}

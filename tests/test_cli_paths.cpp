@@ -115,7 +115,7 @@ TEST_CASE("an output that is also an input is refused, by device and inode", "[c
     CHECK(slurp(dir / "scene.json") == sceneOf("quad.obj").dump());
 }
 
-TEST_CASE("-o naming a device node writes into it and leaves it a device", "[cli][paths]") {
+TEST_CASE("an output naming a device node is written into and stays a device", "[cli][paths]") {
     ScratchDir dir("device-output");
     write(dir / "quad.obj", kQuad);
     nlohmann::json s = sceneOf("quad.obj");
