@@ -4,6 +4,8 @@
 
 #include "TestSupport.h"
 
+#include <nlohmann/json.hpp>
+
 #include <sys/wait.h>
 
 #include <cstdlib>
@@ -36,6 +38,14 @@ inline RunResult runPenumbra(const std::string& args, const std::string& prefix 
 inline int runShell(const std::string& command) {
     int status = std::system(command.c_str());
     return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+/// A JSON array of the one entry @p e: `{x}` of a single element means x itself to some compilers
+/// (clang) and [x] to others.
+inline nlohmann::json listOf(nlohmann::json e) {
+    nlohmann::json list = nlohmann::json::array();
+    list.push_back(std::move(e));
+    return list;
 }
 
 inline int lineCount(const std::string& s) {

@@ -67,7 +67,7 @@ TEST_CASE("scatter sources nest at most 16 deep", "[cli][inputs]") {
     nlohmann::json entry = {{"type", "obj"}, {"path", "quad.obj"}};
     for (int i = 0; i < 20; ++i) entry = {{"type", "scatter"}, {"count", 1}, {"source", entry}};
     nlohmann::json s = nlohmann::json::parse(kScene);
-    s["geometry"] = {entry};
+    s["geometry"] = listOf(entry);
     requireCleanError(bake(dir, s.dump()), "scatter sources nest more than 16 deep");
 }
 
@@ -83,7 +83,7 @@ TEST_CASE("glTF and GLB extras nested 20,000 deep are refused by the reader and 
     for (const char* file : {"deep.gltf", "deep.glb"}) {
         requireCleanError(runPenumbra("info " + (dir / file)), "JSON nests deeper than 64 levels");
         nlohmann::json s = nlohmann::json::parse(kScene);
-        s["geometry"] = {{{"type", "gltf"}, {"path", file}}};
+        s["geometry"] = listOf({{"type", "gltf"}, {"path", file}});
         requireCleanError(bake(dir, s.dump()), "JSON nests deeper than 64 levels");
     }
 }
@@ -121,7 +121,7 @@ TEST_CASE("FIFOs and devices given as inputs are refused at once", "[cli][inputs
     }
     if (devices) {
         nlohmann::json s = nlohmann::json::parse(kScene);
-        s["geometry"] = {{{"type", "obj"}, {"path", "zero.obj"}}};
+        s["geometry"] = listOf({{"type", "obj"}, {"path", "zero.obj"}});
         requireCleanError(bake(dir, s.dump()), "zero.obj: is a character device, not a regular file");
     }
 }
@@ -150,12 +150,12 @@ TEST_CASE("a geometry entry's type chooses its reader and must not contradict th
     ScratchDir dir("entry-type");
     write(dir / "quad.txt", kQuad);
     nlohmann::json s = nlohmann::json::parse(kScene);
-    s["geometry"] = {{{"type", "obj"}, {"path", "quad.txt"}}};
+    s["geometry"] = listOf({{"type", "obj"}, {"path", "quad.txt"}});
     RunResult r = bake(dir, s.dump(), "-q --stats " + (dir / "stats.json"));
     INFO(r.err);
     REQUIRE(r.exitCode == 0);
     CHECK(nlohmann::json::parse(slurp(dir / "stats.json"))["counters"]["triangles_read"] == 2);
-    s["geometry"] = {{{"type", "glb"}, {"path", "quad.obj"}}};
+    s["geometry"] = listOf({{"type", "glb"}, {"path", "quad.obj"}});
     requireCleanError(bake(dir, s.dump()), "geometry[0].type: \"glb\" does not match the file");
 }
 
@@ -165,12 +165,12 @@ TEST_CASE("counts no bake can stream are refused at their key", "[cli][inputs]")
         nlohmann::json entry = {{"type", type}, {"count", 1e15}};
         if (std::string(type) == "scatter") entry["source"] = {{"type", "obj"}, {"path", "quad.obj"}};
         nlohmann::json s = nlohmann::json::parse(kScene);
-        s["geometry"] = {entry};
+        s["geometry"] = listOf(entry);
         INFO(type);
         requireCleanError(bake(dir, s.dump()), "geometry[0].count: must be in 0..");
     }
     nlohmann::json s = nlohmann::json::parse(kScene);
-    s["geometry"] = {{{"type", "grass"}, {"density", 1e300}}};
+    s["geometry"] = listOf({{"type", "grass"}, {"density", 1e300}});
     requireCleanError(bake(dir, s.dump()), "geometry[0].density");
 }
 
@@ -198,15 +198,15 @@ TEST_CASE("scene numbers out of range are errors naming the key", "[cli][inputs]
     nlohmann::json s = nlohmann::json::parse(kScene);
     for (int i = 0; i < 17; ++i) s["lights"][i] = s["lights"][0], s["lights"][i]["samples"] = 65536;
     requireCleanError(bake(dir, s.dump()), "lights: 1048576 + 65536 = 1114112 light samples in all, more than the limit");
-    s["lights"] = {s["lights"][0], s["lights"][0], s["lights"][0], s["lights"][0], s["lights"][0]};
+    s["lights"] = nlohmann::json::array({s["lights"][0], s["lights"][0], s["lights"][0], s["lights"][0], s["lights"][0]});
     s["lights"][0]["sample_sets"] = 256;
     requireCleanError(bake(dir, s.dump()), "lights: 327680 x 256 = 83886080 sample positions (samples x sets), more than");
     // Forest variants are kept in memory; a grid's coordinates must stay finite as floats.
     s = nlohmann::json::parse(kScene);
-    s["geometry"] = {{{"type", "forest"}, {"count", 1}, {"depth", 8}, {"branches", 3}, {"sides", 8}, {"variants", 64}}};
+    s["geometry"] = listOf({{"type", "forest"}, {"count", 1}, {"depth", 8}, {"branches", 3}, {"sides", 8}, {"variants", 64}});
     requireCleanError(bake(dir, s.dump()), "geometry[0].variants:");
-    s["geometry"] = {{{"type", "grid"}, {"size", 1e300}}};
+    s["geometry"] = listOf({{"type", "grid"}, {"size", 1e300}});
     requireCleanError(bake(dir, s.dump()), "geometry[0].size: must be in (0, 1e9]");
-    s["geometry"] = {{{"type", "grid"}, {"spacing", 1e8}, {"levels", 1000}}};
+    s["geometry"] = listOf({{"type", "grid"}, {"spacing", 1e8}, {"levels", 1000}});
     requireCleanError(bake(dir, s.dump()), "geometry[0].spacing");
 }

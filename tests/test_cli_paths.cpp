@@ -22,8 +22,8 @@ namespace {
 const char* kQuad = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nf 1 2 3 4\n";
 
 nlohmann::json sceneOf(const std::string& mesh, const std::string& output = "out/x.exr") {
-    return {{"geometry", {{{"type", "file"}, {"path", mesh}}}},
-            {"lights", {{{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {1, 0, 0}}, {"v", {0, 0, 1}}, {"samples", 16}, {"sample_sets", 2}}}},
+    return {{"geometry", listOf({{"type", "file"}, {"path", mesh}})},
+            {"lights", listOf({{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {1, 0, 0}}, {"v", {0, 0, 1}}, {"samples", 16}, {"sample_sets", 2}})},
             {"receivers", {{"type", "camera"}, {"eye", {0, 3, 3}}, {"target", {0, 0, 0}}, {"width", 16}, {"height", 12}}},
             {"output", output}};
 }
@@ -171,4 +171,31 @@ TEST_CASE("a failing stderr or a closed pipe never changes a successful bake's e
     CHECK(runShell(std::string(PENUMBRA_BINARY) + " info " + (dir / "prose.obj") + " 2>/dev/full >/dev/null") == 0);
     // A result that cannot be printed is an error.
     CHECK(runShell(std::string(PENUMBRA_BINARY) + " info " + (dir / "quad.obj") + " >/dev/full 2>/dev/null") == 1);
+}
+
+TEST_CASE("two bakes writing one output at once leave a complete file from one of them", "[cli][paths]") {
+    ScratchDir dir("concurrent");
+    write(dir / "quad.obj", kQuad);
+    nlohmann::json a = sceneOf("quad.obj", "shared.exr"), b = a;
+    b["receivers"]["width"] = 24;
+    write(dir / "a.json", a.dump());
+    write(dir / "b.json", b.dump());
+    const std::string bin = PENUMBRA_BINARY;
+    CHECK(runShell("cd " + dir.path.string() + " && (" + bin + " bake a.json -q & " + bin + " bake b.json -q; wait) 2>/dev/null") == 0);
+    const std::string exr = slurp(dir / "shared.exr");
+    REQUIRE(exr.size() > 4);
+    CHECK(exr.substr(0, 4) == std::string("\x76\x2f\x31\x01", 4));  // an EXR, complete enough to open
+    CHECK(dir.entries() == (std::vector<std::string>{"a.json", "b.json", "quad.obj", "shared.exr", "shared.png"}));
+}
+
+TEST_CASE("a bake the plan expects to take hours says so first, unless quiet", "[cli][paths]") {
+    ScratchDir dir("long-bake");
+    nlohmann::json s = sceneOf("quad.obj");
+    s["geometry"] = listOf({{"type", "terrain"}, {"resolution", 65536}});
+    write(dir / "scene.json", s.dump());
+    // Without buckets there is no disk to refuse it; the note comes before the first triangle.
+    RunResult r = runPenumbra("bake " + (dir / "scene.json") + " --threads 1 --disable sort", "timeout 5");
+    CHECK_THAT(r.err, Catch::Contains("penumbra: note: this bake streams 8589934592 triangles 3 times; expect about"));
+    RunResult quiet = runPenumbra("bake " + (dir / "scene.json") + " --threads 1 --disable sort -q", "timeout 3");
+    CHECK(quiet.err.find("note:") == std::string::npos);
 }

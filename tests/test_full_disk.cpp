@@ -70,8 +70,8 @@ private:
 };
 
 nlohmann::json grassScene(uint64_t blades, const std::string& output) {
-    return {{"geometry", {{{"type", "grass"}, {"count", blades}, {"area", {{-2, -2}, {2, 2}}}, {"segments", 5}, {"seed", 3}}}},
-            {"lights", {{{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {1, 0, 0}}, {"v", {0, 0, 1}}, {"samples", 16}, {"sample_sets", 2}}}},
+    return {{"geometry", listOf({{"type", "grass"}, {"count", blades}, {"area", {{-2, -2}, {2, 2}}}, {"segments", 5}, {"seed", 3}})},
+            {"lights", listOf({{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {1, 0, 0}}, {"v", {0, 0, 1}}, {"samples", 16}, {"sample_sets", 2}})},
             {"receivers", {{"type", "camera"}, {"eye", {0, 3, 3}}, {"target", {0, 0, 0}}, {"width", 64}, {"height", 48}}},
             {"output", output}};
 }
