@@ -11,6 +11,8 @@
 
 #include <cstdint>
 #include <initializer_list>
+#include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -20,16 +22,24 @@ namespace penumbra {
 /// this is 44 TB): a generator asked for more is refused at its count or density key.
 inline constexpr uint64_t kMaxSceneTriangles = uint64_t(1) << 40;
 
+/// @brief The product of @p factors, or nullopt when it overflows 64 bits (for callers with
+/// messages of their own).
+inline std::optional<uint64_t> productOf(std::span<const uint64_t> factors) {
+    uint64_t product = 1;
+    for (uint64_t f : factors)
+        if (__builtin_mul_overflow(product, f, &product)) return std::nullopt;
+    return product;
+}
+
 /// @brief The product of @p factors, refused when it overflows 64 bits or exceeds @p limit.
 /// @param where the key, "scene.json: receivers.width"; @param what the unit, "pixels".
 /// @throw InputError "WHERE: 65536 x 65536 x 2 = 8589934592 pixels, more than the limit of
 ///        4294967295" (or "... overflows 64 bits").
 inline uint64_t checkedProduct(std::initializer_list<uint64_t> factors, uint64_t limit, const std::string& where,
                                std::string_view what) {
-    uint64_t product = 1;
-    bool overflow = false;
-    for (uint64_t f : factors) overflow = overflow || __builtin_mul_overflow(product, f, &product);
-    if (overflow) fail(where, "{} {} overflows 64 bits", fmt::join(factors, " x "), what);
+    const std::optional<uint64_t> checked = productOf(std::span<const uint64_t>(factors.begin(), factors.size()));
+    if (!checked) fail(where, "{} {} overflows 64 bits", fmt::join(factors, " x "), what);
+    const uint64_t product = *checked;
     if (product > limit)
         fail(where, "{} = {} {}, more than the limit of {}", fmt::join(factors, " x "), product, what, limit);
     return product;

@@ -1,6 +1,7 @@
 #include "stream/Npy.h"
 
 #include "stream/AtomicFile.h"
+#include "stream/CheckedMath.h"
 #include "stream/Error.h"
 #include "stream/InputFile.h"
 
@@ -88,12 +89,9 @@ std::string shapeText(std::span<const uint64_t> shape) {
 
 /// Product of @p shape times @p itemSize, or nullopt on overflow.
 std::optional<uint64_t> byteCount(std::span<const uint64_t> shape, size_t itemSize) {
-    uint64_t total = itemSize;
-    for (uint64_t d : shape) {
-        if (d != 0 && total > std::numeric_limits<uint64_t>::max() / d) return std::nullopt;
-        total *= d;
-    }
-    return total;
+    const std::optional<uint64_t> elements = productOf(shape);
+    const uint64_t factors[2] = {elements.value_or(0), itemSize};
+    return elements ? productOf(factors) : std::nullopt;
 }
 
 /// Parser for the header dict. It accepts exactly the Python literal subset numpy emits
