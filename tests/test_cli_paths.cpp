@@ -199,3 +199,21 @@ TEST_CASE("a bake the plan expects to take hours says so first, unless quiet", "
     RunResult quiet = runPenumbra("bake " + (dir / "scene.json") + " --threads 1 --disable sort -q", "timeout 3");
     CHECK(quiet.err.find("note:") == std::string::npos);
 }
+
+TEST_CASE("generate and bake killed while writing leave no temporary, SIGKILL included", "[cli][paths]") {
+    ScratchDir dir("killed");
+    nlohmann::json s = sceneOf("quad.obj", "out.exr");
+    // 200M triangles: seconds of writing, killed after half of one. With job control (set -m) a
+    // background job does not inherit the ignored SIGINT and SIGQUIT of a non-interactive shell.
+    s["geometry"] = listOf({{"type", "grass"}, {"count", 40000000}, {"area", {{-2, -2}, {2, 2}}}});
+    write(dir / "scene.json", s.dump());
+    write(dir / "old.ptri", "previous");
+    for (const char* sig : {"KILL", "HUP", "QUIT", "TERM", "INT"}) {
+        INFO(sig);
+        const std::string generate = std::string(PENUMBRA_BINARY) + " generate " + (dir / "scene.json") + " -o " + (dir / "old.ptri");
+        const int status = runShell("bash -c 'set -m; " + generate + " -q & pid=$!; sleep 0.5; kill -" + sig + " $pid; wait $pid' 2>/dev/null");
+        CHECK(status >= 128);  // the shell's "killed by a signal"
+        CHECK(dir.entries() == (std::vector<std::string>{"old.ptri", "scene.json"}));
+        CHECK(slurp(dir / "old.ptri") == "previous");
+    }
+}
