@@ -200,7 +200,7 @@ TEST_CASE("a bake the plan expects to take hours says so first, unless quiet", "
     CHECK(quiet.err.find("note:") == std::string::npos);
 }
 
-TEST_CASE("generate and bake killed while writing leave no temporary, SIGKILL included", "[cli][paths]") {
+TEST_CASE("generate killed while writing leaves no temporary, SIGKILL included", "[cli][paths]") {
     ScratchDir dir("killed");
     nlohmann::json s = sceneOf("quad.obj", "out.exr");
     // 200M triangles: seconds of writing, killed after half of one. With job control (set -m) a

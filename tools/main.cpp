@@ -26,6 +26,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <exception>
 #include <utility>
 #include <sstream>
 
@@ -63,6 +64,33 @@ void printResult(const std::string& text) {
 /// An option given with an empty value ("-o ''") is a mistake, never "not given".
 void requireNonEmpty(const CLI::Option* option, const std::string& value) {
     if (option->count() > 0 && value.empty()) throw InputError(option->get_name() + ": must not be empty");
+}
+
+/// Prints the one line for an exception that ended a command and returns the exit code: 1 for
+/// errors in the input or the environment (a library's included), 70 for penumbra's own bugs.
+/// @param context the command's main input, named when the library did not.
+int reportError(std::exception_ptr error, const std::string& context) {
+    const std::string prefix = context.empty() ? "penumbra: error: " : "penumbra: error: " + context + ": ";
+    try {
+        std::rethrow_exception(error);
+    } catch (const InputError& e) {
+        printDiagnostic(fmt::format("penumbra: error: {}\n", e.what()));
+    } catch (const std::bad_alloc&) {
+        printDiagnostic("penumbra: error: out of memory (try --memory-budget or fewer receivers)\n");
+    } catch (const std::length_error& e) {  // a size from the input beyond what a container can hold
+        printDiagnostic(fmt::format("{}too large to hold in memory ({})\n", prefix, e.what()));
+    } catch (const std::exception& e) {
+        if (std::optional<std::string> message = libraryErrorMessage(e)) {
+            printDiagnostic(prefix + *message + "\n");
+            return 1;
+        }
+        printDiagnostic(fmt::format("penumbra: internal error: {}\n", e.what()));
+        return 70;
+    } catch (...) {
+        printDiagnostic("penumbra: internal error: an unknown exception\n");
+        return 70;
+    }
+    return 1;
 }
 
 }  // namespace
@@ -226,23 +254,8 @@ int main(int argc, char** argv) {
             TriangleSourcePtr source = openGeometryFile(convertIn);
             convertGeometry(*source, convertOut);
         }
-    } catch (const InputError& e) {
-        printDiagnostic(fmt::format("penumbra: error: {}\n", e.what()));
-        return 1;
-    } catch (const std::bad_alloc&) {
-        printDiagnostic("penumbra: error: out of memory (try --memory-budget or fewer receivers)\n");
-        return 1;
-    } catch (const std::length_error& e) {  // a size from the input beyond what a container can hold
-        printDiagnostic(fmt::format("penumbra: error: {}{}too large to hold in memory ({})\n", context,
-                                    context.empty() ? "" : ": ", e.what()));
-        return 1;
-    } catch (const std::exception& e) {
-        if (std::optional<std::string> message = libraryErrorMessage(e)) {
-            printDiagnostic(fmt::format("penumbra: error: {}{}{}\n", context, context.empty() ? "" : ": ", *message));
-            return 1;
-        }
-        printDiagnostic(fmt::format("penumbra: internal error: {}\n", e.what()));
-        return 70;
+    } catch (...) {
+        return reportError(std::current_exception(), context);
     }
     return 0;
 }
