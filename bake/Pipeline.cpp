@@ -294,11 +294,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     demand.umbraWords = (demand.groups + 63) / 64;
     demand.dumpMasks = dump;
     checkMemoryFits(scene.file, "the scan pass", planMemory(demand, settings.memoryBudget).minimumBudget);
-    if (std::optional<uint64_t> bound = kind->receiverBound()) {
-        MemoryDemand receivers = demand;
-        receivers.receivers = *bound;
-        checkMemoryFits(scene.file, fmt::format("casting {} receivers", *bound).c_str(), planMemory(receivers, 0).minimumBudget);
-    }
+    checkReceiverBoundFits(scene.file, demand, kind->receiverBound());
 
     double streamSeconds = 0;
     BucketStats buckets;

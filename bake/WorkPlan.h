@@ -9,6 +9,8 @@
 /// The memory needed comes from the memory plan (MemoryPlan.h: its smallest budget that works);
 /// the machine's memory is its physical memory plus swap, or less under a cgroup limit.
 
+#include "bake/MemoryPlan.h"
+
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -27,6 +29,11 @@ uint64_t freeDiskBytes(const std::string& dir);
 /// @throw InputError "SCENE: the scan pass needs at least 64.0 GiB of memory, but this machine has
 ///        23.4 GiB (physical memory and swap) ...".
 void checkMemoryFits(const std::string& scene, const char* what, uint64_t neededBytes);
+
+/// @brief With the receivers a kind can bound before the scan (@p bound, ReceiverKind.h), refuses a
+/// bake whose memory plan for that many receivers cannot fit (checkMemoryFits()); @p demand is the
+/// rest of the plan's demand as known before the scan.
+void checkReceiverBoundFits(const std::string& scene, MemoryDemand demand, std::optional<uint64_t> bound);
 
 /// @brief Refuses a bake whose bucket files (40 bytes per triangle of @p triangles, when @p sort)
 /// cannot fit in the free space of @p tmpDir ("" = the system temp directory).

@@ -210,3 +210,14 @@ TEST_CASE("scene numbers out of range are errors naming the key", "[cli][inputs]
     s["geometry"] = listOf({{"type", "grid"}, {"spacing", 1e8}, {"levels", 1000}});
     requireCleanError(bake(dir, s.dump()), "geometry[0].spacing");
 }
+
+TEST_CASE("requests that cannot fit in memory are refused before any work, with the numbers", "[cli][inputs]") {
+    ScratchDir dir("no-fit");
+    // A 60000 x 60000 camera's z-buffer alone is hundreds of GiB, more than any test machine has.
+    nlohmann::json s = nlohmann::json::parse(kScene);
+    s["receivers"]["width"] = 60000, s["receivers"]["height"] = 60000;
+    RunResult r = bake(dir, s.dump(), "");
+    requireCleanError(r, "the scan pass needs at least ");
+    CHECK_THAT(r.err, Catch::Contains("of memory, but this machine has"));
+    CHECK(r.err.find("[scan]") == std::string::npos);
+}
