@@ -128,9 +128,11 @@ TEST_CASE("FIFOs and devices given as inputs are refused at once", "[cli][inputs
 
 TEST_CASE("binary files, UTF-16 and images are not OBJ text", "[cli][inputs]") {
     ScratchDir dir("binary-obj");
-    write(dir / "random.obj", std::string("v 0 0 0\n\x01\x02\0\xff garbage", 20));
-    write(dir / "utf16.obj", std::string("\xff\xfev\0 \0" "0\0", 8));
-    write(dir / "image.obj", std::string("\x76\x2f\x31\x01\x02\0\0\0channels\0chlist\0", 26));  // an EXR header
+    static const char random[] = "v 0 0 0\n\x01\x02\0\xff garbage", utf16[] = "\xff\xfev\0 \0" "0\0",
+                      exr[] = "\x76\x2f\x31\x01\x02\0\0\0channels\0chlist\0";  // the start of an EXR header
+    write(dir / "random.obj", std::string(random, sizeof random - 1));
+    write(dir / "utf16.obj", std::string(utf16, sizeof utf16 - 1));
+    write(dir / "image.obj", std::string(exr, sizeof exr - 1));
     requireCleanError(runPenumbra("info " + (dir / "random.obj")), "random.obj: is binary, not OBJ text");
     requireCleanError(runPenumbra("info " + (dir / "utf16.obj")), "utf16.obj: is UTF-16 text");
     requireCleanError(runPenumbra("info " + (dir / "image.obj")), "image.obj: is binary, not OBJ text");
@@ -140,7 +142,8 @@ TEST_CASE("binary files, UTF-16 and images are not OBJ text", "[cli][inputs]") {
     CHECK(r.exitCode == 0);
     CHECK_THAT(r.err, Catch::Contains("warning: " + (dir / "prose.obj") + ": no face line was understood"));
     // A CSV with a NUL byte is binary too.
-    write(dir / "pts.csv", std::string("0,0,0,0,1,0\n\0\0\n", 16));
+    static const char csv[] = "0,0,0,0,1,0\n\0\0\n";
+    write(dir / "pts.csv", std::string(csv, sizeof csv - 1));
     nlohmann::json s = nlohmann::json::parse(kScene);
     s["receivers"] = {{"type", "points"}, {"path", "pts.csv"}};
     requireCleanError(bake(dir, s.dump()), "pts.csv:2: is binary, not CSV text");
