@@ -14,8 +14,8 @@
 namespace penumbra {
 
 /// @brief Opens @p path for reading if it is a regular file (symbolic links are followed) and
-/// records it as an input. The file is opened without blocking, so a FIFO without a writer is
-/// refused at once instead of waited for.
+/// records it as an input of the current InputScope. The file is opened without blocking, so a
+/// FIFO without a writer is refused at once instead of waited for.
 /// @return a blocking descriptor (O_CLOEXEC), owned by the caller.
 /// @throw InputError "PATH: cannot open: REASON" or "PATH: is a FIFO, not a regular file" (a
 ///        directory, a character or block device, a socket likewise).
