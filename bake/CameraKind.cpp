@@ -55,11 +55,13 @@ public:
         // Strips of rows, never the full frame (CameraOutput.h).
         return cameraOutputBytes(camera_.width, camera_.layers, int(lightCount_), receivers);
     }
-    uint64_t maxReceivers() const override { return uint64_t(camera_.width) * camera_.height * camera_.layers; }
     uint64_t maxResidentBytes(uint64_t receivers, std::optional<uint64_t> triangles) const override {
         if (!smooth_) return 0;
         if (bend_) return bend_->plannedBytes();  // the visible triangles are known
         return VertexBend::boundBytes(receivers, triangles.value_or(receivers), lights_.size());
+    }
+    std::optional<uint64_t> receiverBound() const override {
+        return uint64_t(camera_.width) * camera_.height * camera_.layers;
     }
     void scan(std::span<const Triangle> chunk) override { raster().add(chunk); }
     ReceiverSet receivers() override {

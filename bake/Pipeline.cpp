@@ -2,10 +2,12 @@
 
 #include "bake/BakeDump.h"
 #include "bake/BakeMemory.h"
+#include "bake/BakeOutputs.h"
 #include "bake/BakeStats.h"
 #include "bake/MemoryPlan.h"
 #include "bake/ReceiverKind.h"
 #include "bake/ReceiverShading.h"
+#include "bake/WorkPlan.h"
 #include "bake/cast/Caster.h"
 #include "bake/cast/ClosedSolids.h"
 #include "bake/cast/ReachCull.h"
@@ -13,7 +15,9 @@
 #include "bake/light/SunLight.h"
 #include "bucket/BucketPlan.h"
 #include "stream/AnonymousFile.h"
+#include "stream/AtomicFile.h"
 #include "stream/Error.h"
+#include "stream/InputFile.h"
 #include "stream/Memory.h"
 #include "stream/PrefetchSource.h"
 #include "stream/Progress.h"
@@ -101,6 +105,10 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     // Read ahead on a thread of its own, so parsing or generation overlaps with rasterizing
     // receivers (scan pass) and writing bucket files (bucket pass).
     TriangleSourcePtr source = std::make_unique<PrefetchSource>(std::move(geometry));
+    // Before any triangle is read: the bucket files must fit on disk, and hours of work are announced.
+    checkBucketDisk(settings.tmpDir, source->sizeHint(), scene.options.sortBlockers);
+    noteLongBake(source->sizeHint().value_or(0), 1,
+                 int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)), settings.quiet);
     AreaHistogram histogram;
     {
         ScopedTimer timer(streamSeconds);
@@ -216,6 +224,9 @@ void scanScene(Bake& b) {
     TriangleSourcePtr geometry = openSceneGeometry(scene);
     b.demand = demandBeforeScan(scene, *b.kind, *geometry, b.dump());
     checkBeforeScan(b.demand, b.budget);
+    // Without a budget the machine is the bound: refuse before any work what it cannot hold.
+    checkMemoryFits(scene.file, "the scan pass", scanPhaseBytes(b.demand));
+    checkMemoryFits(scene.file, "casting", planMemory(b.demand, 0).minimumBudget);
     auto afterScan = [&](const Prepared& prepared, uint64_t triangles) {
         b.demand.receivers = prepared.receivers.size();
         b.demand.kindBytes = b.kind->maxResidentBytes(b.demand.receivers, triangles);
@@ -227,6 +238,7 @@ void scanScene(Bake& b) {
     b.p = prepare(scene, b.settings, *b.kind, std::move(geometry), afterScan, b.streamSeconds, b.buckets);
     b.demand.kindBytes = b.kind->residentBytes();
     b.replan();
+    checkMemoryFits(scene.file, "casting", b.plan.minimumBudget);
     b.results.resize(b.p.receivers.size(), int(b.p.lights.size()));
     if (b.dump()) b.masks = VisibilityMasks(b.p.receivers.size(), b.p.samples.groupCount());
     b.firstPass = b.p.receivers.size();
@@ -237,8 +249,8 @@ void castReceivers(Bake& b, uint32_t first) {
     ScopedTimer timer(b.castSeconds);
     Prepared& p = b.p;
     if (!b.caster) {
-        CastContext context{p.samples, p.receivers, p.sampleSets, p.options, b.scene.bakeOptions};
-        context.threads = b.threads, context.memoryTiles = b.plan.tiles, context.quiet = b.settings.quiet;
+        CastContext context{p.samples, p.receivers,       p.sampleSets,      p.options, b.scene.bakeOptions,
+                            b.threads, b.plan.tiles,      b.settings.quiet, {},        nullptr};
         if (b.kind->wantsCastChunks()) context.observeChunk = [&b](std::span<const Triangle> c) { b.kind->castChunk(c); };
         b.caster = b.method.make(context);
     }
@@ -288,6 +300,10 @@ void writeOutputs(Bake& b) {
 }  // namespace
 
 nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
+    InputScope inputs;  // no output may replace a file this bake reads
+    if (settings.threads < 0 || settings.threads > kMaxThreads)
+        fail("--threads", "must be in 0..{} (0: all cores), got {}", kMaxThreads, settings.threads);
+    checkBakeOutputs(scene, settings.statsPath, settings.dumpDir);
     Stopwatch total;
     Bake b(scene, settings);
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(b.threads));
@@ -297,6 +313,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     scanScene(b);
     castReceivers(b, 0);
     if (refineReceivers(b)) castReceivers(b, uint32_t(b.firstPass));
+    OutputSet outputs;  // every output of the bake appears together, or none does
     writeOutputs(b);
 
     BakeStatsInputs in{scene, settings.method, b.threads, b.p.receivers, b.p.samples, b.p.options, b.results,
@@ -309,6 +326,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         for (auto& [key, value] : extra.items()) stats[key] = value;
     if (nlohmann::json extra = b.caster->methodStats(); !extra.is_null()) stats[settings.method] = extra;
     if (!settings.statsPath.empty()) writeStats(settings.statsPath, stats);
+    outputs.commit();
     return stats;
 }
 

@@ -10,6 +10,7 @@
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
 #include "stream/Npy.h"
+#include "stream/SafePath.h"
 
 #include <fmt/ranges.h>
 
@@ -30,6 +31,15 @@ std::map<std::string, ReceiverKindFactory>& registry() {
 class PointsKind final : public ReceiverKind {
 public:
     explicit PointsKind(std::string path) : path_(std::move(path)) {}
+    std::optional<uint64_t> receiverBound() const override {
+        if (std::filesystem::path(path_).extension() != ".npy") return std::nullopt;  // a CSV tells by its lines
+        try {
+            const NpyRowReader rows(path_);
+            return rows.header().shape.empty() ? 0 : rows.header().shape[0];
+        } catch (const InputError&) {
+            return std::nullopt;  // receivers() reports what is wrong with the file
+        }
+    }
     ReceiverSet receivers() override { return loadPointReceivers(path_); }
     void write(const OutputContext& c) override {
         uint64_t shape[1] = {c.results.visibility.size()};
@@ -43,9 +53,8 @@ private:
 
 }  // namespace
 
-std::string resolveScenePath(const std::filesystem::path& base, const std::string& p) {
-    std::filesystem::path path(p);
-    return (path.is_absolute() ? path : base / path).lexically_normal().string();
+std::string resolveScenePath(const std::filesystem::path& base, const std::string& p, const std::string& where) {
+    return containedPath(base, p, where.empty() ? p : where);
 }
 
 void registerReceiverKind(const std::string& type, ReceiverKindFactory factory) {
@@ -58,7 +67,7 @@ void registerBuiltinReceiverKinds() {
     std::call_once(once, [] {
         registerReceiverKind("camera", makeCameraKind);
         registerReceiverKind("points", [](const JsonParams& j, const SceneDesc& scene) {
-            return std::make_unique<PointsKind>(resolveScenePath(scene.baseDir, j.string("path")));
+            return std::make_unique<PointsKind>(resolveScenePath(scene.baseDir, j.string("path"), j.where("path")));
         });
         registerVertexColorKind();
         registerVolumeKind();

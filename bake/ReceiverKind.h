@@ -48,9 +48,10 @@ public:
     virtual uint64_t scanBytes() const { return 0; }
     /// Bytes held while writing outputs for @p receivers receivers, for the memory plan.
     virtual uint64_t outputBytes(uint64_t receivers) const { return 0; }
-    /// The most receivers the scan can make (a camera's pixels times layers), for the plan made
-    /// before the scan; 0 when the kind cannot tell before it has run.
-    virtual uint64_t maxReceivers() const { return 0; }
+    /// At most this many receivers, known before the scan pass (a camera's pixels, a lightmap's
+    /// texels, a box's voxels, a point file's rows), so that the plan refuses a request that
+    /// cannot fit before making a single receiver; nullopt when only the scan can tell.
+    virtual std::optional<uint64_t> receiverBound() const { return std::nullopt; }
     /// @brief The most residentBytes() can reach with @p receivers receivers over @p triangles
     /// triangles (unknown: nullopt), for plans made before the rescan. After receivers() it may
     /// use what the scan found.
@@ -106,7 +107,9 @@ std::unique_ptr<ReceiverKind> makeReceiverKind(const nlohmann::json& receivers, 
 /// makeReceiverKind itself, so only other stages' kinds need registering explicitly.
 void registerBuiltinReceiverKinds();
 
-/// A path from a scene file resolved against the scene's folder.
-std::string resolveScenePath(const std::filesystem::path& baseDir, const std::string& path);
+/// @brief A path from a scene file resolved against the scene's folder, which it must not leave
+/// (SafePath.h; `--allow-outside-uris` lifts the rule). @p where names the key in messages.
+/// @throw InputError naming @p where (or the path) when the path leaves the folder.
+std::string resolveScenePath(const std::filesystem::path& baseDir, const std::string& path, const std::string& where = "");
 
 }  // namespace penumbra

@@ -214,7 +214,7 @@ void registerVertexColorKind() {
             file.entry = size_t(index);
             file.where = where;
             if (g.params.contains("path") && g.params["path"].is_string())
-                file.input = resolveScenePath(scene.baseDir, g.params["path"].get<std::string>());
+                file.input = resolveScenePath(scene.baseDir, g.params["path"].get<std::string>(), scene.file + ": " + g.path + ".path");
             const std::string inExt = lowerExtension(file.input);
             const bool gltfType = g.type == "gltf" || g.type == "glb" || g.type == "file";
             if (!gltfType || (inExt != ".gltf" && inExt != ".glb"))

@@ -10,7 +10,9 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Prune.h>
 
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
+#include <glm/vec3.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -18,6 +20,13 @@
 
 namespace penumbra {
 namespace {
+
+/// Most voxels a volume bake has: receivers are indexed by 32 bits elsewhere.
+constexpr uint64_t kMaxVolumeVoxels = uint64_t(1) << 30;
+/// Most lattice points a narrow band's triangle boxes may hold together (each is a distance test).
+constexpr double kMaxBandVisits = double(uint64_t(1) << 34);
+/// Largest lattice index along an axis: OpenVDB's Coord is 32-bit and its trees add node offsets.
+constexpr double kMaxLatticeIndex = double(1 << 30);
 
 /// Voxel (i,j,k) has its centre, and its receiver, at origin + h * (i,j,k).
 struct Lattice {
@@ -55,8 +64,13 @@ glm::dvec3 closestOnTriangle(const glm::dvec3& p, const glm::dvec3& a, const glm
 
 class VolumeKind final : public ReceiverKind {
 public:
-    VolumeKind(Lattice lattice, openvdb::CoordBBox box, SceneDesc band, double width, bool irradiance)
-        : lattice_(lattice), box_(box), band_(std::move(band)), width_(width), irradiance_(irradiance) {}
+    VolumeKind(Lattice lattice, openvdb::CoordBBox box, SceneDesc band, double width, bool irradiance, std::string where)
+        : lattice_(lattice), box_(box), band_(std::move(band)), width_(width), irradiance_(irradiance), where_(std::move(where)) {}
+
+    std::optional<uint64_t> receiverBound() const override {
+        if (!band_.geometry.empty()) return std::nullopt;  // only the band's triangles tell
+        return uint64_t(box_.volume());
+    }
 
     ReceiverSet receivers() override {
         initializeOpenVdb();
@@ -126,26 +140,43 @@ public:
     }
 
 private:
-    /// Marks every lattice point within width_ of a triangle, streaming the named entries.
+    /// Marks every lattice point within width_ of a triangle, streaming the named entries: first to
+    /// count the lattice points the triangles' boxes hold (refused, with the numbers, when they
+    /// cannot be indexed or visited in reasonable time), then to mark them.
     void scanBand() {
+        std::vector<Triangle> chunk(1 << 14);
+        double visits = 0;
+        {
+            TriangleSourcePtr source = openSceneGeometry(band_);
+            while (size_t n = source->read(chunk))
+                for (size_t t = 0; t < n; ++t) visits += boxLattice(chunk[t]).count;
+        }
+        if (visits > kMaxBandVisits)
+            fail(where_, "the band's triangles cover {:.3g} lattice points at voxel_size {} and width {}, more than the {:.3g} "
+                         "a bake visits; raise voxel_size or lower width",
+                 visits, lattice_.h, width_, kMaxBandVisits);
         openvdb::MaskGrid::Ptr mask = openvdb::MaskGrid::create(false);
         auto acc = mask->getAccessor();
         TriangleSourcePtr source = openSceneGeometry(band_);
-        std::vector<Triangle> chunk(1 << 14);
         const double w2 = width_ * width_;
+        uint64_t marked = 0;
         while (size_t n = source->read(chunk)) {
             for (size_t t = 0; t < n; ++t) {
                 const glm::dvec3 a(chunk[t].v[0]), b(chunk[t].v[1]), cc(chunk[t].v[2]);
-                const glm::dvec3 lo = (glm::min(a, glm::min(b, cc)) - width_ - lattice_.origin) / lattice_.h;
-                const glm::dvec3 hi = (glm::max(a, glm::max(b, cc)) + width_ - lattice_.origin) / lattice_.h;
-                for (int i = int(std::ceil(lo.x)); i <= int(std::floor(hi.x)); ++i)
-                    for (int j = int(std::ceil(lo.y)); j <= int(std::floor(hi.y)); ++j)
-                        for (int k = int(std::ceil(lo.z)); k <= int(std::floor(hi.z)); ++k) {
+                const BoxLattice box = boxLattice(chunk[t]);
+                for (int i = box.lo.x; i <= box.hi.x; ++i)
+                    for (int j = box.lo.y; j <= box.hi.y; ++j)
+                        for (int k = box.lo.z; k <= box.hi.z; ++k) {
                             const openvdb::Coord coord(i, j, k);
                             if (acc.isValueOn(coord)) continue;
                             const glm::dvec3 p = lattice_.centre(coord);
                             const glm::dvec3 d = p - closestOnTriangle(p, a, b, cc);
-                            if (glm::dot(d, d) <= w2) acc.setValueOn(coord);
+                            if (glm::dot(d, d) > w2) continue;
+                            acc.setValueOn(coord);
+                            if (++marked > kMaxVolumeVoxels)
+                                fail(where_, "the band holds more than {} voxels (receivers are indexed by 32 bits); raise "
+                                             "voxel_size or lower width",
+                                     kMaxVolumeVoxels);
                         }
             }
         }
@@ -154,11 +185,34 @@ private:
             for (auto v = leaf->cbeginValueOn(); v; ++v) coords_.push_back(v.getCoord());
     }
 
+    /// The lattice points of a triangle's box grown by the band width, and how many they are.
+    struct BoxLattice {
+        glm::ivec3 lo{0}, hi{-1};
+        double count = 0;
+    };
+    BoxLattice boxLattice(const Triangle& t) const {
+        const glm::dvec3 a(t.v[0]), b(t.v[1]), c(t.v[2]);
+        const glm::dvec3 lo = glm::ceil((glm::min(a, glm::min(b, c)) - width_ - lattice_.origin) / lattice_.h);
+        const glm::dvec3 hi = glm::floor((glm::max(a, glm::max(b, c)) + width_ - lattice_.origin) / lattice_.h);
+        BoxLattice box;
+        for (int axis = 0; axis < 3; ++axis)
+            // OpenVDB coordinates are 32-bit, with room for its node arithmetic.
+            if (!(std::abs(lo[axis]) < kMaxLatticeIndex && std::abs(hi[axis]) < kMaxLatticeIndex))
+                fail(where_, "a triangle of the band lies {:.3g} voxels from the origin, beyond the {:.3g} a lattice "
+                             "index can reach; raise voxel_size",
+                     std::max(std::abs(lo[axis]), std::abs(hi[axis])), kMaxLatticeIndex);
+        if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) return box;
+        box.lo = glm::ivec3(lo), box.hi = glm::ivec3(hi);
+        box.count = (hi.x - lo.x + 1) * (hi.y - lo.y + 1) * (hi.z - lo.z + 1);
+        return box;
+    }
+
     Lattice lattice_;
     openvdb::CoordBBox box_;
     SceneDesc band_;  ///< the scene reduced to the narrow band's geometry entries (empty for a box)
     double width_ = 0;
     bool irradiance_ = false;
+    std::string where_;  ///< "scene.json: receivers.narrow_band", for messages
     std::vector<openvdb::Coord> coords_;
 };
 
@@ -194,7 +248,7 @@ void registerVolumeKind() {
         }
         const bool hasBox = j.has("box"), hasBand = j.has("narrow_band");
         if (hasBox == hasBand) fail(j.where("box"), "give exactly one of \"box\" and \"narrow_band\"");
-        constexpr double kMaxVoxels = 1u << 30;  // receivers are indexed by uint32 elsewhere
+        constexpr double kMaxVoxels = double(kMaxVolumeVoxels);
         if (hasBox) {
             glm::dvec3 lo, hi;
             parseBox(j, lo, hi);
@@ -204,11 +258,16 @@ void registerVolumeKind() {
                 fail(j.where("voxel_size"), "the box would have {:.0f} voxels (at most {:.0f})", n.x * n.y * n.z, kMaxVoxels);
             lattice.origin = lo + 0.5 * lattice.h;
             openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(int(n.x) - 1, int(n.y) - 1, int(n.z) - 1));
-            return std::make_unique<VolumeKind>(lattice, box, SceneDesc{}, 0.0, irradiance);
+            return std::make_unique<VolumeKind>(lattice, box, SceneDesc{}, 0.0, irradiance, j.where("box"));
         }
         JsonParams band(*j.raw("narrow_band"), j.file(), j.path("narrow_band"));
         const double width = band.number("width");
         if (!(width >= 0) || !std::isfinite(width)) fail(band.where("width"), "must be a non-negative number");
+        // Around one triangle alone the band holds about (2 width / h)^3 voxels.
+        if (const double around = std::pow(2 * width / lattice.h + 1, 3); around > kMaxVoxels)
+            fail(band.where("width"), "a band {} wide holds about {:.3g} voxels of size {} around a single triangle, more "
+                                      "than the {:.0f} a bake can hold",
+                 width, around, lattice.h, kMaxVoxels);
         const nlohmann::json* geometry = band.raw("geometry");
         if (!geometry) fail(band.where("geometry"), "missing (a list of indices into \"geometry\")");
         if (!geometry->is_array() || geometry->empty())
@@ -225,7 +284,7 @@ void registerVolumeKind() {
             sub.geometry.push_back(scene.geometry[size_t(index)]);
         }
         band.finish();
-        return std::make_unique<VolumeKind>(lattice, openvdb::CoordBBox(), std::move(sub), width, irradiance);
+        return std::make_unique<VolumeKind>(lattice, openvdb::CoordBBox(), std::move(sub), width, irradiance, band.where());
     });
 }
 
@@ -251,12 +310,15 @@ void writeVolumeSlicePng(const std::string& vdbPath, const std::string& pngPath,
     if (bounds.empty()) fail(vdbPath, "grid \"{}\" is empty", gridName);
 
     const int a = axis - 'x';
+    if (!std::isfinite(at)) fail("--at", "must be a finite number, got {}", at);
     openvdb::Vec3d probe(0.0);
     probe[a] = at;
-    const int slice = int(std::lround(grid->transform().worldToIndex(probe)[a]));
-    if (slice < bounds.min()[a] || slice > bounds.max()[a])
-        fail(vdbPath, "{} = {} lies outside the grid (index {}, grid {}..{})", axis, at, slice, bounds.min()[a],
+    // Compared in double: a far coordinate must not wrap into the grid's index range.
+    const double index = std::round(grid->transform().worldToIndex(probe)[a]);
+    if (!(index >= bounds.min()[a] && index <= bounds.max()[a]))
+        fail(vdbPath, "{} = {} lies outside the grid (index {:.0f}, grid {}..{})", axis, at, index, bounds.min()[a],
              bounds.max()[a]);
+    const int slice = int(index);
     // (right, down) axes of the image and whether rows run from the axis's high end.
     const int u = axis == 'x' ? 2 : 0, v = axis == 'y' ? 2 : 1;
     const bool flip = axis != 'y';  // y up for x and z slices; z down when seen from above

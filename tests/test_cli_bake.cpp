@@ -22,20 +22,6 @@ const char* kSmallScene = R"({
 
 void write(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
-void requireCleanError(const RunResult& r, const std::string& fragment) {
-    INFO("stderr: " << r.err);
-    CHECK(r.exitCode == 1);
-    CHECK(lineCount(r.err) == 1);
-    CHECK_THAT(r.err, Catch::StartsWith("penumbra: error: ") && Catch::Contains(fragment));
-}
-
-bool hasTempFiles(const std::filesystem::path& dir) {
-    if (!std::filesystem::exists(dir)) return false;
-    for (const auto& e : std::filesystem::recursive_directory_iterator(dir))
-        if (e.path().filename().string().find(".tmp") != std::string::npos) return true;
-    return false;
-}
-
 }  // namespace
 
 TEST_CASE("bake writes the EXR, PNG, dump and stats, and hpc matches reference via compare", "[cli]") {
