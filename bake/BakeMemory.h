@@ -15,7 +15,7 @@
 
 #include "bake/light/Light.h"
 #include "bake/MemoryPlan.h"
-#include "bake/ReceiverKind.h"
+#include "bake/kinds/ReceiverKind.h"
 #include "bake/Scene.h"
 #include "stream/TriangleSource.h"
 

@@ -1,6 +1,6 @@
 #include "bake/BakeStats.h"
 
-#include "bake/ReceiverShading.h"
+#include "bake/shading/ReceiverShading.h"
 #include "bake/Scene.h"
 #include "bake/cast/HardShadowBlock.h"
 #include "stream/AtomicFile.h"

@@ -1,7 +1,7 @@
 #include "bake/Scene.h"
 
-#include "bake/ReceiverKind.h"
-#include "bake/ReceiverShading.h"
+#include "bake/kinds/ReceiverKind.h"
+#include "bake/shading/ReceiverShading.h"
 #include "bake/light/SunLight.h"
 #include "stream/CheckedMath.h"
 #include "stream/Error.h"

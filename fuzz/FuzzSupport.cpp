@@ -1,6 +1,6 @@
 #include "FuzzSupport.h"
 
-#include "bake/ReceiverKind.h"
+#include "bake/kinds/ReceiverKind.h"
 #include "bake/Scene.h"
 #include "procedural/Generators.h"
 #include "stream/GeometryFile.h"

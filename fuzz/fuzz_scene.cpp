@@ -5,7 +5,7 @@
 
 #include "bake/BakeOutputs.h"
 #include "bake/light/Light.h"
-#include "bake/ReceiverKind.h"
+#include "bake/kinds/ReceiverKind.h"
 #include "bake/Scene.h"
 #include "bake/light/SunLight.h"
 

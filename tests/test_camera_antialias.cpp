@@ -4,12 +4,12 @@
 
 #include "TestScenes.h"
 
-#include "bake/CameraKind.h"
-#include "bake/ImageWriters.h"
+#include "bake/kinds/CameraKind.h"
+#include "bake/output/ImageWriters.h"
 #include "bake/Pipeline.h"
-#include "bake/ReceiverKind.h"
+#include "bake/kinds/ReceiverKind.h"
 #include "bake/Scene.h"
-#include "bake/SmoothShading.h"
+#include "bake/shading/SmoothShading.h"
 #include "receivers/CameraReceivers.h"
 
 #include <catch2/catch.hpp>

@@ -3,7 +3,7 @@
 
 #include "CliRunner.h"
 
-#include "bake/ImageWriters.h"
+#include "bake/output/ImageWriters.h"
 #include "stream/Npy.h"
 
 #include <catch2/catch.hpp>

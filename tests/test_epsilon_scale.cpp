@@ -6,7 +6,7 @@
 #include "TestScenes.h"
 #include "TestSupport.h"
 
-#include "bake/BakeDump.h"
+#include "bake/output/BakeDump.h"
 #include "bake/rule/TieClassifier.h"
 #include "stream/Npy.h"
 #include "stream/ObjReader.h"

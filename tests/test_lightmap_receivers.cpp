@@ -4,10 +4,10 @@
 #include "CliRunner.h"
 #include "LightmapTestMeshes.h"
 
-#include "bake/ImageWriters.h"
+#include "bake/output/ImageWriters.h"
 #include "bake/light/Light.h"
-#include "bake/ReceiverKind.h"
-#include "bake/ReceiverShading.h"
+#include "bake/kinds/ReceiverKind.h"
+#include "bake/shading/ReceiverShading.h"
 #include "bake/Scene.h"
 #include "receivers/LightmapReceivers.h"
 #include "stream/IndexedMesh.h"

@@ -4,7 +4,7 @@
 
 #include "TestScenes.h"
 
-#include "bake/ReceiverShading.h"
+#include "bake/shading/ReceiverShading.h"
 #include "bake/peers/ReferenceCaster.h"
 #include "bake/light/SunLight.h"
 

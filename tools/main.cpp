@@ -10,7 +10,7 @@
 #include "bake/Pipeline.h"
 #include "bake/cast/Caster.h"
 #include "bake/Scene.h"
-#include "bake/VolumeKind.h"
+#include "bake/kinds/VolumeKind.h"
 #include "procedural/Generators.h"
 #include "stream/AtomicFile.h"
 #include "stream/Diagnostics.h"

@@ -1,6 +1,6 @@
-#include "bake/CameraOutput.h"
+#include "bake/kinds/CameraOutput.h"
 
-#include "bake/ImageWriters.h"
+#include "bake/output/ImageWriters.h"
 #include "stream/AtomicFile.h"
 
 #include <fmt/format.h>

@@ -1,4 +1,4 @@
-#include "bake/SmoothShading.h"
+#include "bake/shading/SmoothShading.h"
 
 #include "receivers/CameraReceivers.h"
 #include "stream/Triangle.h"

@@ -1,7 +1,7 @@
-#include "bake/VolumeKind.h"
+#include "bake/kinds/VolumeKind.h"
 
-#include "bake/ImageWriters.h"
-#include "bake/ReceiverKind.h"
+#include "bake/output/ImageWriters.h"
+#include "bake/kinds/ReceiverKind.h"
 #include "bake/Scene.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"

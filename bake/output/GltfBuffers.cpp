@@ -1,4 +1,4 @@
-#include "bake/GltfBuffers.h"
+#include "bake/output/GltfBuffers.h"
 
 #include <cstring>
 

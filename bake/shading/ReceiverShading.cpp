@@ -1,4 +1,4 @@
-#include "bake/ReceiverShading.h"
+#include "bake/shading/ReceiverShading.h"
 
 #include "stream/Error.h"
 

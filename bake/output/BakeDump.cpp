@@ -1,4 +1,4 @@
-#include "bake/BakeDump.h"
+#include "bake/output/BakeDump.h"
 
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"

@@ -3,7 +3,7 @@
 /// @brief The "camera" receiver kind: a z-buffer pass over the scene stream makes one receiver
 /// per covered pixel; it writes a multi-channel EXR and a shaded PNG preview (CameraOutput.h).
 
-#include "bake/ReceiverKind.h"
+#include "bake/kinds/ReceiverKind.h"
 
 #include <memory>
 #include <span>

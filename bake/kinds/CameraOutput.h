@@ -2,11 +2,11 @@
 /// @file CameraOutput.h
 /// @brief What a camera bake writes: a multi-channel OpenEXR and a shaded PNG preview.
 
-#include "bake/ImageWriters.h"
+#include "bake/output/ImageWriters.h"
 #include "bake/light/Light.h"
 #include "bake/Scene.h"
-#include "bake/ReceiverShading.h"
-#include "bake/SmoothShading.h"
+#include "bake/shading/ReceiverShading.h"
+#include "bake/shading/SmoothShading.h"
 #include "receivers/ReceiverSet.h"
 
 #include <span>

@@ -1,7 +1,7 @@
-#include "bake/VertexColorKind.h"
+#include "bake/kinds/VertexColorKind.h"
 
-#include "bake/GltfBuffers.h"
-#include "bake/ReceiverKind.h"
+#include "bake/output/GltfBuffers.h"
+#include "bake/kinds/ReceiverKind.h"
 #include "bake/Scene.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"

@@ -1,8 +1,8 @@
-#include "bake/LightmapKind.h"
+#include "bake/kinds/LightmapKind.h"
 
-#include "bake/ImageWriters.h"
-#include "bake/LightmapGltf.h"
-#include "bake/ReceiverKind.h"
+#include "bake/output/ImageWriters.h"
+#include "bake/output/LightmapGltf.h"
+#include "bake/kinds/ReceiverKind.h"
 #include "bake/Scene.h"
 #include "receivers/CreaseNormals.h"
 #include "receivers/LightmapAtlas.h"

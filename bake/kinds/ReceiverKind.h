@@ -10,7 +10,7 @@
 /// antialiasing), casting only those, and (5) hands it the per-receiver results to write.
 
 #include "bake/light/Light.h"
-#include "bake/ReceiverShading.h"
+#include "bake/shading/ReceiverShading.h"
 #include "receivers/ReceiverSet.h"
 #include "stream/JsonParams.h"
 #include "stream/Triangle.h"

@@ -1,6 +1,6 @@
-#include "bake/LightmapGltf.h"
+#include "bake/output/LightmapGltf.h"
 
-#include "bake/GltfBuffers.h"
+#include "bake/output/GltfBuffers.h"
 
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"

@@ -1,4 +1,4 @@
-#include "bake/ImageWriters.h"
+#include "bake/output/ImageWriters.h"
 
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"

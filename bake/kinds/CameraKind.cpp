@@ -1,8 +1,8 @@
-#include "bake/CameraKind.h"
+#include "bake/kinds/CameraKind.h"
 
-#include "bake/CameraOutput.h"
+#include "bake/kinds/CameraOutput.h"
 #include "bake/Scene.h"
-#include "bake/SmoothShading.h"
+#include "bake/shading/SmoothShading.h"
 #include "receivers/CameraReceivers.h"
 #include "stream/Error.h"
 
