@@ -54,7 +54,6 @@ void initialize() {
     std::call_once(once, [] {
         registerFileSourceTypes();
         registerProceduralGenerators();
-        registerBuiltinReceiverKinds();
         scratchDir();
     });
 }

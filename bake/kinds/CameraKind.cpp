@@ -166,4 +166,8 @@ std::unique_ptr<ReceiverKind> makeCameraKind(const JsonParams& j, const SceneDes
     return std::make_unique<CameraKind>(c, aa, scene);
 }
 
+namespace {
+const ReceiverKindRegistration kCamera{"camera", &makeCameraKind};
+}  // namespace
+
 }  // namespace penumbra

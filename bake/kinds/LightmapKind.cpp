@@ -364,6 +364,8 @@ std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneD
 
 }  // namespace
 
-void registerLightmapReceiverKind() { registerReceiverKind("lightmap", &makeLightmapKind); }
+namespace {
+const ReceiverKindRegistration kLightmap{"lightmap", &makeLightmapKind};
+}  // namespace
 
 }  // namespace penumbra

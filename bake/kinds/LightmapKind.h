@@ -18,7 +18,5 @@
 
 namespace penumbra {
 
-/// @brief Registers the "lightmap" receiver type (called from registerBuiltinReceiverKinds()).
-void registerLightmapReceiverKind();
 
 }  // namespace penumbra

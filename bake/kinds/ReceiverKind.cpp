@@ -62,21 +62,13 @@ void registerReceiverKind(const std::string& type, ReceiverKindFactory factory) 
     registry()[type] = std::move(factory);
 }
 
-void registerBuiltinReceiverKinds() {
-    static std::once_flag once;
-    std::call_once(once, [] {
-        registerReceiverKind("camera", makeCameraKind);
-        registerReceiverKind("points", [](const JsonParams& j, const SceneDesc& scene) {
-            return std::make_unique<PointsKind>(resolveScenePath(scene.baseDir, j.string("path"), j.where("path")));
-        });
-        registerVertexColorKind();
-        registerVolumeKind();
-        registerLightmapReceiverKind();
-    });
-}
+namespace {
+const ReceiverKindRegistration kPoints{"points", [](const JsonParams& j, const SceneDesc& scene) {
+    return std::make_unique<PointsKind>(resolveScenePath(scene.baseDir, j.string("path"), j.where("path")));
+}};
+}  // namespace
 
 std::unique_ptr<ReceiverKind> makeReceiverKind(const nlohmann::json& receivers, const SceneDesc& scene) {
-    registerBuiltinReceiverKinds();
     JsonParams j(receivers, scene.file, "receivers");
     const std::string type = j.string("type");
     ReceiverKindFactory factory;

@@ -103,9 +103,14 @@ void registerReceiverKind(const std::string& type, ReceiverKindFactory factory);
 /// @throw InputError naming the key for an unknown type or bad parameters.
 std::unique_ptr<ReceiverKind> makeReceiverKind(const nlohmann::json& receivers, const SceneDesc& scene);
 
-/// @brief Registers the kinds built into bake/ ("camera", "points"). Idempotent; called by
-/// makeReceiverKind itself, so only other stages' kinds need registering explicitly.
-void registerBuiltinReceiverKinds();
+/// @brief Registers a receiver type from the kind's own file, as a namespace-scope constant
+/// (`const ReceiverKindRegistration kCamera{"camera", &makeCameraKind};`), so that no central
+/// file lists the kinds. The library is linked whole (CMakeLists.txt) so that none is dropped.
+struct ReceiverKindRegistration {
+    ReceiverKindRegistration(const std::string& type, ReceiverKindFactory factory) {
+        registerReceiverKind(type, std::move(factory));
+    }
+};
 
 /// @brief A path from a scene file resolved against the scene's folder, which it must not leave
 /// (SafePath.h; `--allow-outside-uris` lifts the rule). @p where names the key in messages.

@@ -192,8 +192,9 @@ private:
 
 }  // namespace
 
-void registerVertexColorKind() {
-    registerReceiverKind("vertices", [](const JsonParams& j, const SceneDesc& scene) {
+namespace {
+
+const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, const SceneDesc& scene) {
         const nlohmann::json* meshes = j.raw("meshes");
         if (!meshes) fail(j.where("meshes"), "missing (a list of indices into \"geometry\")");
         if (!meshes->is_array() || meshes->empty())
@@ -228,7 +229,8 @@ void registerVertexColorKind() {
             files.push_back(std::move(file));
         }
         return std::make_unique<VertexColorKind>(std::move(files));
-    });
-}
+    }};
+
+}  // namespace
 
 }  // namespace penumbra

@@ -17,7 +17,5 @@
 
 namespace penumbra {
 
-/// @brief Registers the "vertices" receiver type (called from registerBuiltinReceiverKinds()).
-void registerVertexColorKind();
 
 }  // namespace penumbra

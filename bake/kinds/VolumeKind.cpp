@@ -236,8 +236,9 @@ void parseBox(const JsonParams& j, glm::dvec3& lo, glm::dvec3& hi) {
 
 }  // namespace
 
-void registerVolumeKind() {
-    registerReceiverKind("volume", [](const JsonParams& j, const SceneDesc& scene) {
+namespace {
+
+const ReceiverKindRegistration kVolume{"volume", [](const JsonParams& j, const SceneDesc& scene) {
         Lattice lattice;
         lattice.h = j.number("voxel_size");
         if (!(lattice.h > 0) || !std::isfinite(lattice.h)) fail(j.where("voxel_size"), "must be a positive number");
@@ -285,8 +286,9 @@ void registerVolumeKind() {
         }
         band.finish();
         return std::make_unique<VolumeKind>(lattice, openvdb::CoordBBox(), std::move(sub), width, irradiance, band.where());
-    });
-}
+    }};
+
+}  // namespace
 
 void writeVolumeSlicePng(const std::string& vdbPath, const std::string& pngPath, const std::string& gridName,
                          char axis, double at, int minWidth) {

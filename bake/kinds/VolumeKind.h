@@ -22,8 +22,6 @@
 
 namespace penumbra {
 
-/// @brief Registers the "volume" receiver type (called from registerBuiltinReceiverKinds()).
-void registerVolumeKind();
 
 /// @brief Renders an axis-aligned slice of a float grid of a .vdb file as an 8-bit grey PNG
 /// (sRGB-encoded value, clamped to [0,1]), nearest-neighbour upscaled to at least @p minWidth px.
