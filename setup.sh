@@ -50,7 +50,7 @@ case "$mode" in
     "$build/penumbra" bake examples/grids.json -o out/default.exr --stats out/default-stats.json
     echo "setup: wrote out/default.exr and out/default.png" >&2 ;;
   test)
-    (cd "$build" && ctest --output-on-failure --timeout 1200)
+    (cd "$build" && ctest -j "$(nproc)" --output-on-failure --timeout 1200)
     # The same tests of readers, outputs and the command line under AddressSanitizer and UBSan,
     # then every parser's fuzzer for a bounded time (docs/reliability.md). PENUMBRA_FUZZ_SECONDS
     # sets the time per harness; PENUMBRA_SANITIZE_TESTS=0 skips both.
@@ -59,7 +59,7 @@ case "$mode" in
       cmake -S . -B "$fuzzbuild" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_COMPILER=clang++ \
         -DPENUMBRA_FUZZ=ON -DPENUMBRA_SANITIZE=address,undefined -DPENUMBRA_TEST_SPEC="$sanitize_spec" >/dev/null
       cmake --build "$fuzzbuild" --parallel "$(nproc)"
-      (cd "$fuzzbuild" && ctest --output-on-failure --timeout 1200)
+      (cd "$fuzzbuild" && ctest -j "$(nproc)" --output-on-failure --timeout 1200)
       fuzz/run.sh "$fuzzbuild" "${PENUMBRA_FUZZ_SECONDS:-60}"
     fi ;;
   build) ;;

@@ -4,8 +4,8 @@
 #include "bake/cast/SampleMaskTable.h"
 #include "bake/light/SunLight.h"
 #include "bucket/BucketOptions.h"
-#include "stream/Error.h"
-#include "stream/Memory.h"
+#include "stream/util/Error.h"
+#include "stream/util/Memory.h"
 #include "stream/PrefetchSource.h"
 
 #include <fmt/format.h>

@@ -1,7 +1,7 @@
 #include "bake/BakeOutputs.h"
 
-#include "stream/AtomicFile.h"
-#include "stream/Error.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
 
 #include <sys/stat.h>
 

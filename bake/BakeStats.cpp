@@ -3,8 +3,8 @@
 #include "bake/shading/ReceiverShading.h"
 #include "bake/Scene.h"
 #include "bake/cast/HardShadowBlock.h"
-#include "stream/AtomicFile.h"
-#include "stream/Memory.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Memory.h"
 
 #include <cmath>
 

@@ -1,7 +1,7 @@
 #include "bake/MemoryPlan.h"
 
-#include "stream/Error.h"
-#include "stream/Memory.h"
+#include "stream/util/Error.h"
+#include "stream/util/Memory.h"
 
 #include <algorithm>
 

@@ -14,13 +14,13 @@
 #include "bake/cast/VisibilityMasks.h"
 #include "bake/light/SunLight.h"
 #include "bucket/BucketPlan.h"
-#include "stream/AnonymousFile.h"
-#include "stream/AtomicFile.h"
-#include "stream/Error.h"
-#include "stream/InputFile.h"
-#include "stream/Memory.h"
+#include "stream/util/AnonymousFile.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
+#include "stream/util/InputFile.h"
+#include "stream/util/Memory.h"
 #include "stream/PrefetchSource.h"
-#include "stream/Progress.h"
+#include "stream/util/Progress.h"
 
 #include <tbb/global_control.h>
 #include <tbb/info.h>

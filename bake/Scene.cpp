@@ -3,10 +3,10 @@
 #include "bake/kinds/ReceiverKind.h"
 #include "bake/shading/ReceiverShading.h"
 #include "bake/light/SunLight.h"
-#include "stream/CheckedMath.h"
-#include "stream/Error.h"
+#include "stream/util/CheckedMath.h"
+#include "stream/util/Error.h"
 #include "stream/GeometryFile.h"
-#include "stream/JsonParams.h"
+#include "stream/util/JsonParams.h"
 #include "stream/SourceRegistry.h"
 
 #include <algorithm>
@@ -115,6 +115,23 @@ std::vector<std::string> geometryParts(const JsonParams& entry) {
         parts.push_back(name.get<std::string>());
     }
     return parts;
+}
+
+std::vector<size_t> geometryIndices(const JsonParams& j, const std::string& key, const SceneDesc& scene) {
+    const nlohmann::json* list = j.raw(key);
+    if (!list) fail(j.where(key), "missing (a list of indices into \"geometry\")");
+    if (!list->is_array() || list->empty()) fail(j.where(key), "expected a non-empty array of indices into \"geometry\"");
+    std::vector<size_t> indices;
+    for (size_t i = 0; i < list->size(); ++i) {
+        const nlohmann::json& value = (*list)[i];
+        const std::string where = fmt::format("{}[{}]", j.where(key), i);
+        if (!value.is_number_integer()) fail(where, "expected an index into \"geometry\", got {}", value.dump());
+        const int64_t index = value.get<int64_t>();
+        if (index < 0 || uint64_t(index) >= scene.geometry.size())
+            fail(where, "geometry index {} is out of range (the scene has {} entries)", index, scene.geometry.size());
+        indices.push_back(size_t(index));
+    }
+    return indices;
 }
 
 void registerFileSourceTypes() {

@@ -5,7 +5,7 @@
 
 #include "bake/cast/CastOptions.h"
 #include "bake/light/Light.h"
-#include "stream/JsonParams.h"
+#include "stream/util/JsonParams.h"
 #include "stream/Transform.h"
 #include "stream/TriangleSource.h"
 
@@ -76,6 +76,11 @@ TriangleSourcePtr openSceneGeometry(const SceneDesc& scene);
 /// @brief The "parts" of a geometry entry: the OBJ o/g groups it takes (empty: the whole file).
 /// @throw InputError naming the key when it is not a non-empty array of strings.
 std::vector<std::string> geometryParts(const JsonParams& entry);
+
+/// @brief The indices into the scene's "geometry" list that key @p key of @p j holds (a kind's
+/// "meshes", a band's "geometry"): a non-empty array of in-range integers.
+/// @throw InputError naming the key, or KEY[i] for a bad element.
+std::vector<size_t> geometryIndices(const JsonParams& j, const std::string& key, const SceneDesc& scene);
 
 /// @brief Registers the file-backed geometry types: obj, gltf, glb, ptri and "file" (by extension).
 void registerFileSourceTypes();

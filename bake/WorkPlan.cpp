@@ -1,10 +1,10 @@
 #include "bake/WorkPlan.h"
 
 #include "bucket/BucketOptions.h"
-#include "stream/Diagnostics.h"
-#include "stream/Error.h"
-#include "stream/Memory.h"
-#include "stream/Progress.h"
+#include "stream/util/Diagnostics.h"
+#include "stream/util/Error.h"
+#include "stream/util/Memory.h"
+#include "stream/util/Progress.h"
 
 #include <sys/statvfs.h>
 #include <sys/sysinfo.h>

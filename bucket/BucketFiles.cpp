@@ -1,9 +1,9 @@
 #include "bucket/BucketFiles.h"
 
-#include "stream/AnonymousFile.h"
-#include "stream/AtomicFile.h"
-#include "stream/Error.h"
-#include "stream/Progress.h"
+#include "stream/util/AnonymousFile.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
+#include "stream/util/Progress.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -20,7 +20,6 @@ namespace penumbra {
 
 namespace {
 
-std::string errnoText(int err) { return std::error_code(err, std::generic_category()).message(); }
 
 /// Writes all of @p bytes; returns 0 or the errno of the failure, with @p written telling how far
 /// it got (a file-size limit typically allows a short write first and fails the next call).

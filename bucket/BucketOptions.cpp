@@ -1,6 +1,6 @@
 #include "bucket/BucketOptions.h"
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 
 namespace penumbra {
 

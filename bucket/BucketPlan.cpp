@@ -1,6 +1,6 @@
 #include "bucket/BucketPlan.h"
 
-#include "stream/Progress.h"
+#include "stream/util/Progress.h"
 
 #include <vector>
 

@@ -40,7 +40,6 @@ struct BucketStats {
     /// Bytes written per second of the whole pass, in MB/s (10^6 bytes).
     double megabytesPerSecond() const { return seconds > 0 ? double(bytesWritten) / 1e6 / seconds : 0.0; }
     /// Triangles per second of the whole pass.
-    double trianglesPerSecond() const { return seconds > 0 ? double(triangles) / seconds : 0.0; }
     /// Bucket bytes per triangle (40 for raw records).
     double bytesPerTriangle() const { return triangles ? double(bytesWritten) / double(triangles) : 0.0; }
 };

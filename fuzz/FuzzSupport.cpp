@@ -4,7 +4,7 @@
 #include "bake/Scene.h"
 #include "procedural/Generators.h"
 #include "stream/GeometryFile.h"
-#include "stream/Npy.h"
+#include "stream/util/Npy.h"
 #include "stream/PtriFormat.h"
 
 #include <unistd.h>

@@ -15,7 +15,7 @@
 /// replay binary that runs the kept crash inputs in fuzz/regressions/NAME/ and the seeds in
 /// fuzz/seeds/NAME/ once, as a test. fuzz/run.sh runs them; docs/reliability.md has the numbers.
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 #include "stream/TriangleSource.h"
 
 #include <cstddef>

@@ -2,7 +2,7 @@
 #include "FuzzSupport.h"
 
 #include "receivers/PointReceivers.h"
-#include "stream/Csv.h"
+#include "stream/util/Csv.h"
 
 PENUMBRA_FUZZ_FILE("points.csv") {
     using namespace penumbra;

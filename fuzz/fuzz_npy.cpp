@@ -2,7 +2,7 @@
 #include "FuzzSupport.h"
 
 #include "receivers/PointReceivers.h"
-#include "stream/Npy.h"
+#include "stream/util/Npy.h"
 
 PENUMBRA_FUZZ_FILE("points.npy") {
     using namespace penumbra;

@@ -1,10 +1,10 @@
 #include "procedural/FlowerGenerator.h"
 
 #include "procedural/IndexedSource.h"
-#include "stream/CheckedMath.h"
-#include "stream/Error.h"
-#include "stream/JsonParams.h"
-#include "stream/Random.h"
+#include "stream/util/CheckedMath.h"
+#include "stream/util/Error.h"
+#include "stream/util/JsonParams.h"
+#include "stream/util/Random.h"
 
 #include <cmath>
 

@@ -3,8 +3,8 @@
 #include "procedural/BoxFaces.h"
 
 #include "procedural/IndexedSource.h"
-#include "stream/Error.h"
-#include "stream/JsonParams.h"
+#include "stream/util/Error.h"
+#include "stream/util/JsonParams.h"
 
 #include <glm/trigonometric.hpp>
 

@@ -1,6 +1,6 @@
 #include "procedural/Noise.h"
 
-#include "stream/Random.h"
+#include "stream/util/Random.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,20 +1,12 @@
 #include "procedural/Placement.h"
 
-#include "stream/Error.h"
-#include "stream/JsonParams.h"
-#include "stream/Random.h"
+#include "stream/util/Error.h"
+#include "stream/util/JsonParams.h"
+#include "stream/util/Random.h"
 
 #include <cmath>
 
 namespace penumbra {
-
-double Placement::groundMin() const {
-    return terrain ? terrain->params().baseHeight - terrain->params().amplitude : baseHeight;
-}
-
-double Placement::groundMax() const {
-    return terrain ? terrain->params().baseHeight + terrain->params().amplitude : baseHeight;
-}
 
 Placement parsePlacement(const JsonParams& j, uint64_t defaultCount, uint64_t maxCount) {
     Placement p;

@@ -6,7 +6,7 @@
 /// same way.
 
 #include "procedural/TerrainGenerator.h"
-#include "stream/Random.h"
+#include "stream/util/Random.h"
 
 #include <cstdint>
 #include <memory>
@@ -23,9 +23,6 @@ struct Placement {
 
     /// Ground height under (x, z): the terrain's triangulated surface, or the plane.
     double groundHeight(double x, double z) const { return terrain ? terrain->height(x, z) : baseHeight; }
-    /// Lowest and highest ground height over the area (the terrain's bound, not a tight one).
-    double groundMin() const;
-    double groundMax() const;
 };
 
 /// @brief Reads "count" or "density" (items per square world unit over the area, rounded to the

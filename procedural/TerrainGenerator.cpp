@@ -1,8 +1,8 @@
 #include "procedural/TerrainGenerator.h"
 
 #include "procedural/IndexedSource.h"
-#include "stream/Error.h"
-#include "stream/JsonParams.h"
+#include "stream/util/Error.h"
+#include "stream/util/JsonParams.h"
 
 #include <tbb/parallel_for.h>
 

@@ -1,6 +1,6 @@
 #include "receivers/CameraReceivers.h"
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>

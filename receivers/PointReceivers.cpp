@@ -1,8 +1,9 @@
 #include "receivers/PointReceivers.h"
+#include "stream/util/PathText.h"
 
-#include "stream/Csv.h"
-#include "stream/Error.h"
-#include "stream/Npy.h"
+#include "stream/util/Csv.h"
+#include "stream/util/Error.h"
+#include "stream/util/Npy.h"
 
 #include <glm/geometric.hpp>
 
@@ -13,8 +14,7 @@ namespace penumbra {
 
 ReceiverSet loadPointReceivers(const std::string& path) {
     std::vector<float> values;
-    std::string ext = std::filesystem::path(path).extension().string();
-    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    std::string ext = lowercaseExtension(path);
     if (ext == ".csv") {
         for (const auto& row : readCsvNumbers(path, 6))
             for (double v : row) values.push_back(float(v));

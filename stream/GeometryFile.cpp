@@ -1,11 +1,12 @@
 #include "stream/GeometryFile.h"
+#include "stream/util/PathText.h"
 
-#include "stream/AtomicFile.h"
-#include "stream/Error.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
 #include "stream/GltfReader.h"
-#include "stream/InputFile.h"
+#include "stream/util/InputFile.h"
 #include "stream/ObjReader.h"
-#include "stream/TextInput.h"
+#include "stream/util/TextInput.h"
 #include "stream/PtriFormat.h"
 
 #include <tiny_gltf.h>
@@ -23,12 +24,6 @@
 namespace penumbra {
 
 namespace {
-
-std::string lowercaseExtension(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-    return ext;
-}
 
 /// Calls @p consume with successive chunks of @p source, from its start.
 template <typename Consume>

@@ -1,6 +1,6 @@
 #include "stream/GltfBytes.h"
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 
 #include <meshoptimizer.h>
 

@@ -1,10 +1,10 @@
 #include "stream/GltfDocument.h"
 
-#include "stream/Error.h"
-#include "stream/InputFile.h"
-#include "stream/JsonText.h"
-#include "stream/RegularFile.h"
-#include "stream/SafePath.h"
+#include "stream/util/Error.h"
+#include "stream/util/InputFile.h"
+#include "stream/util/JsonText.h"
+#include "stream/util/RegularFile.h"
+#include "stream/util/SafePath.h"
 
 #include <nlohmann/json.hpp>
 

@@ -1,6 +1,6 @@
 #include "stream/GltfDraco.h"
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 
 #include <draco/compression/decode.h>
 #include <draco/mesh/mesh.h>

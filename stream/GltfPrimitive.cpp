@@ -1,6 +1,6 @@
 #include "stream/GltfPrimitive.h"
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 #include "stream/GltfDraco.h"
 
 #include <fmt/format.h>

@@ -1,6 +1,6 @@
 #include "stream/GltfReader.h"
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 #include "stream/GltfBytes.h"
 #include "stream/GltfDocument.h"
 #include "stream/GltfPrimitive.h"

@@ -1,6 +1,7 @@
 #include "stream/IndexedMesh.h"
+#include "stream/util/PathText.h"
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 #include "stream/GltfBytes.h"
 #include "stream/GltfDocument.h"
 #include "stream/GltfPrimitive.h"
@@ -209,8 +210,7 @@ private:
 
 std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::mat4& transform,
                                            const std::vector<std::string>& parts) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    std::string ext = lowercaseExtension(path);
     if (ext != ".obj") {
         if (!parts.empty()) fail(path, "\"parts\" selects o/g groups of OBJ files only");
         return GltfMeshReader(path).read(glm::dmat4(transform));

@@ -1,8 +1,8 @@
 #include "stream/ObjReader.h"
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 #include "stream/ObjTokenizer.h"
-#include "stream/RegularFile.h"
+#include "stream/util/RegularFile.h"
 #include "stream/VertexStore.h"
 
 #include <algorithm>

@@ -1,6 +1,6 @@
 #include "stream/ObjTokenizer.h"
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 
 #include <cfloat>
 #include <charconv>

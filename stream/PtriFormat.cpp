@@ -1,8 +1,8 @@
 #include "stream/PtriFormat.h"
 
-#include "stream/AtomicFile.h"
-#include "stream/Error.h"
-#include "stream/InputFile.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
+#include "stream/util/InputFile.h"
 
 #include <glm/common.hpp>
 

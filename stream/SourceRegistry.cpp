@@ -1,6 +1,6 @@
 #include "stream/SourceRegistry.h"
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 
 #include <fmt/ranges.h>
 
@@ -36,13 +36,6 @@ TriangleSourcePtr openSource(const std::string& type, const SourceRequest& reque
         factory = it->second;
     }
     return factory(request);
-}
-
-std::vector<std::string> registeredSourceTypes() {
-    std::lock_guard lock(registryMutex);
-    std::vector<std::string> names;
-    for (const auto& [name, f] : registry()) names.push_back(name);
-    return names;
 }
 
 }  // namespace penumbra

@@ -35,7 +35,4 @@ void registerSourceType(const std::string& type, SourceFactory factory);
 /// @throw InputError naming `where` when the type is unknown or the parameters are bad.
 TriangleSourcePtr openSource(const std::string& type, const SourceRequest& request);
 
-/// Registered type names, sorted (for messages and docs).
-std::vector<std::string> registeredSourceTypes();
-
 }  // namespace penumbra

@@ -1,9 +1,10 @@
 #include "stream/TinyGltfLoad.h"
+#include "stream/util/PathText.h"
 
 #include "stream/GltfPrecheck.h"
 
-#include "stream/Error.h"
-#include "stream/RegularFile.h"
+#include "stream/util/Error.h"
+#include "stream/util/RegularFile.h"
 
 #include <cctype>
 #include <cerrno>
@@ -25,8 +26,7 @@ bool ignoreImage(tinygltf::Image*, const int, std::string*, std::string*, int, i
 }
 
 bool isImageFile(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    std::string ext = lowercaseExtension(path);
     for (const char* image : {".png", ".jpg", ".jpeg", ".webp", ".ktx", ".ktx2", ".basis", ".dds", ".bmp", ".tga"})
         if (ext == image) return true;
     return false;

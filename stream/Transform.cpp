@@ -1,6 +1,6 @@
 #include "stream/Transform.h"
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>

@@ -3,7 +3,7 @@
 /// @brief Placing geometry in the world: a scale/rotate/translate description and a source
 /// adapter that applies a matrix to every vertex streaming through it.
 
-#include "stream/JsonParams.h"
+#include "stream/util/JsonParams.h"
 #include "stream/TriangleSource.h"
 
 #include <glm/mat4x4.hpp>

@@ -1,7 +1,7 @@
 #include "stream/VertexStore.h"
 
-#include "stream/AnonymousFile.h"
-#include "stream/Error.h"
+#include "stream/util/AnonymousFile.h"
+#include "stream/util/Error.h"
 
 #include <algorithm>
 #include <cerrno>

@@ -4,7 +4,7 @@
 // summarise geometry (finite, degenerate, bounds).
 
 #include "procedural/Generators.h"
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 #include "stream/SourceRegistry.h"
 #include "stream/TriangleSource.h"
 

@@ -1,8 +1,9 @@
 #pragma once
 /// @file StreamTestFiles.h
-/// @brief Small helpers shared by the stream-stage tests: a self-cleaning temporary directory,
-/// whole-file byte I/O, and bit-exact triangle comparison.
+/// @brief Small helpers shared by the stream-stage tests: whole-file byte I/O and bit-exact
+/// triangle comparison (scratch directories and the shared data are in TestSupport.h).
 
+#include "TestSupport.h"
 #include "stream/Triangle.h"
 
 #include <unistd.h>
@@ -17,42 +18,7 @@
 #include <string_view>
 #include <vector>
 
-namespace penumbra::testing {
-
-/// Where the shared meshes and glTF samples live.
-inline std::string dataDir() { return PENUMBRA_SHARED_DATA; }
-
-/// A fresh directory under the system temp dir, removed with its contents on destruction.
-class TempDir {
-public:
-    explicit TempDir(const std::string& tag) {
-        static std::atomic<int> counter{0};
-        path_ = std::filesystem::temp_directory_path() /
-                ("penumbra-" + tag + "-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-        std::filesystem::remove_all(path_);
-        std::filesystem::create_directories(path_);
-    }
-    ~TempDir() {
-        std::error_code ignored;
-        std::filesystem::remove_all(path_, ignored);
-    }
-    TempDir(const TempDir&) = delete;
-    TempDir& operator=(const TempDir&) = delete;
-
-    /// Path of @p name inside the directory.
-    std::string file(const std::string& name) const { return (path_ / name).string(); }
-    const std::filesystem::path& path() const { return path_; }
-
-    /// Names of all entries, to check that no temporary files are left behind.
-    std::vector<std::string> entries() const {
-        std::vector<std::string> names;
-        for (const auto& e : std::filesystem::directory_iterator(path_)) names.push_back(e.path().filename().string());
-        return names;
-    }
-
-private:
-    std::filesystem::path path_;
-};
+namespace penumbra::test {
 
 inline void writeBytes(const std::string& path, const void* data, size_t size) {
     std::ofstream out(path, std::ios::binary | std::ios::trunc);
@@ -84,4 +50,4 @@ inline Triangle tri(glm::vec3 a, glm::vec3 b, glm::vec3 c, uint32_t flags = 0) {
     return t;
 }
 
-}  // namespace penumbra::testing
+}  // namespace penumbra::test

@@ -9,9 +9,9 @@
 #include "bake/cast/PenumbraCaster.h"
 #include "bake/peers/ReferenceCaster.h"
 #include "bake/cast/VisibilityMasks.h"
-#include "bucket/AreaSort.h"
+#include "AreaSort.h"
 #include "receivers/ReceiverSet.h"
-#include "stream/Random.h"
+#include "stream/util/Random.h"
 #include "stream/Triangle.h"
 
 #include <catch2/catch.hpp>

@@ -1,8 +1,8 @@
 #pragma once
 // Fixtures shared by the tests: scratch directories, error capture, whole-file reads.
 
-#include "stream/Error.h"
-#include "stream/SafePath.h"
+#include "stream/util/Error.h"
+#include "stream/util/SafePath.h"
 
 #include <catch2/catch.hpp>
 

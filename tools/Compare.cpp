@@ -2,8 +2,8 @@
 
 #include "bake/output/BakeDump.h"
 #include "bake/Scene.h"
-#include "stream/AtomicFile.h"
-#include "stream/Error.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
 
 #include <fmt/format.h>
 

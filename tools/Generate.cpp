@@ -1,11 +1,12 @@
 #include "Generate.h"
 
 #include "bake/BakeOutputs.h"
+#include "stream/util/Timer.h"
 #include "bake/Pipeline.h"
 #include "bake/Scene.h"
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 #include "stream/GeometryFile.h"
-#include "stream/InputFile.h"
+#include "stream/util/InputFile.h"
 
 #include <fmt/format.h>
 #include <tbb/global_control.h>
@@ -34,7 +35,7 @@ uint64_t runGenerate(const GenerateOptions& options) {
     if (options.threads > 0)
         limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
 
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch watch;
     SceneDesc scene = loadScene(options.scene);
     checkOutputAgainstInputs(scene, options.output);
     TriangleSourcePtr source = openSceneGeometry(scene);
@@ -44,7 +45,7 @@ uint64_t runGenerate(const GenerateOptions& options) {
     uint64_t written = source->sizeHint().value_or(0);
     if (!source->sizeHint()) written = scanGeometry(*source).triangles;
     if (!options.quiet) {
-        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        const double seconds = watch.seconds();
         fmt::print(stderr, "penumbra: {} triangles -> {} ({:.2f} s)\n", written, options.output, seconds);
     }
     return written;

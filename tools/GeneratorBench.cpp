@@ -1,9 +1,10 @@
 #include "GeneratorBench.h"
 
 #include "procedural/Generators.h"
-#include "stream/AtomicFile.h"
-#include "stream/CheckedMath.h"
-#include "stream/Error.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/CheckedMath.h"
+#include "stream/util/Error.h"
+#include "stream/util/Timer.h"
 #include "stream/SourceRegistry.h"
 
 #include <fmt/format.h>
@@ -16,9 +17,6 @@
 namespace penumbra {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 /// Representative configurations: the ones the example scenes use, at streaming sizes.
 std::vector<std::pair<std::string, nlohmann::json>> benchCases() {
@@ -47,13 +45,13 @@ nlohmann::json measureOnce(const std::string& name, const nlohmann::json& entry,
     const std::string type = params["type"];
     params.erase("type");
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(std::max(threads, 1)));
-    const auto setupStart = Clock::now();
+    const Stopwatch setupWatch;
     TriangleSourcePtr source = openSource(type, SourceRequest{params, "bench", name, "."});
     source->read(chunk);  // warm-up: first-touch of the chunk, TBB workers started
-    const double setup = secondsSince(setupStart);
+    const double setup = setupWatch.seconds();
     float sink = 0;  // something read from every chunk, so nothing can be skipped
     uint64_t pulled = 0;
-    const auto start = Clock::now();
+    const Stopwatch watch;
     const std::clock_t cpuStart = std::clock();  // all threads of the process
     while (pulled < triangles) {
         const size_t want = size_t(std::min<uint64_t>(chunk.size(), triangles - pulled));
@@ -65,7 +63,7 @@ nlohmann::json measureOnce(const std::string& name, const nlohmann::json& entry,
         sink += chunk[n - 1].v[2].y;
         pulled += n;
     }
-    const double seconds = secondsSince(start);
+    const double seconds = watch.seconds();
     const double cpuSeconds = double(std::clock() - cpuStart) / CLOCKS_PER_SEC;
     return {{"threads", threads},
             {"seconds", seconds},

@@ -1,12 +1,13 @@
 #include "TableBench.h"
 #include "TableBenchReport.h"
 
-#include "stream/AtomicFile.h"
-#include "stream/CheckedMath.h"
-#include "stream/Error.h"
-#include "stream/JsonParams.h"
-#include "stream/Memory.h"
-#include "stream/Npy.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/CheckedMath.h"
+#include "stream/util/Error.h"
+#include "stream/util/JsonParams.h"
+#include "stream/util/Memory.h"
+#include "stream/util/Npy.h"
+#include "stream/util/Timer.h"
 
 #include <fmt/format.h>
 #include <tbb/info.h>
@@ -169,7 +170,7 @@ ChildResult runSelf(const std::vector<std::string>& args, const fs::path& dir) {
     posix_spawn_file_actions_init(&actions);
     posix_spawn_file_actions_addopen(&actions, 1, outPath.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     posix_spawn_file_actions_addopen(&actions, 2, errPath.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch watch;
     pid_t pid = 0;
     int rc = posix_spawn(&pid, self.c_str(), &actions, nullptr, argv.data(), environ);
     posix_spawn_file_actions_destroy(&actions);
@@ -179,7 +180,7 @@ ChildResult runSelf(const std::vector<std::string>& args, const fs::path& dir) {
     while (::wait4(pid, &status, 0, &usage) < 0)
         if (errno != EINTR) fail(self, "wait4 failed: {}", std::strerror(errno));
     ChildResult r;
-    r.wallSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    r.wallSeconds = watch.seconds();
     r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
     r.peakRssBytes = uint64_t(usage.ru_maxrss) * 1024;
     r.cpuSeconds = double(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) + 1e-6 * double(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
@@ -482,8 +483,8 @@ void runBenchTable(const BenchTableOptions& o, const std::string& commandLine) {
     auto progress = [&](const std::string& line) {
         if (!o.quiet) fmt::print(stderr, "[table2] {}\n", line);
     };
-    const auto benchStart = std::chrono::steady_clock::now();
-    auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - benchStart).count(); };
+    const Stopwatch benchWatch;
+    auto elapsed = [&] { return benchWatch.seconds(); };
 
     for (const auto& [name, base] : scenes)
         for (const RowSpec& spec : rows) {

@@ -12,13 +12,13 @@
 #include "bake/Scene.h"
 #include "bake/kinds/VolumeKind.h"
 #include "procedural/Generators.h"
-#include "stream/AtomicFile.h"
-#include "stream/Diagnostics.h"
-#include "stream/Error.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Diagnostics.h"
+#include "stream/util/Error.h"
 #include "stream/GeometryFile.h"
-#include "stream/InputFile.h"
-#include "stream/Memory.h"
-#include "stream/SafePath.h"
+#include "stream/util/InputFile.h"
+#include "stream/util/Memory.h"
+#include "stream/util/SafePath.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>

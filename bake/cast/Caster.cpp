@@ -1,6 +1,6 @@
 #include "bake/cast/Caster.h"
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 
 #include <algorithm>
 #include <map>

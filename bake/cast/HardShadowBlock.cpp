@@ -1,6 +1,6 @@
 #include "bake/cast/HardShadowBlock.h"
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 
 #include <immintrin.h>
 

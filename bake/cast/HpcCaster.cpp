@@ -5,8 +5,8 @@
 #include "bake/cast/Caster.h"
 #include "bake/cast/PenumbraCaster.h"
 #include "bake/cast/SampleMaskTable.h"
-#include "stream/Memory.h"
-#include "stream/Progress.h"
+#include "stream/util/Memory.h"
+#include "stream/util/Progress.h"
 
 #include <numeric>
 

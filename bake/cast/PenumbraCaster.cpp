@@ -1,5 +1,7 @@
 #include "bake/cast/PenumbraCaster.h"
 
+#include "stream/util/Timer.h"
+
 #include "bake/cast/BlockerBatch.h"
 #include "bake/cast/SampleMaskTable.h"
 #include "bake/cast/TileCaster.h"
@@ -17,9 +19,6 @@
 namespace penumbra {
 namespace {
 
-double secondsSince(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 }  // namespace
 
@@ -44,7 +43,7 @@ struct PenumbraCaster::Impl {
     std::atomic<uint64_t> culledAtRoot{0};
     tbb::task_group group;
     bool started = false;
-    std::chrono::steady_clock::time_point castStart;
+    Stopwatch castWatch;
 
     Impl(const LightSamples& s, const CastOptions& o) : samples(s), options(o) {}
     void buildTiles(const ReceiverSet& receivers, std::span<const uint32_t> sampleSetOf,
@@ -183,7 +182,7 @@ void PenumbraCaster::Impl::drain(size_t t) {
 
 void PenumbraCaster::cast(std::span<const Triangle> blockers) {
     Impl& m = *impl_;
-    if (!m.started) m.castStart = std::chrono::steady_clock::now(), m.started = true;
+    if (!m.started) m.castWatch.reset(), m.started = true;
     const uint64_t c = m.published.load();
     BlockerBatch& batch = *m.ring[c % m.ring.size()];
     // The slot still holds chunk c - ring size until every tile has cast it. Rather than wait,
@@ -209,7 +208,7 @@ void PenumbraCaster::flush() {
     m.started = false;
     // Wall time from the first chunk to the last tile: includes whatever the caller did between
     // chunks (reading the replay), which the tiles overlapped.
-    m.stats.castSeconds += secondsSince(m.castStart);
+    m.stats.castSeconds += m.castWatch.seconds();
     m.stats.trianglesCulledAtRoot = m.culledAtRoot.load();
 }
 

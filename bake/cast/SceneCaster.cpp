@@ -1,6 +1,6 @@
 #include "bake/cast/SceneCaster.h"
 
-#include "stream/Progress.h"
+#include "stream/util/Progress.h"
 
 #include <algorithm>
 

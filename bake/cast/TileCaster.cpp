@@ -1,14 +1,11 @@
 #include "bake/cast/TileCaster.h"
 
+#include "stream/util/Timer.h"
+
 #include <algorithm>
-#include <chrono>
 
 namespace penumbra {
 namespace {
-
-double secondsSince(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 constexpr uint32_t kAllPlanes = ~0u;  // "ALL": masked by the volume's own plane count when used
 /// A split blocker's table look-up (four lines) costs about as much as this many exact tests
@@ -33,9 +30,10 @@ TileCaster::TileCaster(const LightSamples& s, const CastOptions& o, const std::v
 }
 
 void TileCaster::build(std::vector<ReceiverInput> inputs) {
-    auto t0 = std::chrono::steady_clock::now();
-    hierarchy_.build(std::move(inputs));
-    stats_.buildSeconds += secondsSince(t0);
+    {
+        ScopedTimer timer(stats_.buildSeconds);
+        hierarchy_.build(std::move(inputs));
+    }
     if (!options.lazyMasks)
         for (auto& m : hierarchy_.mask) m = pool_.allocate();
     notePeaks();
@@ -86,9 +84,10 @@ bool TileCaster::castTriangle(const BlockerTriangle& t, const PenumbraVolume* li
     if (h.nodes.empty()) return false;
     if (umbra() && options.rebuild && h.umbraCount > 0 &&
         double(h.umbraCount) > options.rebuildThreshold * double(h.liveCount())) {  // line 29
-        auto t0 = std::chrono::steady_clock::now();
-        h.rebuild();
-        stats_.buildSeconds += secondsSince(t0);
+        {
+            ScopedTimer timer(stats_.buildSeconds);
+            h.rebuild();
+        }
         ++stats_.rebuilds;
         notePeaks();
         if (h.nodes.empty()) return false;

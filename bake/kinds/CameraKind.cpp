@@ -4,7 +4,7 @@
 #include "bake/Scene.h"
 #include "bake/shading/SmoothShading.h"
 #include "receivers/CameraReceivers.h"
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 
 #include <cmath>
 #include <optional>

@@ -1,7 +1,7 @@
 #include "bake/kinds/CameraOutput.h"
 
 #include "bake/output/ImageWriters.h"
-#include "stream/AtomicFile.h"
+#include "stream/util/AtomicFile.h"
 
 #include <fmt/format.h>
 

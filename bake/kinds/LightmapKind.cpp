@@ -1,4 +1,7 @@
 #include "bake/kinds/LightmapKind.h"
+#include "stream/util/PathText.h"
+
+#include "stream/util/Timer.h"
 
 #include "bake/output/ImageWriters.h"
 #include "bake/output/LightmapGltf.h"
@@ -7,8 +10,8 @@
 #include "receivers/CreaseNormals.h"
 #include "receivers/LightmapAtlas.h"
 #include "receivers/LightmapReceivers.h"
-#include "stream/AtomicFile.h"
-#include "stream/Error.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
 #include "stream/IndexedMesh.h"
 
 #include <fmt/format.h>
@@ -182,9 +185,9 @@ private:
         options.pack.texelsPerUnit = settings_.density;
         options.pack.width = settings_.width, options.pack.height = settings_.height;
         options.pack.maxSide = settings_.maxSide, options.pack.powerOfTwo = settings_.powerOfTwo;
-        const auto start = std::chrono::steady_clock::now();
+        const Stopwatch watch;
         LightmapAtlas atlas = buildLightmapAtlas(meshes, options);
-        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        const double seconds = watch.seconds();
         if (atlas.width == 0)
             fail(settings_.where, "the {} charts of {} do not fit a {}x{} atlas with padding {} (use a larger resolution or a smaller padding)",
                  atlas.charts, labels, settings_.density > 0 ? settings_.maxSide : settings_.width,
@@ -243,18 +246,14 @@ private:
 };
 
 /// The file behind geometry entry @p index, which must be an obj/gltf/glb file.
-std::string meshFile(const JsonParams& j, const SceneDesc& scene, size_t slot, int64_t index) {
+std::string meshFile(const JsonParams& j, const SceneDesc& scene, size_t slot, size_t index) {
     const std::string key = fmt::format("meshes[{}]", slot);
-    if (index < 0 || size_t(index) >= scene.geometry.size())
-        fail(j.where(key), "geometry index {} out of range (the scene has {} geometry entries)", index,
-             scene.geometry.size());
-    const GeometryDesc& g = scene.geometry[size_t(index)];
+    const GeometryDesc& g = scene.geometry[index];
     const nlohmann::json* path = g.params.is_object() && g.params.contains("path") ? &g.params["path"] : nullptr;
     if (!path || !path->is_string())
         fail(j.where(key), "{} is a \"{}\" entry, not a mesh file (obj, gltf or glb)", g.path, g.type);
     std::string file = resolveScenePath(scene.baseDir, path->get<std::string>());
-    std::string ext = std::filesystem::path(file).extension().string();
-    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    std::string ext = lowercaseExtension(file);
     if (ext != ".obj" && ext != ".gltf" && ext != ".glb")
         fail(j.where(key), "{} ({}) is not an obj, gltf or glb file", g.path, file);
     return file;
@@ -315,21 +314,16 @@ void sizeFromDensity(const JsonParams& j, const std::string& key, const Lightmap
 }
 
 std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneDesc& scene) {
-    const nlohmann::json* meshes = j.raw("meshes");
-    if (!meshes) fail(j.where("meshes"), "missing required field");
-    if (!meshes->is_array() || meshes->empty())
-        fail(j.where("meshes"), "expected a non-empty array of geometry indices");
+    const std::vector<size_t> meshes = geometryIndices(j, "meshes", scene);
     const LightmapSettings settings = parseSettings(j);
 
     std::vector<Lightmap> maps, atlasParts;
     std::set<std::string> names{kAtlasName};
-    for (size_t slot = 0; slot < meshes->size(); ++slot) {
+    for (size_t slot = 0; slot < meshes.size(); ++slot) {
         const std::string key = fmt::format("meshes[{}]", slot);
-        const nlohmann::json& entry = (*meshes)[slot];
-        if (!entry.is_number_integer()) fail(j.where(key), "expected a geometry index, got {}", entry.dump());
-        const int64_t index = entry.get<int64_t>();
+        const size_t index = meshes[slot];
         const std::string file = meshFile(j, scene, slot, index);
-        const GeometryDesc& geometry = scene.geometry[size_t(index)];
+        const GeometryDesc& geometry = scene.geometry[index];
         // The entry's OBJ "parts" pick its o/g groups here too: one lightmap mesh per group.
         const std::vector<std::string> parts = geometryParts(JsonParams(geometry.params, scene.file, geometry.path));
         std::vector<IndexedMesh> loaded = loadIndexedMeshes(file, geometry.transform.matrix(), parts);

@@ -1,4 +1,5 @@
 #include "bake/kinds/ReceiverKind.h"
+#include "stream/util/PathText.h"
 
 #include "bake/kinds/CameraKind.h"
 #include "bake/kinds/LightmapKind.h"
@@ -7,10 +8,10 @@
 #include "bake/kinds/VolumeKind.h"
 #include "receivers/CameraReceivers.h"
 #include "receivers/PointReceivers.h"
-#include "stream/AtomicFile.h"
-#include "stream/Error.h"
-#include "stream/Npy.h"
-#include "stream/SafePath.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
+#include "stream/util/Npy.h"
+#include "stream/util/SafePath.h"
 
 #include <fmt/ranges.h>
 
@@ -32,7 +33,7 @@ class PointsKind final : public ReceiverKind {
 public:
     explicit PointsKind(std::string path) : path_(std::move(path)) {}
     std::optional<uint64_t> receiverBound() const override {
-        if (std::filesystem::path(path_).extension() != ".npy") return std::nullopt;  // a CSV tells by its lines
+        if (lowercaseExtension(path_) != ".npy") return std::nullopt;  // a CSV tells by its lines
         try {
             const NpyRowReader rows(path_);
             return rows.header().shape.empty() ? 0 : rows.header().shape[0];

@@ -12,7 +12,7 @@
 #include "bake/light/Light.h"
 #include "bake/shading/ReceiverShading.h"
 #include "receivers/ReceiverSet.h"
-#include "stream/JsonParams.h"
+#include "stream/util/JsonParams.h"
 #include "stream/Triangle.h"
 
 #include <nlohmann/json.hpp>

@@ -1,10 +1,11 @@
 #include "bake/kinds/VertexColorKind.h"
+#include "stream/util/PathText.h"
 
 #include "bake/output/GltfBuffers.h"
 #include "bake/kinds/ReceiverKind.h"
 #include "bake/Scene.h"
-#include "stream/AtomicFile.h"
-#include "stream/Error.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
 #include "stream/GltfBytes.h"
 #include "stream/GltfDocument.h"
 #include "stream/GltfPrimitive.h"
@@ -40,12 +41,6 @@ struct VertexFile {
     uint64_t fileBytes = 0;
     std::vector<PrimitiveRange> primitives;
 };
-
-std::string lowerExtension(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-    return ext;
-}
 
 /// Adds receivers for one primitive placed by @p world, read through the shared glTF walker
 /// (GltfPrimitive.h), which does every check of positions, normals and indices.
@@ -126,7 +121,7 @@ void writeCopy(VertexFile& file, const ReceiverResults& results) {
         if (!image.uri.empty() && image.uri.rfind("data:", 0) != 0 && image.uri.find("://") == std::string::npos)
             image.uri = (inDir / image.uri).lexically_normal().lexically_relative(outDir).generic_string();
 
-    const bool binary = lowerExtension(file.output) == ".glb";
+    const bool binary = lowercaseExtension(file.output) == ".glb";
     tinygltf::TinyGLTF writer;
     writer.SetImageWriter(&keepImageUri, nullptr);
     std::ostringstream stream;
@@ -195,34 +190,27 @@ private:
 namespace {
 
 const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, const SceneDesc& scene) {
-        const nlohmann::json* meshes = j.raw("meshes");
-        if (!meshes) fail(j.where("meshes"), "missing (a list of indices into \"geometry\")");
-        if (!meshes->is_array() || meshes->empty())
-            fail(j.where("meshes"), "expected a non-empty array of indices into \"geometry\"");
-        const std::string ext = lowerExtension(scene.output);
+        const std::vector<size_t> meshes = geometryIndices(j, "meshes", scene);
+        const std::string ext = lowercaseExtension(scene.output);
         if (ext != ".glb" && ext != ".gltf")
             fail(scene.file + ": output", "\"{}\" must end in .glb or .gltf for vertices receivers", scene.output);
         std::vector<VertexFile> files;
-        for (size_t i = 0; i < meshes->size(); ++i) {
-            const nlohmann::json& m = (*meshes)[i];
+        for (size_t i = 0; i < meshes.size(); ++i) {
+            const size_t index = meshes[i];
             const std::string where = fmt::format("{}[{}]", j.where("meshes"), i);
-            if (!m.is_number_integer()) fail(where, "expected an index into \"geometry\"");
-            const int64_t index = m.get<int64_t>();
-            if (index < 0 || uint64_t(index) >= scene.geometry.size())
-                fail(where, "geometry index {} is out of range (the scene has {} entries)", index, scene.geometry.size());
             const GeometryDesc& g = scene.geometry[size_t(index)];
             VertexFile file;
             file.entry = size_t(index);
             file.where = where;
             if (g.params.contains("path") && g.params["path"].is_string())
                 file.input = resolveScenePath(scene.baseDir, g.params["path"].get<std::string>(), scene.file + ": " + g.path + ".path");
-            const std::string inExt = lowerExtension(file.input);
+            const std::string inExt = lowercaseExtension(file.input);
             const bool gltfType = g.type == "gltf" || g.type == "glb" || g.type == "file";
             if (!gltfType || (inExt != ".gltf" && inExt != ".glb"))
                 fail(where, "{} is a \"{}\" entry; vertices receivers need a .gltf or .glb file", g.path, g.type);
             file.sceneMatrix = glm::dmat4(g.transform.matrix());
             file.output = scene.output;
-            if (meshes->size() > 1) {
+            if (meshes.size() > 1) {
                 std::filesystem::path out(scene.output);
                 file.output = (out.parent_path() / fmt::format("{}-{}{}", out.stem().string(), i, out.extension().string())).string();
             }

@@ -1,10 +1,11 @@
 #include "bake/kinds/VolumeKind.h"
+#include "stream/util/PathText.h"
 
 #include "bake/output/ImageWriters.h"
 #include "bake/kinds/ReceiverKind.h"
 #include "bake/Scene.h"
-#include "stream/AtomicFile.h"
-#include "stream/Error.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
 
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
@@ -244,7 +245,7 @@ const ReceiverKindRegistration kVolume{"volume", [](const JsonParams& j, const S
         if (!(lattice.h > 0) || !std::isfinite(lattice.h)) fail(j.where("voxel_size"), "must be a positive number");
         const bool irradiance = j.boolean("irradiance", false);
         {
-            std::string ext = std::filesystem::path(scene.output).extension().string();
+            std::string ext = lowercaseExtension(scene.output);
             if (ext != ".vdb") fail(scene.file + ": output", "\"{}\" must end in .vdb for volume receivers", scene.output);
         }
         const bool hasBox = j.has("box"), hasBand = j.has("narrow_band");
@@ -269,21 +270,9 @@ const ReceiverKindRegistration kVolume{"volume", [](const JsonParams& j, const S
             fail(band.where("width"), "a band {} wide holds about {:.3g} voxels of size {} around a single triangle, more "
                                       "than the {:.0f} a bake can hold",
                  width, around, lattice.h, kMaxVoxels);
-        const nlohmann::json* geometry = band.raw("geometry");
-        if (!geometry) fail(band.where("geometry"), "missing (a list of indices into \"geometry\")");
-        if (!geometry->is_array() || geometry->empty())
-            fail(band.where("geometry"), "expected a non-empty array of indices into \"geometry\"");
         SceneDesc sub = scene;  // the same scene, reduced to the band's entries
         sub.geometry.clear();
-        for (size_t i = 0; i < geometry->size(); ++i) {
-            const nlohmann::json& g = (*geometry)[i];
-            const std::string where = fmt::format("{}[{}]", band.where("geometry"), i);
-            if (!g.is_number_integer()) fail(where, "expected an index into \"geometry\"");
-            const int64_t index = g.get<int64_t>();
-            if (index < 0 || uint64_t(index) >= scene.geometry.size())
-                fail(where, "geometry index {} is out of range (the scene has {} entries)", index, scene.geometry.size());
-            sub.geometry.push_back(scene.geometry[size_t(index)]);
-        }
+        for (size_t index : geometryIndices(band, "geometry", scene)) sub.geometry.push_back(scene.geometry[index]);
         band.finish();
         return std::make_unique<VolumeKind>(lattice, openvdb::CoordBBox(), std::move(sub), width, irradiance, band.where());
     }};

@@ -93,7 +93,7 @@ inline int sampleSetOf(uint64_t receiverIndex, int sets, uint64_t seed);
 
 }  // namespace penumbra
 
-#include "stream/Random.h"
+#include "stream/util/Random.h"
 
 namespace penumbra {
 inline int sampleSetOf(uint64_t receiverIndex, int sets, uint64_t seed) {

@@ -1,8 +1,8 @@
 #include "bake/output/BakeDump.h"
 
-#include "stream/AtomicFile.h"
-#include "stream/Error.h"
-#include "stream/JsonParams.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
+#include "stream/util/JsonParams.h"
 
 #include <nlohmann/json.hpp>
 

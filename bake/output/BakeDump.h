@@ -17,7 +17,7 @@
 #include "bake/light/Light.h"
 #include "bake/cast/VisibilityMasks.h"
 #include "receivers/ReceiverSet.h"
-#include "stream/Npy.h"
+#include "stream/util/Npy.h"
 
 #include <glm/vec4.hpp>
 

@@ -1,9 +1,10 @@
 #include "bake/output/LightmapGltf.h"
+#include "stream/util/PathText.h"
 
 #include "bake/output/GltfBuffers.h"
 
-#include "stream/AtomicFile.h"
-#include "stream/Error.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
 
 #include <tiny_gltf.h>
 
@@ -72,8 +73,7 @@ void writeLightmapGltf(const std::string& path, std::span<const IndexedMesh> mes
     }
     model.scenes.push_back(scene);
     model.defaultScene = 0;
-    std::string ext = std::filesystem::path(path).extension().string();
-    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    std::string ext = lowercaseExtension(path);
     const bool binary = ext == ".glb";
     tinygltf::TinyGLTF writer;
     std::ostringstream stream;

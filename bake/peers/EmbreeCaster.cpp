@@ -1,5 +1,7 @@
 #include "bake/peers/EmbreeCaster.h"
 
+#include "stream/util/Timer.h"
+
 // How this relates to the blocking rule (BlockingRule.h):
 //
 //  - Candidates. Embree intersects in float, with its own edge rules; its hits are only
@@ -28,7 +30,7 @@
 
 #include "bake/rule/BlockingRule.h"
 #include "bake/cast/SceneCaster.h"
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 
 #include <embree3/rtcore.h>
 #include <tbb/parallel_for.h>
@@ -49,11 +51,6 @@
 namespace penumbra {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point start) {
-    return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 const char* errorName(RTCError code) {
     switch (code) {
@@ -267,7 +264,7 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
                            const ReceiverEpsilon& epsilon, EmbreeStats* stats,
                            const std::function<void(uint64_t)>& progress, bool ruleFilter) {
     EmbreeStats local;
-    const auto buildStart = Clock::now();
+    const Stopwatch buildWatch;
     DenormalsOff denormals;  // the calling thread takes part in the build and in parallel_for
 
     // Declaration order matters: the error state outlives the device, the device outlives the
@@ -311,9 +308,9 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
     }
     rtcCommitScene(scene.scene);
     errors.check(device.device, "BVH build");
-    local.buildSeconds = secondsSince(buildStart);
+    local.buildSeconds = buildWatch.seconds();
 
-    const auto traceStart = Clock::now();
+    const Stopwatch traceWatch;
     VisibilityMasks masks(receivers.size(), samples.groupCount());
     std::atomic<uint64_t> rays{0}, filterCalls{0}, filterExact{0}, filterRejected{0};
     RTCScene rtcScene = scene.scene;
@@ -384,7 +381,7 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
         if (progress) progress(range.size());
     });
     errors.check(device.device, "tracing");
-    local.traceSeconds = secondsSince(traceStart);
+    local.traceSeconds = traceWatch.seconds();
     local.rays = rays.load();
     local.filterCalls = filterCalls.load();
     local.filterExact = filterExact.load();

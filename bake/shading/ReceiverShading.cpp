@@ -1,6 +1,6 @@
 #include "bake/shading/ReceiverShading.h"
 
-#include "stream/Error.h"
+#include "stream/util/Error.h"
 
 #include <glm/geometric.hpp>
 #include <glm/gtc/constants.hpp>

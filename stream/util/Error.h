@@ -1,0 +1,41 @@
+#pragma once
+/// @file Error.h
+/// @brief The one exception type user-facing errors travel in.
+///
+/// Every error a user can cause (a malformed file, a bad scene key, a full disk) is thrown as
+/// InputError whose what() is a single line naming the file or key and what is wrong with it.
+/// The CLI prints it after "penumbra: error: " and exits non-zero; nothing else catches it.
+
+#include <fmt/format.h>
+
+#include <stdexcept>
+#include <string>
+#include <system_error>
+
+namespace penumbra {
+
+class InputError : public std::runtime_error {
+public:
+    explicit InputError(const std::string& message) : std::runtime_error(message) {}
+};
+
+/// @brief Throws InputError("WHERE: MESSAGE"), formatting MESSAGE with fmt.
+template <typename... Args>
+[[noreturn]] void fail(const std::string& where, fmt::format_string<Args...> format, Args&&... args) {
+    throw InputError(where + ": " + fmt::format(format, std::forward<Args>(args)...));
+}
+
+/// @brief Prints "penumbra: note: MESSAGE" on stderr. A diagnostic must never change how a bake
+/// ends, so a failing stderr is ignored.
+template <typename... Args>
+void printNote(fmt::format_string<Args...> format, Args&&... args) noexcept {
+    try {
+        fmt::print(stderr, "penumbra: note: {}\n", fmt::format(format, std::forward<Args>(args)...));
+    } catch (...) {
+    }
+}
+
+/// @brief The text of errno value @p err ("No space left on device"); thread-safe, unlike strerror.
+inline std::string errnoText(int err) { return std::error_code(err, std::generic_category()).message(); }
+
+}  // namespace penumbra

@@ -1,0 +1,14 @@
+#include "stream/util/PathText.h"
+
+#include <cctype>
+#include <filesystem>
+
+namespace penumbra {
+
+std::string lowercaseExtension(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return ext;
+}
+
+}  // namespace penumbra

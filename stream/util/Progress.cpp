@@ -1,0 +1,119 @@
+#include "stream/util/Progress.h"
+
+#include <system_error>
+
+#include <fmt/format.h>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+
+namespace penumbra {
+
+namespace {
+
+constexpr auto kRedrawInterval = std::chrono::milliseconds(250);
+/// Minimum spacing of lines when stderr is not a terminal.
+constexpr double kLogInterval = 2.0;
+
+}  // namespace
+
+std::string formatDuration(double seconds) {
+    if (!(seconds >= 0)) seconds = 0;  // also catches NaN
+    if (seconds < 60) return fmt::format("{:.1f}s", seconds);
+    auto whole = static_cast<uint64_t>(seconds);
+    if (whole < 3600) return fmt::format("{}m{:02}s", whole / 60, whole % 60);
+    return fmt::format("{}h{:02}m", whole / 3600, whole / 60 % 60);
+}
+
+std::string formatProgressLine(std::string_view phase, uint64_t done, uint64_t total,
+                               double elapsedSeconds, bool final) {
+    std::string line;
+    if (total > 0) {
+        double fraction = std::min(1.0, static_cast<double>(done) / static_cast<double>(total));
+        line = fmt::format("[{}] {:.1f}% ({}/{})", phase, 100.0 * fraction, done, total);
+    } else {
+        line = fmt::format("[{}] {}", phase, done);
+    }
+    if (final) return line + fmt::format(" done in {}", formatDuration(elapsedSeconds));
+    line += fmt::format(" elapsed {}", formatDuration(elapsedSeconds));
+    // Linear extrapolation; only meaningful once some work is done.
+    if (total > 0 && done > 0 && done < total) {
+        double eta = elapsedSeconds * static_cast<double>(total - done) / static_cast<double>(done);
+        line += fmt::format(" ETA {}", formatDuration(eta));
+    }
+    return line;
+}
+
+ProgressReporter::ProgressReporter(std::string phase, uint64_t totalWork, bool quiet)
+    : phase_(std::move(phase)), total_(totalWork), quiet_(quiet),
+      uncaughtAtStart_(std::uncaught_exceptions()) {
+    if (quiet_) return;
+    tty_ = ::isatty(STDERR_FILENO) == 1;
+    try {
+        thread_ = std::thread([this] { run(); });
+    } catch (const std::system_error&) {
+        // No thread to be had (a process or address-space limit): only the closing line is printed.
+    }
+}
+
+ProgressReporter::~ProgressReporter() {
+    // An exception passing through the scope that owns us means the phase failed.
+    stop(std::uncaught_exceptions() <= uncaughtAtStart_);
+}
+
+void ProgressReporter::done() { stop(true); }
+
+void ProgressReporter::stop(bool printFinal) {
+    {
+        std::lock_guard lock(mutex_);
+        if (finished_) return;
+        finished_ = true;
+        stopping_ = true;
+    }
+    wake_.notify_all();
+    if (thread_.joinable()) thread_.join();
+    if (quiet_) return;
+    if (printFinal)
+        print(formatProgressLine(phase_, workDone(), total_, clock_.seconds(), true), true);
+    else if (tty_ && lastWidth_ > 0)
+        std::fputc('\n', stderr);  // leave the partial line visible above the error message
+}
+
+void ProgressReporter::run() {
+    double lastLog = 0;
+    std::unique_lock lock(mutex_);
+    for (;;) {
+        if (wake_.wait_for(lock, kRedrawInterval, [this] { return stopping_; })) return;
+        double now = clock_.seconds();
+        if (!tty_) {
+            if (now - lastLog < kLogInterval) continue;
+            lastLog = now;
+        }
+        // Format and write without holding the lock so done() never waits on stderr.
+        lock.unlock();
+        print(formatProgressLine(phase_, workDone(), total_, now, false), false);
+        lock.lock();
+    }
+}
+
+void ProgressReporter::print(const std::string& line, bool final) {
+    std::string out;
+    if (tty_) {
+        // Overwrite the previous, possibly longer, line in place.
+        out = "\r" + line;
+        if (line.size() < lastWidth_) out.append(lastWidth_ - line.size(), ' ');
+        lastWidth_ = line.size();
+        if (final) out.push_back('\n');
+    } else {
+        out = line + "\n";
+    }
+    // One fwrite per line so lines from other threads' messages do not interleave mid-line.
+    std::fwrite(out.data(), 1, out.size(), stderr);
+    std::fflush(stderr);
+}
+
+}  // namespace penumbra

@@ -1,0 +1,76 @@
+#pragma once
+/// @file Progress.h
+/// @brief A one-line progress display for long phases.
+///
+/// Work is counted with a relaxed atomic add, so worker threads can call update() per item
+/// without measurable cost; all formatting and I/O happens on a separate thread that wakes
+/// every 0.25 s. On a terminal the line is redrawn in place with '\r'; when stderr is a file
+/// or pipe (CI logs) a full line is printed at most every 2 s so logs stay short.
+
+#include "stream/util/Timer.h"
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <mutex>
+#include <string>
+#include <string_view>
+#include <thread>
+
+namespace penumbra {
+
+/// @brief pbrt-style progress line on stderr: `[phase] 42.0% (4200/10000) elapsed 3.1s ETA 4.3s`.
+class ProgressReporter {
+public:
+    /// @param phase short name shown in brackets, e.g. "bucket" or "bake".
+    /// @param totalWork units of work expected; 0 means unknown (no percentage or ETA).
+    /// @param quiet when true nothing is printed and no thread is started.
+    ProgressReporter(std::string phase, uint64_t totalWork, bool quiet);
+    /// Calls done(), unless an exception is unwinding through the owner, in which case the
+    /// display is just stopped: claiming "done" on the way to an error message would mislead.
+    ~ProgressReporter();
+
+    ProgressReporter(const ProgressReporter&) = delete;
+    ProgressReporter& operator=(const ProgressReporter&) = delete;
+
+    /// @brief Records @p work more units as finished. Thread safe; one relaxed atomic add.
+    void update(uint64_t work = 1) { done_.fetch_add(work, std::memory_order_relaxed); }
+
+    /// @brief Stops the display thread and prints the final line with the total time.
+    /// Idempotent.
+    void done();
+
+    /// Units of work reported so far.
+    uint64_t workDone() const { return done_.load(std::memory_order_relaxed); }
+
+private:
+    void run();
+    void stop(bool printFinal);
+    void print(const std::string& line, bool final);
+
+    std::string phase_;
+    uint64_t total_;
+    bool quiet_;
+    bool tty_ = false;
+    int uncaughtAtStart_;
+    std::atomic<uint64_t> done_{0};
+    Stopwatch clock_;
+
+    std::mutex mutex_;
+    std::condition_variable wake_;
+    bool stopping_ = false;  // guarded by mutex_
+    bool finished_ = false;  // guarded by mutex_
+    size_t lastWidth_ = 0;   // only touched by whoever prints (the thread, then done())
+    std::thread thread_;
+};
+
+/// @brief The text of one progress line (without '\r' or '\n'); exposed for tests.
+/// @param final true for the closing line, which shows total time instead of an ETA.
+std::string formatProgressLine(std::string_view phase, uint64_t done, uint64_t total,
+                               double elapsedSeconds, bool final);
+
+/// @brief Short duration for humans: "3.1s", "2m05s", "1h02m".
+std::string formatDuration(double seconds);
+
+}  // namespace penumbra

@@ -1,0 +1,290 @@
+// Tests for the Embree caster: it must agree with the brute-force reference (the blocking rule)
+// on every relation except ties, and ties must be rare; plus exact analytic cases.
+
+#include "bake/rule/BlockingRule.h"
+#include "bake/peers/EmbreeCaster.h"
+#include "bake/rule/TieClassifier.h"
+#include "bake/light/Light.h"
+#include "bake/peers/ReferenceCaster.h"
+#include "stream/util/Random.h"
+
+#include <catch2/catch.hpp>
+
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+using namespace penumbra;
+
+namespace {
+
+/// Two triangles covering the axis-aligned rectangle [x0,x1] x [z0,z1] at height y.
+void addQuadY(std::vector<Triangle>& out, float x0, float x1, float z0, float z1, float y) {
+    Triangle a, b;
+    a.v = {glm::vec3(x0, y, z0), glm::vec3(x1, y, z0), glm::vec3(x1, y, z1)};
+    b.v = {glm::vec3(x0, y, z0), glm::vec3(x1, y, z1), glm::vec3(x0, y, z1)};
+    out.push_back(a);
+    out.push_back(b);
+}
+
+LightDesc rectLight(glm::dvec3 center, double size, int samples, int sets) {
+    LightDesc l;
+    l.type = LightType::Rect;
+    l.center = center;
+    l.u = {size, 0, 0};
+    l.v = {0, 0, size};  // u x v points down: emits towards the scene below
+    l.samples = samples;
+    l.sampleSets = sets;
+    return l;
+}
+
+std::vector<uint32_t> assignSets(size_t n, int sets, uint64_t seed) {
+    std::vector<uint32_t> s(n);
+    for (size_t i = 0; i < n; ++i) s[i] = uint32_t(sampleSetOf(i, sets, seed));
+    return s;
+}
+
+ReceiverSet makeReceivers(const std::vector<glm::vec3>& points) {
+    ReceiverSet r;
+    r.position = points;
+    r.normal.assign(points.size(), glm::vec3(0, 1, 0));
+    return r;
+}
+
+struct Comparison {
+    uint64_t relations = 0;
+    uint64_t mismatches = 0;
+    uint64_t embreeOnly = 0;    ///< blocked by Embree, lit by the rule
+    uint64_t referenceOnly = 0; ///< blocked by the rule, lit by Embree
+    uint64_t nonTies = 0;       ///< mismatches no triangle explains as a tie
+    uint64_t blocked = 0;       ///< relations the reference blocks
+};
+
+/// Runs both casters and classifies every mismatch.
+Comparison compare(const LightSamples& samples, const ReceiverSet& receivers, const std::vector<uint32_t>& sets,
+                   const std::vector<Triangle>& triangles, double relativeEpsilon) {
+    const ReceiverEpsilon epsilon{relativeEpsilon, 1.0};
+    VisibilityMasks ref = castReference(samples, receivers, sets, triangles, epsilon);
+    EmbreeStats stats;
+    std::atomic<uint64_t> done{0};
+    VisibilityMasks emb =
+        castEmbree(samples, receivers, sets, triangles, epsilon, &stats, [&](uint64_t n) { done += n; });
+    REQUIRE(emb.groups == ref.groups);
+    REQUIRE(emb.words.size() == ref.words.size());
+    CHECK(done.load() == receivers.size());
+    CHECK(stats.rays <= uint64_t(receivers.size()) * uint64_t(samples.sampleCount));
+    CHECK(stats.buildSeconds >= 0.0);
+    CHECK(stats.traceSeconds >= 0.0);
+
+    const TieClassifier classifier(triangles, epsilon);
+
+    Comparison c;
+    c.relations = uint64_t(receivers.size()) * uint64_t(samples.sampleCount);
+    c.blocked = ref.blockedCount();
+    for (size_t r = 0; r < receivers.size(); ++r) {
+        const glm::dvec3 p(receivers.position[r]);
+        for (int k = 0; k < ref.groups; ++k) {
+            uint64_t diff = ref.row(r)[k] ^ emb.row(r)[k];
+            const LightSampleGroup& g = samples.groups[k];
+            for (uint32_t j = 0; j < g.count; ++j) {
+                if (!(diff >> j & 1)) continue;
+                ++c.mismatches;
+                (ref.row(r)[k] >> j & 1 ? c.referenceOnly : c.embreeOnly)++;
+                const glm::dvec3 l(samples.position(int(sets[r]), int(g.first + j)));
+                const RelationVerdict v = classifier.classify(l, samples.w(g.light), p);
+                if (!v.tie) {
+                    ++c.nonTies;
+                    UNSCOPED_INFO("non-tie mismatch: receiver " << r << " (" << p.x << ", " << p.y << ", " << p.z
+                                                                << ") sample " << (g.first + j) << " ("
+                                                                << l.x << ", " << l.y << ", " << l.z << "): " << v.describe());
+                }
+            }
+            // Bits beyond the group's samples are never set.
+            CHECK((emb.row(r)[k] & ~g.fullMask()) == 0);
+        }
+    }
+    return c;
+}
+
+void requireAgreement(const Comparison& c) {
+    INFO("relations " << c.relations << ", blocked by reference " << c.blocked << ", mismatches " << c.mismatches
+                      << " (Embree only " << c.embreeOnly << ", reference only " << c.referenceOnly
+                      << "), non-ties " << c.nonTies);
+    CHECK(c.nonTies == 0);
+    // The hit filter applies the rule to every candidate, so Embree never blocks what it does not.
+    CHECK(c.embreeOnly == 0);
+    CHECK(double(c.mismatches) < 1e-3 * double(c.relations));
+}
+
+}  // namespace
+
+TEST_CASE("embree: ground grid under a blocker quad agrees with the reference", "[embree]") {
+    std::vector<LightDesc> lights{rectLight({0, 3, 0}, 1.0, 256, 4)};
+    const uint64_t seed = 17;
+    LightSamples samples = generateLightSamples(lights, 64, seed);
+
+    std::vector<Triangle> triangles;
+    addQuadY(triangles, -3, 3, -3, 3, 0.0f);       // the ground the receivers lie on
+    addQuadY(triangles, -0.5f, 0.5f, -0.5f, 0.5f, 1.0f);  // the blocker
+    std::vector<glm::vec3> points;
+    for (int i = 0; i <= 20; ++i)
+        for (int j = 0; j <= 20; ++j) points.push_back(glm::vec3(-2.0f + 0.2f * i, 0.0f, -2.0f + 0.2f * j));
+    ReceiverSet receivers = makeReceivers(points);
+    auto sets = assignSets(receivers.size(), samples.sets, seed);
+
+    for (double epsilon : {1e-5, 1e-3}) {
+        Comparison c = compare(samples, receivers, sets, triangles, epsilon);
+        INFO("epsilon " << epsilon);
+        requireAgreement(c);
+        CHECK(c.blocked > 0);
+        CHECK(c.blocked < c.relations);
+    }
+
+    EmbreeStats stats;
+    const VisibilityMasks filtered = castEmbree(samples, receivers, sets, triangles, ReceiverEpsilon{1e-5, 1.0}, &stats);
+    CHECK(stats.rays == uint64_t(receivers.size()) * 256u);
+    CHECK(stats.sceneBytes == 4u * 48u);
+    CHECK(stats.filterCalls > 0);  // the blocker's hits
+    CHECK(stats.filterExact <= stats.filterCalls);
+    CHECK(stats.filterRejected <= stats.filterExact);  // only hits judged by the rule are rejected
+    // Without the filter, Embree's native answer: the same shadows here, with no filter calls.
+    EmbreeStats native;
+    const VisibilityMasks unfiltered =
+        castEmbree(samples, receivers, sets, triangles, ReceiverEpsilon{1e-5, 1.0}, &native, {}, false);
+    CHECK(native.filterCalls == 0);
+    CHECK(unfiltered.words == filtered.words);
+}
+
+TEST_CASE("embree: analytic umbra and fully lit receivers", "[embree]") {
+    std::vector<LightDesc> lights{rectLight({0, 3, 0}, 1.0, 128, 2)};
+    const uint64_t seed = 5;
+    for (int groupSize : {64, 37}) {
+        LightSamples samples = generateLightSamples(lights, groupSize, seed);
+        std::vector<Triangle> triangles;
+        addQuadY(triangles, -5, 5, -5, 5, 1.0f);  // large blocker between light and ground
+        // Directly below the centre (in umbra), far outside (fully lit), just below the light's
+        // centre but above the blocker (fully lit).
+        ReceiverSet receivers =
+            makeReceivers({glm::vec3(0, 0, 0), glm::vec3(0.3f, -2, -0.2f), glm::vec3(100, 0, 0), glm::vec3(0, 2, 0)});
+        auto sets = assignSets(receivers.size(), samples.sets, seed);
+        VisibilityMasks emb = castEmbree(samples, receivers, sets, triangles, ReceiverEpsilon{1e-5, 1.0});
+        VisibilityMasks ref = castReference(samples, receivers, sets, triangles, ReceiverEpsilon{1e-5, 1.0});
+        INFO("group size " << groupSize);
+        for (int k = 0; k < samples.groupCount(); ++k) {
+            CHECK(emb.row(0)[k] == samples.groups[k].fullMask());
+            CHECK(emb.row(1)[k] == samples.groups[k].fullMask());
+            CHECK(emb.row(2)[k] == 0);
+            CHECK(emb.row(3)[k] == 0);
+        }
+        CHECK(emb.words == ref.words);
+        CHECK(emb.visibleFraction(0, samples) == 0.0);
+        CHECK(emb.visibleFraction(2, samples) == 1.0);
+    }
+}
+
+TEST_CASE("embree: random triangle soups agree with the reference up to ties", "[embree]") {
+    for (uint64_t seed : {1u, 2u, 3u}) {
+        Rng rng(hashIndex(0xe3b, seed));
+        // Lights: 64..256 samples in 2..4 sets, group sizes that do and do not divide 16.
+        std::vector<LightDesc> lights;
+        lights.push_back(rectLight({rng.uniform(-1, 1), 4.5, rng.uniform(-1, 1)}, 1.5, 64, 2 + int(seed % 3)));
+        if (seed != 1) {
+            LightDesc disk;
+            disk.type = LightType::Disk;
+            disk.center = {rng.uniform(-2, 2), 4.0, rng.uniform(-2, 2)};
+            disk.normal = glm::normalize(glm::dvec3(0.3, -1, 0.2));
+            disk.radius = 0.6;
+            disk.samples = seed == 2 ? 64 : 192;
+            disk.sampleSets = 3;
+            lights.push_back(disk);
+        }
+        const int groupSize = seed == 3 ? 23 : 64;
+        LightSamples samples = generateLightSamples(lights, groupSize, seed);
+        REQUIRE(samples.sampleCount >= 64);
+        REQUIRE(samples.sampleCount <= 256);
+
+        std::vector<Triangle> triangles;
+        addQuadY(triangles, -4, 4, -4, 4, 0.0f);
+        for (int i = 0; i < 150; ++i) {  // a soup of random triangles
+            glm::dvec3 c(rng.uniform(-2, 2), rng.uniform(0.5, 2.5), rng.uniform(-2, 2));
+            Triangle t;
+            for (auto& v : t.v)
+                v = glm::vec3(c + glm::dvec3(rng.uniform(-0.4, 0.4), rng.uniform(-0.4, 0.4), rng.uniform(-0.4, 0.4)));
+            triangles.push_back(t);
+        }
+        // A tilted mesh with shared edges and vertices (edge ties).
+        {
+            glm::dvec3 o(rng.uniform(-1, 1), 1.5, rng.uniform(-1, 1));
+            glm::dvec3 a(0.25, 0.05, 0.0), b(0.0, -0.08, 0.25);
+            auto at = [&](int i, int j) { return glm::vec3(o + double(i) * a + double(j) * b); };
+            for (int i = 0; i < 6; ++i)
+                for (int j = 0; j < 6; ++j) {
+                    Triangle t1, t2;
+                    t1.v = {at(i, j), at(i + 1, j), at(i + 1, j + 1)};
+                    t2.v = {at(i, j), at(i + 1, j + 1), at(i, j + 1)};
+                    triangles.push_back(t1);
+                    triangles.push_back(t2);
+                }
+        }
+        // Triangles that block nothing: zero area and non-finite.
+        {
+            Triangle degenerate;
+            degenerate.v = {glm::vec3(0, 1, 0), glm::vec3(1, 1, 0), glm::vec3(2, 1, 0)};
+            Triangle nan;
+            nan.v = {glm::vec3(0, 1, 0), glm::vec3(std::numeric_limits<float>::quiet_NaN(), 1, 0), glm::vec3(0, 1, 1)};
+            triangles.push_back(degenerate);
+            triangles.push_back(nan);
+        }
+
+        // Receivers: on the ground, in free space, and on the soup's triangles (self-shadowing).
+        std::vector<glm::vec3> points;
+        for (int i = 0; i < 120; ++i) points.push_back(glm::vec3(float(rng.uniform(-3, 3)), 0.0f, float(rng.uniform(-3, 3))));
+        for (int i = 0; i < 100; ++i)
+            points.push_back(glm::vec3(rng.uniform(-2.5, 2.5), rng.uniform(0.0, 3.0), rng.uniform(-2.5, 2.5)));
+        for (int i = 0; i < 100; ++i) {
+            const Triangle& t = triangles[2 + size_t(rng.uniform(0, 150))];
+            double u = rng.uniform(), v = rng.uniform();
+            if (u + v > 1) u = 1 - u, v = 1 - v;
+            glm::dvec3 q = glm::dvec3(t.v[0]) + u * glm::dvec3(t.v[1] - t.v[0]) + v * glm::dvec3(t.v[2] - t.v[0]);
+            points.push_back(glm::vec3(q));
+        }
+        ReceiverSet receivers = makeReceivers(points);
+        auto sets = assignSets(receivers.size(), samples.sets, seed);
+
+        Comparison c = compare(samples, receivers, sets, triangles, 1e-5);
+        INFO("seed " << seed << ", " << samples.sampleCount << " samples in " << samples.sets << " sets, "
+                     << samples.groupCount() << " groups");
+        requireAgreement(c);
+        CHECK(c.blocked > c.relations / 20);  // the scene does cast shadows
+    }
+}
+
+TEST_CASE("embree: no triangles gives all-zero masks", "[embree]") {
+    std::vector<LightDesc> lights{rectLight({0, 3, 0}, 1.0, 64, 2)};
+    LightSamples samples = generateLightSamples(lights, 64, 9);
+    ReceiverSet receivers = makeReceivers({glm::vec3(0, 0, 0), glm::vec3(1, 0, 1), glm::vec3(-1, 2, 0)});
+    auto sets = assignSets(receivers.size(), samples.sets, 9);
+
+    EmbreeStats stats;
+    VisibilityMasks masks = castEmbree(samples, receivers, sets, {}, ReceiverEpsilon{1e-5, 1.0}, &stats);
+    REQUIRE(masks.receivers() == receivers.size());
+    REQUIRE(masks.groups == samples.groupCount());
+    CHECK(masks.blockedCount() == 0);
+    CHECK(stats.sceneBytes == 0);
+    CHECK(stats.rays == receivers.size() * 64u);
+
+    // Only invalid triangles: the same.
+    Triangle degenerate, inf;
+    degenerate.v = {glm::vec3(0, 1, 0), glm::vec3(0, 1, 0), glm::vec3(1, 1, 1)};
+    inf.v = {glm::vec3(-1, 1, -1), glm::vec3(std::numeric_limits<float>::infinity(), 1, 0), glm::vec3(1, 1, 1)};
+    std::vector<Triangle> invalid{degenerate, inf};
+    masks = castEmbree(samples, receivers, sets, invalid, ReceiverEpsilon{1e-5, 1.0}, &stats);
+    CHECK(masks.blockedCount() == 0);
+    CHECK(stats.sceneBytes == 0);
+
+    // No receivers at all.
+    ReceiverSet none;
+    masks = castEmbree(samples, none, {}, invalid, ReceiverEpsilon{1e-5, 1.0});
+    CHECK(masks.words.empty());
+}

@@ -1,0 +1,122 @@
+// Scene files: strict parsing with errors that name the key.
+
+#include "bake/Scene.h"
+#include "procedural/Generators.h"
+#include "stream/util/Error.h"
+
+#include <catch2/catch.hpp>
+
+using namespace penumbra;
+using nlohmann::json;
+
+namespace {
+
+json minimal() {
+    return json::parse(R"({
+      "geometry": [{"type": "grid", "cells": 2, "levels": 1}],
+      "lights": [{"type": "rect", "center": [0,5,0], "u": [1,0,0], "v": [0,0,1]}],
+      "receivers": {"type": "camera", "eye": [0,3,8], "target": [0,0,0]},
+      "output": "out/x.exr"})");
+}
+
+void requireError(const json& scene, const std::string& fragment) {
+    INFO(scene.dump());
+    REQUIRE_THROWS_AS(parseScene(scene, "dir/scene.json"), InputError);
+    try {
+        parseScene(scene, "dir/scene.json");
+    } catch (const InputError& e) {
+        std::string what = e.what();
+        CHECK_THAT(what, Catch::StartsWith("dir/scene.json: ") && Catch::Contains(fragment));
+        CHECK(what.find('\n') == std::string::npos);
+    }
+}
+
+}  // namespace
+
+TEST_CASE("a minimal scene parses with defaults and relative paths", "[scene]") {
+    SceneDesc s = parseScene(minimal(), "dir/scene.json");
+    CHECK(s.output == "dir/out/x.exr");
+    REQUIRE(s.lights.size() == 1);
+    CHECK(s.lights[0].samples == 256);
+    CHECK(s.lights[0].sampleSets == 8);
+    CHECK(s.receivers.at("type") == "camera");
+    CHECK(s.options.umbraBits);
+    CHECK(s.geometry[0].type == "grid");
+    CHECK_FALSE(s.geometry[0].params.contains("type"));
+}
+
+TEST_CASE("scene errors name the key", "[scene]") {
+    json s = minimal();
+    s["colour"] = 1;
+    requireError(s, "colour: unknown key");
+    s = minimal();
+    s["lights"][0]["u"] = {1, 0};
+    requireError(s, "lights[0].u: expected an array of 3 numbers");
+    s = minimal();
+    s["lights"][0].erase("v");
+    requireError(s, "lights[0].v: missing required field");
+    s = minimal();
+    s["lights"][0]["samples"] = "many";
+    requireError(s, "lights[0].samples");
+    s = minimal();
+    s["lights"][0]["type"] = "laser";
+    requireError(s, "lights[0].type: unknown light type");
+    s = minimal();
+    s["lights"][0]["v"] = {2, 0, 0};
+    requireError(s, "lights[0]: zero-area light");
+    s = minimal();
+    s["receivers"]["width"] = -3;
+    requireError(s, "receivers.width");
+    s = minimal();
+    s["geometry"][0]["transform"] = {{"scal", 2}};
+    requireError(s, "geometry[0].transform.scal: unknown key");
+    s = minimal();
+    s["bake"] = {{"rebuild_threshold", 3}};
+    requireError(s, "bake.rebuild_threshold");
+    s = minimal();
+    s.erase("receivers");
+    requireError(s, "receivers: missing required field");
+}
+
+TEST_CASE("unknown geometry types and bad generator parameters name the entry", "[scene]") {
+    registerFileSourceTypes();
+    registerProceduralGenerators();
+    json s = minimal();
+    s["geometry"][0] = {{"type", "teapotz"}};
+    SceneDesc scene = parseScene(s, "dir/scene.json");
+    CHECK_THROWS_WITH(openSceneGeometry(scene), Catch::Contains("geometry[0]") && Catch::Contains("unknown geometry type"));
+    s["geometry"][0] = {{"type", "grid"}, {"bar", 2}};
+    scene = parseScene(s, "dir/scene.json");
+    CHECK_THROWS_WITH(openSceneGeometry(scene), Catch::Contains("geometry[0].bar"));
+    s["geometry"][0] = {{"type", "obj"}, {"path", "missing.obj"}};
+    scene = parseScene(s, "dir/scene.json");
+    CHECK_THROWS_WITH(openSceneGeometry(scene), Catch::Contains("missing.obj"));
+}
+
+TEST_CASE("the closed key marks or unmarks every triangle of an entry", "[scene]") {
+    registerProceduralGenerators();
+    json s = minimal();
+    auto flagsOf = [&](const json& entry) {
+        s["geometry"] = json::array({entry});
+        std::vector<uint32_t> flags;
+        for (const Triangle& t : readAll(*openSceneGeometry(parseScene(s, "dir/scene.json")))) flags.push_back(t.flags);
+        return flags;
+    };
+    const json grid = {{"type", "grid"}, {"cells", 2}, {"levels", 1}, {"thickness", 0.05}, {"floor_size", 4}};
+    std::vector<uint32_t> plain = flagsOf(grid);  // the generator marks its bars, not its floor
+    REQUIRE(plain.size() == 2u + 9u * 12);
+    CHECK(plain[0] == 0u);
+    CHECK(plain[2] == (kTriangleClosed | kTriangleSolidStart));  // each bar is a solid of its own
+    CHECK(plain[3] == kTriangleClosed);
+    json closed = grid, open = grid;
+    closed["closed"] = true, open["closed"] = false;
+    // Marked closed, the entry is one solid at least (its first triangle starts one); the bars
+    // keep their own starts.
+    std::vector<uint32_t> marked = flagsOf(closed);
+    for (uint32_t f : marked) CHECK((f & kTriangleClosed) != 0u);
+    CHECK((marked[0] & kTriangleSolidStart) != 0u);
+    CHECK((marked[2] & kTriangleSolidStart) != 0u);
+    for (uint32_t f : flagsOf(open)) CHECK(f == 0u);
+    s["geometry"][0]["closed"] = "yes";
+    CHECK_THROWS_WITH(parseScene(s, "dir/scene.json"), Catch::Contains("geometry[0].closed"));
+}

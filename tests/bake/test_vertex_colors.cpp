@@ -1,0 +1,187 @@
+// The "vertices" receiver kind: a baked copy of the input glTF, read back through tinygltf, checked
+// against a points bake of the same vertices, and (when installed) the Khronos validator.
+
+#include "CliRunner.h"
+#include "GltfValidator.h"
+
+#include "bake/Pipeline.h"
+#include "bake/Scene.h"
+#include "stream/util/Npy.h"
+
+#include <tiny_gltf.h>
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+using namespace penumbra;
+using namespace penumbra::test;
+
+namespace {
+
+const std::string kFloor = std::string(PENUMBRA_SOURCE_DIR) + "/examples/vertices-floor.glb";
+
+/// The example's floor (33 x 33 vertices, y = 0, mesh 0) and blocker (mesh 1) under a small light.
+nlohmann::json sceneJson(const std::string& mesh, const std::string& output, nlohmann::json receivers = nullptr) {
+    if (receivers.is_null()) receivers = {{"type", "vertices"}, {"meshes", {0}}};
+    return {{"geometry", {{{"type", std::filesystem::path(mesh).extension() == ".glb" ? "glb" : "gltf"}, {"path", mesh}}}},
+            {"lights", {{{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {0.5, 0, 0}}, {"v", {0, 0, 0.5}}, {"samples", 64},
+                         {"sample_sets", 4}}}},
+            {"receivers", receivers},
+            {"output", output}};
+}
+
+nlohmann::json bake(const ScratchDir& dir, const nlohmann::json& scene) {
+    registerFileSourceTypes();
+    AllowOutsidePaths examples;  // the scene in the scratch directory bakes the examples' floor
+    BakeSettings settings;
+    settings.quiet = true;
+    settings.threads = 2;
+    return runBake(parseScene(scene, dir / "scene.json"), settings);
+}
+
+tinygltf::Model load(const std::string& path) {
+    tinygltf::Model model;
+    tinygltf::TinyGLTF loader;
+    std::string err, warn;
+    bool ok = path.ends_with(".glb") ? loader.LoadBinaryFromFile(&model, &err, &warn, path)
+                                     : loader.LoadASCIIFromFile(&model, &err, &warn, path);
+    INFO(err);
+    REQUIRE(ok);
+    return model;
+}
+
+/// Float accessor @p index of @p model as a flat array.
+std::vector<float> floats(const tinygltf::Model& model, int index) {
+    const tinygltf::Accessor& a = model.accessors[size_t(index)];
+    REQUIRE(a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT);
+    const tinygltf::BufferView& view = model.bufferViews[size_t(a.bufferView)];
+    size_t n = a.count * size_t(tinygltf::GetNumComponentsInType(uint32_t(a.type)));
+    std::vector<float> out(n);
+    std::memcpy(out.data(), model.buffers[size_t(view.buffer)].data.data() + view.byteOffset + a.byteOffset, n * 4);
+    return out;
+}
+
+}  // namespace
+
+TEST_CASE("vertices: COLOR_0 and _VISIBILITY match a points bake of the same vertices", "[vertices]") {
+    ScratchDir dir("vertices");
+    bake(dir, sceneJson(kFloor, dir / "out/floor.glb"));
+    tinygltf::Model in = load(kFloor), out = load(dir / "out/floor.glb");
+    REQUIRE(out.meshes.size() == 2);
+    const tinygltf::Primitive& floor = out.meshes[0].primitives[0];
+    REQUIRE(floor.attributes.count("COLOR_0"));
+    REQUIRE(floor.attributes.count("_VISIBILITY"));
+    REQUIRE(floor.attributes.count("_IRRADIANCE"));
+    REQUIRE(out.meshes[1].primitives[0].attributes.count("_VISIBILITY"));  // the blocker too
+    std::vector<float> v = floats(out, floor.attributes.at("_VISIBILITY"));
+    std::vector<float> colour = floats(out, floor.attributes.at("COLOR_0"));
+    std::vector<float> positions = floats(in, in.meshes[0].primitives[0].attributes.at("POSITION"));
+    REQUIRE(v.size() == 33 * 33);
+    REQUIRE(colour.size() == 3 * v.size());
+    for (size_t i = 0; i < v.size(); ++i) REQUIRE(colour[3 * i] == v[i]);
+    CHECK(v[16 * 33 + 16] == 0.0f);  // (0, 0, 0), right under the blocker
+    CHECK(v[0] == 1.0f);             // (-3, 0, -3), far out
+
+    // The floor's vertices come first, so as points they get the same light sample sets.
+    std::vector<float> rows;
+    for (size_t i = 0; i < v.size(); ++i) rows.insert(rows.end(), {positions[3 * i], positions[3 * i + 1], positions[3 * i + 2], 0, 1, 0});
+    uint64_t shape[2] = {v.size(), 6};
+    writeNpy(dir / "points.npy", "<f4", shape, rows.data(), rows.size() * 4);
+    bake(dir, sceneJson(kFloor, dir / "points-v.npy", {{"type", "points"}, {"path", dir / "points.npy"}}));
+    NpyArray expected = readNpy(dir / "points-v.npy");
+    REQUIRE(expected.shape[0] == v.size());
+    std::vector<float> ev(v.size());
+    std::memcpy(ev.data(), expected.data.data(), ev.size() * 4);
+    CHECK(ev == v);
+}
+
+TEST_CASE("vertices: an existing COLOR_0 is kept and the result goes to _VISIBILITY, also as .gltf", "[vertices]") {
+    ScratchDir dir("vertices-color");
+    // A copy of the example whose floor already has vertex colours.
+    tinygltf::Model model = load(kFloor);
+    tinygltf::Buffer& buffer = model.buffers[0];
+    tinygltf::BufferView view;
+    view.buffer = 0, view.byteOffset = buffer.data.size(), view.byteLength = 33 * 33 * 12, view.target = TINYGLTF_TARGET_ARRAY_BUFFER;
+    std::vector<float> grey(33 * 33 * 3, 0.5f);
+    buffer.data.insert(buffer.data.end(), reinterpret_cast<unsigned char*>(grey.data()),
+                       reinterpret_cast<unsigned char*>(grey.data() + grey.size()));
+    model.bufferViews.push_back(view);
+    tinygltf::Accessor accessor;
+    accessor.bufferView = int(model.bufferViews.size() - 1), accessor.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+    accessor.type = TINYGLTF_TYPE_VEC3, accessor.count = 33 * 33;
+    model.accessors.push_back(accessor);
+    const int colourAccessor = int(model.accessors.size() - 1);
+    model.meshes[0].primitives[0].attributes["COLOR_0"] = colourAccessor;
+    tinygltf::TinyGLTF writer;
+    REQUIRE(writer.WriteGltfSceneToFile(&model, dir / "coloured.glb", false, true, false, true));
+
+    bake(dir, sceneJson(dir / "coloured.glb", dir / "out/coloured.gltf"));
+    tinygltf::Model out = load(dir / "out/coloured.gltf");
+    const auto& attributes = out.meshes[0].primitives[0].attributes;
+    REQUIRE(attributes.at("COLOR_0") == colourAccessor);
+    CHECK(floats(out, colourAccessor) == grey);
+    std::vector<float> v = floats(out, attributes.at("_VISIBILITY"));
+    CHECK(v[16 * 33 + 16] == 0.0f);
+    CHECK(v[0] == 1.0f);
+    CHECK(out.meshes[1].primitives[0].attributes.count("COLOR_0"));  // the blocker had none
+
+    std::string validatorDir, log;
+    if (!validatorAvailable(validatorDir)) {
+        WARN("skipped: gltf-validator not installed under " << validatorDir << " (./setup.sh installs it)");
+        return;
+    }
+    bake(dir, sceneJson(kFloor, dir / "out/floor.glb"));
+    for (const std::string& file : {dir / "out/coloured.gltf", dir / "out/floor.glb"}) {
+        int code = validateGltf(file, validatorDir, log);
+        INFO(log);
+        CHECK(code == 0);
+    }
+}
+
+TEST_CASE("vertices: bad parameters are one-line errors naming the key", "[vertices]") {
+    ScratchDir dir("vertices-errors");
+    auto error = [&](nlohmann::json receivers, const std::string& output = "out.glb", const std::string& mesh = kFloor) {
+        AllowOutsidePaths examples;
+        return errorOf([&] { parseScene(sceneJson(mesh, output, receivers), dir / "scene.json"); });
+    };
+    CHECK_THAT(error({{"type", "vertices"}}), Catch::Contains("receivers.meshes") && Catch::Contains("missing"));
+    CHECK_THAT(error({{"type", "vertices"}, {"meshes", {3}}}),
+               Catch::Contains("receivers.meshes[0]") && Catch::Contains("out of range"));
+    CHECK_THAT(error({{"type", "vertices"}, {"meshes", "all"}}), Catch::Contains("receivers.meshes"));
+    CHECK_THAT(error({{"type", "vertices"}, {"meshes", {0}}, {"colour", 1}}), Catch::Contains("receivers.colour"));
+    CHECK_THAT(error({{"type", "vertices"}, {"meshes", {0}}}, "out.exr"), Catch::Contains("output"));
+    std::ofstream(dir / "tri.obj") << "v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 2 3\n";
+    nlohmann::json scene = sceneJson(kFloor, "out.glb");
+    scene["geometry"][0] = {{"type", "obj"}, {"path", dir / "tri.obj"}};
+    AllowOutsidePaths examples;
+    CHECK_THAT(errorOf([&] { parseScene(scene, dir / "scene.json"); }),
+               Catch::Contains("receivers.meshes[0]") && Catch::Contains(".gltf or .glb"));
+}
+
+TEST_CASE("vertices: the example bakes with one command", "[vertices]") {
+    ScratchDir dir("vertices-example");
+    RunResult r = runPenumbra("bake " + std::string(PENUMBRA_SOURCE_DIR) + "/examples/vertices.json --quiet -o " + (dir / "v.glb"));
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    tinygltf::Model out = load(dir / "v.glb");
+    CHECK(out.meshes[0].primitives[0].attributes.count("COLOR_0"));
+}
+
+TEST_CASE("vertices: a mesh drawn by two nodes is an error naming the file", "[vertices]") {
+    ScratchDir dir("vertices-instanced");
+    tinygltf::Model model = load(kFloor);
+    tinygltf::Node copy;
+    copy.mesh = 1;
+    copy.translation = {2, 0, 0};
+    model.nodes.push_back(copy);
+    model.scenes[0].nodes.push_back(int(model.nodes.size() - 1));
+    tinygltf::TinyGLTF writer;
+    REQUIRE(writer.WriteGltfSceneToFile(&model, dir / "twice.glb", false, true, false, true));
+    CHECK_THAT(errorOf([&] { bake(dir, sceneJson(dir / "twice.glb", dir / "out.glb")); }),
+               Catch::Contains("twice.glb") && Catch::Contains("mesh 1 is drawn by nodes 1 and 2"));
+    CHECK(!std::filesystem::exists(dir / "out.glb"));
+}

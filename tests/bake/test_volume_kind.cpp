@@ -1,0 +1,175 @@
+// The "volume" receiver kind: the VDB read back through OpenVDB matches a points bake of the same
+// voxel centres exactly, lit and umbra regions are tiles, narrow bands follow the geometry.
+
+#include "CliRunner.h"
+
+#include "bake/Pipeline.h"
+#include "bake/Scene.h"
+#include "stream/util/Npy.h"
+
+#include <openvdb/io/File.h>
+#include <openvdb/openvdb.h>
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <cstring>
+
+using namespace penumbra;
+using namespace penumbra::test;
+
+namespace {
+
+const std::string kFloor = std::string(PENUMBRA_SOURCE_DIR) + "/examples/vertices-floor.glb";
+
+/// The example floor (y = 0, 6 x 6) with a 1.2-wide blocker at y = 1.2..1.5, under a small light.
+nlohmann::json sceneJson(const nlohmann::json& receivers, const std::string& output) {
+    return {{"geometry", {{{"type", "glb"}, {"path", kFloor}}}},
+            {"lights", {{{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {0.5, 0, 0}}, {"v", {0, 0, 0.5}}, {"samples", 64},
+                         {"sample_sets", 4}}}},
+            {"receivers", receivers},
+            {"output", output}};
+}
+
+void bake(const ScratchDir& dir, const nlohmann::json& scene) {
+    registerFileSourceTypes();
+    AllowOutsidePaths examples;  // the scene in the scratch directory bakes the examples' floor
+    BakeSettings settings;
+    settings.quiet = true;
+    settings.threads = 2;
+    runBake(parseScene(scene, dir / "scene.json"), settings);
+}
+
+openvdb::GridBase::Ptr readGrid(const std::string& path, const std::string& name) {
+    openvdb::initialize();
+    openvdb::io::File file(path);
+    file.open();
+    REQUIRE(file.hasGrid(name));
+    openvdb::GridBase::Ptr grid = file.readGrid(name);
+    file.close();
+    return grid;
+}
+
+}  // namespace
+
+TEST_CASE("volume: box voxels match a points bake exactly, and lit regions are tiles", "[volume]") {
+    ScratchDir dir("volume");
+    bake(dir, sceneJson({{"type", "volume"}, {"box", {{-6, 0.05, -6}, {6, 1.15, 6}}}, {"voxel_size", 0.1}, {"irradiance", true}},
+                        dir / "out/v.vdb"));
+    auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(readGrid(dir / "out/v.vdb", "visibility"));
+    REQUIRE(grid);
+    auto irradiance = openvdb::gridPtrCast<openvdb::Vec3SGrid>(readGrid(dir / "out/v.vdb", "irradiance"));
+    REQUIRE(irradiance);
+    CHECK(grid->background() == 1.0f);
+
+    // 120 x 11 x 120 voxels; their centres, in the kind's receiver order, become point receivers.
+    const int nx = 120, ny = 11, nz = 120;
+    std::vector<float> rows;
+    std::vector<openvdb::Coord> coords;
+    for (int i = 0; i < nx; ++i)
+        for (int j = 0; j < ny; ++j)
+            for (int k = 0; k < nz; ++k) {
+                openvdb::Vec3d p = grid->indexToWorld(openvdb::Coord(i, j, k));
+                rows.insert(rows.end(), {float(p.x()), float(p.y()), float(p.z()), 0, 0, 0});
+                coords.emplace_back(i, j, k);
+            }
+    CHECK(grid->indexToWorld(openvdb::Coord(0, 0, 0)).eq(openvdb::Vec3d(-5.95, 0.1, -5.95), 1e-9));
+    uint64_t shape[2] = {coords.size(), 6};
+    writeNpy(dir / "points.npy", "<f4", shape, rows.data(), rows.size() * 4);
+    bake(dir, sceneJson({{"type", "points"}, {"path", dir / "points.npy"}}, dir / "points-v.npy"));
+    NpyArray expected = readNpy(dir / "points-v.npy");
+    REQUIRE(expected.shape[0] == coords.size());
+    std::vector<float> ev(coords.size());
+    std::memcpy(ev.data(), expected.data.data(), ev.size() * 4);
+
+    auto acc = grid->getConstAccessor();
+    auto eacc = irradiance->getConstAccessor();
+    size_t mismatches = 0, shadowed = 0;
+    for (size_t r = 0; r < coords.size(); ++r) {
+        mismatches += acc.getValue(coords[r]) != ev[r];
+        shadowed += ev[r] < 1.0f;
+        if (ev[r] == 1.0f) CHECK(!acc.isValueOn(coords[r]));  // lit: background, no voxel
+    }
+    CHECK(mismatches == 0);
+    CHECK(shadowed > 100);
+    CHECK(acc.getValue(openvdb::Coord(60, 5, 60)) == 0.0f);  // (0.05, 0.6, 0.05): umbra under the blocker
+    CHECK(eacc.getValue(openvdb::Coord(0, 5, 0)).x() > 0.0f);  // zero normal: lit voxels still get irradiance
+
+    // Mostly lit: voxels stored densely in leaves are a small part of the box.
+    const uint64_t total = uint64_t(nx) * ny * nz;
+    CHECK(grid->tree().activeVoxelCount() == shadowed);
+    CHECK(grid->tree().leafCount() * 512 < total / 4);
+
+    // The slice tool renders it.
+    RunResult slice = runPenumbra("vdb-slice " + (dir / "out/v.vdb") + " " + (dir / "slice.png") + " --axis y --at 0.5");
+    INFO(slice.err);
+    CHECK(slice.exitCode == 0);
+    CHECK(std::filesystem::file_size(dir / "slice.png") > 100);
+    RunResult outside = runPenumbra("vdb-slice " + (dir / "out/v.vdb") + " " + (dir / "s.png") + " --axis y --at 7");
+    CHECK(outside.exitCode == 1);
+    CHECK_THAT(outside.err, Catch::Contains("outside the grid"));
+}
+
+TEST_CASE("volume: fully shadowed regions become tiles", "[volume]") {
+    ScratchDir dir("volume-umbra");
+    // A box entirely under the blocker's umbra (tight around the axis, just below the blocker).
+    bake(dir, sceneJson({{"type", "volume"}, {"box", {{-0.4, 0.8, -0.4}, {0.4, 1.12, 0.4}}}, {"voxel_size", 0.01}},
+                        dir / "u.vdb"));
+    auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(readGrid(dir / "u.vdb", "visibility"));
+    REQUIRE(grid);
+    auto acc = grid->getConstAccessor();
+    CHECK(acc.getValue(openvdb::Coord(40, 16, 40)) == 0.0f);
+    CHECK(grid->tree().activeVoxelCount() > 0);
+    CHECK(grid->tree().activeTileCount() > 0);  // collapsed 8^3 umbra leaves
+}
+
+TEST_CASE("volume: a narrow band holds the voxels near the geometry", "[volume]") {
+    ScratchDir dir("volume-band");
+    bake(dir, sceneJson({{"type", "volume"}, {"narrow_band", {{"geometry", {0}}, {"width", 0.15}}}, {"voxel_size", 0.1}},
+                        dir / "b.vdb"));
+    auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(readGrid(dir / "b.vdb", "visibility"));
+    REQUIRE(grid);
+    CHECK(grid->indexToWorld(openvdb::Coord(3, 1, -2)).eq(openvdb::Vec3d(0.3, 0.1, -0.2), 1e-12));
+    auto acc = grid->getConstAccessor();
+    CHECK(acc.getValue(openvdb::Coord(0, 1, 0)) < 1.0f);  // in the band, under the blocker
+    CHECK(acc.getValue(openvdb::Coord(0, 5, 0)) == 1.0f);  // between floor and blocker: not in the band
+    auto lo = grid->getMetadata<openvdb::Vec3IMetadata>("penumbra_min");
+    auto hi = grid->getMetadata<openvdb::Vec3IMetadata>("penumbra_max");
+    REQUIRE(lo);
+    REQUIRE(hi);
+    CHECK(lo->value() == openvdb::Vec3i(-31, -1, -31));
+    CHECK(hi->value() == openvdb::Vec3i(31, 16, 31));
+}
+
+TEST_CASE("volume: bad parameters are one-line errors naming the key", "[volume]") {
+    ScratchDir dir("volume-errors");
+    auto error = [&](const nlohmann::json& receivers, const std::string& output = "v.vdb") {
+        AllowOutsidePaths examples;
+        return errorOf([&] { parseScene(sceneJson(receivers, output), dir / "scene.json"); });
+    };
+    const nlohmann::json box = {{-1, 0, -1}, {1, 1, 1}};
+    CHECK_THAT(error({{"type", "volume"}, {"box", box}}), Catch::Contains("receivers.voxel_size"));
+    CHECK_THAT(error({{"type", "volume"}, {"box", box}, {"voxel_size", 0}}), Catch::Contains("receivers.voxel_size"));
+    CHECK_THAT(error({{"type", "volume"}, {"voxel_size", 0.1}}), Catch::Contains("receivers.box"));
+    CHECK_THAT(error({{"type", "volume"}, {"box", {{1, 0, 0}, {0, 1, 1}}}, {"voxel_size", 0.1}}),
+               Catch::Contains("receivers.box") && Catch::Contains("low"));
+    CHECK_THAT(error({{"type", "volume"}, {"box", {1, 2}}, {"voxel_size", 0.1}}), Catch::Contains("receivers.box"));
+    CHECK_THAT(error({{"type", "volume"}, {"box", box}, {"voxel_size", 0.1}}, "v.exr"), Catch::Contains("output"));
+    CHECK_THAT(error({{"type", "volume"}, {"box", box}, {"voxel_size", 1e-6}}), Catch::Contains("voxels"));
+    CHECK_THAT(error({{"type", "volume"}, {"voxel_size", 0.1}, {"narrow_band", {{"geometry", {2}}, {"width", 0.1}}}}),
+               Catch::Contains("receivers.narrow_band.geometry[0]") && Catch::Contains("out of range"));
+    CHECK_THAT(error({{"type", "volume"}, {"voxel_size", 0.1}, {"narrow_band", {{"geometry", {0}}}}}),
+               Catch::Contains("receivers.narrow_band.width"));
+    CHECK_THAT(error({{"type", "volume"}, {"voxel_size", 0.1}, {"narrow_band", {{"geometry", {0}}, {"width", 1}, {"x", 1}}}}),
+               Catch::Contains("receivers.narrow_band.x"));
+}
+
+TEST_CASE("volume: the example bakes with one command", "[volume]") {
+    ScratchDir dir("volume-example");
+    RunResult r = runPenumbra("bake " + std::string(PENUMBRA_SOURCE_DIR) + "/examples/volume.json --quiet -o " + (dir / "v.vdb"));
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(readGrid(dir / "v.vdb", "visibility"));
+    REQUIRE(grid);
+    CHECK(grid->tree().activeVoxelCount() > 0);
+}

@@ -1,0 +1,173 @@
+// Tests for opening geometry by extension, scanning sources, and converting between formats
+// (bit-exact round trips through OBJ, glTF and .ptri; atomic, all-or-nothing output).
+
+#include "stream/util/Error.h"
+#include "stream/GeometryFile.h"
+#include "stream/ObjReader.h"
+#include "stream/PtriFormat.h"
+#include "StreamTestFiles.h"
+
+#include <catch2/catch.hpp>
+
+#include <cfloat>
+#include <cmath>
+#include <random>
+
+using namespace penumbra;
+using namespace penumbra::test;
+
+namespace {
+
+/// Triangles whose coordinates exercise float printing and parsing: tiny, huge, denormal,
+/// negative zero, values without short decimal forms.
+std::vector<Triangle> awkwardTriangles() {
+    std::vector<Triangle> tris;
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    std::uniform_int_distribution<int> exponent(-40, 38);
+    for (int i = 0; i < 300; ++i) {
+        Triangle t;
+        for (auto& p : t.v)
+            for (int k = 0; k < 3; ++k) p[k] = unit(rng) * std::pow(10.0f, float(exponent(rng)));
+        tris.push_back(t);
+    }
+    tris.push_back(tri({-0.0f, 0.1f, 1.0f / 3.0f}, {FLT_MAX, -FLT_MAX, FLT_MIN}, {1e-45f, -1e-45f, 16777217.0f}));
+    tris.push_back(tri({0.3f, 123456.789f, -2.5e-20f}, {1, 2, 3}, {7e37f, -6e-38f, 0.2f}));
+    return tris;
+}
+
+/// A source that fails after its first chunk, like a reader hitting a damaged region.
+class FailingSource final : public TriangleSource {
+public:
+    size_t read(std::span<Triangle> out) override {
+        if (calls_++ > 0) fail("failing", "simulated read error");
+        out[0] = tri({0, 0, 0}, {1, 0, 0}, {0, 1, 0});
+        return 1;
+    }
+    void rewind() override { calls_ = 0; }
+    std::string name() const override { return "failing"; }
+
+private:
+    int calls_ = 0;
+};
+
+}  // namespace
+
+TEST_CASE("GeometryFile: readers are chosen by extension, case-insensitively", "[stream][geometry]") {
+    ScratchDir dir("geometry");
+    std::vector<Triangle> tris = {tri({0, 0, 0}, {1, 0, 0}, {0, 1, 0})};
+    VectorSource source(tris);
+    for (const char* name : {"a.obj", "b.OBJ", "c.ptri", "d.PTri", "e.glb", "f.GLB", "g.gltf", "h.glTF"}) {
+        INFO(name);
+        convertGeometry(source, dir.file(name));
+        TriangleSourcePtr opened = openGeometryFile(dir.file(name));
+        CHECK(sameBits(readAll(*opened), tris));
+    }
+    // Content decides between glTF's two encodings, so a misnamed file still loads.
+    std::filesystem::copy_file(dir.file("e.glb"), dir.file("binary.gltf"));
+    CHECK(readAll(*openGeometryFile(dir.file("binary.gltf"))).size() == 1);
+
+    CHECK_THROWS_WITH(openGeometryFile(dir.file("x.stl")),
+                      dir.file("x.stl") + ": unknown geometry file extension '.stl' (expected .obj, .gltf, .glb or .ptri)");
+    CHECK_THROWS_AS(openGeometryFile(dir.file("noextension")), InputError);
+    CHECK_THROWS_AS(openGeometryFile(dir.file("missing.obj")), InputError);
+    CHECK_THROWS_WITH(convertGeometry(source, dir.file("out.fbx")),
+                      dir.file("out.fbx") + ": unknown output extension '.fbx' (expected .obj, .gltf, .glb or .ptri)");
+}
+
+TEST_CASE("GeometryFile: scanGeometry counts, bounds and measures, then rewinds", "[stream][geometry]") {
+    std::vector<Triangle> tris = {tri({0, 0, 0}, {2, 0, 0}, {0, 2, 0}), tri({-1, 5, 3}, {-1, 6, 3}, {-1, 5, 4})};
+    VectorSource source(tris);
+    source.read(std::span<Triangle>(tris.data(), 1));  // scan must not depend on the read position
+    GeometryInfo info = scanGeometry(source);
+    CHECK(info.triangles == 2u);
+    CHECK(info.lo == glm::vec3(-1, 0, 0));
+    CHECK(info.hi == glm::vec3(2, 6, 4));
+    CHECK(info.area == Approx(2.5));
+    CHECK(readAll(source).size() == 2);
+
+    VectorSource empty({});
+    GeometryInfo none = scanGeometry(empty);
+    CHECK(none.triangles == 0u);
+    CHECK(none.lo == glm::vec3(0));
+    CHECK(none.hi == glm::vec3(0));
+    CHECK(none.area == 0.0);
+}
+
+TEST_CASE("GeometryFile: OBJ, glTF and .ptri carry identical triangles", "[stream][geometry]") {
+    ScratchDir dir("geometry");
+    const std::vector<Triangle> tris = awkwardTriangles();
+    VectorSource source(tris);
+    for (const char* name : {"x.ptri", "x.obj", "x.glb", "x.gltf"}) {
+        INFO(name);
+        convertGeometry(source, dir.file(name));
+        TriangleSourcePtr back = openGeometryFile(dir.file(name));
+        CHECK(back->sizeHint() == tris.size());
+        CHECK(sameBits(readAll(*back), tris));
+    }
+    // And chained: OBJ -> glb -> ptri -> OBJ changes nothing.
+    auto obj = openGeometryFile(dir.file("x.obj"));
+    convertGeometry(*obj, dir.file("y.glb"));
+    auto glb = openGeometryFile(dir.file("y.glb"));
+    convertGeometry(*glb, dir.file("y.ptri"));
+    auto ptri = openGeometryFile(dir.file("y.ptri"));
+    convertGeometry(*ptri, dir.file("y.obj"));
+    CHECK(sameBits(readAll(*openGeometryFile(dir.file("y.obj"))), tris));
+}
+
+TEST_CASE("GeometryFile: a real mesh converts bit-exactly to every format", "[stream][geometry][data]") {
+    ScratchDir dir("geometry");
+    TriangleSourcePtr spot = openObj(sharedData("meshes/spot.obj"));
+    const std::vector<Triangle> tris = readAll(*spot);
+    REQUIRE(tris.size() == 5856);
+    for (const char* name : {"spot.ptri", "spot.glb", "spot.obj"}) {
+        INFO(name);
+        convertGeometry(*spot, dir.file(name));  // converting rewinds the source first
+        CHECK(sameBits(readAll(*openGeometryFile(dir.file(name))), tris));
+    }
+    GeometryInfo a = scanGeometry(*spot), b = scanGeometry(*openGeometryFile(dir.file("spot.ptri")));
+    CHECK(a.triangles == b.triangles);
+    CHECK(a.lo == b.lo);
+    CHECK(a.hi == b.hi);
+    CHECK(a.area == b.area);
+    PtriInfo header = readPtriHeader(dir.file("spot.ptri"));
+    CHECK(header.lo == a.lo);
+    CHECK(header.hi == a.hi);
+}
+
+TEST_CASE("GeometryFile: flags survive only in .ptri", "[stream][geometry]") {
+    ScratchDir dir("geometry");
+    VectorSource source({tri({0, 0, 0}, {1, 0, 0}, {0, 1, 0}, kTriangleAlphaMatte)});
+    convertGeometry(source, dir.file("f.ptri"));
+    convertGeometry(source, dir.file("f.obj"));
+    CHECK(readAll(*openGeometryFile(dir.file("f.ptri")))[0].flags == kTriangleAlphaMatte);
+    CHECK(readAll(*openGeometryFile(dir.file("f.obj")))[0].flags == 0u);
+}
+
+TEST_CASE("GeometryFile: empty sources convert to empty files", "[stream][geometry]") {
+    ScratchDir dir("geometry");
+    VectorSource empty({});
+    for (const char* name : {"e.ptri", "e.obj", "e.glb", "e.gltf"}) {
+        INFO(name);
+        convertGeometry(empty, dir.file(name));
+        TriangleSourcePtr back = openGeometryFile(dir.file(name));
+        CHECK(back->sizeHint() == 0u);
+        CHECK(readAll(*back).empty());
+    }
+}
+
+TEST_CASE("GeometryFile: a failed conversion leaves no output behind", "[stream][geometry]") {
+    ScratchDir dir("geometry");
+    for (const char* name : {"o.ptri", "o.obj", "o.glb", "o.gltf"}) {
+        INFO(name);
+        writeText(dir.file(name), "old");
+        FailingSource failing;
+        CHECK_THROWS_WITH(convertGeometry(failing, dir.file(name)), "failing: simulated read error");
+        CHECK(dir.entries() == std::vector<std::string>{name});
+        CHECK(readBytes(dir.file(name)).size() == 3);  // the previous file is untouched
+        std::filesystem::remove(dir.file(name));
+    }
+    VectorSource one({tri({0, 0, 0}, {1, 0, 0}, {0, 1, 0})});
+    CHECK_THROWS_AS(convertGeometry(one, dir.file("missing-dir/o.obj")), InputError);
+    CHECK(dir.entries().empty());
+}

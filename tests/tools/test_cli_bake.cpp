@@ -1,0 +1,152 @@
+// The `penumbra bake` and `compare` commands end to end: outputs, dump format, stats, and clean
+// one-line errors for bad input.
+
+#include "CliRunner.h"
+
+#include "bake/output/ImageWriters.h"
+#include "stream/util/Npy.h"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+using namespace penumbra;
+using namespace penumbra::test;
+
+namespace {
+
+const char* kSmallScene = R"({
+  "geometry": [{"type": "grid", "cells": 4, "levels": 2, "size": 2, "floor_size": 5}],
+  "lights": [{"type": "rect", "center": [0,4,0], "u": [1,0,0], "v": [0,0,1], "samples": 64, "sample_sets": 4}],
+  "receivers": {"type": "camera", "eye": [0,4,5], "target": [0,0.5,0], "width": 40, "height": 30},
+  "output": "out/small.exr"})";
+
+void write(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+
+}  // namespace
+
+TEST_CASE("bake writes the EXR, PNG, dump and stats, and hpc matches reference via compare", "[cli]") {
+    ScratchDir dir("bake");
+    write(dir / "scene.json", kSmallScene);
+    RunResult hpc = runPenumbra("bake " + (dir / "scene.json") + " --quiet --dump " + (dir / "hpc") + " --stats " + (dir / "stats.json"));
+    INFO(hpc.err);
+    REQUIRE(hpc.exitCode == 0);
+    CHECK(hpc.err.empty());  // --quiet
+
+    ExrImage img = readExr(dir / "out/small.exr");
+    CHECK(img.width == 40);
+    CHECK(img.height == 30);
+    REQUIRE(img.channels.count("V"));
+    float lo = 1, hi = 0;
+    for (float v : img.channels["V"]) lo = std::min(lo, v), hi = std::max(hi, v);
+    CHECK(lo < 0.2f);   // something is in shadow
+    CHECK(hi == 1.0f);  // something is fully lit
+    CHECK(std::filesystem::file_size(dir / "out/small.png") > 100);
+
+    NpyArray rec = readNpy(dir / "hpc/receivers.npy"), smp = readNpy(dir / "hpc/samples.npy"), msk = readNpy(dir / "hpc/masks.npy");
+    CHECK(rec.dtype == "<f4");
+    REQUIRE(rec.shape.size() == 2);
+    CHECK(rec.shape[1] == 7);
+    CHECK(smp.shape == std::vector<uint64_t>{4, 64, 4});
+    CHECK(msk.dtype == "<u8");
+    CHECK(msk.shape == std::vector<uint64_t>{rec.shape[0], 1});
+
+    nlohmann::json stats = nlohmann::json::parse(slurp(dir / "stats.json"));
+    for (const char* key : {"sort_time_s", "hierarchy_build_time_s", "penumbra_cast_time_s", "samples_memory_bytes",
+                            "peak_hierarchy_memory_bytes", "peak_mask_memory_bytes", "total_time_s"})
+        CHECK(stats["table2"].contains(key));
+    CHECK(stats["counters"]["triangles_read"].get<uint64_t>() == 2 + 2 * 25 * 12);
+    CHECK(stats["counters"]["peak_rss_bytes"].get<uint64_t>() > 1000000);
+    CHECK(stats["table2"]["peak_hierarchy_memory_bytes"].get<uint64_t>() > 0);
+    CHECK(stats["counters"]["table_decided_relations"].get<uint64_t>() > 0);  // sample table on by default
+    CHECK(stats["counters"]["closed_back_faces_skipped"].get<uint64_t>() > 0);  // the bars' undersides
+
+    RunResult ref = runPenumbra("bake " + (dir / "scene.json") + " -q --method reference -o " + (dir / "ref.exr") + " --dump " + (dir / "ref"));
+    REQUIRE(ref.exitCode == 0);
+    RunResult cmp = runPenumbra("compare " + (dir / "hpc") + " " + (dir / "ref"));
+    INFO(cmp.out);
+    CHECK(cmp.exitCode == 0);
+    CHECK_THAT(cmp.out, Catch::Contains("only_a 0") && Catch::Contains("only_b 0"));
+
+    // Same result on one thread and with every optimization off.
+    RunResult one = runPenumbra("bake " + (dir / "scene.json") + " -q --threads 1 --disable all -o " + (dir / "one.exr") + " --dump " + (dir / "one"));
+    REQUIRE(one.exitCode == 0);
+    CHECK(readNpy(dir / "one/masks.npy").data == msk.data);
+    CHECK(readExr(dir / "one.exr").channels["V"] == img.channels["V"]);
+    RunResult noTable = runPenumbra("bake " + (dir / "scene.json") + " -q --sample-table off -o " + (dir / "nt.exr") + " --dump " + (dir / "nt"));
+    REQUIRE(noTable.exitCode == 0);
+    CHECK(readNpy(dir / "nt/masks.npy").data == msk.data);
+    RunResult allFaces = runPenumbra("bake " + (dir / "scene.json") + " -q --closed-casters off -o " + (dir / "af.exr") + " --dump " + (dir / "af"));
+    REQUIRE(allFaces.exitCode == 0);
+    CHECK(readNpy(dir / "af/masks.npy").data == msk.data);
+}
+
+TEST_CASE("bad input gives one clean line and a non-zero exit", "[cli]") {
+    ScratchDir dir("bad");
+    write(dir / "broken.json", "{ \"geometry\": [ ");
+    requireCleanError(runPenumbra("bake " + (dir / "broken.json")), "broken.json: invalid JSON");
+
+    requireCleanError(runPenumbra("bake " + (dir / "nonexistent.json")), "nonexistent.json");
+
+    nlohmann::json s = nlohmann::json::parse(kSmallScene);
+    s["lights"][0]["v"] = {0, 0, 0};
+    write(dir / "zero.json", s.dump());
+    requireCleanError(runPenumbra("bake " + (dir / "zero.json")), "lights[0]: zero-area light");
+
+    write(dir / "nan.obj", "v 0 0 0\nv 1 0 0\nv 0 nan 1\nf 1 2 3\n");
+    s = nlohmann::json::parse(kSmallScene);
+    s["geometry"] = {{{"type", "obj"}, {"path", "nan.obj"}}};
+    write(dir / "nan.json", s.dump());
+    requireCleanError(runPenumbra("bake " + (dir / "nan.json")), "nan.obj");
+
+    s["geometry"] = {{{"type", "obj"}, {"path", "missing.obj"}}};
+    write(dir / "missing.json", s.dump());
+    requireCleanError(runPenumbra("bake " + (dir / "missing.json")), "missing.obj");
+
+    write(dir / "ok.json", kSmallScene);
+    requireCleanError(runPenumbra("bake " + (dir / "ok.json") + " --method magic"), "--method");
+    write(dir / "afile", "x");
+    requireCleanError(runPenumbra("bake " + (dir / "ok.json") + " -q -o " + (dir / "afile") + "/sub/out.exr"), "afile");
+    CHECK_FALSE(hasTempFiles(dir.path));
+}
+
+TEST_CASE("a full disk while writing outputs leaves no partial file", "[cli]") {
+    ScratchDir dir("fsize");
+    nlohmann::json s = nlohmann::json::parse(kSmallScene);
+    s["receivers"]["width"] = 320, s["receivers"]["height"] = 240;
+    write(dir / "scene.json", s.dump());
+    RunResult r = runPenumbra("bake " + (dir / "scene.json") + " -q", "prlimit --fsize=20000");
+    INFO(r.err);
+    CHECK(r.exitCode == 1);
+    CHECK(lineCount(r.err) == 1);
+    CHECK_FALSE(std::filesystem::exists(dir / "out/small.exr"));
+    CHECK_FALSE(hasTempFiles(dir.path));
+}
+
+TEST_CASE("point receivers from .npy and .csv bake to a .npy of visible fractions", "[cli]") {
+    ScratchDir dir("points");
+    // Three receivers on the floor: in the umbra of a 1x1 quad at y=1, in its penumbra
+    // (x in [0.583, 0.75] for this light), and far away (lit).
+    std::vector<float> pts = {0, 0, 0, 0, 1, 0, 0.66f, 0, 0, 0, 1, 0, 5, 0, 5, 0, 1, 0};
+    uint64_t shape[2] = {3, 6};
+    writeNpy(dir / "pts.npy", "<f4", shape, pts.data(), pts.size() * sizeof(float));
+    std::ofstream(dir / "pts.csv") << "px,py,pz,nx,ny,nz\n0,0,0,0,1,0\n0.66,0,0,0,1,0\n5,0,5,0,1,0\n";
+    std::ofstream(dir / "quad.obj") << "v -0.5 1 -0.5\nv 0.5 1 -0.5\nv 0.5 1 0.5\nv -0.5 1 0.5\nf 1 2 3 4\n";
+    for (const char* file : {"pts.npy", "pts.csv"}) {
+        nlohmann::json s = {
+            {"geometry", {{{"type", "obj"}, {"path", "quad.obj"}}}},
+            {"lights", {{{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {0.5, 0, 0}}, {"v", {0, 0, 0.5}}, {"samples", 64}}}},
+            {"receivers", {{"type", "points"}, {"path", file}}},
+            {"output", "vis.npy"}};
+        std::ofstream(dir / "scene.json") << s.dump();
+        RunResult r = runPenumbra("bake " + (dir / "scene.json") + " -q");
+        INFO(file << ": " << r.err);
+        REQUIRE(r.exitCode == 0);
+        NpyArray vis = readNpy(dir / "vis.npy");
+        REQUIRE(vis.shape == std::vector<uint64_t>{3});
+        const float* v = reinterpret_cast<const float*>(vis.data.data());
+        CHECK(v[0] == 0.0f);
+        CHECK(v[1] > 0.0f);
+        CHECK(v[1] < 1.0f);
+        CHECK(v[2] == 1.0f);
+    }
+}
