@@ -99,10 +99,11 @@ private:
             const glm::dvec3 e = glm::normalize(glm::cross(d, dir));
             const glm::vec3 p0(at - 0.5 * size * e), p1(at + 0.5 * size * e);
             const glm::vec3 p2(at + 0.5 * size * e + size * d), p3(at - 0.5 * size * e + size * d);
-            // Corners p0..p3 are the canonical quad (0,0) (1,0) (1,1) (0,1): the midrib runs along d.
+            // p1, p2, p3, p0 are the canonical quad's corners (0,0) (1,0) (1,1) (0,1): u runs from the
+            // stalk along d, so the outline's midrib is the leaf's.
             const bool cut = p_.alphaMatte && p_.leafCutout;
-            leaves_.push_back(Triangle{{p0, p1, p2}, cut ? withAlphaId(leafFlags_, kAlphaLeafLower) : leafFlags_});
-            leaves_.push_back(Triangle{{p0, p2, p3}, cut ? withAlphaId(leafFlags_, kAlphaLeafUpper) : leafFlags_});
+            leaves_.push_back(Triangle{{p1, p2, p3}, cut ? withAlphaId(leafFlags_, kAlphaLeafLower) : leafFlags_});
+            leaves_.push_back(Triangle{{p1, p3, p0}, cut ? withAlphaId(leafFlags_, kAlphaLeafUpper) : leafFlags_});
         }
     }
 

@@ -100,7 +100,7 @@ AlphaLookup AlphaTable::lookup(uint32_t id, double b0, double b1, double b2) con
     const double u = (m.transform[0] * u0 + m.transform[1] * v0) + m.transform[2];
     const double v = (m.transform[3] * u0 + m.transform[4] * v0) + m.transform[5];
     switch (m.shape) {
-        case AlphaShape::Leaf: return outline(4.0 * v * (1.0 - v) - std::abs(2.0 * u - 1.0));
+        case AlphaShape::Leaf: return outline(4.0 * u * (1.0 - u) - std::abs(2.0 * v - 1.0));
         case AlphaShape::Petal: {
             const double x = 2.0 * u - 1.0, y = 2.0 * v - 1.0;
             return outline(1.0 - (x * x + y * y));

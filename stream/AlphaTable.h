@@ -35,7 +35,7 @@ namespace penumbra {
 
 /// Built-in alpha ids: analytic outlines on the canonical quad layout.
 enum BuiltinAlpha : uint32_t {
-    kAlphaLeafLower = 1,   ///< leaf outline |2u - 1| < 4v(1 - v) (midrib along v), triangle (0,0) (1,0) (1,1)
+    kAlphaLeafLower = 1,   ///< leaf outline |2v - 1| < 4u(1 - u), triangle (0,0) (1,0) (1,1)
     kAlphaLeafUpper = 2,   ///< the same leaf, triangle (0,0) (1,1) (0,1)
     kAlphaPetalLower = 3,  ///< petal outline (2u - 1)^2 + (2v - 1)^2 < 1 (a disc), lower triangle
     kAlphaPetalUpper = 4,  ///< the same petal, upper triangle
