@@ -188,27 +188,29 @@ void TileCaster::castReceiver(uint32_t r, uint32_t lightPlanes, size_t groupsBeg
     for (const ActiveGroup& g : candidates) {
         const LightSampleGroup& group = samples.groups[g.group];
         const uint64_t before = mask ? mask[g.group] : 0;
-        uint64_t word = before, open = ~word & group.fullMask();
+        uint64_t word = before, open = ~word & group.fullMask(), alphaSure = 0;
         const PenumbraVolume& v = groupVolumes[g.group];
         if (!pointTestFirst && lookup != SampleMaskTable::Lookup::Rows && !contains(v, p, g.planes & v.all())) continue;
         if (lookup == SampleMaskTable::Lookup::Rows) {  // sure bits are blocked; bits outside maybe are not
             const uint32_t k = g.group - table->firstGroup();
             uint64_t sure = rows.sureWord(k) & open, undecided = rows.maybeWord(k) & open & ~sure;
-            // An alpha triangle blocks a sure bit only where the alpha test passes: test it exactly.
-            if (tri->alpha) undecided |= sure, sure = 0;
             stats_.tableDecided += uint64_t(__builtin_popcountll(open & ~undecided));
+            // An alpha triangle blocks a sure bit (the rule blocks it) only where the alpha test
+            // passes: it joins the kernels' hits for the test.
+            if (tri->alpha) alphaSure = sure, sure = 0;
             word |= sure;
             open = undecided;
         }
+        uint64_t hits = alphaSure;
         if (open) {
             uint32_t which;
             const HardShadowBlock* hard = hardShadowBlocks(set, g.group, open, which);
             stats_.hardTests += uint64_t(__builtin_popcountll(open));
             if (!haveOffsets) offsets = EdgeOffsets(*tri, p), haveOffsets = true;
-            uint64_t hits = kernels.test(hard, which, offsets, dist, eps) & open;
-            if (tri->alpha && hits) hits = alphaFilter(set, g.group, hits, p);
-            word |= hits;
+            hits |= kernels.test(hard, which, offsets, dist, eps) & open;
         }
+        if (tri->alpha && hits) hits = alphaFilter(set, g.group, hits, p);
+        word |= hits;
         if (word != before) {
             if (!mask) {  // line 59, deferred until a bit is really set
                 h.mask[r] = pool_.allocate();
