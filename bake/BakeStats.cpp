@@ -39,6 +39,8 @@ nlohmann::json counters(const BakeStatsInputs& in) {
             {"peak_live_masks", in.cast.peakLiveMasks},
             {"hard_shadow_tests", in.cast.hardShadowTests},
             {"table_decided_relations", in.cast.tableDecidedRelations},
+            {"alpha_tests", in.cast.alphaTests},
+            {"alpha_rejected", in.cast.alphaRejected},
             {"sample_table_bytes", in.cast.sampleTableBytes},
             {"peak_rss_bytes", peakRssBytes()}};
 }

@@ -1,5 +1,7 @@
 #include "procedural/FlowerGenerator.h"
 
+#include "stream/AlphaTable.h"
+
 #include "procedural/IndexedSource.h"
 #include "stream/util/CheckedMath.h"
 #include "stream/util/Error.h"
@@ -41,8 +43,8 @@ protected:
         // The stem's centre line is the parabola root + up * height * s + forward * reach * s^2.
         auto centre = [&](double s) { return root + glm::dvec3(0, height * s, 0) + forward * (reach * s * s); };
         Triangle* t = out;
-        auto emit = [&](const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
-            *t++ = Triangle{{glm::vec3(a), glm::vec3(b), glm::vec3(c)}, flags_};
+        auto emit = [&](const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, uint32_t alpha = 0) {
+            *t++ = Triangle{{glm::vec3(a), glm::vec3(b), glm::vec3(c)}, alpha ? withAlphaId(flags_, alpha) : flags_};
         };
 
         // Stem: horizontal rings of stemSides vertices, tapering to 60% at the head.
@@ -69,8 +71,9 @@ protected:
             const double ca = fan_[k].x * cp - fan_[k].y * sp, sa = fan_[k].y * cp + fan_[k].x * sp;
             const glm::dvec3 out(ca * ct, st, sa * ct), across(-sa, 0, ca);
             const glm::dvec3 tip = head + length * out, middle = head + 0.45 * length * out;
-            emit(head, middle + halfWidth * across, tip);
-            emit(head, tip, middle - halfWidth * across);
+            // head, side, tip, other side: the canonical quad (0,0) (1,0) (1,1) (0,1).
+            emit(head, middle + halfWidth * across, tip, p_.petalCutout ? kAlphaPetalLower : 0);
+            emit(head, tip, middle - halfWidth * across, p_.petalCutout ? kAlphaPetalUpper : 0);
         }
 
         // Leaves: 3-triangle strips that leave the stem low down, rise, then droop.
@@ -125,6 +128,7 @@ FlowerParams parseFlowerParams(const SourceRequest& request) {
     p.leafLength = j.range("leaf_length", p.leafLength);
     p.leafWidth = j.number("leaf_width", p.leafWidth);
     p.alphaMatte = j.boolean("alpha_matte", p.alphaMatte);
+    p.petalCutout = j.boolean("petal_cutout", p.petalCutout);
     p.seed = j.seed("seed", p.seed);
     j.finish();
     requireRange(j, "height", p.height, 0, 1e6, true);

@@ -27,6 +27,9 @@ struct FlowerParams {
     glm::dvec2 leafLength{0.08, 0.15};    ///< world units
     double leafWidth = 0.015;             ///< leaf width at its base (world units)
     bool alphaMatte = false;              ///< flag every triangle kTriangleAlphaMatte
+    /// Petals are cut-outs with the built-in petal outline (stream/AlphaTable.h, kAlphaPetalLower)
+    /// and flagged kTriangleAlphaMatte, so each diamond becomes a rounded petal.
+    bool petalCutout = true;
     uint64_t seed = 1;
 };
 

@@ -1,5 +1,7 @@
 #include "procedural/TreeGenerator.h"
 
+#include "stream/AlphaTable.h"
+
 #include "procedural/IndexedSource.h"
 #include "stream/util/CheckedMath.h"
 #include "stream/util/Error.h"
@@ -97,8 +99,11 @@ private:
             const glm::dvec3 e = glm::normalize(glm::cross(d, dir));
             const glm::vec3 p0(at - 0.5 * size * e), p1(at + 0.5 * size * e);
             const glm::vec3 p2(at + 0.5 * size * e + size * d), p3(at - 0.5 * size * e + size * d);
-            leaves_.push_back(Triangle{{p0, p1, p2}, leafFlags_});
-            leaves_.push_back(Triangle{{p0, p2, p3}, leafFlags_});
+            // p1, p2, p3, p0 are the canonical quad's corners (0,0) (1,0) (1,1) (0,1): u runs from the
+            // stalk along d, so the outline's midrib is the leaf's.
+            const bool cut = p_.alphaMatte && p_.leafCutout;
+            leaves_.push_back(Triangle{{p1, p2, p3}, cut ? withAlphaId(leafFlags_, kAlphaLeafLower) : leafFlags_});
+            leaves_.push_back(Triangle{{p1, p3, p0}, cut ? withAlphaId(leafFlags_, kAlphaLeafUpper) : leafFlags_});
         }
     }
 
@@ -188,6 +193,7 @@ TreeParams readTreeKeys(const JsonParams& j) {
     p.leavesPerBranch = int(j.integer("leaves_per_branch", p.leavesPerBranch, 0, 64));
     p.leafSize = j.number("leaf_size", p.leafSize);
     p.alphaMatte = j.boolean("alpha_matte", p.alphaMatte);
+    p.leafCutout = j.boolean("leaf_cutout", p.leafCutout);
     p.jitter = j.number("jitter", p.jitter);
     p.seed = j.seed("seed", p.seed);
     return p;

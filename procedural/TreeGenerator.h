@@ -29,6 +29,9 @@ struct TreeParams {
     int leavesPerBranch = 8;        ///< leaf quads on each outermost branch
     double leafSize = 0.15;         ///< side of a leaf quad, world units
     bool alphaMatte = true;         ///< flag leaf triangles kTriangleAlphaMatte
+    /// Leaves are cut-outs with the built-in leaf outline (stream/AlphaTable.h, kAlphaLeafLower),
+    /// not solid quads; needs alphaMatte.
+    bool leafCutout = true;
     double jitter = 0.25;           ///< randomness of angles and lengths, 0 (regular) .. 1
     uint64_t seed = 1;
 };

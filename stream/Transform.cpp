@@ -72,7 +72,9 @@ size_t TransformedSource::read(std::span<Triangle> out) {
     for (size_t i = 0; i < n; ++i) {
         Triangle& t = out[i];
         for (auto& p : t.v) p = transformPoint(matrix_, p);
-        if (mirrors_) std::swap(t.v[1], t.v[2]);
+        // A cut-out's corner UVs follow its vertices (stream/AlphaTable.h): it keeps their order, and
+        // so its outline, and only faces the other way (the blocking rule is two-sided).
+        if (mirrors_ && !alphaIdOf(t.flags)) std::swap(t.v[1], t.v[2]);
         if (!isFinite(t)) fail(inner_->name(), "transform produced a non-finite vertex");
     }
     return n;

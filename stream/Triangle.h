@@ -26,6 +26,20 @@ enum TriangleFlag : uint32_t {
     kTriangleSolidStart = 1u << 2,
 };
 
+/// Layout of Triangle::flags: bits 0..2 are the TriangleFlag bits, 3..7 are reserved (zero), and
+/// bits 8..31 hold the triangle's alpha id (stream/AlphaTable.h), 0 for an opaque triangle. A
+/// triangle with an alpha id also has kTriangleAlphaMatte, so that it is bucketed last.
+constexpr uint32_t kTriangleAlphaIdShift = 8;
+constexpr uint32_t kTriangleAlphaIdMax = (1u << 24) - 1;
+
+/// The alpha id in @p flags (0: no alpha test).
+constexpr uint32_t alphaIdOf(uint32_t flags) { return flags >> kTriangleAlphaIdShift; }
+/// @p flags with alpha id @p id (kTriangleAlphaMatte set when @p id is not 0).
+constexpr uint32_t withAlphaId(uint32_t flags, uint32_t id) {
+    return (flags & ((1u << kTriangleAlphaIdShift) - 1)) | (id << kTriangleAlphaIdShift) |
+           (id ? uint32_t(kTriangleAlphaMatte) : 0u);
+}
+
 /// @brief One triangle in world space. 40 bytes, trivially copyable, so chunks of them can be
 /// written to and read from bucket files as raw bytes.
 struct Triangle {

@@ -58,7 +58,8 @@ uint64_t BlockerCulls::prepare(BlockerBatch& batch, std::span<const Triangle> bl
             if (!prepared.valid) continue;
             // A closed surface's triangle with every light vertex strictly behind it: a segment
             // through it enters the solid, and the triangle where it leaves faces the light.
-            if (options_.closedCasters && (tri.flags & kTriangleClosed) &&
+            // A closed surface with cut-outs is not closed: its far side may not block.
+            if (options_.closedCasters && (tri.flags & kTriangleClosed) && !prepared.alpha &&
                 !keepLights([&](size_t l) { return facesAway(prepared, samples_.lightBounds[l]); })) {
                 prepared.valid = false;
                 ++backFaces;

@@ -4,8 +4,10 @@
 
 #include "bake/cast/HardShadowBlock.h"
 #include "bake/cast/ReceiverHierarchy.h"
+#include "stream/AlphaTable.h"
 
 #include <cstdint>
+#include <memory>
 
 namespace penumbra {
 
@@ -45,7 +47,15 @@ struct CastOptions {
     double epsilonLength = 1.0;
     int groupSize = 64;        ///< light samples per group, 1..64
     SimdLevel simd = SimdLevel::Auto;  ///< instruction set of the hard-shadow tests (same bits for all)
+    /// The alpha maps and ids that alpha triangles' flags name (bake/rule/AlphaRule.h); null: the
+    /// built-in outlines only.
+    std::shared_ptr<const AlphaTable> alphaTable;
 };
+
+/// @brief The alpha table of @p options: its own, or the built-in outlines.
+inline const AlphaTable& alphaTableOf(const CastOptions& options) {
+    return options.alphaTable ? *options.alphaTable : *AlphaTable::builtin();
+}
 
 /// @brief The rule's receiver epsilon for @p options.
 inline ReceiverEpsilon receiverEpsilonOf(const CastOptions& options) { return {options.epsilon, options.epsilonLength}; }
@@ -68,6 +78,8 @@ struct CastStats {
     uint64_t hardShadowTests = 0;
     uint64_t tableDecidedRelations = 0;  ///< open relations the sample mask table decided
     uint64_t sampleTableBytes = 0;       ///< memory of the sample mask tables
+    uint64_t alphaTests = 0;             ///< hits on alpha triangles that took the alpha test
+    uint64_t alphaRejected = 0;          ///< of those, hits on transparent texels (not blocked)
 };
 
 /// @brief Adds the stats of one more tile or cast pass to @p total. Tiles and passes run one

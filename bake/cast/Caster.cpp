@@ -40,6 +40,8 @@ void addSequential(CastStats& total, const CastStats& s) {
     total.rebuilds += s.rebuilds;
     total.hardShadowTests += s.hardShadowTests;
     total.tableDecidedRelations += s.tableDecidedRelations;
+    total.alphaTests += s.alphaTests;
+    total.alphaRejected += s.alphaRejected;
     total.sampleTableBytes = std::max(total.sampleTableBytes, s.sampleTableBytes);
     total.peakLiveMasks = std::max(total.peakLiveMasks, s.peakLiveMasks);
     total.peakMaskBytes = std::max(total.peakMaskBytes, s.peakMaskBytes);

@@ -246,6 +246,8 @@ CastStats PenumbraCaster::stats() const {
         s.receiverBytes += t.peakReceiverBytes;
         s.hardShadowTests += t.hardTests;
         s.tableDecidedRelations += t.tableDecided;
+        s.alphaTests += t.alphaTests;
+        s.alphaRejected += t.alphaRejected;
     }
     return s;
 }

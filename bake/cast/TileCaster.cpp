@@ -1,5 +1,6 @@
 #include "bake/cast/TileCaster.h"
 
+#include "bake/rule/AlphaRule.h"
 #include "stream/util/Timer.h"
 
 #include <algorithm>
@@ -16,7 +17,7 @@ constexpr uint32_t kSplitTableMinimumBits = 48;
 }  // namespace
 
 TileCaster::TileCaster(const LightSamples& s, const CastOptions& o, const std::vector<SampleMaskTable>* t)
-    : samples(s), options(o), tables(t), hierarchy_(o.hierarchy, s.groupCount()), pool_(s.groupCount()),
+    : samples(s), options(o), tables(t), alphaTable(alphaTableOf(o)), hierarchy_(o.hierarchy, s.groupCount()), pool_(s.groupCount()),
       groupCount(s.groupCount()), umbraWords((s.groupCount() + 63) / 64), kernels(hardShadowKernels(o.simd)) {
     allGroupsBits.assign(umbraWords, 0);
     for (int k = 0; k < groupCount; ++k) allGroupsBits[k >> 6] |= 1ull << (k & 63);
@@ -185,23 +186,29 @@ void TileCaster::castReceiver(uint32_t r, uint32_t lightPlanes, size_t groupsBeg
     for (const ActiveGroup& g : candidates) {
         const LightSampleGroup& group = samples.groups[g.group];
         const uint64_t before = mask ? mask[g.group] : 0;
-        uint64_t word = before, open = ~word & group.fullMask();
+        uint64_t word = before, open = ~word & group.fullMask(), alphaSure = 0;
         const PenumbraVolume& v = groupVolumes[g.group];
         if (!pointTestFirst && lookup != SampleMaskTable::Lookup::Rows && !contains(v, p, g.planes & v.all())) continue;
         if (lookup == SampleMaskTable::Lookup::Rows) {  // sure bits are blocked; bits outside maybe are not
             const uint32_t k = g.group - table->firstGroup();
-            const uint64_t sure = rows.sureWord(k) & open, undecided = rows.maybeWord(k) & open & ~sure;
+            uint64_t sure = rows.sureWord(k) & open, undecided = rows.maybeWord(k) & open & ~sure;
             stats_.tableDecided += uint64_t(__builtin_popcountll(open & ~undecided));
+            // An alpha triangle blocks a sure bit (the rule blocks it) only where the alpha test
+            // passes: it joins the kernels' hits for the test.
+            if (tri->alpha) alphaSure = sure, sure = 0;
             word |= sure;
             open = undecided;
         }
+        uint64_t hits = alphaSure;
         if (open) {
             uint32_t which;
             const HardShadowBlock* hard = hardShadowBlocks(set, g.group, open, which);
             stats_.hardTests += uint64_t(__builtin_popcountll(open));
             if (!haveOffsets) offsets = EdgeOffsets(*tri, p), haveOffsets = true;
-            word |= kernels.test(hard, which, offsets, dist, eps) & open;
+            hits |= kernels.test(hard, which, offsets, dist, eps) & open;
         }
+        if (tri->alpha && hits) hits = alphaFilter(set, g.group, hits, p);
+        word |= hits;
         if (word != before) {
             if (!mask) {  // line 59, deferred until a bit is really set
                 h.mask[r] = pool_.allocate();
@@ -220,6 +227,22 @@ void TileCaster::castReceiver(uint32_t r, uint32_t lightPlanes, size_t groupsBeg
         }
     }
 }
+uint64_t TileCaster::alphaFilter(uint32_t set, uint32_t k, uint64_t hits, const glm::dvec3& p) {
+    // The kernels evaluate the rule's edge values operation for operation (HardShadowBlock.h),
+    // so recomputing them here in scalar form gives the very values the reference tests.
+    const LightSampleGroup& g = samples.groups[k];
+    const double w = samples.w(g.light);
+    const glm::vec3* first = &samples.position(int(set), int(g.first));
+    uint64_t kept = hits;
+    for (uint64_t rest = hits; rest; rest &= rest - 1) {
+        const int j = __builtin_ctzll(rest);
+        const HardShadowVolume h = makeHardShadowVolume(glm::dvec3(first[j]), w, *tri);
+        ++stats_.alphaTests;
+        if (!alphaAtHit(alphaTable, h, *tri, p).opaque) kept &= ~(1ull << j), ++stats_.alphaRejected;
+    }
+    return kept;
+}
+
 uint32_t TileCaster::gatherCandidates(uint32_t r, const glm::dvec3& p, bool pointTest, size_t groupsBegin,
                                       size_t groupsEnd) {
     const ReceiverHierarchy& h = hierarchy_;

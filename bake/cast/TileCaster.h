@@ -25,7 +25,7 @@ namespace penumbra {
 /// @brief Counters of one tile (summed by PenumbraCaster::stats()).
 struct TileStats {
     double buildSeconds = 0;  ///< hierarchy builds and rebuilds
-    uint64_t rebuilds = 0, hardTests = 0, tableDecided = 0;
+    uint64_t rebuilds = 0, hardTests = 0, tableDecided = 0, alphaTests = 0, alphaRejected = 0;
     size_t peakHierarchyBytes = 0, peakReceiverBytes = 0;
 };
 
@@ -69,10 +69,14 @@ private:
     void castReceiver(uint32_t r, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd);
     /// The active groups receiver @p r still needs; returns how many of their samples are open.
     uint32_t gatherCandidates(uint32_t r, const glm::dvec3& p, bool pointTest, size_t groupsBegin, size_t groupsEnd);
+    /// Of @p hits (the samples of group @p k, set @p set, whose hard-shadow volume holds @p p),
+    /// the ones whose hit on the current alpha triangle passes the alpha test (AlphaRule.h).
+    uint64_t alphaFilter(uint32_t set, uint32_t k, uint64_t hits, const glm::dvec3& p);
 
     const LightSamples& samples;
     const CastOptions& options;
     const std::vector<SampleMaskTable>* tables;  // per light, or nullptr when the option is off
+    const AlphaTable& alphaTable;
     ReceiverHierarchy hierarchy_;
     MaskPool pool_;
     int groupCount, umbraWords;

@@ -28,7 +28,7 @@
 // hundreds of rays per triangle), so the slower commit is repaid by faster traversal. The cost is
 // a larger BVH (split references); sceneBytes reports only the vertex and index buffers.
 
-#include "bake/rule/BlockingRule.h"
+#include "bake/rule/AlphaRule.h"
 #include "bake/cast/SceneCaster.h"
 #include "stream/util/Error.h"
 
@@ -210,6 +210,9 @@ struct FilterContext {
     RTCIntersectContext context;
     const Packet* packet = nullptr;
     const float* vertices = nullptr;  ///< the geometry's vertex buffer: 9 floats per triangle
+    const uint32_t* alphaIds = nullptr;  ///< per primitive: its alpha id (0: opaque)
+    const AlphaTable* alpha = nullptr;
+    bool ruleFilter = true;              ///< opaque hits get the rule too (else they are accepted)
     uint64_t calls = 0, exact = 0, rejected = 0;
 };
 
@@ -241,17 +244,20 @@ void ruleFilter(const RTCFilterFunctionNArguments* args) {
     for (unsigned i = 0; i < args->N; ++i) {
         if (args->valid[i] == 0) continue;
         const unsigned lane = RTCRayN_id(args->ray, args->N, i);
-        ++fc->calls;
-        if (certainlyBlocks(args, i, packet, lane)) continue;
-        ++fc->exact;
         const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+        const uint32_t alphaId = fc->alphaIds[prim];
+        if (!alphaId && !fc->ruleFilter) continue;  // Embree's native answer for opaque triangles
+        ++fc->calls;
+        if (!alphaId && certainlyBlocks(args, i, packet, lane)) continue;
+        ++fc->exact;
         const float* v = fc->vertices + 9 * size_t(prim);
-        Triangle tri{{glm::vec3(v[0], v[1], v[2]), glm::vec3(v[3], v[4], v[5]), glm::vec3(v[6], v[7], v[8])}};
+        Triangle tri{{glm::vec3(v[0], v[1], v[2]), glm::vec3(v[3], v[4], v[5]), glm::vec3(v[6], v[7], v[8])},
+                     withAlphaId(0, alphaId)};
         const BlockerTriangle t = BlockerTriangle::from(tri);
         bool blocked = false;
         if (t.valid) {
             const HardShadowVolume h = makeHardShadowVolume(packet.sample[lane], packet.w[lane], t);
-            blocked = blocks(h, t, packet.receiver, distanceBehind(t, packet.receiver), packet.eps);
+            blocked = blocksWithAlpha(h, t, packet.receiver, distanceBehind(t, packet.receiver), packet.eps, *fc->alpha);
         }
         if (!blocked) args->valid[i] = 0, ++fc->rejected;
     }
@@ -262,8 +268,9 @@ void ruleFilter(const RTCFilterFunctionNArguments* args) {
 VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& receivers,
                            std::span<const uint32_t> sampleSetOf, std::span<const Triangle> triangles,
                            const ReceiverEpsilon& epsilon, EmbreeStats* stats,
-                           const std::function<void(uint64_t)>& progress, bool ruleFilter) {
+                           const std::function<void(uint64_t)>& progress, bool ruleFilter, const AlphaTable* alpha) {
     EmbreeStats local;
+    if (!alpha) alpha = AlphaTable::builtin().get();
     const Stopwatch buildWatch;
     DenormalsOff denormals;  // the calling thread takes part in the build and in parallel_for
 
@@ -289,9 +296,13 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
     rtcSetSceneBuildQuality(scene.scene, RTC_BUILD_QUALITY_HIGH);
 
     const float* vertices = nullptr;  // owned by the geometry, which the scene keeps alive
+    std::vector<uint32_t> alphaIds;   // per primitive, for the filter
+    bool anyAlpha = false;
     {
         const std::vector<const Triangle*> kept = validTriangles(triangles);  // freed before tracing
-        local.sceneBytes = uint64_t(kept.size()) * (9 * sizeof(float) + 3 * sizeof(uint32_t));
+        alphaIds.reserve(kept.size());
+        for (const Triangle* t : kept) alphaIds.push_back(alphaIdOf(t->flags)), anyAlpha = anyAlpha || alphaIds.back();
+        local.sceneBytes = uint64_t(kept.size()) * (9 * sizeof(float) + 4 * sizeof(uint32_t));
         if (!kept.empty()) {  // an empty scene needs no geometry (and Embree gets no zero-sized buffers)
             GeometryHandle geometry;
             geometry.geometry = rtcNewGeometry(device.device, RTC_GEOMETRY_TYPE_TRIANGLE);
@@ -300,7 +311,7 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
             fillBuffers(geometry.geometry, kept);
             errors.check(device.device, "buffer allocation");
             vertices = static_cast<const float*>(rtcGetGeometryBufferData(geometry.geometry, RTC_BUFFER_TYPE_VERTEX, 0));
-            if (ruleFilter) rtcSetGeometryOccludedFilterFunction(geometry.geometry, ::penumbra::ruleFilter);
+            if (ruleFilter || anyAlpha) rtcSetGeometryOccludedFilterFunction(geometry.geometry, ::penumbra::ruleFilter);
             rtcCommitGeometry(geometry.geometry);
             rtcAttachGeometry(scene.scene, geometry.geometry);  // the scene holds its own reference
             errors.check(device.device, "geometry commit");
@@ -322,6 +333,9 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
         fc.context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // one receiver's rays share their origin
         fc.packet = &packet;
         fc.vertices = vertices;
+        fc.alphaIds = alphaIds.data();
+        fc.alpha = alpha;
+        fc.ruleFilter = ruleFilter;
         uint64_t traced = 0;
 
         for (size_t r = range.begin(); r != range.end(); ++r) {
@@ -403,7 +417,7 @@ public:
                                           std::span<const Triangle> all, const std::function<void(uint64_t)>& progress) {
               EmbreeStats s;
               VisibilityMasks m = castEmbree(c_.samples, targets, sets, all, receiverEpsilonOf(c_.options), &s, progress,
-                                             c_.options.embreeRuleFilter);
+                                             c_.options.embreeRuleFilter, &alphaTableOf(c_.options));
               stats_.buildSeconds += s.buildSeconds, stats_.traceSeconds += s.traceSeconds, stats_.rays += s.rays;
               stats_.sceneBytes = s.sceneBytes, stats_.filterCalls += s.filterCalls;
               stats_.filterExact += s.filterExact, stats_.filterRejected += s.filterRejected;
@@ -427,7 +441,7 @@ const CasterRegistration kEmbree{{"embree",
                                   [](uint64_t triangles, const LightSamples&, const nlohmann::json&) {
                                       // The scene read once, Embree's buffers and an estimate of its BVH
                                       // (Embree does not report the BVH's size).
-                                      return triangles * (sizeof(Triangle) + 48 + 120);
+                                      return triangles * (sizeof(Triangle) + 52 + 120);
                                   },
                                   nullptr}};
 

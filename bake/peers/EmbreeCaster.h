@@ -14,6 +14,7 @@
 #include "bake/light/Light.h"
 #include "bake/cast/VisibilityMasks.h"
 #include "receivers/ReceiverSet.h"
+#include "stream/AlphaTable.h"
 #include "stream/Triangle.h"
 
 #include <functional>
@@ -29,7 +30,7 @@ struct EmbreeStats {
     uint64_t filterCalls = 0;  ///< candidate hits the blocking-rule filter judged
     uint64_t filterExact = 0;  ///< of those, hits not certain from Embree's own hit: the rule decided
     uint64_t filterRejected = 0;  ///< of those, hits the rule does not count (epsilon band, edges)
-    uint64_t sceneBytes = 0;  ///< vertex and index buffers handed to Embree (its BVH comes on top)
+    uint64_t sceneBytes = 0;  ///< vertex and index buffers handed to Embree, and the alpha ids (its BVH comes on top)
 };
 
 /// @brief Casts every relation. The ray of receiver r and sample l starts at r with
@@ -39,11 +40,15 @@ struct EmbreeStats {
 /// With @p ruleFilter false, no filter is installed: Embree's native answer, the ray from
 /// tnear = eps(r) along it to just before the sample (tfar = 1 - 1e-6), which may also block
 /// grazing rays within eps(r) of a plane that the rule does not; faster, for benchmarks.
+/// Hits on alpha triangles (alphaIdOf() != 0) always go through the filter, which applies the
+/// rule and the alpha test of @p alpha (AlphaRule.h; null: the built-in outlines), so Embree
+/// looks further along the ray past a transparent texel, with or without @p ruleFilter.
 /// @param progress optional, called with the number of receivers finished.
 /// @throw InputError when Embree reports an error (the message carries Embree's error code).
 VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& receivers,
                            std::span<const uint32_t> sampleSetOf, std::span<const Triangle> triangles,
                            const ReceiverEpsilon& epsilon, EmbreeStats* stats = nullptr,
-                           const std::function<void(uint64_t)>& progress = {}, bool ruleFilter = true);
+                           const std::function<void(uint64_t)>& progress = {}, bool ruleFilter = true,
+                           const AlphaTable* alpha = nullptr);
 
 }  // namespace penumbra

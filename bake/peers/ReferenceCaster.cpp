@@ -1,6 +1,6 @@
 #include "bake/peers/ReferenceCaster.h"
 
-#include "bake/rule/BlockingRule.h"
+#include "bake/rule/AlphaRule.h"
 #include "bake/cast/SceneCaster.h"
 
 #include <tbb/parallel_for.h>
@@ -9,7 +9,8 @@ namespace penumbra {
 
 VisibilityMasks castReference(const LightSamples& samples, const ReceiverSet& receivers,
                               std::span<const uint32_t> sampleSetOf, std::span<const Triangle> triangles,
-                              const ReceiverEpsilon& epsilon, const std::function<void(uint64_t)>& progress) {
+                              const ReceiverEpsilon& epsilon, const std::function<void(uint64_t)>& progress,
+                              const AlphaTable& alpha) {
     std::vector<BlockerTriangle> blockers;
     blockers.reserve(triangles.size());
     for (const Triangle& t : triangles) {
@@ -28,7 +29,7 @@ VisibilityMasks castReference(const LightSamples& samples, const ReceiverSet& re
                 for (uint32_t j = 0; j < g.count; ++j) {
                     const glm::dvec3 l(samples.position(set, int(g.first + j)));
                     for (const BlockerTriangle& t : blockers)
-                        if (blocks(l, w, p, t, epsilon)) {
+                        if (blocksWithAlpha(l, w, p, t, epsilon, alpha)) {
                             word |= 1ull << j;
                             break;
                         }
@@ -51,9 +52,9 @@ const CasterRegistration kReference{{"reference",
                                      [](const CastContext& c) {
                                          return std::make_unique<SceneCaster>(
                                              c, "reference",
-                                             [eps = receiverEpsilonOf(c.options), &samples = c.samples](const ReceiverSet& targets, std::span<const uint32_t> sets,
+                                             [eps = receiverEpsilonOf(c.options), &samples = c.samples, &options = c.options](const ReceiverSet& targets, std::span<const uint32_t> sets,
                                                                                        std::span<const Triangle> all, const auto& progress) {
-                                                 return castReference(samples, targets, sets, all, eps, progress);
+                                                 return castReference(samples, targets, sets, all, eps, progress, alphaTableOf(options));
                                              });
                                      },
                                      [](uint64_t triangles, const LightSamples&, const nlohmann::json&) {

@@ -8,6 +8,7 @@
 #include "bake/light/Light.h"
 #include "bake/cast/VisibilityMasks.h"
 #include "receivers/ReceiverSet.h"
+#include "stream/AlphaTable.h"
 #include "stream/Triangle.h"
 
 #include <functional>
@@ -16,8 +17,10 @@
 namespace penumbra {
 
 /// @brief Fills masks for all receivers. @p progress (optional) is called with receivers done.
+/// @param alpha the alpha maps that alpha triangles name (AlphaRule.h applies their test)
 VisibilityMasks castReference(const LightSamples& samples, const ReceiverSet& receivers,
                               std::span<const uint32_t> sampleSetOf, std::span<const Triangle> triangles,
-                              const ReceiverEpsilon& epsilon, const std::function<void(uint64_t)>& progress = {});
+                              const ReceiverEpsilon& epsilon, const std::function<void(uint64_t)>& progress = {},
+                              const AlphaTable& alpha = *AlphaTable::builtin());
 
 }  // namespace penumbra

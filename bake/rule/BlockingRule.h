@@ -40,6 +40,7 @@ struct BlockerTriangle {
     glm::dvec3 v[3];
     Plane plane;          ///< unit normal through v[0]: eval() is a signed distance (box tests)
     bool valid = false;   ///< false for zero-area or non-finite triangles: they block nothing
+    uint32_t alpha = 0;   ///< alpha id (stream/AlphaTable.h); 0: opaque (AlphaRule.h tests the rest)
 
     static BlockerTriangle from(const Triangle& t) {
         BlockerTriangle b;
@@ -47,6 +48,7 @@ struct BlockerTriangle {
         glm::dvec3 n = glm::cross(b.v[1] - b.v[0], b.v[2] - b.v[0]);
         double len = glm::length(n);
         b.valid = len > 0.0 && std::isfinite(len);
+        b.alpha = alphaIdOf(t.flags);
         if (b.valid) b.plane = Plane::through(n / len, b.v[0]);
         return b;
     }

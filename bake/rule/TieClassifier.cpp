@@ -1,5 +1,7 @@
 #include "bake/rule/TieClassifier.h"
 
+#include "bake/rule/AlphaRule.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -70,13 +72,18 @@ std::string RelationVerdict::describe() const {
             what = fmt::format("the segment passes {:.3g} rad {} edge {} of triangle {}", std::abs(value),
                                value >= 0 ? "inside" : "outside", edge, triangle);
             break;
+        case RuleQuantity::Alpha:
+            what = fmt::format("the hit on triangle {} is {}{}", triangle, value > threshold ? "opaque" : "transparent",
+                               tolerance > 0 ? " within roundoff of a texel edge or outline" : "");
+            break;
     }
     return fmt::format("{}: {} (threshold {:.3g}{}, tolerance {:.3g}{}{})", tie ? "tie" : "real", what, threshold, unit,
                        tolerance, unit, ruleBlocks ? "; the rule blocks" : "; the rule does not block");
 }
 
-TieClassifier::TieClassifier(std::span<const Triangle> triangles, const ReceiverEpsilon& epsilon, double ulps)
-    : epsilon_(epsilon), ulps_(ulps) {
+TieClassifier::TieClassifier(std::span<const Triangle> triangles, const ReceiverEpsilon& epsilon, double ulps,
+                             std::shared_ptr<const AlphaTable> alpha)
+    : epsilon_(epsilon), ulps_(ulps), alpha_(alpha ? std::move(alpha) : AlphaTable::builtin()) {
     for (size_t i = 0; i < triangles.size(); ++i) {
         const BlockerTriangle bt = BlockerTriangle::from(triangles[i]);
         if (!bt.valid) continue;
@@ -186,6 +193,12 @@ TieClassifier::Judged TieClassifier::judge(uint32_t index, const glm::dvec3& l, 
         const Quantity* worst = nearest(q, 4, false);
         out.decisive = side.ratio() < worst->ratio() ? side : *worst;
         out.robust = !out.decisive.fragile();
+        if (t.alpha) {
+            const AlphaLookup a = alphaAtHit(*alpha_, makeHardShadowVolume(l, w, t), t, r);
+            if (a.tie || !a.opaque) out.decisive = {RuleQuantity::Alpha, -1, a.opaque ? 1.0 : 0.0, 0.5, a.tie ? 1.0 : 0.0, a.opaque};
+            out.blocks = a.opaque;
+            out.robust = out.robust && !a.tie;
+        }
         return out;
     }
     // Not blocking: could roundoff make T block? Only if every failing quantity is within

@@ -22,10 +22,15 @@
 /// rule does not block is a tie only when some triangle is not robust. Everything else is a real
 /// mismatch, and the verdict names the triangle that decides it.
 ///
+///  - Alpha: for an alpha triangle the rule blocks geometrically, the alpha test at the hit
+///    (bake/rule/AlphaRule.h); fragile when the hit is within roundoff of a texel edge or outline.
 /// Memory: the scene's valid triangles (as BlockerTriangle, 112 bytes each) and a BVH over them.
 /// This is a checking tool for scenes that fit in memory, not a part of the bake.
 
 #include "bake/rule/BlockingRule.h"
+#include "stream/AlphaTable.h"
+
+#include <memory>
 
 #include <cstdint>
 #include <span>
@@ -35,7 +40,7 @@
 namespace penumbra {
 
 /// The rule's quantity that a verdict is about.
-enum class RuleQuantity { None, SampleInPlane, Band, Edge };
+enum class RuleQuantity { None, SampleInPlane, Band, Edge, Alpha };
 
 /// @brief The classifier's answer for one relation.
 struct RelationVerdict {
@@ -59,7 +64,10 @@ public:
 
     /// @param triangles the scene's triangles in stream order (invalid ones are kept out but
     /// keep their index)
-    TieClassifier(std::span<const Triangle> triangles, const ReceiverEpsilon& epsilon, double ulps = kDefaultUlps);
+    /// @param alpha the alpha maps alpha triangles name (null: the built-in outlines). A hit on an
+    /// alpha triangle is fragile also when it lies within roundoff of a texel edge or an outline.
+    TieClassifier(std::span<const Triangle> triangles, const ReceiverEpsilon& epsilon, double ulps = kDefaultUlps,
+                  std::shared_ptr<const AlphaTable> alpha = nullptr);
 
     /// @brief Classifies the relation of sample (@p l, @p w) and receiver @p r.
     RelationVerdict classify(const glm::dvec3& l, double w, const glm::dvec3& r) const;
@@ -84,6 +92,7 @@ private:
     ReceiverEpsilon epsilon_;
     double ulps_;
     double sceneMaxAbs_ = 0;  ///< of every triangle, for the BVH's distance margin
+    std::shared_ptr<const AlphaTable> alpha_;
 };
 
 }  // namespace penumbra

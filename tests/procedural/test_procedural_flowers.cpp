@@ -5,6 +5,7 @@
 #include "ProceduralTestUtil.h"
 
 #include "procedural/FlowerGenerator.h"
+#include "stream/AlphaTable.h"
 
 using namespace penumbra;
 using namespace penumbra::test;
@@ -42,7 +43,12 @@ TEST_CASE("flowers: predicted count, finite, non-degenerate, within bounds", "[p
     CHECK(s.count == 500u * per);
     CHECK(s.nonFinite == 0);
     CHECK(s.degenerate == 0);
-    CHECK(s.flagged == 0);
+    CHECK(s.flagged == 500u * 2 * 6);  // the petals, cut out along the petal outline
+    for (const Triangle& t : s.triangles)
+        CHECK((alphaIdOf(t.flags) == 0 || alphaIdOf(t.flags) == kAlphaPetalLower || alphaIdOf(t.flags) == kAlphaPetalUpper));
+    nlohmann::json solid = e;
+    solid["petal_cutout"] = false;
+    CHECK(summarise(*openEntry(solid)).flagged == 0);
     // Stems root on the plane; heads at most height + a tilted petal above it.
     CHECK(s.lo.y >= 1.0 - 1e-6);
     CHECK(s.hi.y <= 1.0 + 0.5 + 0.06 * std::sin(40 * 3.14159265 / 180) + 1e-5);

@@ -1,0 +1,115 @@
+#pragma once
+/// @file AlphaTable.h
+/// @brief Cut-out (alpha-tested) blockers: what is opaque where on an alpha triangle.
+///
+/// An alpha triangle carries an *alpha id* in the high bits of Triangle::flags (Triangle.h,
+/// alphaIdOf()). The id names an AlphaEntry of the bake's AlphaTable: an AlphaMap (an analytic
+/// outline or a thresholded texture) and the UV of the triangle's three corners. The record stays
+/// 40 bytes and flows unchanged through buckets and .ptri files.
+///
+/// The test, identical in every method (bake/rule/AlphaRule.h computes the barycentrics):
+///  - uv = b0 uv0 + b1 uv1 + b2 uv2 in double, then the map's affine transform
+///    (KHR_texture_transform: uv' = T uv);
+///  - analytic maps: opaque iff the outline's function f(uv') > 0;
+///  - textures: nearest texel, x = u' W, y = v' H, i = floor(x), j = floor(y) wrapped per axis
+///    (repeat, clamp to edge, mirrored repeat); opaque iff the texel's bit is set. Bits are the
+///    alpha threshold applied once when the texture is decoded (alpha x factor >= cutoff), so no
+///    method ever compares against the cutoff itself.
+/// A hit within roundoff of a texel edge or of an outline (f within 1e-9) is a *tie*
+/// (AlphaLookup::tie); every method computes the same double values, so methods only differ
+/// there when their edge values differ, which the rule's own edge ties already cover.
+///
+/// Built-in ids 1..kBuiltinAlphaCount-1 are the procedural outlines on the canonical quad layout
+/// (corners (0,0), (1,0), (1,1), (0,1); the quad split as (0,1,2) "lower" and (0,2,3) "upper"),
+/// so generators need no table of their own.
+
+#include <glm/vec2.hpp>
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace penumbra {
+
+/// Built-in alpha ids: analytic outlines on the canonical quad layout.
+enum BuiltinAlpha : uint32_t {
+    kAlphaLeafLower = 1,   ///< leaf outline |2v - 1| < 4u(1 - u), triangle (0,0) (1,0) (1,1)
+    kAlphaLeafUpper = 2,   ///< the same leaf, triangle (0,0) (1,1) (0,1)
+    kAlphaPetalLower = 3,  ///< petal outline (2u - 1)^2 + (2v - 1)^2 < 1 (a disc), lower triangle
+    kAlphaPetalUpper = 4,  ///< the same petal, upper triangle
+    kBuiltinAlphaCount = 5,
+};
+
+/// Texture coordinate wrap per axis (glTF sampler wrapS/wrapT).
+enum class AlphaWrap : uint8_t { Repeat, Clamp, Mirror };
+
+/// What decides opacity on a map.
+enum class AlphaShape : uint8_t { Texture, Leaf, Petal };
+
+/// @brief One alpha map: an analytic outline or a 1-bit texture.
+struct AlphaMap {
+    AlphaShape shape = AlphaShape::Texture;
+    uint32_t width = 0, height = 0;          ///< texels (textures only)
+    AlphaWrap wrapS = AlphaWrap::Repeat, wrapT = AlphaWrap::Repeat;
+    std::vector<uint64_t> bits;              ///< row-major, row 0 at v = 0; bit set: opaque
+    /// Affine uv' = (t[0] u + t[1] v + t[2], t[3] u + t[4] v + t[5]) (KHR_texture_transform).
+    std::array<double, 6> transform{1, 0, 0, 0, 1, 0};
+    std::string name;                        ///< for messages: the material or outline
+
+    /// @brief A @p width x @p height texture whose texel (i, j) is opaque when @p opaque[j W + i].
+    static AlphaMap texture(uint32_t width, uint32_t height, const std::vector<uint8_t>& opaque);
+    /// @brief Sets texel (@p i, @p j)'s bit.
+    void set(uint32_t i, uint32_t j, bool opaque);
+    /// @brief Texel (@p i, @p j)'s bit.
+    bool at(uint32_t i, uint32_t j) const {
+        const size_t k = size_t(j) * width + i;
+        return (bits[k >> 6] >> (k & 63)) & 1u;
+    }
+    size_t bytes() const { return sizeof(AlphaMap) + bits.size() * sizeof(uint64_t) + name.size(); }
+};
+
+/// @brief One alpha id: a map and the UV of the triangle's corners.
+struct AlphaEntry {
+    uint32_t map = 0;
+    std::array<glm::dvec2, 3> uv{};
+};
+
+/// @brief The result of one alpha test.
+struct AlphaLookup {
+    bool opaque = true;
+    bool tie = false;  ///< within roundoff of a texel edge or of an outline
+};
+
+/// @brief Every alpha map and alpha id of a bake. Read-only once the bake starts, so methods
+/// share one table across threads.
+class AlphaTable {
+public:
+    /// A table holding the built-in outlines (ids 1..kBuiltinAlphaCount-1).
+    AlphaTable();
+
+    /// @brief The shared table of built-in outlines, used when a bake sets none.
+    static std::shared_ptr<const AlphaTable> builtin();
+
+    /// @brief Adds a map; @return its index.
+    uint32_t addMap(AlphaMap map);
+    /// @brief Adds an alpha id; @return it (>= kBuiltinAlphaCount).
+    /// @throw InputError when the 24-bit id space of Triangle::flags is exhausted.
+    uint32_t addEntry(const AlphaEntry& entry);
+
+    /// @brief The test at barycentrics (@p b0, @p b1, @p b2) of alpha id @p id. An id the table
+    /// does not hold is opaque (never less blocking than the triangle without alpha).
+    AlphaLookup lookup(uint32_t id, double b0, double b1, double b2) const;
+
+    size_t entries() const { return entries_.size(); }
+    const AlphaMap& map(uint32_t index) const { return maps_[index]; }
+    /// @brief Bytes held, for the memory plan.
+    size_t bytes() const;
+
+private:
+    std::vector<AlphaMap> maps_;
+    std::vector<AlphaEntry> entries_;  ///< index = alpha id (entry 0 unused)
+};
+
+}  // namespace penumbra
