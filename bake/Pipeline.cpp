@@ -143,8 +143,9 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
         source = std::make_unique<OpenSolidsSource>(std::move(source), p.openedSolids.ordinals);
     // A method that gains nothing from largest-first order (it holds or streams the scene in any
     // order) skips the bucket pass.
-    // A merge casts nothing but a refinement's receivers: it replays the source as it is.
-    const bool replaySource = settings.shard.merge && !kind.mayRefine();
+    // A merge casts nothing but a refinement's receivers: it replays the source as it is, unless
+    // the kind must see the culled replay a cast would have seen (its cast pass, a refinement).
+    const bool replaySource = settings.shard.merge && !kind.mayRefine() && !kind.wantsCastChunks();
     if (replaySource || !scene.options.sortBlockers || !casterEntry(settings.method).traits.sortedBlockers) {  // replay the source itself
         if (kind.wantsRescan()) {  // no bucket pass to ride along with: a read of its own
             std::vector<Triangle> chunk(kTriangleChunk);
@@ -266,7 +267,9 @@ void makeCaster(Bake& b) {
     if (b.caster) return;
     CastContext context{p.samples, p.receivers,       p.sampleSets,      p.options, b.scene.bakeOptions,
                         b.threads, b.plan.tiles,      b.settings.quiet, {},        nullptr};
-    if (b.kind->wantsCastChunks()) context.observeChunk = [&b](std::span<const Triangle> c) { b.kind->castChunk(c); };
+    // A merge gives the kind its pass over the faces itself (mergeShards), once.
+    if (b.kind->wantsCastChunks() && !b.settings.shard.merge)
+        context.observeChunk = [&b](std::span<const Triangle> c) { b.kind->castChunk(c); };
     if (b.sharded) context.tileHooks = &b.tileHooks;
     b.caster = b.method.make(context);
 }
@@ -279,6 +282,9 @@ void castReceivers(Bake& b, uint32_t first) {
     if (b.sharded)  // a restored tile's receivers are shaded from their checkpointed masks
         b.tileHooks = b.sharded->tileHooks(b.masks, [&](uint32_t r, const uint64_t* row) { shader.shade(r, row, false, b.results); });
     makeCaster(b);
+    // A merge's first cast read no blockers, so the caster takes the replay as ready; the
+    // refinement's scan has read it to the end.
+    if (first > 0 && b.settings.shard.merge) p.blockers->rewind();
     CastSink sink;
     sink.masks = [&](uint32_t r, const uint64_t* words, bool full) {
         shader.shade(r, words, full, b.results);
@@ -368,6 +374,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     if (nlohmann::json extra = b.kind->stats(); extra.is_object())
         for (auto& [key, value] : extra.items()) stats[key] = value;
     if (nlohmann::json extra = b.caster->methodStats(); !extra.is_null()) stats[settings.method] = extra;
+    if (b.sharded) stats["shard"] = b.sharded->stats();
     if (!settings.statsPath.empty()) writeStats(settings.statsPath, stats);
     outputs.commit();
     if (b.sharded) b.sharded->complete();  // the outputs are in place: no checkpoint is needed

@@ -105,6 +105,29 @@ TEST_CASE("by-receivers shards with memory tiles and threads merge to the same b
     CHECK(outputs(dir.path.string(), dir / "merged") == expected);
 }
 
+TEST_CASE("a merge casts an antialiased camera's refinement itself, to the same bytes", "[shards]") {
+    ScratchDir dir("shards-aa");
+    write(dir / "aa.json", R"({
+      "geometry": [{"type": "grid", "size": 3, "cells": 12, "bar": 0.3, "thickness": 0.05, "levels": 1, "height": 0.8, "floor_size": 8}],
+      "lights": [{"type": "rect", "center": [0, 5, 0], "u": [0.4, 0, 0], "v": [0, 0, 0.4], "samples": 64, "sample_sets": 4}],
+      "receivers": {"type": "camera", "eye": [0, 4.5, 6], "target": [0, 0.4, 0], "width": 96, "height": 72,
+                    "antialias": {"threshold": 0.1, "samples": 4}},
+      "output": "out/scene.exr"})");
+    const std::string scene = dir / "aa.json";
+    bake(scene + " --dump " + dir / "whole" + " --stats " + dir / "whole.json");
+    REQUIRE(nlohmann::json::parse(slurp(dir / "whole.json"))["antialias"]["refined_pixels"].get<int>() > 0);
+    const std::string expected = outputs(dir.path.string(), dir / "whole");
+    for (const char* cut : {"receivers", "blockers"}) {
+        const std::string shards = dir / cut;
+        for (int i = 0; i < 3; ++i) bake(scene + fmt::format(" --shard {}/3 --shard-by {} --shard-dir {}", i, cut, shards));
+        fs::remove_all(dir / "out");
+        RunResult merge = runPenumbra("merge " + scene + " --shard-dir " + shards + " --quiet --dump " + dir / "merged");
+        INFO(cut << ": " << merge.err);
+        REQUIRE(merge.exitCode == 0);
+        CHECK(outputs(dir.path.string(), dir / "merged") == expected);
+    }
+}
+
 TEST_CASE("merge refuses other scenes, other settings, missing, duplicate and truncated shards", "[shards][cli]") {
     ScratchDir dir("shards-bad");
     write(dir / "scene.json", kScene);

@@ -59,6 +59,19 @@ void ShardedCast::writeShard(const VisibilityMasks& masks) {
 
 uint32_t ShardedCast::merge(VisibilityMasks& masks) { return mergeShardFiles(settings_.dir, id_, samples_, masks); }
 
+nlohmann::json ShardedCast::stats() const {
+    nlohmann::json s = nlohmann::json::object();
+    if (settings_.casting())
+        s["index"] = settings_.index, s["count"] = settings_.count, s["cut"] = shardCutName(cut_);
+    s["merge"] = settings_.merge;
+    size_t cast = 0;
+    for (uint8_t p : present_) cast += p;
+    s["receivers_in_shard"] = settings_.merge ? receivers_.size() : cast;
+    s["tiles_restored"] = checkpoints_ ? checkpoints_->restored() : 0;
+    s["tiles_checkpointed"] = checkpoints_ ? checkpoints_->saved() : 0;
+    return s;
+}
+
 void ShardedCast::complete() noexcept {
     if (checkpoints_) checkpoints_->removeAll();
 }

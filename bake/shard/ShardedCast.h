@@ -47,9 +47,9 @@ public:
     /// @brief The bake's outputs are in place: its checkpoints are no longer needed.
     void complete() noexcept;
 
-    /// For the stats: tiles restored from and written to checkpoints.
-    size_t tilesRestored() const { return checkpoints_ ? checkpoints_->restored() : 0; }
-    size_t tilesSaved() const { return checkpoints_ ? checkpoints_->saved() : 0; }
+    /// @brief For the stats JSON (`"shard"`): the shard and cut, receivers cast, checkpointed
+    /// tiles restored and written.
+    nlohmann::json stats() const;
 
 private:
     ShardSettings settings_;

@@ -5,11 +5,12 @@
 # dependent merge job, compares the merged bytes with a local bake, and stops the daemons it
 # started by their pid files. Only ports on 127.0.0.1 are used.
 #
-# Usage: loopback.sh PENUMBRA_BINARY [SHARD_BY]. Exit 0: identical; 77: skipped (no packages, not
-# root), with a notice on stdout; anything else: failure.
+# Usage: loopback.sh PENUMBRA_BINARY [CUTS] (default "receivers blockers": one 4-shard bake per
+# cut). Exit 0: identical; 77: skipped (no packages, not root), with a notice on stdout; anything
+# else: failure.
 set -u
 PENUMBRA=$(readlink -f "$1")
-CUT=${2:-receivers}
+CUTS=${2:-receivers blockers}
 for tool in munged slurmctld slurmd sbatch sinfo scontrol; do
   if ! command -v "$tool" >/dev/null 2>&1; then
     echo "SKIP: $tool not found: install slurm-wlm and munge (./setup.sh test does) to run the loopback Slurm test"
@@ -32,7 +33,7 @@ stop() {
   [ -n "${KEEP_SLURM_DIR:-}" ] || rm -rf "$D"
 }
 trap stop EXIT
-fail() { echo "FAIL: $*"; for f in "$D"/*.log "$D"/job/logs/*.log; do [ -f "$f" ] && { echo "== $f"; tail -20 "$f"; }; done; exit 1; }
+fail() { echo "FAIL: $*"; for f in "$D"/*.log "$D"/job-*/logs/*.log; do [ -f "$f" ] && { echo "== $f"; tail -20 "$f"; }; done; exit 1; }
 
 # munged as user munge with the key in /etc/munge/munge.key; one that runs already is used as it is.
 if ! pgrep -x munged >/dev/null; then
@@ -89,19 +90,21 @@ cat > "$D/scene.json" <<'SCENE'
  "output": "out/scene.exr"}
 SCENE
 "$PENUMBRA" bake "$D/scene.json" -o "$D/local/scene.exr" --quiet || fail "the local bake failed"
-"$PENUMBRA" slurm "$D/scene.json" --shards 4 --shard-by "$CUT" --threads 1 --dir "$D/job" -o "$D/merged/scene.exr" \
-  --partition loopback > "$D/submitted.txt" || fail "penumbra slurm failed: $(cat "$D/submitted.txt")"
-cat "$D/submitted.txt"
-MERGE=$(awk '/^merge job/ {print $3}' "$D/submitted.txt")
-[ -n "$MERGE" ] || fail "no merge job id"
-STATE=""
-for _ in $(seq 240); do
-  STATE=$(scontrol show job "$MERGE" 2>/dev/null | sed -n 's/.*JobState=\([A-Z_]*\).*/\1/p')
-  case "$STATE" in COMPLETED|FAILED|CANCELLED|TIMEOUT|NODE_FAIL|OUT_OF_MEMORY|DEADLINE) break ;; esac
-  sleep 0.5
+for CUT in $CUTS; do
+  "$PENUMBRA" slurm "$D/scene.json" --shards 4 --shard-by "$CUT" --threads 1 --dir "$D/job-$CUT" -o "$D/merged-$CUT/scene.exr" \
+    --partition loopback > "$D/submitted-$CUT.txt" || fail "penumbra slurm failed: $(cat "$D/submitted-$CUT.txt")"
+  cat "$D/submitted-$CUT.txt"
+  MERGE=$(awk '/^merge job/ {print $3}' "$D/submitted-$CUT.txt")
+  [ -n "$MERGE" ] || fail "no merge job id"
+  STATE=""
+  for _ in $(seq 240); do
+    STATE=$(scontrol show job "$MERGE" 2>/dev/null | sed -n 's/.*JobState=\([A-Z_]*\).*/\1/p')
+    case "$STATE" in COMPLETED|FAILED|CANCELLED|TIMEOUT|NODE_FAIL|OUT_OF_MEMORY|DEADLINE) break ;; esac
+    sleep 0.5
+  done
+  [ "$STATE" = COMPLETED ] || fail "the merge job ended $STATE"
+  [ "$(ls "$D/job-$CUT/shards" | wc -l)" = 4 ] || fail "expected 4 shard files, found: $(ls "$D/job-$CUT/shards")"
+  cmp "$D/local/scene.exr" "$D/merged-$CUT/scene.exr" || fail "merged EXR differs from the local bake"
+  cmp "$D/local/scene.png" "$D/merged-$CUT/scene.png" || fail "merged PNG differs from the local bake"
+  echo "OK: 4 shards by $CUT on a loopback Slurm cluster merged to the local bake's bytes"
 done
-[ "$STATE" = COMPLETED ] || fail "the merge job ended $STATE"
-[ "$(ls "$D/job/shards" | wc -l)" = 4 ] || fail "expected 4 shard files, found: $(ls "$D/job/shards")"
-cmp "$D/local/scene.exr" "$D/merged/scene.exr" || fail "merged EXR differs from the local bake"
-cmp "$D/local/scene.png" "$D/merged/scene.png" || fail "merged PNG differs from the local bake"
-echo "OK: 4 shards by $CUT on a loopback Slurm cluster merged to the local bake's bytes"
