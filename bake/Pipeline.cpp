@@ -13,6 +13,7 @@
 #include "bake/cast/ReachCull.h"
 #include "bake/cast/VisibilityMasks.h"
 #include "bake/light/SunLight.h"
+#include "bake/shard/ShardedCast.h"
 #include "bucket/BucketPlan.h"
 #include "stream/util/AnonymousFile.h"
 #include "stream/util/AtomicFile.h"
@@ -24,6 +25,7 @@
 
 #include <tbb/global_control.h>
 #include <tbb/info.h>
+#include <tbb/parallel_for.h>
 
 #include <filesystem>
 
@@ -141,7 +143,10 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
         source = std::make_unique<OpenSolidsSource>(std::move(source), p.openedSolids.ordinals);
     // A method that gains nothing from largest-first order (it holds or streams the scene in any
     // order) skips the bucket pass.
-    if (!scene.options.sortBlockers || !casterEntry(settings.method).traits.sortedBlockers) {  // replay the source itself
+    // A merge casts nothing but a refinement's receivers: it replays the source as it is, unless
+    // the kind must see the culled replay a cast would have seen (its cast pass, a refinement).
+    const bool replaySource = settings.shard.merge && !kind.mayRefine() && !kind.wantsCastChunks();
+    if (replaySource || !scene.options.sortBlockers || !casterEntry(settings.method).traits.sortedBlockers) {  // replay the source itself
         if (kind.wantsRescan()) {  // no bucket pass to ride along with: a read of its own
             std::vector<Triangle> chunk(kTriangleChunk);
             while (size_t n = source->read(chunk)) kind.rescan(std::span<const Triangle>(chunk.data(), n));
@@ -198,6 +203,8 @@ struct Bake {
     ReceiverResults results;
     VisibilityMasks masks;  ///< every receiver's masks, for --dump only
     std::unique_ptr<Caster> caster;
+    std::unique_ptr<ShardedCast> sharded;  ///< shards, merges and checkpoints, else null
+    TileHooks tileHooks;
     size_t firstPass = 0;  ///< receivers of the first pass; later ones are a refinement's
     double streamSeconds = 0, castSeconds = 0, refineSeconds = 0;
 
@@ -206,6 +213,8 @@ struct Bake {
           threads(b.threads > 0 ? b.threads : int(tbb::info::default_concurrency())),
           budget(fitAddressSpace(b.memoryBudget, threads, b.quiet)) {}
     bool dump() const { return !settings.dumpDir.empty(); }
+    /// Every receiver's masks are kept: for the dump, a shard file or checkpoints.
+    bool keepMasks() const { return dump() || ShardedCast::keepsMasks(settings.shard); }
     void replan() {
         plan = budget.plan(demand);
         minimum = std::max(minimum, plan.minimumBudget);
@@ -221,8 +230,12 @@ void scanScene(Bake& b) {
     b.kind = makeReceiverKind(scene.receivers, scene);
     if (!b.method.traits.masks && b.dump())
         fail("--dump", "--method {} gives visible fractions, not per-sample masks", b.method.name);
+    if (!b.method.traits.masks && ShardedCast::keepsMasks(b.settings.shard))
+        fail(b.settings.shard.count ? "--shard" : "--checkpoint", "--method {} gives visible fractions, not per-sample masks to merge",
+             b.method.name);
+    if (b.settings.shard.casting() && b.dump()) fail("--dump", "a shard writes no outputs; give --dump to penumbra merge");
     TriangleSourcePtr geometry = openSceneGeometry(scene);
-    b.demand = demandBeforeScan(scene, *b.kind, *geometry, b.dump());
+    b.demand = demandBeforeScan(scene, *b.kind, *geometry, b.keepMasks());
     checkBeforeScan(b.demand, b.budget);
     // Without a budget the machine is the bound: refuse before any work what it cannot hold.
     checkMemoryFits(scene.file, "the scan pass", scanPhaseBytes(b.demand));
@@ -240,29 +253,62 @@ void scanScene(Bake& b) {
     b.replan();
     checkMemoryFits(scene.file, "casting", b.plan.minimumBudget);
     b.results.resize(b.p.receivers.size(), int(b.p.lights.size()));
-    if (b.dump()) b.masks = VisibilityMasks(b.p.receivers.size(), b.p.samples.groupCount());
+    if (b.keepMasks()) b.masks = VisibilityMasks(b.p.receivers.size(), b.p.samples.groupCount());
     b.firstPass = b.p.receivers.size();
+    if (ShardedCast::keepsMasks(b.settings.shard)) {
+        const std::string methodKey = b.method.name + (scene.options.embreeRuleFilter ? "" : ":embree-native");
+        b.sharded = std::make_unique<ShardedCast>(b.settings.shard, scene.file, methodKey, b.method.name == "hpc",
+                                                  b.p.receivers, b.p.sampleSets, b.p.samples, b.settings.quiet);
+    }
+}
+
+void makeCaster(Bake& b) {
+    Prepared& p = b.p;
+    if (b.caster) return;
+    CastContext context{p.samples, p.receivers,       p.sampleSets,      p.options, b.scene.bakeOptions,
+                        b.threads, b.plan.tiles,      b.settings.quiet, {},        nullptr};
+    // A merge gives the kind its pass over the faces itself (mergeShards), once.
+    if (b.kind->wantsCastChunks() && !b.settings.shard.merge)
+        context.observeChunk = [&b](std::span<const Triangle> c) { b.kind->castChunk(c); };
+    if (b.sharded) context.tileHooks = &b.tileHooks;
+    b.caster = b.method.make(context);
 }
 
 /// Casts receivers [first, end) with the bake's method, shading each as its result arrives.
 void castReceivers(Bake& b, uint32_t first) {
     ScopedTimer timer(b.castSeconds);
     Prepared& p = b.p;
-    if (!b.caster) {
-        CastContext context{p.samples, p.receivers,       p.sampleSets,      p.options, b.scene.bakeOptions,
-                            b.threads, b.plan.tiles,      b.settings.quiet, {},        nullptr};
-        if (b.kind->wantsCastChunks()) context.observeChunk = [&b](std::span<const Triangle> c) { b.kind->castChunk(c); };
-        b.caster = b.method.make(context);
-    }
     const ReceiverShader shader(p.lights, p.samples, p.receivers, p.sampleSets);
+    if (b.sharded)  // a restored tile's receivers are shaded from their checkpointed masks
+        b.tileHooks = b.sharded->tileHooks(b.masks, [&](uint32_t r, const uint64_t* row) { shader.shade(r, row, false, b.results); });
+    makeCaster(b);
+    // A merge's first cast read no blockers, so the caster takes the replay as ready; the
+    // refinement's scan has read it to the end.
+    if (first > 0 && b.settings.shard.merge) p.blockers->rewind();
     CastSink sink;
     sink.masks = [&](uint32_t r, const uint64_t* words, bool full) {
         shader.shade(r, words, full, b.results);
-        if (b.dump())
+        if (b.keepMasks())
             for (int k = 0; k < b.masks.groups; ++k)
                 b.masks.row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
     };
-    b.caster->cast(*p.blockers, first, sink);
+    b.caster->cast(first == 0 && b.sharded ? b.sharded->blockers(*p.blockers) : *p.blockers, first, sink);
+}
+
+/// `penumbra merge`: the first pass's masks come from the shard files, shaded as a cast would.
+void mergeShards(Bake& b) {
+    ScopedTimer timer(b.castSeconds);
+    Prepared& p = b.p;
+    makeCaster(b);  // for a refinement's cast, and the stats
+    const uint32_t shards = b.sharded->merge(b.masks);
+    const ReceiverShader shader(p.lights, p.samples, p.receivers, p.sampleSets);
+    tbb::parallel_for(size_t(0), b.firstPass, [&](size_t r) { shader.shade(uint32_t(r), b.masks.row(r), false, b.results); });
+    if (b.kind->wantsCastChunks()) {  // the kind's pass over the faces that the cast would have carried
+        p.blockers->rewind();
+        std::vector<Triangle> chunk(kTriangleChunk);
+        while (size_t n = p.blockers->read(chunk)) b.kind->castChunk(std::span<const Triangle>(chunk.data(), n));
+    }
+    if (!b.settings.quiet) printNote("merged {} shard(s) of {}", shards, b.settings.shard.dir);
 }
 
 /// Adaptive refinement: the kind looks at the first pass, finds its new receivers in one more read
@@ -311,10 +357,13 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     setScratchDirectory(settings.tmpDir);  // spilled OBJ vertices go where the buckets go
 
     scanScene(b);
-    castReceivers(b, 0);
-    if (refineReceivers(b)) castReceivers(b, uint32_t(b.firstPass));
+    if (settings.shard.merge) mergeShards(b);
+    else castReceivers(b, 0);
+    const bool shard = settings.shard.casting();  // a shard writes its masks, the merge the outputs
+    if (!shard && refineReceivers(b)) castReceivers(b, uint32_t(b.firstPass));
     OutputSet outputs;  // every output of the bake appears together, or none does
-    writeOutputs(b);
+    if (shard) b.sharded->writeShard(b.masks);
+    else writeOutputs(b);
 
     BakeStatsInputs in{scene, settings.method, b.threads, b.p.receivers, b.p.samples, b.p.options, b.results,
                        b.caster->stats(), b.buckets, b.plan, b.demand};
@@ -325,8 +374,10 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     if (nlohmann::json extra = b.kind->stats(); extra.is_object())
         for (auto& [key, value] : extra.items()) stats[key] = value;
     if (nlohmann::json extra = b.caster->methodStats(); !extra.is_null()) stats[settings.method] = extra;
+    if (b.sharded) stats["shard"] = b.sharded->stats();
     if (!settings.statsPath.empty()) writeStats(settings.statsPath, stats);
     outputs.commit();
+    if (b.sharded) b.sharded->complete();  // the outputs are in place: no checkpoint is needed
     return stats;
 }
 

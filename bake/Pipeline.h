@@ -4,6 +4,7 @@
 /// with the chosen method, and write the outputs, dump and stats.
 
 #include "bake/Scene.h"
+#include "bake/shard/ShardSettings.h"
 
 #include <nlohmann/json.hpp>
 
@@ -25,6 +26,7 @@ struct BakeSettings {
     uint64_t memoryBudget = 0;  ///< --memory-budget in bytes; 0: unlimited
     std::string tmpDir;         ///< where bucket files go (default: the system temp dir)
     bool keepBuckets = false;   ///< leave bucket files behind for debugging
+    ShardSettings shard;        ///< --shard, penumbra merge, --checkpoint (bake/shard)
 };
 
 /// @brief Runs the bake and writes the scene's output (EXR + PNG preview for camera receivers,

@@ -4,12 +4,14 @@
 #include "Compare.h"
 #include "Generate.h"
 #include "GeneratorBench.h"
+#include "ShardCommands.h"
 #include "TableBench.h"
 
 #include "bake/LibraryErrors.h"
 #include "bake/Pipeline.h"
 #include "bake/cast/Caster.h"
 #include "bake/Scene.h"
+#include "bake/shard/ShardRun.h"
 #include "bake/kinds/VolumeKind.h"
 #include "procedural/Generators.h"
 #include "stream/util/AtomicFile.h"
@@ -149,6 +151,12 @@ int main(int argc, char** argv) {
         bake->add_option("--memory-budget", memoryBudget, "bound on bake memory, e.g. 256M or 2G; receivers are tiled to fit");
     CLI::Option* tmpOption = bake->add_option("--tmp", tmpDir, "directory for temporary bucket files (default: the system temp dir)");
     bake->add_flag("--keep-buckets", keepBuckets, "keep the bucket files (for debugging)");
+    ShardCli shardCli;
+    addShardOptions(*bake, shardCli);
+    SlurmOptions slurmOptions;
+    CLI::App* slurm = addSlurmCommand(app, slurmOptions);
+    app.add_subcommand("merge", "merge shard files into a bake's outputs: penumbra merge SCENE --shard-dir DIR [bake options]")
+        ->allow_extras();
 
     CompareOptions compareOptions;
     CLI::App* compare = app.add_subcommand("compare", "compare two --dump directories relation by relation");
@@ -190,8 +198,10 @@ int main(int argc, char** argv) {
     BenchTableOptions benchTableOptions;
     CLI::App* benchTable = addBenchTableCommand(*bench, benchTableOptions);
 
+    std::vector<std::string> argumentStorage;  // `merge` is a bake of shard files (ShardCommands.h)
+    std::vector<char*> arguments = rewriteMergeCommand(argc, argv, argumentStorage);
     try {
-        app.parse(argc, argv);
+        app.parse(int(arguments.size()), arguments.data());
     } catch (const CLI::ParseError& e) {
         return app.exit(e);
     }
@@ -228,12 +238,18 @@ int main(int argc, char** argv) {
             }
             settings.tmpDir = tmpDir;
             settings.keepBuckets = keepBuckets;
+            settings.shard = shardSettings(shardCli);
             nlohmann::json stats = runBake(scene, settings);
             if (!quiet)
                 fmt::print(stderr, "penumbra: {} receivers, {} samples, {} triangles, {:.2f} s -> {}\n",
                            stats["receivers"].get<uint64_t>(), stats["light_samples"].get<int>(),
                            stats["counters"]["triangles_read"].get<uint64_t>(),
-                           stats["table2"]["total_time_s"].get<double>(), scene.output);
+                           stats["table2"]["total_time_s"].get<double>(),
+                           settings.shard.casting() ? shardFilePath(settings.shard.dir, settings.shard.index, settings.shard.count)
+                                                    : scene.output);
+        } else if (*slurm) {
+            context = slurmOptions.scene;
+            runSlurm(slurmOptions);
         } else if (*compare) {
             context = compareOptions.dirA;
             CompareResult r = compareDumps(compareOptions);

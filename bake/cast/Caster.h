@@ -36,6 +36,17 @@ struct CastSink {
     std::function<void(uint32_t receiver, const float* lightVisibility)> visibility;
 };
 
+/// @brief What a bake asks of a method's memory tiles in its first pass (bake/shard: shards and
+/// checkpoints). A method without tiles ignores them and casts every receiver.
+struct TileHooks {
+    /// The receivers this bake casts among @p ids (a shard's part), or empty: all of them.
+    std::function<std::vector<uint32_t>(std::vector<uint32_t> ids)> select;
+    /// Tile @p tile of @p tiles (receivers @p ids) was restored and reported already: skip it.
+    std::function<bool(size_t tile, size_t tiles, std::span<const uint32_t> ids)> restore;
+    /// Tile @p tile of @p tiles is cast and every one of its receivers reported to the sink.
+    std::function<void(size_t tile, size_t tiles, std::span<const uint32_t> ids)> finished;
+};
+
 /// @brief Everything a method needs to cast, fixed for the bake.
 struct CastContext {
     const LightSamples& samples;
@@ -49,6 +60,7 @@ struct CastContext {
     /// Sees every blocker chunk once during the first cast (a receiver kind's cast pass), or empty.
     std::function<void(std::span<const Triangle>)> observeChunk;
     const ReceiverPolygons* polygons = nullptr;  ///< lightmap receivers' polygons, when the kind has them
+    const TileHooks* tileHooks = nullptr;        ///< for the first cast (receivers from 0), or null
 };
 
 /// @brief One bake's method.

@@ -25,10 +25,13 @@ public:
     void cast(TriangleSource& blockers, uint32_t first, const CastSink& sink) override {
         std::vector<uint32_t> ids(c_.receivers.size() - first);
         std::iota(ids.begin(), ids.end(), first);
+        const TileHooks* hooks = first == 0 ? c_.tileHooks : nullptr;
+        if (hooks && hooks->select) ids = hooks->select(std::move(ids));
         const auto tiles = partitionReceivers(c_.receivers, ids, std::max(1, c_.memoryTiles));
         ProgressReporter progress("cast", blockers.sizeHint().value_or(0) * tiles.size(), c_.quiet);
         std::vector<Triangle> chunk(kTriangleChunk);
         for (size_t t = 0; t < tiles.size(); ++t) {
+            if (hooks && hooks->restore && hooks->restore(t, tiles.size(), tiles[t])) continue;
             double readSeconds = 0;
             PenumbraCaster caster(c_.samples, c_.receivers, c_.sampleSets, c_.options, subTiles(c_.threads), tiles[t]);
             // The first tile of the bake reads the replay the bucket pass left ready.
@@ -50,6 +53,7 @@ public:
             }
             observed_ = true;
             caster.finish(sink.masks);
+            if (hooks && hooks->finished) hooks->finished(t, tiles.size(), tiles[t]);
             // Tile hierarchies are built on worker threads, in their malloc arenas; hand the freed
             // memory back before the next tile, or arenas keep it and RSS creeps past the plan.
             returnFreedMemory();
@@ -57,12 +61,22 @@ public:
             s.replayReadSeconds = readSeconds;
             addSequential(stats_, s);
         }
+        if (c_.observeChunk && !observed_) observeAll(blockers);  // every tile was restored
         progress.done();
     }
 
     CastStats stats() const override { return stats_; }
 
 private:
+    /// The receiver kind's pass over the faces, when no tile was cast to carry it.
+    void observeAll(TriangleSource& blockers) {
+        if (!fresh_) blockers.rewind();
+        fresh_ = false;
+        std::vector<Triangle> chunk(kTriangleChunk);
+        while (size_t n = blockers.read(chunk)) c_.observeChunk(std::span<const Triangle>(chunk.data(), n));
+        observed_ = true;
+    }
+
     const CastContext c_;
     CastStats stats_;
     bool fresh_ = true, observed_ = false;

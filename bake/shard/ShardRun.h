@@ -1,0 +1,86 @@
+#pragma once
+/// @file ShardRun.h
+/// @brief The pieces a sharded bake and `penumbra merge` are made of: the bake's identity in
+/// partial files, the cut of receivers or blockers, and the checks of a merge.
+///
+/// Masks are an OR over blockers and receivers are independent, so:
+///  - by receivers, shard I casts the I-th of N spatial parts of the receivers (the same median
+///    splits as memory tiles, PenumbraCaster.h); its masks are final for those receivers;
+///  - by blockers, shard I casts every blocker whose position in the largest-first stream is I
+///    modulo N, against every receiver; the merge ORs the masks.
+/// Either way the merge shades the complete masks once, the way an unsharded bake does, so its
+/// outputs are byte-identical.
+
+#include "bake/cast/VisibilityMasks.h"
+#include "bake/light/Light.h"
+#include "bake/shard/PartialFile.h"
+#include "bake/shard/ShardSettings.h"
+#include "receivers/ReceiverSet.h"
+#include "stream/TriangleSource.h"
+
+#include <string>
+#include <vector>
+
+namespace penumbra {
+
+/// @brief Fewest receivers per shard for the automatic cut to choose receivers.
+inline constexpr size_t kMinReceiversPerShard = 4096;
+
+/// @brief The cut a bake of @p receivers receivers in @p shards shards uses: @p cut itself, or for
+/// Automatic, receivers when each shard gets at least kMinReceiversPerShard of them, else blockers.
+ShardCut resolveShardCut(ShardCut cut, size_t receivers, uint32_t shards);
+
+/// @brief What identifies one bake in its partial files, whatever the shard.
+struct BakeIdentity {
+    uint64_t sceneHash = 0;    ///< the scene file's bytes
+    uint64_t methodHash = 0;   ///< the method and the options that change bits
+    uint64_t contentHash = 0;  ///< receivers, sample sets, light samples
+
+    /// The settings hash of a part of a bake cut by @p cut into @p parts shards.
+    uint64_t settingsHash(ShardCut cut, uint32_t shards) const;
+};
+
+/// @brief Hashes what a partial file must match. @p methodKey is every setting that changes bits
+/// (the method's name, its filters).
+/// @throw InputError when the scene file cannot be read.
+BakeIdentity bakeIdentity(const std::string& sceneFile, const std::string& methodKey, const ReceiverSet& receivers,
+                          const std::vector<uint32_t>& sampleSets, const LightSamples& samples);
+
+/// @brief `DIR/shard-I-of-N.pnpart`.
+std::string shardFilePath(const std::string& dir, uint32_t index, uint32_t count);
+
+/// @brief The receivers of shard @p index of @p count among @p ids (by-receivers cut).
+std::vector<uint32_t> shardReceivers(const ReceiverSet& receivers, const std::vector<uint32_t>& ids, uint32_t index,
+                                     uint32_t count);
+
+/// @brief The blockers of one shard (by-blockers cut): every one whose position in @p inner's
+/// stream is @p index modulo @p count, in stream order.
+class BlockerShardSource final : public TriangleSource {
+public:
+    BlockerShardSource(TriangleSource& inner, uint32_t index, uint32_t count);
+    size_t read(std::span<Triangle> out) override;
+    void rewind() override;
+    std::string name() const override { return inner_.name(); }
+    std::optional<uint64_t> sizeHint() const override;
+
+private:
+    TriangleSource& inner_;
+    uint32_t index_, count_;
+    uint64_t position_ = 0;  ///< stream position of the next triangle of inner_
+    std::vector<Triangle> buffer_;
+};
+
+/// @brief Writes shard @p settings.index's file: the masks of the receivers marked in @p present.
+/// @throw InputError naming the file.
+void writeShardFile(const ShardSettings& settings, ShardCut cut, const BakeIdentity& id, const LightSamples& samples,
+                    const VisibilityMasks& masks, std::span<const uint8_t> present);
+
+/// @brief Reads every shard file of @p dir, checks that they are the N shards of this bake, once
+/// each, complete, and ORs them into @p masks (sized for every receiver).
+/// @return the number of shards merged.
+/// @throw InputError (one line) for shards of another scene or settings, a missing shard, a
+/// duplicate, a truncated or damaged file, or receivers no shard (or two) cast.
+uint32_t mergeShardFiles(const std::string& dir, const BakeIdentity& id, const LightSamples& samples,
+                         VisibilityMasks& masks);
+
+}  // namespace penumbra

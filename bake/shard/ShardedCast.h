@@ -1,0 +1,65 @@
+#pragma once
+/// @file ShardedCast.h
+/// @brief The one object the pipeline asks about shards, merges and checkpoints (bake/Pipeline.cpp
+/// holds one per bake): which blockers and receivers to cast, which tiles are restored, and what
+/// to write instead of, or before, the outputs.
+
+#include "bake/cast/Caster.h"
+#include "bake/shard/Checkpoint.h"
+#include "bake/shard/ShardRun.h"
+
+#include <functional>
+#include <memory>
+#include <optional>
+
+namespace penumbra {
+
+/// @brief A bake's shard, merge and checkpoint state, made once the scan has found the receivers.
+class ShardedCast {
+public:
+    /// @param methodKey every setting that changes the bits (BakeIdentity)
+    /// @param hpc whether the method reports memory tiles (cutting by receivers needs it)
+    /// @throw InputError for a cut the method cannot do, or an unreadable scene file.
+    ShardedCast(const ShardSettings& settings, const std::string& sceneFile, const std::string& methodKey, bool hpc,
+                const ReceiverSet& receivers, const std::vector<uint32_t>& sampleSets, const LightSamples& samples,
+                bool quiet);
+    ~ShardedCast();
+
+    /// True when the bake keeps every receiver's masks for this object (shard, merge, checkpoints).
+    static bool keepsMasks(const ShardSettings& s) { return s.count > 0 || s.merge || !s.checkpointDir.empty(); }
+
+    ShardCut cut() const { return cut_; }
+
+    /// @brief The blockers this bake casts: @p all, or the shard's 1/N of it (by blockers).
+    TriangleSource& blockers(TriangleSource& all);
+
+    /// @brief Hooks for the caster's first pass: the shard's receivers, restored and finished tiles.
+    /// @param masks every receiver's masks, filled by the sink as tiles finish
+    /// @param restored called for each receiver of a restored tile, with its masks (to shade it)
+    TileHooks tileHooks(VisibilityMasks& masks, std::function<void(uint32_t, const uint64_t*)> restored);
+
+    /// @brief Writes the shard file of this bake (`--shard`).
+    void writeShard(const VisibilityMasks& masks);
+
+    /// @brief `penumbra merge`: ORs every shard file into @p masks. @return the shard count.
+    uint32_t merge(VisibilityMasks& masks);
+
+    /// @brief The bake's outputs are in place: its checkpoints are no longer needed.
+    void complete() noexcept;
+
+    /// @brief For the stats JSON (`"shard"`): the shard and cut, receivers cast, checkpointed
+    /// tiles restored and written.
+    nlohmann::json stats() const;
+
+private:
+    ShardSettings settings_;
+    const ReceiverSet& receivers_;
+    const LightSamples& samples_;
+    BakeIdentity id_;
+    ShardCut cut_ = ShardCut::Automatic;
+    std::vector<uint8_t> present_;  ///< receivers this bake has cast or restored
+    std::unique_ptr<BlockerShardSource> blockers_;
+    std::unique_ptr<Checkpoints> checkpoints_;
+};
+
+}  // namespace penumbra

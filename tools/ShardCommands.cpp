@@ -1,0 +1,179 @@
+#include "ShardCommands.h"
+
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
+#include "stream/util/Memory.h"
+
+#include <fmt/format.h>
+
+#include <array>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace penumbra {
+namespace fs = std::filesystem;
+
+void addShardOptions(CLI::App& bake, ShardCli& cli) {
+    bake.add_option("--shard", cli.shard,
+                    "cast shard I of N (I/N, or \"slurm\": SLURM_ARRAY_TASK_ID of SLURM_ARRAY_TASK_COUNT) and write its "
+                    "masks to --shard-dir; penumbra merge makes the outputs");
+    bake.add_option("--shard-by", cli.shardBy, "how shards are cut: receivers, blockers or auto (default)")
+        ->check(CLI::IsMember({"receivers", "blockers", "auto"}));
+    bake.add_option("--shard-dir", cli.shardDir, "directory of shard files (written by --shard, read by merge)");
+    bake.add_option("--checkpoint", cli.checkpoint,
+                    "write a checkpoint per finished memory tile to this directory, and restore the ones found there");
+    bake.add_option("--resume", cli.resume, "like --checkpoint, but a checkpoint that does not match is an error");
+    bake.add_flag("--merge", cli.merge, "merge the shard files of --shard-dir (what `penumbra merge` runs)");
+}
+
+namespace {
+
+uint32_t slurmNumber(const char* name) {
+    const char* value = std::getenv(name);
+    if (!value || !*value) fail("--shard", "slurm: {} is not set (not a task of a Slurm job array); give --shard I/N", name);
+    char* end = nullptr;
+    const unsigned long v = std::strtoul(value, &end, 10);
+    if (*end || v > 65536) fail("--shard", "slurm: {}={} is not a task number", name, value);
+    return uint32_t(v);
+}
+
+}  // namespace
+
+ShardSettings shardSettings(const ShardCli& cli) {
+    ShardSettings s;
+    s.cut = parseShardCut(cli.shardBy, "--shard-by");
+    s.dir = cli.shardDir;
+    s.merge = cli.merge;
+    if (cli.shard == "slurm") {
+        const uint32_t first = std::getenv("SLURM_ARRAY_TASK_MIN") ? slurmNumber("SLURM_ARRAY_TASK_MIN") : 0;
+        parseShardSpec(fmt::format("{}/{}", int64_t(slurmNumber("SLURM_ARRAY_TASK_ID")) - first,
+                                   slurmNumber("SLURM_ARRAY_TASK_COUNT")),
+                       "--shard slurm", s);
+    } else if (!cli.shard.empty()) {
+        parseShardSpec(cli.shard, "--shard", s);
+    }
+    if (s.merge && s.count) fail("--shard", "a merge reads every shard; leave --shard out");
+    if ((s.merge || s.count) && s.dir.empty()) fail("--shard-dir", "is needed with {}", s.merge ? "merge" : "--shard");
+    if (!cli.checkpoint.empty() && !cli.resume.empty()) fail("--resume", "give --checkpoint DIR or --resume DIR, not both");
+    s.checkpointDir = cli.resume.empty() ? cli.checkpoint : cli.resume;
+    s.resume = !cli.resume.empty();
+    if (s.merge && !s.checkpointDir.empty()) fail("--checkpoint", "a merge casts no tiles to checkpoint");
+    return s;
+}
+
+std::vector<char*> rewriteMergeCommand(int argc, char** argv, std::vector<std::string>& storage) {
+    for (int i = 0; i < argc; ++i) storage.emplace_back(argv[i]);
+    if (argc > 1 && storage[1] == "merge") storage[1] = "bake", storage.emplace_back("--merge");
+    std::vector<char*> out;
+    for (std::string& s : storage) out.push_back(s.data());
+    return out;
+}
+
+CLI::App* addSlurmCommand(CLI::App& app, SlurmOptions& o) {
+    CLI::App* c = app.add_subcommand("slurm", "bake a scene as a Slurm job array of shards and a dependent merge job");
+    c->add_option("scene", o.scene, "scene file (JSON), on a file system every node shares")->required();
+    c->add_option("--shards", o.shards, "number of shards (array tasks)")->required()->check(CLI::Range(1, 65536));
+    c->add_option("--partition", o.partition, "Slurm partition");
+    c->add_option("--shard-by", o.shardBy, "receivers, blockers or auto")->check(CLI::IsMember({"receivers", "blockers", "auto"}));
+    c->add_option("--dir", o.dir, "shared directory for scripts, logs and shard files (default SCENE_STEM.slurm)");
+    c->add_option("-o,--output", o.output, "the merge's output (default: the scene's)");
+    c->add_option("--memory-budget", o.memoryBudget, "each shard's memory budget; Slurm's --mem follows from it");
+    c->add_option("--time", o.time, "sbatch --time of each task");
+    c->add_option("--tmp", o.tmp, "each shard's --tmp: node-local scratch for bucket files");
+    c->add_option("--threads", o.threads, "threads per task (and --cpus-per-task)")->check(CLI::Range(1, kMaxThreads));
+    c->add_flag("--dry-run", o.dryRun, "print the scripts instead of submitting them");
+    return c;
+}
+
+namespace {
+
+/// @p s in single quotes for the shell.
+std::string quoted(const std::string& s) {
+    std::string out = "'";
+    for (char ch : s) out += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
+    return out + "'";
+}
+
+std::string absolute(const std::string& path) { return fs::absolute(path).lexically_normal().string(); }
+
+std::string selfPath() {
+    std::error_code ec;
+    fs::path self = fs::read_symlink("/proc/self/exe", ec);
+    return ec ? std::string("penumbra") : self.string();
+}
+
+struct SlurmScripts {
+    std::string shards, merge;
+};
+
+SlurmScripts makeScripts(const SlurmOptions& o, const std::string& dir) {
+    const std::string exe = quoted(selfPath()), scene = quoted(absolute(o.scene)), shardDir = quoted(dir + "/shards");
+    std::string head = "#!/bin/bash\n";
+    if (!o.partition.empty()) head += "#SBATCH --partition=" + o.partition + "\n";
+    if (!o.time.empty()) head += "#SBATCH --time=" + o.time + "\n";
+    head += fmt::format("#SBATCH --cpus-per-task={}\n", o.threads);
+    std::string budget;
+    if (!o.memoryBudget.empty()) {
+        // The budget bounds the bake; the process itself (code, stacks, TBB) needs a little more.
+        const uint64_t bytes = parseByteSize(o.memoryBudget, "--memory-budget");
+        head += fmt::format("#SBATCH --mem={}M\n", (bytes + bytes / 8) / (1 << 20) + 256);
+        budget = " --memory-budget " + quoted(o.memoryBudget);
+    }
+    const std::string tmp = o.tmp.empty() ? " --tmp \"${TMPDIR:-/tmp}\"" : " --tmp " + quoted(o.tmp);
+    SlurmScripts s;
+    s.shards = head + fmt::format("#SBATCH --job-name=penumbra-shards\n#SBATCH --array=0-{}\n#SBATCH --output={}/logs/shard-%a.log\n"
+                                  "set -eu\n"
+                                  "exec {} bake {} --shard slurm --shard-by {} --shard-dir {} --threads {}{}{} --quiet\n",
+                                  o.shards - 1, dir, exe, scene, o.shardBy, shardDir, o.threads, budget, tmp);
+    const std::string output = o.output.empty() ? "" : " -o " + quoted(absolute(o.output));
+    s.merge = head + fmt::format("#SBATCH --job-name=penumbra-merge\n#SBATCH --output={}/logs/merge.log\n"
+                                 "set -eu\n"
+                                 "exec {} merge {} --shard-dir {}{} --stats {} --threads {}{} --quiet\n",
+                                 dir, exe, scene, shardDir, output, quoted(dir + "/merge-stats.json"), o.threads, tmp);
+    return s;
+}
+
+/// Runs `sbatch --parsable ARGS SCRIPT` and returns the job id it prints.
+std::string submit(const std::string& args, const std::string& script) {
+    const std::string command = "sbatch --parsable " + args + quoted(script) + " 2>&1";
+    FILE* pipe = popen(command.c_str(), "r");
+    if (!pipe) fail("sbatch", "cannot run: {}", std::strerror(errno));
+    std::string out;
+    std::array<char, 256> buffer;
+    while (size_t n = std::fread(buffer.data(), 1, buffer.size(), pipe)) out.append(buffer.data(), n);
+    const int status = pclose(pipe);
+    while (!out.empty() && (out.back() == '\n' || out.back() == '\r')) out.pop_back();
+    if (status != 0 || out.empty() || out.find_first_not_of("0123456789;") != std::string::npos)
+        fail(script, "sbatch failed: {}", out.empty() ? "no output" : out.substr(0, out.find('\n')));
+    return out.substr(0, out.find(';'));
+}
+
+}  // namespace
+
+void runSlurm(const SlurmOptions& o) {
+    if (!fs::is_regular_file(o.scene)) fail(o.scene, "not a scene file");
+    const fs::path scene = fs::absolute(o.scene);
+    const std::string dir = absolute(o.dir.empty() ? (scene.parent_path() / (scene.stem().string() + ".slurm")).string() : o.dir);
+    const SlurmScripts s = makeScripts(o, dir);
+    if (o.dryRun) {
+        fmt::print("# {}/shards.sbatch\n{}\n# {}/merge.sbatch (sbatch --dependency=afterok:SHARDS_JOB)\n{}", dir, s.shards, dir, s.merge);
+        return;
+    }
+    std::error_code ec;
+    fs::create_directories(dir + "/logs", ec);
+    fs::create_directories(dir + "/shards", ec);
+    if (ec) fail(dir, "cannot create the job directory: {}", ec.message());
+    const auto bytes = [](const std::string& t) { return std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(t.data()), t.size()); };
+    writeFileAtomically(dir + "/shards.sbatch", bytes(s.shards));
+    writeFileAtomically(dir + "/merge.sbatch", bytes(s.merge));
+    const std::string shards = submit("", dir + "/shards.sbatch");
+    const std::string merge = submit("--dependency=afterok:" + shards + " ", dir + "/merge.sbatch");
+    fmt::print("shards job {} ({} tasks)\nmerge job {}\n", shards, o.shards, merge);
+    std::fflush(stdout);
+}
+
+}  // namespace penumbra
