@@ -206,6 +206,8 @@ struct Bake {
           threads(b.threads > 0 ? b.threads : int(tbb::info::default_concurrency())),
           budget(fitAddressSpace(b.memoryBudget, threads, b.quiet)) {}
     bool dump() const { return !settings.dumpDir.empty(); }
+    /// Every receiver's masks are kept: for --dump, or for a library caller that asked.
+    bool keepMasks() const { return dump() || (settings.capture && settings.capture->wantMasks); }
     void replan() {
         plan = budget.plan(demand);
         minimum = std::max(minimum, plan.minimumBudget);
@@ -222,7 +224,7 @@ void scanScene(Bake& b) {
     if (!b.method.traits.masks && b.dump())
         fail("--dump", "--method {} gives visible fractions, not per-sample masks", b.method.name);
     TriangleSourcePtr geometry = openSceneGeometry(scene);
-    b.demand = demandBeforeScan(scene, *b.kind, *geometry, b.dump());
+    b.demand = demandBeforeScan(scene, *b.kind, *geometry, b.keepMasks());
     checkBeforeScan(b.demand, b.budget);
     // Without a budget the machine is the bound: refuse before any work what it cannot hold.
     checkMemoryFits(scene.file, "the scan pass", scanPhaseBytes(b.demand));
@@ -240,7 +242,7 @@ void scanScene(Bake& b) {
     b.replan();
     checkMemoryFits(scene.file, "casting", b.plan.minimumBudget);
     b.results.resize(b.p.receivers.size(), int(b.p.lights.size()));
-    if (b.dump()) b.masks = VisibilityMasks(b.p.receivers.size(), b.p.samples.groupCount());
+    if (b.keepMasks()) b.masks = VisibilityMasks(b.p.receivers.size(), b.p.samples.groupCount());
     b.firstPass = b.p.receivers.size();
 }
 
@@ -258,7 +260,7 @@ void castReceivers(Bake& b, uint32_t first) {
     CastSink sink;
     sink.masks = [&](uint32_t r, const uint64_t* words, bool full) {
         shader.shade(r, words, full, b.results);
-        if (b.dump())
+        if (b.keepMasks())
             for (int k = 0; k < b.masks.groups; ++k)
                 b.masks.row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
     };
@@ -293,7 +295,7 @@ bool refineReceivers(Bake& b) {
 
 void writeOutputs(Bake& b) {
     const Prepared& p = b.p;
-    b.kind->write(OutputContext{b.scene, p.receivers, p.samples, b.results, b.scene.output, b.firstPass});
+    if (!b.settings.capture || b.settings.capture->writeOutputs) b.kind->write(OutputContext{b.scene, p.receivers, p.samples, b.results, b.scene.output, b.firstPass});
     if (b.dump()) writeBakeDump(b.settings.dumpDir, p.receivers, p.sampleSets, p.samples, b.masks, receiverEpsilonOf(p.options));
 }
 
@@ -327,7 +329,19 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     if (nlohmann::json extra = b.caster->methodStats(); !extra.is_null()) stats[settings.method] = extra;
     if (!settings.statsPath.empty()) writeStats(settings.statsPath, stats);
     outputs.commit();
+    if (BakeCapture* c = settings.capture) {
+        c->receivers = std::move(b.p.receivers), c->samples = std::move(b.p.samples);
+        c->sampleSets = std::move(b.p.sampleSets), c->results = std::move(b.results);
+        c->masks = std::move(b.masks), c->firstPass = b.firstPass, c->kind = std::move(b.kind);
+    }
     return stats;
+}
+
+void writeCapturedOutputs(const SceneDesc& scene, const BakeCapture& c, const std::string& output) {
+    InputScope inputs;
+    OutputSet outputs;
+    c.kind->write(OutputContext{scene, c.receivers, c.samples, c.results, output, c.firstPass});
+    outputs.commit();
 }
 
 }  // namespace penumbra
