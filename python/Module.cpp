@@ -116,11 +116,11 @@ it part of closed solids; count (triangles per pass) gives progress a percentage
                                s.desc.lights.size(), s.desc.receivers.value("type", "?"));
         });
 
-    py::class_<GenerateIterator>(m, "_Generate")
+    py::class_<GenerateIterator, std::shared_ptr<GenerateIterator>>(m, "_Generate")
         .def("__iter__", [](py::object self) { return self; })
         .def("__next__", &GenerateIterator::next);
     m.def("generate", [](std::shared_ptr<PyScene> scene, size_t chunk, bool flags) {
-              return GenerateIterator(std::move(scene), chunk, flags);
+              return std::make_shared<GenerateIterator>(std::move(scene), chunk, flags);
           },
           py::arg("scene"), py::arg("chunk") = kTriangleChunk, py::arg("flags") = false,
           "Yields the scene's triangles as (n, 3, 3) float32 chunks, exactly as a bake streams them (transforms "
@@ -135,8 +135,10 @@ it part of closed solids; count (triangles per pass) gives progress a percentage
             auto& r = self.cast<PyResult&>();
             return floats(&r.capture->results.irradiance.data()->x, {py::ssize_t(r.size()), 3}, self);
         }, "(N, 3) float32 RGB irradiance, all lights summed.")
-        .def_property_readonly("light_visibility", &PyResult::lightVisibility, "(N, lights) float32, each light's visible fraction.")
-        .def_property_readonly("light_irradiance", &PyResult::lightIrradiance, "(N, lights, 3) float32, each light's irradiance.")
+        .def_property_readonly("light_visibility", [](py::object self) { return self.cast<PyResult&>().lightVisibility(self); },
+                               "(N, lights) float32, each light's visible fraction.")
+        .def_property_readonly("light_irradiance", [](py::object self) { return self.cast<PyResult&>().lightIrradiance(self); },
+                               "(N, lights, 3) float32, each light's irradiance.")
         .def_property_readonly("masks", &PyResult::masks,
                                "(N, ceil(K/64)) uint64: bit k%64 of word k/64 set when light sample k is blocked (masks.npy).")
         .def_property_readonly("positions", [](py::object self) {

@@ -36,7 +36,7 @@ def blade_triangles(rng, count, extent):
     return tris.reshape(-1, 3, 3).astype(np.float32)
 
 
-def blades(count, seed=7, extent=100.0, chunk=CHUNK):
+def blades(count, seed=7, extent=10.0, chunk=CHUNK):
     """A callable source: each call replays the same blades, chunk by chunk."""
     def source():
         rng = np.random.default_rng(seed)
@@ -47,8 +47,8 @@ def blades(count, seed=7, extent=100.0, chunk=CHUNK):
 
 def meadow_scene(width=640, height=480):
     return {
-        "geometry": [{"type": "grid", "size": 200, "cells": 1, "levels": 0, "floor_size": 200}],
-        "lights": [{"type": "rect", "center": [0, 12, 0], "u": [5, 0, 0], "v": [0, 0, 5],
+        "geometry": [],
+        "lights": [{"type": "rect", "center": [1, 4, -2], "u": [1.5, 0, 0], "v": [0, 0, 1.5],
                     "radiance": [40, 40, 40], "samples": 256, "sample_sets": 8}],
         "receivers": {"type": "camera", "eye": [0, 2.2, 5], "target": [0, 0.2, 0], "up": [0, 1, 0],
                       "fov_deg": 50, "width": width, "height": height},
@@ -62,6 +62,8 @@ def main():
     parser.add_argument("--threads", type=int)
     args = parser.parse_args()
     scene = penumbra.Scene(meadow_scene())
+    e = 10.0  # the ground under the blades: two triangles, facing up
+    scene.add_source([np.float32([[[-e, 0, -e], [-e, 0, e], [e, 0, e]], [[-e, 0, -e], [e, 0, e], [e, 0, -e]]])])
     scene.add_source(blades(args.blades), count=5 * args.blades)
 
     def progress(phase, fraction, eta):

@@ -22,7 +22,7 @@ def test_bad_key_raises_scene_error_naming_it():
     with pytest.raises(penumbra.SceneError, match=r"lights\[0\]\.samplez"):
         penumbra.Scene(scene)
     with pytest.raises(penumbra.SceneError, match="receivers"):
-        penumbra.Scene({"geometry": [], "lights": scene["lights"]})
+        penumbra.Scene({"geometry": [], "lights": grid_scene()["lights"]})
     with pytest.raises(ValueError):  # SceneError is a ValueError too
         penumbra.Scene(dict(scene, lights=[]))
 
