@@ -161,7 +161,7 @@ py::object PyResult::masks() {
 }
 
 py::object PyResult::imageShape() const {
-    const nlohmann::json& r = scene->desc.receivers;
+    const nlohmann::json& r = desc.receivers;
     if (r.value("type", "") != "camera") return py::none();
     return py::make_tuple(r.at("height").get<int64_t>(), r.at("width").get<int64_t>());
 }
@@ -189,7 +189,7 @@ py::array PyResult::image(const std::string& values) const {
 void PyResult::write(const std::string& path) const {
     translateErrors([&] {
         py::gil_scoped_release release;
-        writeCapturedOutputs(scene->desc, *capture, path);
+        writeCapturedOutputs(desc, *capture, path);
     });
 }
 
@@ -227,9 +227,12 @@ BakeSettings settingsOf(const std::string& method, std::optional<int> threads, c
 }  // namespace
 
 std::shared_ptr<PyResult> bake(std::shared_ptr<PyScene> scene, const std::string& method, std::optional<int> threads,
-                               py::object memoryBudget, py::object progress, std::optional<std::string> tmpDir, bool masks) {
+                               py::object memoryBudget, py::object progress, std::optional<std::string> tmpDir, bool masks,
+                               std::optional<std::string> output) {
     auto result = std::make_shared<PyResult>();
     result->scene = scene;
+    result->desc = scene->desc;
+    if (output) result->desc.output = *output;  // kinds that name their files when made (vertices)
     result->capture = std::make_shared<BakeCapture>();
     BakeSettings settings = settingsOf(method, threads, memoryBudget, tmpDir);
     result->capture->wantMasks = masks && casterEntry(settings.method).traits.masks;
@@ -243,7 +246,7 @@ std::shared_ptr<PyResult> bake(std::shared_ptr<PyScene> scene, const std::string
         try {
             std::lock_guard one(bakeMutex);
             clearCancel();
-            result->stats = runBake(scene->desc, settings);
+            result->stats = runBake(result->desc, settings);
         } catch (...) {
             error = std::current_exception();
         }

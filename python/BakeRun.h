@@ -47,7 +47,8 @@ std::shared_ptr<PyScene> loadPyScene(const std::string& path);
 
 /// @brief A finished bake: what the pipeline captured, and the scene to write its outputs for.
 struct PyResult {
-    std::shared_ptr<PyScene> scene;
+    std::shared_ptr<PyScene> scene;  ///< keeps the scene's Python sources alive
+    SceneDesc desc;                  ///< the scene as baked (with bake()'s output)
     std::shared_ptr<BakeCapture> capture;
     nlohmann::json stats;
     std::optional<pybind11::array> masksCache;
@@ -65,7 +66,7 @@ struct PyResult {
 /// polls progress, calls the callback and watches for KeyboardInterrupt.
 std::shared_ptr<PyResult> bake(std::shared_ptr<PyScene> scene, const std::string& method, std::optional<int> threads,
                                pybind11::object memoryBudget, pybind11::object progress, std::optional<std::string> tmpDir,
-                               bool masks);
+                               bool masks, std::optional<std::string> output);
 
 /// @brief penumbra.Error (RuntimeError) and penumbra.SceneError (Error, ValueError).
 void registerExceptions(pybind11::module_& m);

@@ -166,13 +166,14 @@ it part of closed solids; count (triangles per pass) gives progress a percentage
 
     m.def("bake", &bake, py::arg("scene"), py::arg("method") = "hpc", py::arg("threads") = py::none(),
           py::arg("memory_budget") = py::none(), py::arg("progress") = py::none(), py::arg("tmp_dir") = py::none(),
-          py::arg("masks") = true,
+          py::arg("masks") = true, py::arg("output") = py::none(),
           R"doc(Bakes the scene with the CLI's pipeline and returns a Result.
 
 method: a registered method ("hpc", "reference", "embree", ...); threads: workers (None: all
 cores); memory_budget: bytes or a string such as "2G"; progress(phase, fraction, eta_s) is
 called from the calling thread about ten times a second (fraction and eta_s may be None);
-tmp_dir: where bucket files go. The GIL is released while the bake runs; Ctrl-C
+tmp_dir: where bucket files go; output: the output path for receiver kinds that name their
+files when the bake starts (vertices: write() cannot move them), else write(path) says. The GIL is released while the bake runs; Ctrl-C
 (KeyboardInterrupt) cancels it, leaving no temp file or output behind.)doc");
     m.def("methods", [] { return casterNames(); }, "The registered bake methods.");
 }

@@ -79,7 +79,7 @@ class Result:
 
 def bake(scene: Scene, method: str = "hpc", threads: Optional[int] = None,
          memory_budget: Union[int, str, None] = None, progress: Optional[Progress] = None,
-         tmp_dir: Optional[str] = None, masks: bool = True) -> Result:
+         tmp_dir: Optional[str] = None, masks: bool = True, output: Optional[str] = None) -> Result:
     """Bakes with the CLI's pipeline; GIL released, Ctrl-C cancels cleanly."""
 
 @overload
