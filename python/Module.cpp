@@ -74,15 +74,7 @@ py::array floats(const float* data, std::vector<py::ssize_t> shape, py::handle o
     return py::array_t<float>(shape, data, owner);
 }
 
-}  // namespace
-
-PYBIND11_MODULE(_penumbra, m) {
-    m.doc() = "Out-of-core soft-shadow baking (penumbra), driven from Python.";
-    registerFileSourceTypes();
-    registerProceduralGenerators();
-    registerPythonSources();
-    registerExceptions(m);
-
+void bindScene(py::module_& m) {
     py::class_<PyScene, std::shared_ptr<PyScene>>(m, "Scene", R"doc(A scene: geometry, lights, receivers, output, bake options.
 
 Scene(dict, points=None, base_dir=".") takes the keys of the JSON scene format
@@ -116,6 +108,10 @@ it part of closed solids; count (triangles per pass) gives progress a percentage
                                s.desc.lights.size(), s.desc.receivers.value("type", "?"));
         });
 
+}
+
+/// generate(), bake() and methods().
+void bindFunctions(py::module_& m) {
     py::class_<GenerateIterator, std::shared_ptr<GenerateIterator>>(m, "_Generate")
         .def("__iter__", [](py::object self) { return self; })
         .def("__next__", &GenerateIterator::next);
@@ -126,6 +122,21 @@ it part of closed solids; count (triangles per pass) gives progress a percentage
           "Yields the scene's triangles as (n, 3, 3) float32 chunks, exactly as a bake streams them (transforms "
           "applied, scene order); with flags=True, (triangles, flags) pairs.");
 
+    m.def("bake", &bake, py::arg("scene"), py::arg("method") = "hpc", py::arg("threads") = py::none(),
+          py::arg("memory_budget") = py::none(), py::arg("progress") = py::none(), py::arg("tmp_dir") = py::none(),
+          py::arg("masks") = true, py::arg("output") = py::none(),
+          R"doc(Bakes the scene with the CLI's pipeline and returns a Result.
+
+method: a registered method ("hpc", "reference", "embree", ...); threads: workers (None: all
+cores); memory_budget: bytes or a string such as "2G"; progress(phase, fraction, eta_s) is
+called from the calling thread about ten times a second (fraction and eta_s may be None);
+tmp_dir: where bucket files go; output: the output path for receiver kinds that name their
+files when the bake starts (vertices: write() cannot move them), else write(path) says. The GIL is released while the bake runs; Ctrl-C
+(KeyboardInterrupt) cancels it, leaving no temp file or output behind.)doc");
+    m.def("methods", [] { return casterNames(); }, "The registered bake methods.");
+}
+
+void bindResult(py::module_& m) {
     py::class_<PyResult, std::shared_ptr<PyResult>>(m, "Result", "The results of penumbra.bake().")
         .def_property_readonly("visibility", [](py::object self) {
             auto& r = self.cast<PyResult&>();
@@ -164,16 +175,19 @@ it part of closed solids; count (triangles per pass) gives progress a percentage
              "lightmap glTF, ...), byte for byte; all or none.")
         .def("__len__", &PyResult::size);
 
-    m.def("bake", &bake, py::arg("scene"), py::arg("method") = "hpc", py::arg("threads") = py::none(),
-          py::arg("memory_budget") = py::none(), py::arg("progress") = py::none(), py::arg("tmp_dir") = py::none(),
-          py::arg("masks") = true, py::arg("output") = py::none(),
-          R"doc(Bakes the scene with the CLI's pipeline and returns a Result.
+}
 
-method: a registered method ("hpc", "reference", "embree", ...); threads: workers (None: all
-cores); memory_budget: bytes or a string such as "2G"; progress(phase, fraction, eta_s) is
-called from the calling thread about ten times a second (fraction and eta_s may be None);
-tmp_dir: where bucket files go; output: the output path for receiver kinds that name their
-files when the bake starts (vertices: write() cannot move them), else write(path) says. The GIL is released while the bake runs; Ctrl-C
-(KeyboardInterrupt) cancels it, leaving no temp file or output behind.)doc");
-    m.def("methods", [] { return casterNames(); }, "The registered bake methods.");
+}  // namespace
+
+
+PYBIND11_MODULE(_penumbra, m) {
+    m.doc() = "Out-of-core soft-shadow baking (penumbra), driven from Python.";
+    registerFileSourceTypes();
+    registerProceduralGenerators();
+    registerPythonSources();
+    registerExceptions(m);
+
+    bindScene(m);
+    bindResult(m);
+    bindFunctions(m);
 }

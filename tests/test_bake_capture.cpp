@@ -6,6 +6,7 @@
 
 #include "bake/Pipeline.h"
 #include "bake/Scene.h"
+#include "procedural/Generators.h"
 #include "stream/Npy.h"
 #include "stream/Progress.h"
 
@@ -30,6 +31,8 @@ std::string bytesOf(const std::string& path) {
 
 /// A row of points across the shadow of a blocker over the example floor; output @p output.
 SceneDesc pointsScene(const ScratchDir& dir, const std::string& output) {
+    registerFileSourceTypes();
+    registerProceduralGenerators();
     std::vector<float> rows;
     for (int i = 0; i < 50; ++i) rows.insert(rows.end(), {-3.f + 0.12f * float(i), 0.01f, 0.f, 0.f, 1.f, 0.f});
     const uint64_t shape[2] = {50, 6};
@@ -53,7 +56,6 @@ BakeSettings quietSettings() {
 }  // namespace
 
 TEST_CASE("capture: a captured bake holds what the CLI writes, and writes the same bytes later", "[python][pipeline]") {
-    registerFileSourceTypes();
     ScratchDir dir("capture");
     AllowOutsidePaths examples;
     BakeSettings plain = quietSettings();
@@ -88,7 +90,6 @@ TEST_CASE("capture: a captured bake holds what the CLI writes, and writes the sa
 }
 
 TEST_CASE("capture: requestCancel stops a bake with Cancelled, leaving no output", "[python][pipeline]") {
-    registerFileSourceTypes();
     ScratchDir dir("cancel");
     AllowOutsidePaths examples;
     requestCancel();
