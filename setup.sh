@@ -10,7 +10,8 @@ packages=(build-essential cmake ninja-build ccache pkg-config
   libopenvdb-dev libboost-iostreams-dev libopenexr-dev libimath-dev libtinygltf-dev
   libglm-dev libtbb-dev catch2 libembree-dev nlohmann-json3-dev libcli11-dev
   libfmt-dev libstb-dev libdraco-dev libmeshoptimizer-dev gltfpack draco
-  zlib1g-dev clang libfuzzer-14-dev slurm-wlm munge)
+  zlib1g-dev clang libfuzzer-14-dev slurm-wlm munge
+  pybind11-dev python3-dev python3-pytest python3-numpy python3-matplotlib)
 
 missing=()
 for p in "${packages[@]}"; do
@@ -51,6 +52,8 @@ case "$mode" in
     echo "setup: wrote out/default.exr and out/default.png" >&2 ;;
   test)
     (cd "$build" && ctest -j "$(nproc)" --output-on-failure --timeout 1200)
+    # The Python module's tests (python/tests), against this build tree, with Debian's python3.
+    PENUMBRA_BUILD_DIR="$(cd "$build" && pwd)" /usr/bin/python3 -m pytest -q -p no:cacheprovider python/tests
     # The same tests of readers, outputs and the command line under AddressSanitizer and UBSan,
     # then every parser's fuzzer for a bounded time (docs/reliability.md). PENUMBRA_FUZZ_SECONDS
     # sets the time per harness; PENUMBRA_SANITIZE_TESTS=0 skips both.

@@ -213,8 +213,11 @@ struct Bake {
           threads(b.threads > 0 ? b.threads : int(tbb::info::default_concurrency())),
           budget(fitAddressSpace(b.memoryBudget, threads, b.quiet)) {}
     bool dump() const { return !settings.dumpDir.empty(); }
-    /// Every receiver's masks are kept: for the dump, a shard file or checkpoints.
-    bool keepMasks() const { return dump() || ShardedCast::keepsMasks(settings.shard); }
+    /// Every receiver's masks are kept: for the dump, a shard file, checkpoints, or a library
+    /// caller that asked.
+    bool keepMasks() const {
+        return dump() || ShardedCast::keepsMasks(settings.shard) || (settings.capture && settings.capture->wantMasks);
+    }
     void replan() {
         plan = budget.plan(demand);
         minimum = std::max(minimum, plan.minimumBudget);
@@ -339,7 +342,7 @@ bool refineReceivers(Bake& b) {
 
 void writeOutputs(Bake& b) {
     const Prepared& p = b.p;
-    b.kind->write(OutputContext{b.scene, p.receivers, p.samples, b.results, b.scene.output, b.firstPass});
+    if (!b.settings.capture || b.settings.capture->writeOutputs) b.kind->write(OutputContext{b.scene, p.receivers, p.samples, b.results, b.scene.output, b.firstPass});
     if (b.dump()) writeBakeDump(b.settings.dumpDir, p.receivers, p.sampleSets, p.samples, b.masks, receiverEpsilonOf(p.options));
 }
 
@@ -378,7 +381,19 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     if (!settings.statsPath.empty()) writeStats(settings.statsPath, stats);
     outputs.commit();
     if (b.sharded) b.sharded->complete();  // the outputs are in place: no checkpoint is needed
+    if (BakeCapture* c = settings.capture) {
+        c->receivers = std::move(b.p.receivers), c->samples = std::move(b.p.samples);
+        c->sampleSets = std::move(b.p.sampleSets), c->results = std::move(b.results);
+        c->masks = std::move(b.masks), c->firstPass = b.firstPass, c->kind = std::move(b.kind);
+    }
     return stats;
+}
+
+void writeCapturedOutputs(const SceneDesc& scene, const BakeCapture& c, const std::string& output) {
+    InputScope inputs;
+    OutputSet outputs;
+    c.kind->write(OutputContext{scene, c.receivers, c.samples, c.results, output, c.firstPass});
+    outputs.commit();
 }
 
 }  // namespace penumbra

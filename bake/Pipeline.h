@@ -3,6 +3,7 @@
 /// @brief A whole bake: stream the scene, make receivers and light samples, sort blockers, cast
 /// with the chosen method, and write the outputs, dump and stats.
 
+#include "bake/BakeCapture.h"
 #include "bake/Scene.h"
 #include "bake/shard/ShardSettings.h"
 
@@ -27,12 +28,21 @@ struct BakeSettings {
     std::string tmpDir;         ///< where bucket files go (default: the system temp dir)
     bool keepBuckets = false;   ///< leave bucket files behind for debugging
     ShardSettings shard;        ///< --shard, penumbra merge, --checkpoint (bake/shard)
+    /// A library caller's results (BakeCapture.h): when set, the bake moves its receivers, results
+    /// and receiver kind here, and writes the scene's outputs only when capture->writeOutputs.
+    BakeCapture* capture = nullptr;
 };
 
 /// @brief Runs the bake and writes the scene's output (EXR + PNG preview for camera receivers,
 /// .npy visibilities for points).
 /// @return the stats document (also written to settings.statsPath when set).
 /// @throw InputError for every user-facing problem; no partial output file is left behind.
+/// Cancellable: ProgressReporter::update() throws Cancelled after requestCancel() (Progress.h).
 nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings);
+
+/// @brief Writes the outputs the CLI writes for a captured bake (EXR + PNG, .npy, lightmap, ...),
+/// byte for byte, to @p output, all together or none (OutputSet).
+/// @throw InputError naming the file that cannot be written.
+void writeCapturedOutputs(const SceneDesc& scene, const BakeCapture& capture, const std::string& output);
 
 }  // namespace penumbra

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <vector>
 
 namespace penumbra {
 
@@ -19,7 +20,21 @@ constexpr auto kRedrawInterval = std::chrono::milliseconds(250);
 /// Minimum spacing of lines when stderr is not a terminal.
 constexpr double kLogInterval = 2.0;
 
+/// Reporters running now, newest last (currentProgress()).
+std::mutex runningMutex;
+std::vector<const ProgressReporter*>& running() {
+    static std::vector<const ProgressReporter*> reporters;
+    return reporters;
+}
+
 }  // namespace
+
+std::optional<ProgressSnapshot> currentProgress() {
+    std::lock_guard lock(runningMutex);
+    if (running().empty()) return std::nullopt;
+    const ProgressReporter* r = running().back();
+    return ProgressSnapshot{r->phase(), r->workDone(), r->totalWork(), r->elapsedSeconds()};
+}
 
 std::string formatDuration(double seconds) {
     if (!(seconds >= 0)) seconds = 0;  // also catches NaN
@@ -51,6 +66,10 @@ std::string formatProgressLine(std::string_view phase, uint64_t done, uint64_t t
 ProgressReporter::ProgressReporter(std::string phase, uint64_t totalWork, bool quiet)
     : phase_(std::move(phase)), total_(totalWork), quiet_(quiet),
       uncaughtAtStart_(std::uncaught_exceptions()) {
+    {
+        std::lock_guard lock(runningMutex);
+        running().push_back(this);
+    }
     if (quiet_) return;
     tty_ = ::isatty(STDERR_FILENO) == 1;
     try {
@@ -73,6 +92,10 @@ void ProgressReporter::stop(bool printFinal) {
         if (finished_) return;
         finished_ = true;
         stopping_ = true;
+    }
+    {
+        std::lock_guard lock(runningMutex);
+        std::erase(running(), this);
     }
     wake_.notify_all();
     if (thread_.joinable()) thread_.join();

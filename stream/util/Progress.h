@@ -14,11 +14,39 @@
 #include <condition_variable>
 #include <cstdint>
 #include <mutex>
+#include <optional>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <thread>
 
 namespace penumbra {
+
+/// @brief Thrown by ProgressReporter::update() once requestCancel() was called: long work is
+/// where progress is reported, so that is where a library caller (the Python module's Ctrl-C)
+/// can stop a bake. It unwinds like any error, so no output or temp file is left behind.
+class Cancelled : public std::runtime_error {
+public:
+    Cancelled() : std::runtime_error("cancelled") {}
+};
+
+/// Set by requestCancel(); read with one relaxed load per update().
+inline std::atomic<bool> cancelFlag{false};
+/// @brief Makes every ProgressReporter::update() from now on throw Cancelled (any thread).
+inline void requestCancel() { cancelFlag.store(true, std::memory_order_relaxed); }
+/// @brief Clears requestCancel(), before the next piece of work.
+inline void clearCancel() { cancelFlag.store(false, std::memory_order_relaxed); }
+
+/// @brief What the phase running now has done, for callers that show progress their own way
+/// (the Python module's callback) instead of on stderr.
+struct ProgressSnapshot {
+    std::string phase;
+    uint64_t done = 0, total = 0;  ///< total 0: unknown
+    double elapsedSeconds = 0;
+};
+/// @brief The most recently started ProgressReporter still running, in any thread, quiet or not;
+/// nullopt between phases. Thread safe.
+std::optional<ProgressSnapshot> currentProgress();
 
 /// @brief pbrt-style progress line on stderr: `[phase] 42.0% (4200/10000) elapsed 3.1s ETA 4.3s`.
 class ProgressReporter {
@@ -35,7 +63,11 @@ public:
     ProgressReporter& operator=(const ProgressReporter&) = delete;
 
     /// @brief Records @p work more units as finished. Thread safe; one relaxed atomic add.
-    void update(uint64_t work = 1) { done_.fetch_add(work, std::memory_order_relaxed); }
+    /// @throw Cancelled after requestCancel().
+    void update(uint64_t work = 1) {
+        done_.fetch_add(work, std::memory_order_relaxed);
+        if (cancelFlag.load(std::memory_order_relaxed)) throw Cancelled();
+    }
 
     /// @brief Stops the display thread and prints the final line with the total time.
     /// Idempotent.
@@ -43,6 +75,12 @@ public:
 
     /// Units of work reported so far.
     uint64_t workDone() const { return done_.load(std::memory_order_relaxed); }
+    /// Units of work expected (0: unknown).
+    uint64_t totalWork() const { return total_; }
+    /// The phase's name.
+    const std::string& phase() const { return phase_; }
+    /// Seconds since construction.
+    double elapsedSeconds() const { return clock_.seconds(); }
 
 private:
     void run();

@@ -1,0 +1,285 @@
+#include "python/BakeRun.h"
+
+#include "bake/LibraryErrors.h"
+#include "bake/Pipeline.h"
+#include "bake/cast/Caster.h"
+#include "stream/util/Error.h"
+#include "stream/util/JsonParams.h"
+#include "stream/util/Memory.h"
+#include "stream/util/Progress.h"
+#include "stream/SourceRegistry.h"
+
+#include <pybind11/stl.h>
+
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <filesystem>
+#include <mutex>
+#include <thread>
+
+namespace py = pybind11;
+
+namespace penumbra::python {
+namespace {
+
+PyObject* errorType = nullptr;       // penumbra.Error
+PyObject* sceneErrorType = nullptr;  // penumbra.SceneError
+
+/// How often the calling thread wakes during a bake: progress, Ctrl-C.
+constexpr auto kPollInterval = std::chrono::milliseconds(100);
+/// One bake at a time per process: the cancel flag, the scratch directory and the thread limit
+/// are the process's. A second caller's bake waits (with the GIL released) for the first.
+std::mutex bakeMutex;
+
+}  // namespace
+
+py::object toPython(const nlohmann::json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
+nlohmann::json toJson(py::handle o) {
+    return nlohmann::json::parse(std::string(py::str(py::module_::import("json").attr("dumps")(o))));
+}
+
+void registerExceptions(py::module_& m) {
+    errorType = PyErr_NewExceptionWithDoc("penumbra.Error", "A bake or scene problem, as the CLI reports it.",
+                                          PyExc_RuntimeError, nullptr);
+    py::tuple bases = py::make_tuple(py::handle(errorType), py::handle(PyExc_ValueError));
+    sceneErrorType = PyErr_NewExceptionWithDoc("penumbra.SceneError", "A scene key or value is wrong; the message names it.",
+                                               bases.ptr(), nullptr);
+    m.add_object("Error", py::handle(errorType));
+    m.add_object("SceneError", py::handle(sceneErrorType));
+}
+
+void raiseCurrent(bool scene) {
+    std::string message;
+    PyObject* type = scene ? sceneErrorType : errorType;
+    try {
+        throw;
+    } catch (const Cancelled&) {
+        PyErr_SetNone(PyExc_KeyboardInterrupt);
+        throw py::error_already_set();
+    } catch (const InputError& e) {
+        message = e.what();
+    } catch (const std::bad_alloc&) {
+        PyErr_SetString(PyExc_MemoryError, "out of memory (try memory_budget= or fewer receivers)");
+        throw py::error_already_set();
+    } catch (const std::exception& e) {
+        std::optional<std::string> library = libraryErrorMessage(e);
+        message = library ? *library : std::string("internal error: ") + e.what();
+        if (!library) type = errorType;
+    }
+    PyErr_SetString(type, message.c_str());
+    throw py::error_already_set();
+}
+
+/// Scene checks: InputError becomes SceneError.
+template <class F>
+auto sceneChecks(F&& f) -> decltype(f()) {
+    return translateErrors(std::forward<F>(f), true);
+}
+
+void PyScene::reparse() {
+    desc = sceneChecks([&] { return parseScene(document, file); });
+    desc.outputFromScene = false;  // a Python caller names its outputs itself (write(path))
+}
+
+void PyScene::addGeometry(const std::string& type, nlohmann::json params) {
+    nlohmann::json entry = std::move(params);
+    entry["type"] = type;
+    nlohmann::json next = document;
+    if (!next.contains("geometry")) next["geometry"] = nlohmann::json::array();
+    if (!next["geometry"].is_array()) sceneChecks([&] { fail(file + ": geometry", "expected an array of geometry entries"); });
+    next["geometry"].push_back(entry);
+    SceneDesc parsed = sceneChecks([&] { return parseScene(next, file); });
+    const GeometryDesc& g = parsed.geometry.back();
+    sceneChecks([&] { openSource(g.type, SourceRequest{g.params, parsed.file, g.path, parsed.baseDir}); });
+    document = std::move(next);
+    desc = std::move(parsed);
+    desc.outputFromScene = false;
+}
+
+void PyScene::addSource(py::object source, bool alpha, std::optional<bool> closed, std::optional<uint64_t> count) {
+    std::shared_ptr<SourceSpec> spec = addSourceSpec(std::move(source), alpha, count);
+    nlohmann::json entry = {{"type", "python"}, {"source", spec->id}, {"alpha", alpha}};
+    if (closed) entry["closed"] = *closed;
+    if (!document.contains("geometry")) document["geometry"] = nlohmann::json::array();
+    document["geometry"].push_back(entry);
+    sources.push_back(std::move(spec));
+    reparse();
+}
+
+void PyScene::setPoints(py::handle positions, py::handle normals) {
+    points = addPointsSpec(positions, normals);
+    document["receivers"] = {{"type", "python-points"}, {"source", points->id}};
+    reparse();
+}
+
+std::shared_ptr<PyScene> makeScene(nlohmann::json document, const std::string& baseDir,
+                                   const std::optional<py::tuple>& points) {
+    auto s = std::make_shared<PyScene>();
+    s->document = std::move(document);
+    s->file = (std::filesystem::path(baseDir) / "<dict>").lexically_normal().string();
+    if (!s->document.is_object()) sceneChecks([&] { fail(s->file, "expected a JSON object"); });
+    if (!s->document.contains("geometry")) s->document["geometry"] = nlohmann::json::array();
+    if (points) {
+        if (points->size() != 2) throw py::value_error("points: expected (positions, normals)");
+        s->setPoints((*points)[0], (*points)[1]);
+    } else {
+        s->reparse();
+    }
+    return s;
+}
+
+std::shared_ptr<PyScene> loadPyScene(const std::string& path) {
+    auto s = std::make_shared<PyScene>();
+    s->file = path;
+    s->document = sceneChecks([&] { return readJsonFile(path); });
+    s->reparse();
+    return s;
+}
+
+py::array PyResult::lightVisibility(py::object self) {
+    const ReceiverResults& r = capture->results;
+    const py::ssize_t n = py::ssize_t(size()), l = r.lights;
+    return py::array_t<float>({n, l}, l > 1 ? r.lightVisibility.data() : r.visibility.data(), self);
+}
+
+py::array PyResult::lightIrradiance(py::object self) {
+    const ReceiverResults& r = capture->results;
+    const py::ssize_t n = py::ssize_t(size()), l = r.lights;
+    const glm::vec3* data = l > 1 ? r.lightIrradiance.data() : r.irradiance.data();
+    return py::array_t<float>({n, l, py::ssize_t(3)}, &data->x, self);
+}
+
+py::object PyResult::masks() {
+    if (masksCache) return *masksCache;
+    if (capture->masks.words.empty() && size() > 0) return py::none();
+    auto* words = new std::vector<uint64_t>(capture->masks.toDumpLayout(capture->samples));
+    py::capsule owner(words, [](void* p) { delete static_cast<std::vector<uint64_t>*>(p); });
+    const py::ssize_t perReceiver = (capture->samples.sampleCount + 63) / 64;
+    masksCache = py::array_t<uint64_t>({py::ssize_t(size()), perReceiver}, words->data(), owner);
+    return *masksCache;
+}
+
+py::object PyResult::imageShape() const {
+    const nlohmann::json& r = desc.receivers;
+    if (r.value("type", "") != "camera") return py::none();
+    return py::make_tuple(r.at("height").get<int64_t>(), r.at("width").get<int64_t>());
+}
+
+py::array PyResult::image(const std::string& values) const {
+    py::object shape = imageShape();
+    if (shape.is_none()) throw py::value_error("image(): the receivers are not a camera");
+    const auto h = shape.cast<py::tuple>()[0].cast<py::ssize_t>(), w = shape.cast<py::tuple>()[1].cast<py::ssize_t>();
+    const int channels = values == "visibility" ? 1 : values == "irradiance" ? 3 : 0;
+    if (!channels) throw py::value_error("image(): values must be \"visibility\" or \"irradiance\"");
+    std::vector<py::ssize_t> dims = {h, w};
+    if (channels == 3) dims.push_back(3);
+    py::array_t<float> out(dims);
+    float* p = out.mutable_data();
+    std::fill(p, p + h * w * channels, NAN);
+    const ReceiverSet& rs = capture->receivers;
+    for (size_t i = 0; i < capture->firstPass && i < rs.pixel.size(); ++i) {
+        const size_t px = rs.pixel[i];
+        if (channels == 1) p[px] = capture->results.visibility[i];
+        else for (int c = 0; c < 3; ++c) p[3 * px + c] = capture->results.irradiance[i][c];
+    }
+    return out;
+}
+
+void PyResult::write(const std::string& path) const {
+    translateErrors([&] {
+        py::gil_scoped_release release;
+        writeCapturedOutputs(desc, *capture, path);
+    });
+}
+
+namespace {
+
+/// The callback's view of the phase running now.
+void reportProgress(const py::object& progress) {
+    std::optional<ProgressSnapshot> s = currentProgress();
+    if (!s) return;
+    py::object fraction = py::none(), eta = py::none();
+    if (s->total) {
+        const double f = std::min(1.0, double(s->done) / double(s->total));
+        fraction = py::float_(f);
+        if (s->done > 0) eta = py::float_(s->elapsedSeconds * (1.0 - f) / f);
+    }
+    progress(s->phase, fraction, eta);
+}
+
+BakeSettings settingsOf(const std::string& method, std::optional<int> threads, const py::object& memoryBudget,
+                        const std::optional<std::string>& tmpDir) {
+    BakeSettings settings;
+    translateErrors([&] { settings.method = casterEntry(method).name; });
+    settings.threads = threads.value_or(0);
+    settings.quiet = true;
+    if (!memoryBudget.is_none()) {
+        settings.memoryBudget = py::isinstance<py::str>(memoryBudget)
+                                    ? translateErrors([&] { return parseByteSize(memoryBudget.cast<std::string>(), "memory_budget"); })
+                                    : memoryBudget.cast<uint64_t>();
+        if (settings.memoryBudget == 0) throw py::value_error("memory_budget: must be more than 0 (None for no budget)");
+    }
+    settings.tmpDir = tmpDir.value_or("");
+    return settings;
+}
+
+}  // namespace
+
+std::shared_ptr<PyResult> bake(std::shared_ptr<PyScene> scene, const std::string& method, std::optional<int> threads,
+                               py::object memoryBudget, py::object progress, std::optional<std::string> tmpDir, bool masks,
+                               std::optional<std::string> output) {
+    auto result = std::make_shared<PyResult>();
+    result->scene = scene;
+    result->desc = scene->desc;
+    if (output) result->desc.output = *output;  // kinds that name their files when made (vertices)
+    result->capture = std::make_shared<BakeCapture>();
+    BakeSettings settings = settingsOf(method, threads, memoryBudget, tmpDir);
+    result->capture->wantMasks = masks && casterEntry(settings.method).traits.masks;
+    settings.capture = result->capture.get();
+
+    std::mutex mutex;
+    std::condition_variable finishedChanged;
+    bool finished = false;
+    std::exception_ptr error;
+    std::thread worker([&] {
+        try {
+            std::lock_guard one(bakeMutex);
+            clearCancel();
+            result->stats = runBake(result->desc, settings);
+        } catch (...) {
+            error = std::current_exception();
+        }
+        std::lock_guard lock(mutex);
+        finished = true;
+        finishedChanged.notify_all();
+    });
+    // This thread keeps the GIL only to check for signals and to call the callback; a Python
+    // source on the bake's reader thread takes it in between.
+    std::optional<py::error_already_set> interrupted;
+    for (;;) {
+        {
+            py::gil_scoped_release release;
+            std::unique_lock lock(mutex);
+            if (finishedChanged.wait_for(lock, kPollInterval, [&] { return finished; })) break;
+        }
+        if (interrupted) continue;
+        try {
+            if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+            if (!progress.is_none()) reportProgress(progress);
+        } catch (py::error_already_set& e) {  // Ctrl-C, or the callback raised: the bake stops
+            interrupted.emplace(std::move(e));
+            requestCancel();
+        }
+    }
+    {
+        py::gil_scoped_release release;
+        worker.join();
+    }
+    if (interrupted) throw std::move(*interrupted);
+    if (error) translateErrors([&] { std::rethrow_exception(error); });
+    if (!progress.is_none()) progress("done", py::float_(1.0), py::float_(0.0));
+    return result;
+}
+
+}  // namespace penumbra::python

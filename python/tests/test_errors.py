@@ -1,0 +1,161 @@
+"""Bad input raises the CLI's messages as Python exceptions naming the key or the chunk; Ctrl-C
+cancels leaving nothing behind; threads in sources and callbacks never deadlock."""
+import _thread
+import faulthandler
+import os
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pytest
+
+import penumbra
+from test_bake import grid_scene, without_geometry
+
+faulthandler.dump_traceback_later(600, exit=True)  # a deadlock fails the run instead of hanging it
+
+
+def test_bad_key_raises_scene_error_naming_it():
+    scene = grid_scene()
+    scene["lights"][0]["samplez"] = 3
+    with pytest.raises(penumbra.SceneError, match=r"lights\[0\]\.samplez"):
+        penumbra.Scene(scene)
+    with pytest.raises(penumbra.SceneError, match="receivers"):
+        penumbra.Scene({"geometry": [], "lights": grid_scene()["lights"]})
+    with pytest.raises(ValueError):  # SceneError is a ValueError too
+        penumbra.Scene(dict(scene, lights=[]))
+
+
+def test_bad_geometry_parameter_names_the_entry():
+    scene = penumbra.Scene(without_geometry(grid_scene()))
+    with pytest.raises(penumbra.SceneError, match=r"geometry\[0\]"):
+        scene.add_geometry("grid", sizee=3)
+    with pytest.raises(penumbra.SceneError, match="unknown"):
+        scene.add_geometry("no-such-generator")
+    scene.add_geometry("grid", size=2, cells=4, transform={"translate": [0, 0.1, 0]})
+    assert len(scene.to_dict()["geometry"]) == 1
+
+
+def bake_chunks(chunks):
+    scene = penumbra.Scene(without_geometry(grid_scene()))
+    scene.add_source(lambda: iter(chunks))
+    return penumbra.bake(scene, threads=1)
+
+
+def good():
+    return np.array([[[-1, 0, -1], [1, 0, -1], [0, 0, 1]]], np.float32)
+
+
+def test_wrong_dtype_or_shape_names_the_chunk():
+    with pytest.raises(TypeError, match=r"chunk 1: expected dtype float32, got float64"):
+        bake_chunks([good(), good().astype(np.float64)])
+    with pytest.raises(ValueError, match=r"chunk 2: expected shape \(n, 3, 3\) or \(n, 9\), got \(1, 4\)"):
+        bake_chunks([good(), good(), np.zeros((1, 4), np.float32)])
+    with pytest.raises(TypeError, match=r"chunk 0: expected a NumPy float32 array"):
+        bake_chunks([[1, 2, 3]])
+    with pytest.raises(TypeError):
+        penumbra.Scene(grid_scene()).add_source(42)
+
+
+def test_nan_vertex_raises_as_the_cli_does():
+    bad = good()
+    bad[0, 1, 2] = np.nan
+    with pytest.raises(penumbra.Error, match=r"<dict>: geometry triangle 1 has a non-finite \(NaN or infinite\) vertex"):
+        bake_chunks([good(), bad])
+
+
+def test_a_source_that_raises_passes_its_exception_through():
+    def source():
+        yield good()
+        raise LookupError("from the generator")
+
+    scene = penumbra.Scene(without_geometry(grid_scene()))
+    scene.add_source(source)
+    with pytest.raises(LookupError, match="from the generator"):
+        penumbra.bake(scene)
+
+
+def slow_scene(count=10_000):
+    """A floor under many tiny blockers, produced slowly enough to be interrupted."""
+    def source():
+        yield np.array([[[-5, 0, -5], [5, 0, -5], [0, 0, 5]]], np.float32)
+        rng = np.random.default_rng(1)
+        for _ in range(count):
+            time.sleep(0.002)
+            yield (rng.random((64, 3, 3), dtype=np.float32) + [0, 1, 0]).astype(np.float32)
+    scene = penumbra.Scene(without_geometry(grid_scene()))
+    scene.add_source(source)
+    return scene
+
+
+def test_ctrl_c_cancels_and_leaves_no_temp_files(tmp_path):
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    timer = threading.Timer(0.5, _thread.interrupt_main)
+    timer.start()
+    started = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        penumbra.bake(slow_scene(), tmp_dir=str(tmp))
+    timer.join()
+    assert time.monotonic() - started < 15
+    assert os.listdir(tmp) == []
+    # The next bake is not cancelled.
+    assert len(penumbra.bake(penumbra.Scene(grid_scene()), tmp_dir=str(tmp), threads=1)) > 0
+
+
+def test_a_raising_progress_callback_cancels(tmp_path):
+    calls = []
+
+    def progress(phase, fraction, eta):
+        calls.append(phase)
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        penumbra.bake(slow_scene(), progress=progress, tmp_dir=str(tmp_path))
+    assert calls and os.listdir(tmp_path) == []
+
+
+def test_progress_is_called_from_the_calling_thread():
+    seen = []
+    main = threading.get_ident()
+
+    def progress(phase, fraction, eta):
+        seen.append((phase, fraction, threading.get_ident()))
+
+    penumbra.bake(slow_scene(300), progress=progress, threads=2)
+    assert {t for _, _, t in seen} == {main}
+    assert seen[-1][:2] == ("done", 1.0)
+    assert any(phase == "scan" for phase, _, _ in seen)
+
+
+def test_threads_in_sources_and_callbacks_do_not_deadlock():
+    pool = ThreadPoolExecutor(4)
+
+    def make(i):
+        rng = np.random.default_rng(i)
+        return (rng.random((256, 3, 3), dtype=np.float32) + [0, 1, 0]).astype(np.float32)
+
+    def source():  # chunks made on other Python threads, which need the GIL too
+        yield np.array([[[-5, 0, -5], [5, 0, -5], [0, 0, 5]]], np.float32)
+        yield from pool.map(make, range(200))
+
+    def progress(phase, fraction, eta):  # the callback waits for another thread
+        t = threading.Thread(target=lambda: np.ones(1000).sum())
+        t.start()
+        t.join()
+
+    results = []
+
+    def background_bake():  # a bake from a worker thread: no signals there, the same machinery
+        s = penumbra.Scene(without_geometry(grid_scene()))
+        s.add_source(source)
+        results.append(len(penumbra.bake(s, threads=2, progress=progress)))
+
+    workers = [threading.Thread(target=background_bake) for _ in range(2)]
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join(timeout=300)
+    assert not any(w.is_alive() for w in workers)
+    assert len(results) == 2 and results[0] == results[1] > 0
