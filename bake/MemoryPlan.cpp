@@ -14,7 +14,8 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget) {
     // 32 bytes), its sample set (4), its results (visibility 4, irradiance 12) and its place in
     // the id list and the tile partition (8).
     const uint64_t residentPerReceiver = 32 + 4 + 16 + 8 + (d.dumpMasks ? 8ull * d.groups : 0);
-    plan.residentBytes = kBaselineBytes + d.bufferBytes + d.sampleBytes + d.kindBytes + d.receivers * residentPerReceiver;
+    plan.residentBytes =
+        kBaselineBytes + d.bufferBytes + d.sampleBytes + d.kindBytes + d.sceneBytes + d.receivers * residentPerReceiver;
     // The scan pass holds what the receiver kind needs (a camera's z-buffer and the receiver set
     // it makes, as the kind reports); that is freed before casting starts.
     const uint64_t passBytes = kBaselineBytes + d.bufferBytes + d.scanBytes;

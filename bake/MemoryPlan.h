@@ -20,6 +20,7 @@ struct MemoryDemand {
     bool dumpMasks = false;      ///< --dump keeps every receiver's final mask
     uint64_t bufferBytes = 0;    ///< bucket buffers, chunks and other fixed buffers
     uint64_t kindBytes = 0;      ///< held by the receiver kind through casting (smooth shading's vertex table, a refinement pass)
+    uint64_t sceneBytes = 0;     ///< a method that holds the scene in memory (ssv: faces, edges, kd-trees); hpc streams: 0
 };
 
 struct MemoryPlan {

@@ -9,6 +9,8 @@
 #include "bake/ReceiverShading.h"
 #include "bake/ReferenceCaster.h"
 #include "bake/SampleMaskTable.h"
+#include "bake/SsvCaster.h"
+#include "bake/SsvScene.h"
 #include "bake/SunLight.h"
 #include "bucket/BucketPlan.h"
 #include "stream/AtomicFile.h"
@@ -264,7 +266,8 @@ Method parseMethod(const std::string& name) {
     if (name == "hpc") return Method::Hpc;
     if (name == "reference") return Method::Reference;
     if (name == "embree") return Method::Embree;
-    throw InputError("--method: unknown method \"" + name + "\" (known: hpc, reference, embree)");
+    if (name == "ssv") return Method::Ssv;
+    throw InputError("--method: unknown method \"" + name + "\" (known: hpc, reference, embree, ssv)");
 }
 
 const char* methodName(Method m) {
@@ -272,6 +275,7 @@ const char* methodName(Method m) {
         case Method::Hpc: return "hpc";
         case Method::Reference: return "reference";
         case Method::Embree: return "embree";
+        case Method::Ssv: return "ssv";
     }
     return "?";
 }
@@ -310,6 +314,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     demand.bufferBytes = p.bucketBufferBytes + 8 * kTriangleChunk * sizeof(Triangle) +
                          PenumbraCaster::kMaxRingChunks * PenumbraCaster::preparedChunkBytes(scene.lights.size());
     demand.kindBytes = kind->residentBytes();
+    if (settings.method == Method::Ssv) demand.sceneBytes = SsvScene::plannedBytes(p.triangleCount, p.samples.lightCount());
     MemoryPlan plan = planMemory(demand, settings.memoryBudget);
 
     ReceiverResults results;
@@ -319,6 +324,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
 
     CastStats cast;
     EmbreeStats embree;
+    SsvStats ssv;
     double castSeconds = 0, refineSeconds = 0;
     std::vector<Triangle> all;  // the ray casters' whole scene, read once
     // One cast of receivers [first, end): the first pass casts them all, a refinement pass only
@@ -341,10 +347,11 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         const std::span<const uint32_t> sets = std::span<const uint32_t>(p.sampleSets).subspan(first);
         ProgressReporter progress(methodName(settings.method), targets.size(), settings.quiet);
         auto tick = [&](uint64_t n) { progress.update(n); };
-        VisibilityMasks m = settings.method == Method::Reference
-                                ? castReference(p.samples, targets, sets, all, receiverEpsilonOf(p.options), tick)
-                                : castEmbree(p.samples, targets, sets, all, receiverEpsilonOf(p.options), &embree, tick,
-                                             p.options.embreeRuleFilter);
+        const ReceiverEpsilon eps = receiverEpsilonOf(p.options);
+        VisibilityMasks m = settings.method == Method::Reference ? castReference(p.samples, targets, sets, all, eps, tick)
+                            : settings.method == Method::Ssv
+                                ? castSsv(p.samples, targets, sets, all, eps, SsvOptions{}, &ssv, tick)
+                                : castEmbree(p.samples, targets, sets, all, eps, &embree, tick, p.options.embreeRuleFilter);
         progress.done();
         std::copy(m.words.begin(), m.words.end(), masks.words.begin() + size_t(first) * masks.groups);
         for (uint32_t r = first; r < p.receivers.size(); ++r) shader.shade(r, masks.row(r), false, results);
@@ -443,6 +450,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
                            {"rays", embree.rays}, {"scene_bytes", embree.sceneBytes},
                            {"filter_calls", embree.filterCalls}, {"filter_exact", embree.filterExact},
                            {"filter_rejected", embree.filterRejected}};
+    if (settings.method == Method::Ssv) stats["ssv"] = ssvStatsJson(ssv);
     if (!settings.statsPath.empty()) {
         std::string text = stats.dump(2) + "\n";
         ensureParentDirectory(settings.statsPath);

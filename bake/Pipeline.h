@@ -11,9 +11,9 @@
 
 namespace penumbra {
 
-enum class Method { Hpc, Reference, Embree };
+enum class Method { Hpc, Reference, Embree, Ssv };
 
-/// @brief Parses "hpc", "reference" or "embree". @throw InputError otherwise.
+/// @brief Parses "hpc", "reference", "embree" or "ssv". @throw InputError otherwise.
 Method parseMethod(const std::string& name);
 const char* methodName(Method method);
 
