@@ -5,6 +5,7 @@
 #include "bake/EmbreeCaster.h"
 #include "bake/MemoryPlan.h"
 #include "bake/PenumbraCaster.h"
+#include "bake/PenumbraMap.h"
 #include "bake/ReceiverKind.h"
 #include "bake/ReceiverShading.h"
 #include "bake/ReferenceCaster.h"
@@ -132,7 +133,8 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     source->rewind();
     if (!p.openedSolids.ordinals.empty())
         source = std::make_unique<OpenSolidsSource>(std::move(source), p.openedSolids.ordinals);
-    if (!scene.options.sortBlockers) {  // stream order: replay the source itself
+    // Methods that stream the blockers in any order have no use for the area buckets.
+    if (!scene.options.sortBlockers || settings.method == Method::PenumbraMap) {  // stream order: replay the source itself
         if (kind.wantsRescan()) {  // no bucket pass to ride along with: a read of its own
             std::vector<Triangle> chunk(kTriangleChunk);
             while (size_t n = source->read(chunk)) kind.rescan(std::span<const Triangle>(chunk.data(), n));
@@ -267,7 +269,8 @@ Method parseMethod(const std::string& name) {
     if (name == "reference") return Method::Reference;
     if (name == "embree") return Method::Embree;
     if (name == "ssv") return Method::Ssv;
-    throw InputError("--method: unknown method \"" + name + "\" (known: hpc, reference, embree, ssv)");
+    if (name == "penumbra-map") return Method::PenumbraMap;
+    throw InputError("--method: unknown method \"" + name + "\" (known: hpc, reference, embree, ssv, penumbra-map)");
 }
 
 const char* methodName(Method m) {
@@ -276,6 +279,7 @@ const char* methodName(Method m) {
         case Method::Reference: return "reference";
         case Method::Embree: return "embree";
         case Method::Ssv: return "ssv";
+        case Method::PenumbraMap: return "penumbra-map";
     }
     return "?";
 }
@@ -315,16 +319,20 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
                          PenumbraCaster::kMaxRingChunks * PenumbraCaster::preparedChunkBytes(scene.lights.size());
     demand.kindBytes = kind->residentBytes();
     if (settings.method == Method::Ssv) demand.sceneBytes = SsvScene::plannedBytes(p.triangleCount, p.samples.lightCount());
+    if (settings.method == Method::PenumbraMap) demand.sceneBytes = scene.penumbraMap.mapBytes();
     MemoryPlan plan = planMemory(demand, settings.memoryBudget);
 
     ReceiverResults results;
     results.resize(p.receivers.size(), int(p.lights.size()));
     VisibilityMasks masks;
-    if (dump || settings.method != Method::Hpc) masks = VisibilityMasks(p.receivers.size(), p.samples.groupCount());
+    if (dump && settings.method == Method::PenumbraMap)
+        throw InputError("--dump: penumbra-map gives each receiver a visible fraction, not per-sample masks (use --visibility)");
+    if (dump || (settings.method != Method::Hpc && settings.method != Method::PenumbraMap)) masks = VisibilityMasks(p.receivers.size(), p.samples.groupCount());
 
     CastStats cast;
     EmbreeStats embree;
     SsvStats ssv;
+    PenumbraMapStats penumbraMap;
     double castSeconds = 0, refineSeconds = 0;
     std::vector<Triangle> all;  // the ray casters' whole scene, read once
     // One cast of receivers [first, end): the first pass casts them all, a refinement pass only
@@ -337,17 +345,31 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
                                               *kind, first, rewind));
             return;
         }
+        const ReceiverSet part = first == 0 ? ReceiverSet{} : tailOf(p.receivers, first);
+        const ReceiverSet& targets = first == 0 ? p.receivers : part;
+        const std::span<const uint32_t> sets = std::span<const uint32_t>(p.sampleSets).subspan(first);
+        const uint64_t work = settings.method == Method::PenumbraMap ? 2 * p.triangleCount * uint64_t(p.samples.lightCount())
+                                                                     : targets.size();
+        ProgressReporter progress(methodName(settings.method), work, settings.quiet);
+        auto tick = [&](uint64_t n) { progress.update(n); };
+        const ReceiverEpsilon eps = receiverEpsilonOf(p.options);
+        if (settings.method == Method::PenumbraMap) {  // streams the blockers, in stream order
+            if (kind->wantsCastChunks()) {
+                p.blockers->rewind();
+                std::vector<Triangle> chunk(kTriangleChunk);
+                while (size_t n = p.blockers->read(chunk)) kind->castChunk(std::span<const Triangle>(chunk.data(), n));
+            }
+            const std::vector<float> v = castPenumbraMap(p.samples, targets, sets, *p.blockers, eps, scene.penumbraMap, &penumbraMap, tick);
+            progress.done();
+            for (uint32_t r = first; r < p.receivers.size(); ++r)
+                shader.shadeVisibleFraction(r, &v[size_t(r - first) * p.samples.lightCount()], results);
+            return;
+        }
         // The ray casters need the whole scene in memory: that is their nature, not ours.
         if (all.empty()) {
             all = readAll(*p.blockers);
         }
         if (kind->wantsCastChunks()) forEachChunk(all, [&](std::span<const Triangle> c) { kind->castChunk(c); });
-        const ReceiverSet part = first == 0 ? ReceiverSet{} : tailOf(p.receivers, first);
-        const ReceiverSet& targets = first == 0 ? p.receivers : part;
-        const std::span<const uint32_t> sets = std::span<const uint32_t>(p.sampleSets).subspan(first);
-        ProgressReporter progress(methodName(settings.method), targets.size(), settings.quiet);
-        auto tick = [&](uint64_t n) { progress.update(n); };
-        const ReceiverEpsilon eps = receiverEpsilonOf(p.options);
         VisibilityMasks m = settings.method == Method::Reference ? castReference(p.samples, targets, sets, all, eps, tick)
                             : settings.method == Method::Ssv
                                 ? castSsv(p.samples, targets, sets, all, eps, SsvOptions{}, &ssv, tick)
@@ -367,7 +389,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         const uint64_t refineMinimum = planMemory(demand, settings.memoryBudget).minimumBudget;
         {
             ScopedTimer timer(refineSeconds);
-            if (settings.method == Method::Hpc) {
+            if (all.empty()) {  // hpc and the streamed methods read the blockers again
                 p.blockers->rewind();
                 std::vector<Triangle> chunk(kTriangleChunk);
                 while (size_t n = p.blockers->read(chunk)) kind->refineScan(std::span<const Triangle>(chunk.data(), n));
@@ -390,6 +412,11 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     }
 
     kind->write(OutputContext{scene, p.receivers, p.samples, results, scene.output, firstPass});
+    if (!settings.visibilityPath.empty()) {
+        const uint64_t shape[1] = {p.receivers.size()};
+        ensureParentDirectory(settings.visibilityPath);
+        writeNpy(settings.visibilityPath, "<f4", shape, results.visibility.data(), results.visibility.size() * sizeof(float));
+    }
     if (dump) writeBakeDump(settings.dumpDir, p.receivers, p.sampleSets, p.samples, masks, receiverEpsilonOf(p.options));
 
     uint64_t blocked = 0;
@@ -451,6 +478,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
                            {"filter_calls", embree.filterCalls}, {"filter_exact", embree.filterExact},
                            {"filter_rejected", embree.filterRejected}};
     if (settings.method == Method::Ssv) stats["ssv"] = ssvStatsJson(ssv);
+    if (settings.method == Method::PenumbraMap) stats["penumbra_map"] = penumbraMapStatsJson(penumbraMap, scene.penumbraMap);
     if (!settings.statsPath.empty()) {
         std::string text = stats.dump(2) + "\n";
         ensureParentDirectory(settings.statsPath);

@@ -11,9 +11,9 @@
 
 namespace penumbra {
 
-enum class Method { Hpc, Reference, Embree, Ssv };
+enum class Method { Hpc, Reference, Embree, Ssv, PenumbraMap };
 
-/// @brief Parses "hpc", "reference", "embree" or "ssv". @throw InputError otherwise.
+/// @brief Parses "hpc", "reference", "embree", "ssv" or "penumbra-map". @throw InputError otherwise.
 Method parseMethod(const std::string& name);
 const char* methodName(Method method);
 
@@ -23,6 +23,7 @@ struct BakeSettings {
     int threads = 0;          ///< 0: all cores
     std::string statsPath;    ///< JSON stats, optional
     std::string dumpDir;      ///< receivers.npy, samples.npy, masks.npy, optional
+    std::string visibilityPath;  ///< --visibility: every receiver's visible fraction as float32 .npy, optional
     bool quiet = false;
     uint64_t memoryBudget = 0;  ///< --memory-budget in bytes; 0: unlimited
     std::string tmpDir;         ///< where bucket files go (default: the system temp dir)

@@ -37,46 +37,70 @@ ReceiverShader::ReceiverShader(const std::vector<LightDesc>& lights, const Light
     }
 }
 
-void ReceiverShader::shade(uint32_t r, const uint64_t* groupWords, bool fullUmbra, ReceiverResults& out) const {
+glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* groupWords, bool fullUmbra,
+                                           uint64_t& blocked) const {
     const glm::dvec3 p(receivers_.position[r]), n(receivers_.normal[r]);
     const int set = int(sets_[r]);
+    const PerLight& light = lights_[li];
+    const bool planar = glm::dot(light.normal, light.normal) > 0;
+    blocked = 0;
+    glm::dvec3 e(0.0);
+    for (uint32_t k = samples_.lightFirstGroup[li]; k < samples_.lightFirstGroup[li + 1]; ++k) {
+        const LightSampleGroup& g = samples_.groups[k];
+        const uint64_t word = fullUmbra ? g.fullMask() : (groupWords ? groupWords[k] : 0);
+        blocked += uint64_t(std::popcount(word));
+        for (uint64_t visible = ~word & g.fullMask(); visible; visible &= visible - 1) {
+            // A sun's sample is a direction (w = 0): the receiver's position does not matter.
+            const glm::dvec3 l(samples_.position(set, int(g.first) + std::countr_zero(visible)));
+            glm::dvec3 d = light.sun ? l : l - p;
+            double dist2 = glm::dot(d, d);
+            if (!(dist2 > 0)) continue;
+            glm::dvec3 w = d / std::sqrt(dist2);
+            // A zero normal (volume receivers) means no receiver cosine: fluence-like irradiance.
+            double cosReceiver = n == glm::dvec3(0.0) ? 1.0 : std::max(0.0, glm::dot(n, w));
+            if (light.sun) {
+                e += light.weight * cosReceiver;
+                continue;
+            }
+            double cosEmitter = planar ? std::max(0.0, -glm::dot(light.normal, w)) : 1.0;
+            e += light.weight * (cosReceiver * cosEmitter / dist2);
+        }
+    }
+    return e;
+}
+
+void ReceiverShader::shade(uint32_t r, const uint64_t* groupWords, bool fullUmbra, ReceiverResults& out) const {
     const bool perLight = out.lights > 1;
     uint64_t blocked = 0;
     glm::dvec3 total(0.0);
     for (int li = 0; li < samples_.lightCount(); ++li) {
-        const PerLight& light = lights_[li];
-        const bool planar = glm::dot(light.normal, light.normal) > 0;
         uint64_t lightBlocked = 0;
-        glm::dvec3 e(0.0);
-        for (uint32_t k = samples_.lightFirstGroup[li]; k < samples_.lightFirstGroup[li + 1]; ++k) {
-            const LightSampleGroup& g = samples_.groups[k];
-            const uint64_t word = fullUmbra ? g.fullMask() : (groupWords ? groupWords[k] : 0);
-            lightBlocked += uint64_t(std::popcount(word));
-            for (uint64_t visible = ~word & g.fullMask(); visible; visible &= visible - 1) {
-                // A sun's sample is a direction (w = 0): the receiver's position does not matter.
-                const glm::dvec3 l(samples_.position(set, int(g.first) + std::countr_zero(visible)));
-                glm::dvec3 d = light.sun ? l : l - p;
-                double dist2 = glm::dot(d, d);
-                if (!(dist2 > 0)) continue;
-                glm::dvec3 w = d / std::sqrt(dist2);
-                // A zero normal (volume receivers) means no receiver cosine: fluence-like irradiance.
-                double cosReceiver = n == glm::dvec3(0.0) ? 1.0 : std::max(0.0, glm::dot(n, w));
-                if (light.sun) {
-                    e += light.weight * cosReceiver;
-                    continue;
-                }
-                double cosEmitter = planar ? std::max(0.0, -glm::dot(light.normal, w)) : 1.0;
-                e += light.weight * (cosReceiver * cosEmitter / dist2);
-            }
-        }
+        const glm::dvec3 e = lightIrradiance(r, li, groupWords, fullUmbra, lightBlocked);
         blocked += lightBlocked;
         total += e;
         if (perLight) {
-            out.lightVisibility[size_t(r) * out.lights + li] = float(1.0 - double(lightBlocked) / light.samples);
+            out.lightVisibility[size_t(r) * out.lights + li] = float(1.0 - double(lightBlocked) / lights_[li].samples);
             out.lightIrradiance[size_t(r) * out.lights + li] = glm::vec3(e);
         }
     }
     out.visibility[r] = samples_.sampleCount ? float(1.0 - double(blocked) / samples_.sampleCount) : 1.f;
+    out.irradiance[r] = glm::vec3(total);
+}
+
+void ReceiverShader::shadeVisibleFraction(uint32_t r, const float* lightVisibility, ReceiverResults& out) const {
+    double visible = 0;
+    glm::dvec3 total(0.0);
+    for (int li = 0; li < samples_.lightCount(); ++li) {
+        uint64_t none = 0;
+        const glm::dvec3 e = lightIrradiance(r, li, nullptr, false, none) * double(lightVisibility[li]);
+        visible += double(lightVisibility[li]) * lights_[li].samples;
+        total += e;
+        if (out.lights > 1) {
+            out.lightVisibility[size_t(r) * out.lights + li] = lightVisibility[li];
+            out.lightIrradiance[size_t(r) * out.lights + li] = glm::vec3(e);
+        }
+    }
+    out.visibility[r] = samples_.sampleCount ? float(visible / samples_.sampleCount) : 1.f;
     out.irradiance[r] = glm::vec3(total);
 }
 

@@ -60,7 +60,16 @@ public:
     /// @param fullUmbra every sample blocked (groupWords is ignored)
     void shade(uint32_t r, const uint64_t* groupWords, bool fullUmbra, ReceiverResults& out) const;
 
+    /// @brief For methods that give a visible fraction per light instead of masks (penumbra-map):
+    /// each light's irradiance is its unoccluded irradiance times that fraction.
+    /// @param lightVisibility one value in [0, 1] per light
+    void shadeVisibleFraction(uint32_t r, const float* lightVisibility, ReceiverResults& out) const;
+
 private:
+    /// Light @p li's irradiance at receiver @p r from its unblocked samples; @p blocked gets how
+    /// many of its samples are blocked.
+    glm::dvec3 lightIrradiance(uint32_t r, int li, const uint64_t* groupWords, bool fullUmbra, uint64_t& blocked) const;
+
     struct PerLight {
         glm::dvec3 normal;  ///< emitting side; zero for volumetric lights (no emitter cosine)
         glm::dvec3 weight;  ///< radiance x area per sample; for a sun, irradiance per sample

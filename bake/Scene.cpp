@@ -95,6 +95,10 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
     if (j.has("simd")) o.simd = parseSimdLevel(j.string("simd"), j.where("simd"));
     scene.seed = uint64_t(j.integer("seed", int64_t(scene.seed), 0, INT64_MAX));
     scene.smoothShading = j.boolean("smooth_shading", scene.smoothShading);
+    scene.penumbraMap.resolution = int(j.integer("penumbra_map_resolution", scene.penumbraMap.resolution, 16, 16384));
+    scene.penumbraMap.bias = j.number("penumbra_map_bias", scene.penumbraMap.bias);
+    if (!(scene.penumbraMap.bias >= 0) || !std::isfinite(scene.penumbraMap.bias))
+        fail(j.where("penumbra_map_bias"), "must be finite and non-negative, got {}", scene.penumbraMap.bias);
     j.finish();
 }
 

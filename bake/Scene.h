@@ -5,6 +5,7 @@
 
 #include "bake/CastOptions.h"
 #include "bake/Light.h"
+#include "bake/PenumbraMap.h"
 #include "stream/Transform.h"
 #include "stream/TriangleSource.h"
 
@@ -43,6 +44,8 @@ struct SceneDesc {
     /// plain irradiance). On by default: it costs 8 bytes per pixel during the scan (the visible
     /// triangle's stream position) and a vertex table found again in the bucket pass.
     bool smoothShading = true;
+    /// bake.penumbra_map_resolution and bake.penumbra_map_bias, for --method penumbra-map.
+    PenumbraMapOptions penumbraMap;
 };
 
 /// @brief Reads and validates a scene file.

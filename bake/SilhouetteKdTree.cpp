@@ -58,7 +58,9 @@ void SilhouetteKdTree::build(std::vector<KdItem> items, const KdParams& params) 
         stack.pop_back();
         const glm::dvec3 size = p.box.hi - p.box.lo;
         const int axis = size.x >= size.y && size.x >= size.z ? 0 : (size.y >= size.z ? 1 : 2);
-        if (int(p.items.size()) < params.leafItems || size[axis] <= minSide || p.depth >= params.maxDepth) {
+        int counted = 0;
+        for (size_t i = 0; i < p.items.size() && counted < params.leafItems; ++i) counted += params.countedKinds >> items[p.items[i]].kind & 1;
+        if (counted < params.leafItems || size[axis] <= minSide || p.depth >= params.maxDepth) {
             makeLeaf(p);
             continue;
         }

@@ -7,7 +7,8 @@
 /// Splitting follows the paper's final choice: a box is split in half on its longest axis (the
 /// authors found the surface area heuristic 5-10 % faster to render but too slow to build for
 /// large scenes). An item whose box straddles the split plane is listed in both children. A box
-/// becomes a leaf when it holds fewer than `leafItems` items (the paper: ten triangles), when its
+/// becomes a leaf when it holds fewer than `leafItems` items of the counted kinds (the paper: ten
+/// triangles), when its
 /// longest side is below `minBoxFraction` of the root's (the paper: 0.5 %), at `maxDepth`, or when
 /// a split would list every item in both children. Only leaves hold items (the paper's version
 /// 0.6, its best memory/time compromise); each leaf lists its items by kind, so a query that
@@ -55,7 +56,8 @@ struct KdPlane {
 
 /// @brief Build parameters (the paper's termination criteria and a depth guard).
 struct KdParams {
-    int leafItems = 10;
+    int leafItems = 10;         ///< a box with fewer counted items is a leaf
+    uint8_t countedKinds = 0xff;  ///< bit k: items of kind k count towards leafItems
     double minBoxFraction = 0.005;
     int maxDepth = 40;
 };

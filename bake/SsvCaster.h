@@ -45,7 +45,9 @@
 namespace penumbra {
 
 struct SsvOptions {
-    KdParams tree;                ///< the paper's termination criteria (10 items, 0.5 % of the scene box)
+    /// The paper's termination criteria: fewer than 10 triangles (edges do not count), or a box
+    /// below 0.5 % of the scene box.
+    KdParams tree{10, 0b110};
     int referenceCandidates = 8;  ///< samples tried as the reference before the per-sample fallback
 };
 

@@ -66,7 +66,7 @@ int main(int argc, char** argv) {
     CLI::App* bake = app.add_subcommand("bake", "bake soft shadows for a scene file");
     bake->add_option("scene", scenePath, "scene file (JSON)")->required();
     bake->add_option("-o,--output", output, "output file (overrides the scene's \"output\")");
-    bake->add_option("--method", method, "hpc (default), reference, embree or ssv");
+    bake->add_option("--method", method, "hpc (default), reference, embree, ssv or penumbra-map");
     bake->add_option("--threads", threads, "worker threads (default: all cores)");
     bake->add_option("--stats", statsPath, "write JSON stats to this file");
     bake->add_option("--dump", dumpDir, "write receivers.npy, samples.npy, masks.npy and rule.json to this directory");
@@ -87,6 +87,14 @@ int main(int argc, char** argv) {
                      "on or off: skip closed surfaces' triangles that face away from the light (overrides "
                      "bake.closed_casters)")
         ->check(CLI::IsMember({"on", "off"}));
+    std::string visibilityPath;
+    bake->add_option("--visibility", visibilityPath, "write every receiver's visible fraction as a float32 .npy");
+    int mapResolution = 0;
+    double mapBias = -1;
+    bake->add_option("--penumbra-map-resolution", mapResolution, "penumbra-map: texels per side of a shadow map (overrides bake.penumbra_map_resolution)")
+        ->check(CLI::Range(16, 16384));
+    bake->add_option("--penumbra-map-bias", mapBias, "penumbra-map: depth bias in texels (overrides bake.penumbra_map_bias)")
+        ->check(CLI::Range(0.0, 1e6));
     std::string memoryBudget, tmpDir;
     bool keepBuckets = false;
     bake->add_option("--memory-budget", memoryBudget, "bound on bake memory, e.g. 256M or 2G; receivers are tiled to fit");
@@ -144,12 +152,15 @@ int main(int argc, char** argv) {
             if (!sampleTable.empty()) scene.options.sampleTable = sampleTable == "on";
             if (!closedCasters.empty()) scene.options.closedCasters = closedCasters == "on";
             if (!embreeFilter.empty()) scene.options.embreeRuleFilter = embreeFilter == "on";
+            if (mapResolution > 0) scene.penumbraMap.resolution = mapResolution;
+            if (mapBias >= 0) scene.penumbraMap.bias = mapBias;
             BakeSettings settings;
             settings.method = parseMethod(method);
             if (threads < 0) throw InputError(fmt::format("--threads: must not be negative, got {}", threads));
             settings.threads = threads;
             settings.statsPath = statsPath;
             settings.dumpDir = dumpDir;
+            settings.visibilityPath = visibilityPath;
             settings.quiet = quiet;
             if (!memoryBudget.empty()) settings.memoryBudget = parseByteSize(memoryBudget, "--memory-budget");
             settings.tmpDir = tmpDir;
