@@ -3,6 +3,7 @@
 #include "bake/BakeDump.h"
 #include "bake/ClosedSolids.h"
 #include "bake/EmbreeCaster.h"
+#include "bake/HeckbertHerf.h"
 #include "bake/MemoryPlan.h"
 #include "bake/PenumbraCaster.h"
 #include "bake/PenumbraMap.h"
@@ -134,7 +135,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     if (!p.openedSolids.ordinals.empty())
         source = std::make_unique<OpenSolidsSource>(std::move(source), p.openedSolids.ordinals);
     // Methods that stream the blockers in any order have no use for the area buckets.
-    if (!scene.options.sortBlockers || settings.method == Method::PenumbraMap) {  // stream order: replay the source itself
+    if (!scene.options.sortBlockers || settings.method == Method::PenumbraMap || settings.method == Method::Hh) {  // stream order: replay the source itself
         if (kind.wantsRescan()) {  // no bucket pass to ride along with: a read of its own
             std::vector<Triangle> chunk(kTriangleChunk);
             while (size_t n = source->read(chunk)) kind.rescan(std::span<const Triangle>(chunk.data(), n));
@@ -270,7 +271,8 @@ Method parseMethod(const std::string& name) {
     if (name == "embree") return Method::Embree;
     if (name == "ssv") return Method::Ssv;
     if (name == "penumbra-map") return Method::PenumbraMap;
-    throw InputError("--method: unknown method \"" + name + "\" (known: hpc, reference, embree, ssv, penumbra-map)");
+    if (name == "hh") return Method::Hh;
+    throw InputError("--method: unknown method \"" + name + "\" (known: hpc, reference, embree, ssv, penumbra-map, hh)");
 }
 
 const char* methodName(Method m) {
@@ -280,6 +282,7 @@ const char* methodName(Method m) {
         case Method::Embree: return "embree";
         case Method::Ssv: return "ssv";
         case Method::PenumbraMap: return "penumbra-map";
+        case Method::Hh: return "hh";
     }
     return "?";
 }
@@ -293,6 +296,9 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     // Check before any work that the scan pass fits; the receiver count is known after it, and
     // the full plan is checked again then, before casting.
     std::unique_ptr<ReceiverKind> kind = makeReceiverKind(scene.receivers, scene);
+    if (settings.method == Method::Hh && !kind->receiverPolygons())
+        throw InputError(fmt::format("--method hh: applies to lightmap receivers only (this scene's receivers are \"{}\")",
+                                     scene.receivers.value("type", std::string("?"))));
     MemoryDemand demand;
     demand.scanBytes = kind->scanBytes();
     int samplesTotal = 0;
@@ -333,6 +339,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     EmbreeStats embree;
     SsvStats ssv;
     PenumbraMapStats penumbraMap;
+    HeckbertHerfStats hh;
     double castSeconds = 0, refineSeconds = 0;
     std::vector<Triangle> all;  // the ray casters' whole scene, read once
     // One cast of receivers [first, end): the first pass casts them all, a refinement pass only
@@ -349,7 +356,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         const ReceiverSet& targets = first == 0 ? p.receivers : part;
         const std::span<const uint32_t> sets = std::span<const uint32_t>(p.sampleSets).subspan(first);
         const uint64_t work = settings.method == Method::PenumbraMap ? 2 * p.triangleCount * uint64_t(p.samples.lightCount())
-                                                                     : targets.size();
+                              : settings.method == Method::Hh     ? p.triangleCount
+                                                                  : targets.size();
         ProgressReporter progress(methodName(settings.method), work, settings.quiet);
         auto tick = [&](uint64_t n) { progress.update(n); };
         const ReceiverEpsilon eps = receiverEpsilonOf(p.options);
@@ -363,6 +371,13 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
             progress.done();
             for (uint32_t r = first; r < p.receivers.size(); ++r)
                 shader.shadeVisibleFraction(r, &v[size_t(r - first) * p.samples.lightCount()], results);
+            return;
+        }
+        if (settings.method == Method::Hh) {  // streams the blockers once; lightmaps are never refined
+            VisibilityMasks m = castHeckbertHerf(p.samples, targets, sets, *p.blockers, eps, *kind->receiverPolygons(), &hh, tick);
+            progress.done();
+            std::copy(m.words.begin(), m.words.end(), masks.words.begin());
+            for (uint32_t r = 0; r < p.receivers.size(); ++r) shader.shade(r, masks.row(r), false, results);
             return;
         }
         // The ray casters need the whole scene in memory: that is their nature, not ours.
@@ -478,6 +493,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
                            {"filter_calls", embree.filterCalls}, {"filter_exact", embree.filterExact},
                            {"filter_rejected", embree.filterRejected}};
     if (settings.method == Method::Ssv) stats["ssv"] = ssvStatsJson(ssv);
+    if (settings.method == Method::Hh) stats["hh"] = heckbertHerfStatsJson(hh);
     if (settings.method == Method::PenumbraMap) stats["penumbra_map"] = penumbraMapStatsJson(penumbraMap, scene.penumbraMap);
     if (!settings.statsPath.empty()) {
         std::string text = stats.dump(2) + "\n";

@@ -11,9 +11,9 @@
 
 namespace penumbra {
 
-enum class Method { Hpc, Reference, Embree, Ssv, PenumbraMap };
+enum class Method { Hpc, Reference, Embree, Ssv, PenumbraMap, Hh };
 
-/// @brief Parses "hpc", "reference", "embree", "ssv" or "penumbra-map". @throw InputError otherwise.
+/// @brief Parses "hpc", "reference", "embree", "ssv", "penumbra-map" or "hh". @throw InputError otherwise.
 Method parseMethod(const std::string& name);
 const char* methodName(Method method);
 

@@ -15,6 +15,7 @@
 #include "stream/JsonParams.h"
 #include "stream/Triangle.h"
 
+#include <glm/vec2.hpp>
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
@@ -27,6 +28,21 @@
 namespace penumbra {
 
 struct SceneDesc;
+
+/// @brief A planar receiver polygon with its texture layout: the triangle a lightmap's texels lie
+/// on, and each corner's position in texel units (texel (x, y) covers [x, x+1] x [y, y+1]).
+struct ReceiverPolygon {
+    glm::dvec3 position[3];
+    glm::dvec2 texel[3];
+};
+
+/// @brief The receiver polygons of a kind whose receivers are texels (Heckbert & Herf's radiance
+/// textures, --method hh): per receiver its polygon and texel.
+struct ReceiverPolygons {
+    std::vector<ReceiverPolygon> polygons;
+    std::vector<uint32_t> polygonOf;      ///< per receiver
+    std::vector<glm::ivec2> texelOf;      ///< per receiver: its texel (x, y)
+};
 
 /// @brief What a kind's writer gets.
 struct OutputContext {
@@ -74,6 +90,10 @@ public:
     virtual ReceiverSet refinedReceivers() { return {}; }
     /// Bytes held during refineScan(), for the memory plan (asked after refine()).
     virtual uint64_t refineBytes() const { return 0; }
+    /// The receivers' polygons and texels, for kinds whose receivers are texels of receiver
+    /// polygons (lightmaps); null for the others. Filled by receivers(), so it is complete after it;
+    /// the pointer itself may be asked for before, to see whether the kind has polygons.
+    virtual const ReceiverPolygons* receiverPolygons() const { return nullptr; }
     /// Kind-specific entries for the stats JSON (null for none), asked after write().
     virtual nlohmann::json stats() const { return nullptr; }
     /// Writes the outputs. Every file goes through AtomicFile (no partial outputs).

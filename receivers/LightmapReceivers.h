@@ -30,6 +30,7 @@ struct LightmapLayout {
     int width = 0, height = 0;
     ReceiverSet receivers;          ///< position and normal per receiver
     std::vector<uint32_t> texel;    ///< per receiver: y * width + x
+    std::vector<uint32_t> triangle; ///< per receiver: the mesh triangle it lies on (its texel's owner)
     std::vector<float> coverage;    ///< per texel: UV area covered, in [0, 1] (overlaps saturate)
     uint64_t overlapping = 0;       ///< texels whose centre lies inside more than one triangle
 };

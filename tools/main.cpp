@@ -66,7 +66,7 @@ int main(int argc, char** argv) {
     CLI::App* bake = app.add_subcommand("bake", "bake soft shadows for a scene file");
     bake->add_option("scene", scenePath, "scene file (JSON)")->required();
     bake->add_option("-o,--output", output, "output file (overrides the scene's \"output\")");
-    bake->add_option("--method", method, "hpc (default), reference, embree, ssv or penumbra-map");
+    bake->add_option("--method", method, "hpc (default), reference, embree, ssv, penumbra-map or hh");
     bake->add_option("--threads", threads, "worker threads (default: all cores)");
     bake->add_option("--stats", statsPath, "write JSON stats to this file");
     bake->add_option("--dump", dumpDir, "write receivers.npy, samples.npy, masks.npy and rule.json to this directory");
