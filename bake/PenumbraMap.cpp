@@ -169,37 +169,43 @@ void rowSpan(const Run& run, double cy, double& lo, double& hi) {
 }
 
 /// Draws @p run's sheet and end cones into rows [y0, y1) of the penumbra map (darkest wins).
+/// With lv = 1 / Z_v the paper's intensity becomes one division: perspective
+/// I = a / ((L_r lv - a) (Z_P lv - 1)), orthographic I = (a / tan r) / (Z_P - Z_v).
 void drawRun(ViewMaps& v, const Run& run, double bias, int y0, int y1) {
     const LightView& view = v.view;
     const int res = view.res;
     const glm::dvec2 lo = glm::min(run.a, run.b) - run.reach, hi = glm::max(run.a, run.b) + run.reach;
     const int ya = std::max(y0, int(std::floor(lo.y))), yb = std::min(y1 - 1, int(std::ceil(hi.y)));
     const glm::dvec2 ab = run.b - run.a;
-    const double ab2 = glm::dot(ab, ab);
+    const double length = glm::length(ab), texel = view.texel();
+    const glm::dvec2 u = length > 0 ? ab / length : glm::dvec2(0.0);
+    const double gapTexels = bias * texel;  // the bias at depth z is gapTexels * z (perspective)
     for (int y = ya; y <= yb; ++y) {
         double x0, x1;
         rowSpan(run, y + 0.5, x0, x1);
         const int xa = std::max(0, int(std::ceil(x0 - 0.5))), xb = std::min(res - 1, int(std::floor(x1 - 0.5)));
+        float* row = &v.penumbra[size_t(y) * res];
+        const float* depth = &v.shadow.depth[size_t(y) * res];
         for (int x = xa; x <= xb; ++x) {
-            const glm::dvec2 q(x + 0.5, y + 0.5);
-            const double t = ab2 > 0 ? std::clamp(glm::dot(q - run.a, ab) / ab2, 0.0, 1.0) : 0.0;
-            const double distance = glm::length(q - (run.a + t * ab));
-            const double zp = v.shadow.at(x, y);
-            const double zv = view.fromLinear(run.linA + t * (run.linB - run.linA));
-            if (!(zp - zv > gap(view, zv, bias, 0.0, 0.0))) continue;  // the occluder itself, or nothing
-            const double angle = distance * view.texel();
-            double zf;
+            if (!(row[x] > 0.0f)) continue;  // already as dark as it gets
+            const double zp = depth[x];
+            const glm::dvec2 d = glm::dvec2(x + 0.5, y + 0.5) - run.a;
+            const double along = glm::dot(d, u), t = length > 0 ? std::clamp(along / length, 0.0, 1.0) : 0.0;
+            const double across = glm::dot(d, run.out);
+            const double distance = along >= 0 && along <= length ? across : glm::length(d - t * ab);
+            const double lv = run.linA + t * (run.linB - run.linA), a = distance * texel;
+            double i;
             if (view.ortho) {
-                zf = zv + angle / run.radius;
+                const double zgap = zp - lv;
+                if (!(zgap > view.texelWorld(lv) * bias)) continue;  // the occluder itself, or nothing
+                i = a / run.radius / zgap;
             } else {
-                const double denominator = 1.0 - angle * zv / run.radius;
-                if (!(denominator > 0)) continue;
-                zf = zv / denominator;
+                const double behind = zp * lv - 1.0, reach = run.radius * lv - a;
+                if (!(behind > gapTexels) || !(reach > 0)) continue;  // Z_P - Z_v > bias Z_v; the cone reaches
+                i = a / (reach * behind);
             }
-            if (zf > zp) continue;  // beyond the outer edge of this penumbra
-            const double i = (zf - zv) / (zp - zv);
-            float& texel = v.penumbra[size_t(y) * res + x];
-            texel = std::min(texel, float(i * i * (3.0 - 2.0 * i)));
+            if (!(i <= 1.0)) continue;  // beyond the outer edge of this penumbra
+            row[x] = std::min(row[x], float(i * i * (3.0 - 2.0 * i)));
         }
     }
 }

@@ -23,6 +23,7 @@
 #include "stream/Progress.h"
 
 #include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
 #include <tbb/info.h>
 
 #include <filesystem>
@@ -240,6 +241,14 @@ CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettin
     return total;
 }
 
+/// Calls @p shade for receivers [first, end) on the worker threads; each writes only its own row.
+template <class F>
+void shadeInParallel(uint32_t first, uint32_t end, F&& shade) {
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(first, end, 1024), [&](const tbb::blocked_range<uint32_t>& range) {
+        for (uint32_t r = range.begin(); r != range.end(); ++r) shade(r);
+    });
+}
+
 /// Calls @p f with @p all in chunks of kTriangleChunk.
 template <class F>
 void forEachChunk(const std::vector<Triangle>& all, F&& f) {
@@ -369,15 +378,16 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
             }
             const std::vector<float> v = castPenumbraMap(p.samples, targets, sets, *p.blockers, eps, scene.penumbraMap, &penumbraMap, tick);
             progress.done();
-            for (uint32_t r = first; r < p.receivers.size(); ++r)
+            shadeInParallel(first, uint32_t(p.receivers.size()), [&](uint32_t r) {
                 shader.shadeVisibleFraction(r, &v[size_t(r - first) * p.samples.lightCount()], results);
+            });
             return;
         }
         if (settings.method == Method::Hh) {  // streams the blockers once; lightmaps are never refined
             VisibilityMasks m = castHeckbertHerf(p.samples, targets, sets, *p.blockers, eps, *kind->receiverPolygons(), &hh, tick);
             progress.done();
             std::copy(m.words.begin(), m.words.end(), masks.words.begin());
-            for (uint32_t r = 0; r < p.receivers.size(); ++r) shader.shade(r, masks.row(r), false, results);
+            shadeInParallel(0, uint32_t(p.receivers.size()), [&](uint32_t r) { shader.shade(r, masks.row(r), false, results); });
             return;
         }
         // The ray casters need the whole scene in memory: that is their nature, not ours.
@@ -391,7 +401,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
                                 : castEmbree(p.samples, targets, sets, all, eps, &embree, tick, p.options.embreeRuleFilter);
         progress.done();
         std::copy(m.words.begin(), m.words.end(), masks.words.begin() + size_t(first) * masks.groups);
-        for (uint32_t r = first; r < p.receivers.size(); ++r) shader.shade(r, masks.row(r), false, results);
+        shadeInParallel(first, uint32_t(p.receivers.size()), [&](uint32_t r) { shader.shade(r, masks.row(r), false, results); });
     };
     castPass(0, false);
 

@@ -9,6 +9,7 @@
 
 #include <glm/vec3.hpp>
 
+#include <mutex>
 #include <span>
 #include <vector>
 
@@ -69,6 +70,9 @@ private:
     /// Light @p li's irradiance at receiver @p r from its unblocked samples; @p blocked gets how
     /// many of its samples are blocked.
     glm::dvec3 lightIrradiance(uint32_t r, int li, const uint64_t* groupWords, bool fullUmbra, uint64_t& blocked) const;
+    /// The same with every sample visible, summed in a loop the compiler vectorizes (the order of
+    /// the sum differs from lightIrradiance's, so the last bits may differ).
+    glm::dvec3 unoccludedIrradiance(uint32_t r, int li) const;
 
     struct PerLight {
         glm::dvec3 normal;  ///< emitting side; zero for volumetric lights (no emitter cosine)
@@ -80,6 +84,9 @@ private:
     const ReceiverSet& receivers_;
     std::span<const uint32_t> sets_;
     std::vector<PerLight> lights_;
+    /// The samples as three arrays of double per set (x, then y, then z), made on first use.
+    mutable std::vector<double> soa_;
+    mutable std::once_flag soaOnce_;
 };
 
 }  // namespace penumbra

@@ -60,7 +60,7 @@ TEST_CASE("every method gives the same output bytes on one and two threads", "[c
         requireThreadIndependent(dir, dir / "lightmap.json", method, {"out-room.exr", "out-room.png", "v.npy"});
 }
 
-TEST_CASE("ssv bakes the masks hpc bakes, up to ties; hh and penumbra-map refuse what they cannot do", "[cli][methods]") {
+TEST_CASE("ssv bakes the masks hpc bakes up to ties, and hh and penumbra-map refuse what they cannot do", "[cli][methods]") {
     ScratchDir dir("methods");
     write(dir / "camera.json", kCameraScene);
     for (const char* method : {"hpc", "ssv"}) {

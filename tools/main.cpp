@@ -4,6 +4,7 @@
 #include "Compare.h"
 #include "Generate.h"
 #include "GeneratorBench.h"
+#include "MethodsBench.h"
 #include "TableBench.h"
 
 #include "bake/Pipeline.h"
@@ -136,6 +137,8 @@ int main(int argc, char** argv) {
     CLI::App* benchGenerators = addBenchGeneratorsCommand(*bench, benchGeneratorsOptions);
     BenchTableOptions benchTableOptions;
     CLI::App* benchTable = addBenchTableCommand(*bench, benchTableOptions);
+    BenchMethodsOptions benchMethodsOptions;
+    CLI::App* benchMethods = addBenchMethodsCommand(*bench, benchMethodsOptions);
 
     try {
         app.parse(argc, argv);
@@ -190,10 +193,11 @@ int main(int argc, char** argv) {
             runGenerate(generateOptions);
         } else if (*benchGenerators) {
             runBenchGenerators(benchGeneratorsOptions);
-        } else if (*benchTable) {
-            std::string commandLine = "penumbra";
+        } else if (*benchTable || *benchMethods) {
+            std::string commandLine = "penumbra";  // recorded in the benchmark's outputs
             for (int i = 1; i < argc; ++i) commandLine += std::string(" ") + argv[i];
-            runBenchTable(benchTableOptions, commandLine);
+            if (*benchTable) runBenchTable(benchTableOptions, commandLine);
+            else runBenchMethods(benchMethodsOptions, commandLine);
         } else if (*slice) {
             writeVolumeSlicePng(sliceIn, sliceOut, sliceGrid, sliceAxis[0], sliceAt);
         } else if (*convert) {
