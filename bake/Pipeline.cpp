@@ -272,6 +272,74 @@ void append(ReceiverSet& set, const ReceiverSet& extra) {
     set.depth.insert(set.depth.end(), extra.depth.begin(), extra.depth.end());
 }
 
+/// The counters of the methods other than hpc, for the stats JSON.
+struct MethodStats {
+    EmbreeStats embree;
+    SsvStats ssv;
+    PenumbraMapStats penumbraMap;
+    HeckbertHerfStats hh;
+};
+
+/// Every method but hpc, for receivers [first, end): the streamed ones (penumbra-map, hh) read
+/// the blockers themselves; the ray casters get the whole scene, read into @p all once.
+void castOtherMethod(Prepared& p, const SceneDesc& scene, const BakeSettings& settings, ReceiverKind& kind,
+                     const ReceiverShader& shader, uint32_t first, std::vector<Triangle>& all, VisibilityMasks& masks,
+                     ReceiverResults& results, MethodStats& stats) {
+    const ReceiverSet part = first == 0 ? ReceiverSet{} : tailOf(p.receivers, first);
+    const ReceiverSet& targets = first == 0 ? p.receivers : part;
+    const std::span<const uint32_t> sets = std::span<const uint32_t>(p.sampleSets).subspan(first);
+    const uint64_t work = settings.method == Method::PenumbraMap ? 2 * p.triangleCount * uint64_t(p.samples.lightCount())
+                          : settings.method == Method::Hh     ? p.triangleCount
+                                                              : targets.size();
+    ProgressReporter progress(methodName(settings.method), work, settings.quiet);
+    auto tick = [&](uint64_t n) { progress.update(n); };
+    const ReceiverEpsilon eps = receiverEpsilonOf(p.options);
+    if (settings.method == Method::PenumbraMap) {  // streams the blockers, in stream order
+        if (kind.wantsCastChunks()) {
+            p.blockers->rewind();
+            std::vector<Triangle> chunk(kTriangleChunk);
+            while (size_t n = p.blockers->read(chunk)) kind.castChunk(std::span<const Triangle>(chunk.data(), n));
+        }
+        const std::vector<float> v = castPenumbraMap(p.samples, targets, sets, *p.blockers, eps, scene.penumbraMap, &stats.penumbraMap, tick);
+        progress.done();
+        shadeInParallel(first, uint32_t(p.receivers.size()), [&](uint32_t r) {
+            shader.shadeVisibleFraction(r, &v[size_t(r - first) * p.samples.lightCount()], results);
+        });
+        return;
+    }
+    if (settings.method == Method::Hh) {  // streams the blockers once; lightmaps are never refined
+        VisibilityMasks m = castHeckbertHerf(p.samples, targets, sets, *p.blockers, eps, *kind.receiverPolygons(), &stats.hh, tick);
+        progress.done();
+        std::copy(m.words.begin(), m.words.end(), masks.words.begin());
+        shadeInParallel(0, uint32_t(p.receivers.size()), [&](uint32_t r) { shader.shade(r, masks.row(r), false, results); });
+        return;
+    }
+    // The ray casters need the whole scene in memory: that is their nature, not ours.
+    if (all.empty()) {
+        all = readAll(*p.blockers);
+    }
+    if (kind.wantsCastChunks()) forEachChunk(all, [&](std::span<const Triangle> c) { kind.castChunk(c); });
+    VisibilityMasks m = settings.method == Method::Reference ? castReference(p.samples, targets, sets, all, eps, tick)
+                        : settings.method == Method::Ssv
+                            ? castSsv(p.samples, targets, sets, all, eps, SsvOptions{}, &stats.ssv, tick)
+                            : castEmbree(p.samples, targets, sets, all, eps, &stats.embree, tick, p.options.embreeRuleFilter);
+    progress.done();
+    std::copy(m.words.begin(), m.words.end(), masks.words.begin() + size_t(first) * masks.groups);
+    shadeInParallel(first, uint32_t(p.receivers.size()), [&](uint32_t r) { shader.shade(r, masks.row(r), false, results); });
+}
+
+/// The stats JSON's section of the method, if it has one.
+void addMethodStats(nlohmann::json& out, Method method, const MethodStats& s, const SceneDesc& scene) {
+    if (method == Method::Embree)
+        out["embree"] = {{"build_time_s", s.embree.buildSeconds}, {"trace_time_s", s.embree.traceSeconds},
+                         {"rays", s.embree.rays}, {"scene_bytes", s.embree.sceneBytes},
+                         {"filter_calls", s.embree.filterCalls}, {"filter_exact", s.embree.filterExact},
+                         {"filter_rejected", s.embree.filterRejected}};
+    if (method == Method::Ssv) out["ssv"] = ssvStatsJson(s.ssv);
+    if (method == Method::Hh) out["hh"] = heckbertHerfStatsJson(s.hh);
+    if (method == Method::PenumbraMap) out["penumbra_map"] = penumbraMapStatsJson(s.penumbraMap, scene.penumbraMap);
+}
+
 }  // namespace
 
 Method parseMethod(const std::string& name) {
@@ -345,10 +413,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     if (dump || (settings.method != Method::Hpc && settings.method != Method::PenumbraMap)) masks = VisibilityMasks(p.receivers.size(), p.samples.groupCount());
 
     CastStats cast;
-    EmbreeStats embree;
-    SsvStats ssv;
-    PenumbraMapStats penumbraMap;
-    HeckbertHerfStats hh;
+    MethodStats methodStats;
     double castSeconds = 0, refineSeconds = 0;
     std::vector<Triangle> all;  // the ray casters' whole scene, read once
     // One cast of receivers [first, end): the first pass casts them all, a refinement pass only
@@ -361,47 +426,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
                                               *kind, first, rewind));
             return;
         }
-        const ReceiverSet part = first == 0 ? ReceiverSet{} : tailOf(p.receivers, first);
-        const ReceiverSet& targets = first == 0 ? p.receivers : part;
-        const std::span<const uint32_t> sets = std::span<const uint32_t>(p.sampleSets).subspan(first);
-        const uint64_t work = settings.method == Method::PenumbraMap ? 2 * p.triangleCount * uint64_t(p.samples.lightCount())
-                              : settings.method == Method::Hh     ? p.triangleCount
-                                                                  : targets.size();
-        ProgressReporter progress(methodName(settings.method), work, settings.quiet);
-        auto tick = [&](uint64_t n) { progress.update(n); };
-        const ReceiverEpsilon eps = receiverEpsilonOf(p.options);
-        if (settings.method == Method::PenumbraMap) {  // streams the blockers, in stream order
-            if (kind->wantsCastChunks()) {
-                p.blockers->rewind();
-                std::vector<Triangle> chunk(kTriangleChunk);
-                while (size_t n = p.blockers->read(chunk)) kind->castChunk(std::span<const Triangle>(chunk.data(), n));
-            }
-            const std::vector<float> v = castPenumbraMap(p.samples, targets, sets, *p.blockers, eps, scene.penumbraMap, &penumbraMap, tick);
-            progress.done();
-            shadeInParallel(first, uint32_t(p.receivers.size()), [&](uint32_t r) {
-                shader.shadeVisibleFraction(r, &v[size_t(r - first) * p.samples.lightCount()], results);
-            });
-            return;
-        }
-        if (settings.method == Method::Hh) {  // streams the blockers once; lightmaps are never refined
-            VisibilityMasks m = castHeckbertHerf(p.samples, targets, sets, *p.blockers, eps, *kind->receiverPolygons(), &hh, tick);
-            progress.done();
-            std::copy(m.words.begin(), m.words.end(), masks.words.begin());
-            shadeInParallel(0, uint32_t(p.receivers.size()), [&](uint32_t r) { shader.shade(r, masks.row(r), false, results); });
-            return;
-        }
-        // The ray casters need the whole scene in memory: that is their nature, not ours.
-        if (all.empty()) {
-            all = readAll(*p.blockers);
-        }
-        if (kind->wantsCastChunks()) forEachChunk(all, [&](std::span<const Triangle> c) { kind->castChunk(c); });
-        VisibilityMasks m = settings.method == Method::Reference ? castReference(p.samples, targets, sets, all, eps, tick)
-                            : settings.method == Method::Ssv
-                                ? castSsv(p.samples, targets, sets, all, eps, SsvOptions{}, &ssv, tick)
-                                : castEmbree(p.samples, targets, sets, all, eps, &embree, tick, p.options.embreeRuleFilter);
-        progress.done();
-        std::copy(m.words.begin(), m.words.end(), masks.words.begin() + size_t(first) * masks.groups);
-        shadeInParallel(first, uint32_t(p.receivers.size()), [&](uint32_t r) { shader.shade(r, masks.row(r), false, results); });
+        castOtherMethod(p, scene, settings, *kind, shader, first, all, masks, results, methodStats);
     };
     castPass(0, false);
 
@@ -497,14 +522,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     if (nlohmann::json extra = kind->stats(); extra.is_object())
         for (auto& [key, value] : extra.items()) stats[key] = value;
     if (refineSeconds > 0) stats["antialias"]["refine_scan_time_s"] = refineSeconds;
-    if (settings.method == Method::Embree)
-        stats["embree"] = {{"build_time_s", embree.buildSeconds}, {"trace_time_s", embree.traceSeconds},
-                           {"rays", embree.rays}, {"scene_bytes", embree.sceneBytes},
-                           {"filter_calls", embree.filterCalls}, {"filter_exact", embree.filterExact},
-                           {"filter_rejected", embree.filterRejected}};
-    if (settings.method == Method::Ssv) stats["ssv"] = ssvStatsJson(ssv);
-    if (settings.method == Method::Hh) stats["hh"] = heckbertHerfStatsJson(hh);
-    if (settings.method == Method::PenumbraMap) stats["penumbra_map"] = penumbraMapStatsJson(penumbraMap, scene.penumbraMap);
+    addMethodStats(stats, settings.method, methodStats, scene);
     if (!settings.statsPath.empty()) {
         std::string text = stats.dump(2) + "\n";
         ensureParentDirectory(settings.statsPath);
