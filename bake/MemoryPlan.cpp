@@ -7,7 +7,11 @@
 
 namespace penumbra {
 
-MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget) {
+std::string budgetText(uint64_t bytes) { return fmt::format("{}M", (bytes + (1u << 20) - 1) >> 20); }
+
+uint64_t scanPhaseBytes(const MemoryDemand& d) { return kBaselineBytes + d.bufferBytes + d.scanBytes + d.sourceBytes; }
+
+MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string& label, uint64_t overhead) {
     MemoryPlan plan;
     plan.budget = budget;
     // Resident for the whole bake, per receiver: the receiver set (position, normal, pixel, depth:
@@ -15,10 +19,12 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget) {
     // the id list and the tile partition (8).
     const uint64_t residentPerReceiver = 32 + 4 + 16 + 8 + (d.dumpMasks ? 8ull * d.groups : 0);
     plan.residentBytes =
-        kBaselineBytes + d.bufferBytes + d.sampleBytes + d.kindBytes + d.sceneBytes + d.receivers * residentPerReceiver;
+        kBaselineBytes + d.bufferBytes + d.sampleBytes + d.kindBytes + d.methodBytes + d.receivers * residentPerReceiver;
     // The scan pass holds what the receiver kind needs (a camera's z-buffer and the receiver set
-    // it makes, as the kind reports); that is freed before casting starts.
-    const uint64_t passBytes = kBaselineBytes + d.bufferBytes + d.scanBytes;
+    // it makes, as the kind reports) and the sources; that is freed before casting starts. The
+    // bucket pass reads the sources again with everything resident.
+    const uint64_t bucketPhase = plan.residentBytes + d.sourceBytes;
+    const uint64_t castSources = d.sourceDuringCast ? d.sourceBytes : 0;
     // In a tile, per live receiver: double position 24, epsilon 8, id/set/mask slot 12, umbra
     // 1 + 8 * umbraWords, about one node per 4 receivers (32 bytes + bits), and in the worst case a
     // mask of one word per group. While a tile's hierarchy is built, its inputs (40 bytes), the
@@ -27,12 +33,17 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget) {
                             40 + 4 + 24 + 8;
     const uint64_t smallestTile = std::min<uint64_t>(std::max<uint64_t>(d.receivers, 1), kMinimumTileReceivers);
     const uint64_t outputPhase = plan.residentBytes + d.outputBytes;
-    plan.minimumBudget = std::max({passBytes, outputPhase, plan.residentBytes + smallestTile * plan.perReceiverBytes});
+    plan.minimumBudget = std::max({scanPhaseBytes(d), bucketPhase, outputPhase,
+                                   plan.residentBytes + castSources + smallestTile * plan.perReceiverBytes});
     if (budget == 0) return plan;
-    if (budget < plan.minimumBudget)
-        throw InputError(fmt::format("--memory-budget {} is too small for {} receivers with {} mask words each; at least {} is needed",
-                                     formatBytes(budget), d.receivers, d.groups, formatBytes(plan.minimumBudget)));
-    const uint64_t perTile = (budget - plan.residentBytes) / plan.perReceiverBytes;
+    if (budget < plan.minimumBudget) {
+        std::string why;
+        if (!d.sourceDetail.empty() && d.sourceBytes > plan.minimumBudget / 2) why = fmt::format(" ({})", d.sourceDetail);
+        throw InputError(fmt::format("{} {} is too small for {} receivers with {} mask words each; at least {} is needed{}", label,
+                                     formatBytes(budget + overhead), d.receivers, d.groups,
+                                     budgetText(plan.minimumBudget + overhead), why));
+    }
+    const uint64_t perTile = (budget - plan.residentBytes - castSources) / plan.perReceiverBytes;
     plan.tiles = int(std::max<uint64_t>(1, (d.receivers + perTile - 1) / std::max<uint64_t>(perTile, 1)));
     return plan;
 }

@@ -1,8 +1,14 @@
 #pragma once
 /// @file MemoryPlan.h
 /// @brief Checks a bake against `--memory-budget` before it starts and decides how many receiver
-/// tiles to process one after another. Memory is receivers + masks + fixed buffers; triangles
-/// never count, because they stream.
+/// tiles to process one after another. Memory is receivers + masks + fixed buffers + each
+/// source's bounded working set (glTF documents, block caches, decoders); triangles never count,
+/// because they stream.
+///
+/// Phases, each checked: the scan pass (the receiver kind's scan buffers and the sources), the
+/// bucket pass (resident data and the sources), the cast (resident data and one tile), and the
+/// output stage (resident data and the kind's writer, camera images in strips). The smallest
+/// budget that works is the largest of them with one smallest tile.
 
 #include <cstdint>
 #include <string>
@@ -20,7 +26,10 @@ struct MemoryDemand {
     bool dumpMasks = false;      ///< --dump keeps every receiver's final mask
     uint64_t bufferBytes = 0;    ///< bucket buffers, chunks and other fixed buffers
     uint64_t kindBytes = 0;      ///< held by the receiver kind through casting (smooth shading's vertex table, a refinement pass)
-    uint64_t sceneBytes = 0;     ///< a method that holds the scene in memory (ssv: faces, edges, kd-trees); hpc streams: 0
+    uint64_t methodBytes = 0;    ///< held by the method while it casts (CasterEntry::memory: a ray caster's scene)
+    uint64_t sourceBytes = 0;    ///< the geometry sources' working set while they stream (TriangleSource::residentBytes)
+    std::string sourceDetail;    ///< what dominates sourceBytes, for the message (a large compressed primitive)
+    bool sourceDuringCast = false;  ///< the sources are replayed by the cast (no bucket files)
 };
 
 struct MemoryPlan {
@@ -38,8 +47,18 @@ inline constexpr uint64_t kMinimumTileReceivers = 4096;
 
 /// @brief Plans tiles for @p budget bytes (0 = unlimited: one tile).
 /// @throw InputError when even one smallest tile does not fit, naming the smallest budget that
-/// would ("--memory-budget 64M is too small for 2,073,600 receivers and 4 mask words; at least
-/// 310M is needed").
-MemoryPlan planMemory(const MemoryDemand& demand, uint64_t budget);
+/// would, rounded up to a whole MiB so it can be given as it is ("--memory-budget 64.0 MiB is too
+/// small for 2073600 receivers with 4 mask words each; at least 310M is needed").
+/// @param label and @p overhead name the limit in the message: a budget derived from an
+///        address-space limit says so, and counts what the process had mapped before.
+MemoryPlan planMemory(const MemoryDemand& demand, uint64_t budget, const std::string& label = "--memory-budget",
+                      uint64_t overhead = 0);
+
+/// @brief The phase the scan pass needs (the receiver kind's scan buffers and the sources), which
+/// must fit before anything is read.
+uint64_t scanPhaseBytes(const MemoryDemand& demand);
+
+/// @brief @p bytes rounded up to a whole MiB, as a --memory-budget value: "109M".
+std::string budgetText(uint64_t bytes);
 
 }  // namespace penumbra

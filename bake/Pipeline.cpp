@@ -1,29 +1,29 @@
 #include "bake/Pipeline.h"
 
-#include "bake/BakeDump.h"
-#include "bake/ClosedSolids.h"
-#include "bake/EmbreeCaster.h"
-#include "bake/HeckbertHerf.h"
+#include "bake/output/BakeDump.h"
+#include "bake/BakeMemory.h"
+#include "bake/BakeOutputs.h"
+#include "bake/BakeStats.h"
 #include "bake/MemoryPlan.h"
-#include "bake/PenumbraCaster.h"
-#include "bake/PenumbraMap.h"
-#include "bake/ReceiverKind.h"
-#include "bake/ReceiverShading.h"
-#include "bake/ReferenceCaster.h"
-#include "bake/SampleMaskTable.h"
-#include "bake/SsvCaster.h"
-#include "bake/SsvScene.h"
-#include "bake/SunLight.h"
+#include "bake/kinds/ReceiverKind.h"
+#include "bake/shading/ReceiverShading.h"
+#include "bake/WorkPlan.h"
+#include "bake/cast/Caster.h"
+#include "bake/cast/ClosedSolids.h"
+#include "bake/cast/ReachCull.h"
+#include "bake/cast/VisibilityMasks.h"
+#include "bake/light/SunLight.h"
 #include "bucket/BucketPlan.h"
+#include "stream/AnonymousFile.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
-#include "stream/Memory.h"
+#include "stream/InputFile.h"
 #include "stream/Npy.h"
+#include "stream/Memory.h"
 #include "stream/PrefetchSource.h"
 #include "stream/Progress.h"
 
 #include <tbb/global_control.h>
-#include <tbb/parallel_for.h>
 #include <tbb/info.h>
 
 #include <filesystem>
@@ -42,7 +42,6 @@ struct Prepared {
     TriangleSourcePtr blockers;           ///< replayable, largest first when sorting is on
     BucketReplaySource* replay = nullptr; ///< inside `blockers` when bucketed, for I/O counters
     uint64_t triangleCount = 0;
-    uint64_t bucketBufferBytes = 0;
 };
 
 /// Rejects NaN/inf vertices as they stream by, naming the triangle's position in the stream, and
@@ -97,7 +96,8 @@ void reportOpenedSolids(const OpenedSolids& opened, const std::vector<LightDesc>
 /// histogram is built and every vertex is checked. Pass 2 streams the blockers into area buckets
 /// on disk; casting then replays the buckets, largest first, once per memory tile. So the source
 /// is read at most twice and no pass holds more than a bounded window of triangles.
-Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverKind& kind, double& streamSeconds,
+Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverKind& kind, TriangleSourcePtr geometry,
+                 const std::function<void(const Prepared&, uint64_t triangles)>& afterScan, double& streamSeconds,
                  BucketStats& buckets) {
     Prepared p;
     p.lights = scene.lights;
@@ -105,7 +105,11 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     p.options = scene.options;
     // Read ahead on a thread of its own, so parsing or generation overlaps with rasterizing
     // receivers (scan pass) and writing bucket files (bucket pass).
-    TriangleSourcePtr source = std::make_unique<PrefetchSource>(openSceneGeometry(scene));
+    TriangleSourcePtr source = std::make_unique<PrefetchSource>(std::move(geometry));
+    // Before any triangle is read: the bucket files must fit on disk, and hours of work are announced.
+    checkBucketDisk(settings.tmpDir, source->sizeHint(), scene.options.sortBlockers);
+    noteLongBake(source->sizeHint().value_or(0), 1,
+                 int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)), settings.quiet);
     AreaHistogram histogram;
     {
         ScopedTimer timer(streamSeconds);
@@ -131,12 +135,14 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     p.sampleSets.resize(p.receivers.size());
     for (size_t i = 0; i < p.receivers.size(); ++i) p.sampleSets[i] = uint32_t(sampleSetOf(i, p.samples.sets, scene.seed));
     p.triangleCount = histogram.count();
+    afterScan(p, p.triangleCount);  // the exact memory check, before the bucket pass writes anything
 
     source->rewind();
     if (!p.openedSolids.ordinals.empty())
         source = std::make_unique<OpenSolidsSource>(std::move(source), p.openedSolids.ordinals);
-    // Methods that stream the blockers in any order have no use for the area buckets.
-    if (!scene.options.sortBlockers || settings.method == Method::PenumbraMap || settings.method == Method::Hh) {  // stream order: replay the source itself
+    // A method that gains nothing from largest-first order (it holds or streams the scene in any
+    // order) skips the bucket pass.
+    if (!scene.options.sortBlockers || !casterEntry(settings.method).traits.sortedBlockers) {  // replay the source itself
         if (kind.wantsRescan()) {  // no bucket pass to ride along with: a read of its own
             std::vector<Triangle> chunk(kTriangleChunk);
             while (size_t n = source->read(chunk)) kind.rescan(std::span<const Triangle>(chunk.data(), n));
@@ -152,116 +158,21 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     // A receiver kind that wants a second look at the geometry (smooth shading) gets it during
     // the bucket pass, so the source is still read only twice.
     const bool rescan = kind.wantsRescan();
+    // What cannot block is never written: the reach culls, against every receiver, once the scan
+    // has found them (refinement receivers are not known yet, so a kind that refines keeps all).
+    BlockerFilter keep;
+    if (scene.options.cullBeforeSpill && !kind.mayRefine()) keep = makeReachCull(p.samples.lightBounds, p.receivers);
     auto set = std::make_shared<BucketSet>(writeBuckets(*source, planBucketRanges(options, &histogram), options, &buckets,
                                                         [&](std::span<const Triangle> c) {
                                                             if (rescan) kind.rescan(c);
                                                             progress.update(c.size());
-                                                        }));
+                                                        },
+                                                        keep));
     progress.done();
     auto replay = std::make_unique<BucketReplaySource>(set, options.readBufferBytes);
     p.replay = replay.get();
-    p.bucketBufferBytes = options.writeMemoryBytes() + options.readBufferBytes;
     p.blockers = std::make_unique<PrefetchSource>(std::move(replay));
     return p;
-}
-
-/// Adds the stats of one more tile or cast pass to @p total; they run one after another, so
-/// peaks are the largest one's, not the sum.
-void accumulate(CastStats& total, const CastStats& s) {
-    total.hierarchyBuildSeconds += s.hierarchyBuildSeconds;
-    total.castSeconds += s.castSeconds;
-    total.replayReadSeconds += s.replayReadSeconds;
-    total.trianglesProcessed += s.trianglesProcessed;
-    total.trianglesCulledAtRoot += s.trianglesCulledAtRoot;
-    total.closedBackFaces += s.closedBackFaces;
-    total.rebuilds += s.rebuilds;
-    total.hardShadowTests += s.hardShadowTests;
-    total.tableDecidedRelations += s.tableDecidedRelations;
-    total.sampleTableBytes = std::max(total.sampleTableBytes, s.sampleTableBytes);
-    // Tiles run one after another: peaks are the largest tile's, not the sum.
-    total.peakLiveMasks = std::max(total.peakLiveMasks, s.peakLiveMasks);
-    total.peakMaskBytes = std::max(total.peakMaskBytes, s.peakMaskBytes);
-    total.peakHierarchyBytes = std::max(total.peakHierarchyBytes, s.peakHierarchyBytes);
-    total.receiverBytes = std::max(total.receiverBytes, s.receiverBytes);
-}
-
-/// Within a memory tile, threads work on disjoint sub-tiles, four per thread: more sub-tiles even
-/// out uneven work (measured on GRIDS with a barrier per chunk, 2 threads: 2 per thread cast in
-/// 4.28 s, 4 in 3.86 s, 8 in 3.92 s; docs/performance.md, "Parallelism").
-int subTiles(int threads) { return threads > 1 ? 4 * threads : 1; }
-
-/// Hierarchical penumbra casting of receivers [first, end), one memory tile after another; each
-/// tile replays the blockers. The first tile of the bake's first pass reads the replay the scan
-/// pass left ready; every other tile rewinds it. The kind sees the first tile's chunks when it
-/// asks for them.
-CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettings& settings, int threads,
-                           const MemoryPlan& plan, const ReceiverShader& shader, ReceiverResults& results,
-                           VisibilityMasks* dumpMasks, ReceiverKind& kind, uint32_t first, bool rewindFirst) {
-    CastStats total;
-    std::vector<uint32_t> ids(p.receivers.size() - first);
-    for (uint32_t i = 0; i < ids.size(); ++i) ids[i] = first + i;
-    const auto tiles = partitionReceivers(p.receivers, ids, plan.tiles);
-    ProgressReporter progress("cast", p.triangleCount * tiles.size(), settings.quiet);
-    const bool feedKind = kind.wantsCastChunks();
-    std::vector<Triangle> chunk(kTriangleChunk);
-    for (size_t t = 0; t < tiles.size(); ++t) {
-        const auto& tile = tiles[t];
-        double readSeconds = 0;
-        PenumbraCaster caster(p.samples, p.receivers, p.sampleSets, p.options, subTiles(threads), tile);
-        if (t > 0 || rewindFirst) p.blockers->rewind();
-        for (;;) {
-            size_t n;
-            {
-                ScopedTimer timer(readSeconds);
-                n = p.blockers->read(chunk);
-            }
-            if (n == 0) break;
-            std::span<const Triangle> part(chunk.data(), n);
-            // Smooth shading's pass over the faces runs on this thread while the tiles cast earlier
-            // chunks on the others. (As a parallel_invoke beside cast() it could sit unstolen in
-            // this thread's queue while cast() waited for a ring slot.)
-            if (feedKind && t == 0) kind.castChunk(part);
-            caster.cast(part);
-            progress.update(n);
-        }
-        caster.finish([&](uint32_t r, const uint64_t* words, bool full) {
-            shader.shade(r, words, full, results);
-            if (dumpMasks)
-                for (int k = 0; k < dumpMasks->groups; ++k)
-                    dumpMasks->row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
-        });
-        // Tile hierarchies are built on worker threads, in their malloc arenas; hand the freed
-        // memory back before the next tile, or arenas keep it and RSS creeps past the plan.
-        returnFreedMemory();
-        CastStats s = caster.stats();
-        s.replayReadSeconds = readSeconds;
-        accumulate(total, s);
-    }
-    progress.done();
-    return total;
-}
-
-/// Calls @p shade for receivers [first, end) on the worker threads; each writes only its own row.
-template <class F>
-void shadeInParallel(uint32_t first, uint32_t end, F&& shade) {
-    tbb::parallel_for(tbb::blocked_range<uint32_t>(first, end, 1024), [&](const tbb::blocked_range<uint32_t>& range) {
-        for (uint32_t r = range.begin(); r != range.end(); ++r) shade(r);
-    });
-}
-
-/// Calls @p f with @p all in chunks of kTriangleChunk.
-template <class F>
-void forEachChunk(const std::vector<Triangle>& all, F&& f) {
-    for (size_t i = 0; i < all.size(); i += kTriangleChunk)
-        f(std::span<const Triangle>(all).subspan(i, std::min(kTriangleChunk, all.size() - i)));
-}
-
-/// Receivers [first, end) of @p set as a set of their own (the ray casters take whole sets).
-ReceiverSet tailOf(const ReceiverSet& set, size_t first) {
-    ReceiverSet out;
-    out.position.assign(set.position.begin() + first, set.position.end());
-    out.normal.assign(set.normal.begin() + first, set.normal.end());
-    return out;
 }
 
 /// Appends @p extra (refinement receivers) to @p set.
@@ -272,262 +183,161 @@ void append(ReceiverSet& set, const ReceiverSet& extra) {
     set.depth.insert(set.depth.end(), extra.depth.begin(), extra.depth.end());
 }
 
-/// The counters of the methods other than hpc, for the stats JSON.
-struct MethodStats {
-    EmbreeStats embree;
-    SsvStats ssv;
-    PenumbraMapStats penumbraMap;
-    HeckbertHerfStats hh;
+/// One bake's state, filled stage by stage.
+struct Bake {
+    const SceneDesc& scene;
+    const BakeSettings& settings;
+    const CasterEntry& method;
+    int threads;
+    BakeBudget budget;
+    std::unique_ptr<ReceiverKind> kind;
+    MemoryDemand demand;
+    uint64_t minimum = 0;  ///< the largest minimum budget any stage found
+    MemoryPlan plan;
+    Prepared p;
+    BucketStats buckets;
+    ReceiverResults results;
+    VisibilityMasks masks;  ///< every receiver's masks, for --dump only
+    std::unique_ptr<Caster> caster;
+    size_t firstPass = 0;  ///< receivers of the first pass; later ones are a refinement's
+    double streamSeconds = 0, castSeconds = 0, refineSeconds = 0;
+
+    Bake(const SceneDesc& s, const BakeSettings& b)
+        : scene(s), settings(b), method(casterEntry(b.method)),
+          threads(b.threads > 0 ? b.threads : int(tbb::info::default_concurrency())),
+          budget(fitAddressSpace(b.memoryBudget, threads, b.quiet)) {}
+    bool dump() const { return !settings.dumpDir.empty(); }
+    void replan() {
+        plan = budget.plan(demand);
+        minimum = std::max(minimum, plan.minimumBudget);
+        plan.minimumBudget = minimum;
+    }
 };
 
-/// Every method but hpc, for receivers [first, end): the streamed ones (penumbra-map, hh) read
-/// the blockers themselves; the ray casters get the whole scene, read into @p all once.
-void castOtherMethod(Prepared& p, const SceneDesc& scene, const BakeSettings& settings, ReceiverKind& kind,
-                     const ReceiverShader& shader, uint32_t first, std::vector<Triangle>& all, VisibilityMasks& masks,
-                     ReceiverResults& results, MethodStats& stats) {
-    const ReceiverSet part = first == 0 ? ReceiverSet{} : tailOf(p.receivers, first);
-    const ReceiverSet& targets = first == 0 ? p.receivers : part;
-    const std::span<const uint32_t> sets = std::span<const uint32_t>(p.sampleSets).subspan(first);
-    const uint64_t work = settings.method == Method::PenumbraMap ? 2 * p.triangleCount * uint64_t(p.samples.lightCount())
-                          : settings.method == Method::Hh     ? p.triangleCount
-                                                              : targets.size();
-    ProgressReporter progress(methodName(settings.method), work, settings.quiet);
-    auto tick = [&](uint64_t n) { progress.update(n); };
-    const ReceiverEpsilon eps = receiverEpsilonOf(p.options);
-    if (settings.method == Method::PenumbraMap) {  // streams the blockers, in stream order
-        if (kind.wantsCastChunks()) {
-            p.blockers->rewind();
-            std::vector<Triangle> chunk(kTriangleChunk);
-            while (size_t n = p.blockers->read(chunk)) kind.castChunk(std::span<const Triangle>(chunk.data(), n));
-        }
-        const std::vector<float> v = castPenumbraMap(p.samples, targets, sets, *p.blockers, eps, scene.penumbraMap, &stats.penumbraMap, tick);
-        progress.done();
-        shadeInParallel(first, uint32_t(p.receivers.size()), [&](uint32_t r) {
-            shader.shadeVisibleFraction(r, &v[size_t(r - first) * p.samples.lightCount()], results);
-        });
-        return;
-    }
-    if (settings.method == Method::Hh) {  // streams the blockers once; lightmaps are never refined
-        VisibilityMasks m = castHeckbertHerf(p.samples, targets, sets, *p.blockers, eps, *kind.receiverPolygons(), &stats.hh, tick);
-        progress.done();
-        std::copy(m.words.begin(), m.words.end(), masks.words.begin());
-        shadeInParallel(0, uint32_t(p.receivers.size()), [&](uint32_t r) { shader.shade(r, masks.row(r), false, results); });
-        return;
-    }
-    // The ray casters need the whole scene in memory: that is their nature, not ours.
-    if (all.empty()) {
-        all = readAll(*p.blockers);
-    }
-    if (kind.wantsCastChunks()) forEachChunk(all, [&](std::span<const Triangle> c) { kind.castChunk(c); });
-    VisibilityMasks m = settings.method == Method::Reference ? castReference(p.samples, targets, sets, all, eps, tick)
-                        : settings.method == Method::Ssv
-                            ? castSsv(p.samples, targets, sets, all, eps, SsvOptions{}, &stats.ssv, tick)
-                            : castEmbree(p.samples, targets, sets, all, eps, &stats.embree, tick, p.options.embreeRuleFilter);
-    progress.done();
-    std::copy(m.words.begin(), m.words.end(), masks.words.begin() + size_t(first) * masks.groups);
-    shadeInParallel(first, uint32_t(p.receivers.size()), [&](uint32_t r) { shader.shade(r, masks.row(r), false, results); });
+/// Plan, scan, bucket: the receivers and light samples, and the blockers ready to replay. The
+/// worst case is checked before any work, the exact plan once the scan has found the receivers
+/// (BakeMemory.h).
+void scanScene(Bake& b) {
+    const SceneDesc& scene = b.scene;
+    b.kind = makeReceiverKind(scene.receivers, scene);
+    if (b.method.traits.needsPolygons && !b.kind->receiverPolygons())
+        fail("--method " + b.method.name, "applies to lightmap receivers only (this scene's receivers are \"{}\")",
+             scene.receivers.value("type", std::string("?")));
+    if (!b.method.traits.masks && b.dump())
+        fail("--dump", "--method {} gives visible fractions, not per-sample masks", b.method.name);
+    TriangleSourcePtr geometry = openSceneGeometry(scene);
+    b.demand = demandBeforeScan(scene, *b.kind, *geometry, b.dump());
+    checkBeforeScan(b.demand, b.budget);
+    // Without a budget the machine is the bound: refuse before any work what it cannot hold.
+    checkMemoryFits(scene.file, "the scan pass", scanPhaseBytes(b.demand));
+    checkMemoryFits(scene.file, "casting", planMemory(b.demand, 0).minimumBudget);
+    auto afterScan = [&](const Prepared& prepared, uint64_t triangles) {
+        b.demand.receivers = prepared.receivers.size();
+        b.demand.kindBytes = b.kind->maxResidentBytes(b.demand.receivers, triangles);
+        b.demand.outputBytes = b.kind->outputBytes(b.demand.receivers);
+        if (b.method.memory) b.demand.methodBytes = b.method.memory(triangles, prepared.receivers.size(), prepared.samples, scene.bakeOptions);
+        addSampleDemand(b.demand, prepared.samples, scene);
+        b.minimum = b.budget.plan(b.demand).minimumBudget;
+    };
+    b.p = prepare(scene, b.settings, *b.kind, std::move(geometry), afterScan, b.streamSeconds, b.buckets);
+    b.demand.kindBytes = b.kind->residentBytes();
+    b.replan();
+    checkMemoryFits(scene.file, "casting", b.plan.minimumBudget);
+    b.results.resize(b.p.receivers.size(), int(b.p.lights.size()));
+    if (b.dump()) b.masks = VisibilityMasks(b.p.receivers.size(), b.p.samples.groupCount());
+    b.firstPass = b.p.receivers.size();
 }
 
-/// The stats JSON's section of the method, if it has one.
-void addMethodStats(nlohmann::json& out, Method method, const MethodStats& s, const SceneDesc& scene) {
-    if (method == Method::Embree)
-        out["embree"] = {{"build_time_s", s.embree.buildSeconds}, {"trace_time_s", s.embree.traceSeconds},
-                         {"rays", s.embree.rays}, {"scene_bytes", s.embree.sceneBytes},
-                         {"filter_calls", s.embree.filterCalls}, {"filter_exact", s.embree.filterExact},
-                         {"filter_rejected", s.embree.filterRejected}};
-    if (method == Method::Ssv) out["ssv"] = ssvStatsJson(s.ssv);
-    if (method == Method::Hh) out["hh"] = heckbertHerfStatsJson(s.hh);
-    if (method == Method::PenumbraMap) out["penumbra_map"] = penumbraMapStatsJson(s.penumbraMap, scene.penumbraMap);
+/// Casts receivers [first, end) with the bake's method, shading each as its result arrives.
+void castReceivers(Bake& b, uint32_t first) {
+    ScopedTimer timer(b.castSeconds);
+    Prepared& p = b.p;
+    if (!b.caster) {
+        CastContext context{p.samples, p.receivers,       p.sampleSets,      p.options, b.scene.bakeOptions,
+                            b.threads, b.plan.tiles,      b.settings.quiet, {},        nullptr};
+        if (b.method.traits.needsPolygons) context.polygons = b.kind->receiverPolygons();
+        if (b.kind->wantsCastChunks()) context.observeChunk = [&b](std::span<const Triangle> c) { b.kind->castChunk(c); };
+        b.caster = b.method.make(context);
+    }
+    const ReceiverShader shader(p.lights, p.samples, p.receivers, p.sampleSets);
+    CastSink sink;
+    sink.masks = [&](uint32_t r, const uint64_t* words, bool full) {
+        shader.shade(r, words, full, b.results);
+        if (b.dump())
+            for (int k = 0; k < b.masks.groups; ++k)
+                b.masks.row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
+    };
+    sink.visibility = [&](uint32_t r, const float* lightVisibility) { shader.shadeVisibleFraction(r, lightVisibility, b.results); };
+    b.caster->cast(*p.blockers, first, sink);
+}
+
+/// Adaptive refinement: the kind looks at the first pass, finds its new receivers in one more read
+/// of the blockers, and only those are cast. @return whether receivers were added.
+bool refineReceivers(Bake& b) {
+    Prepared& p = b.p;
+    if (!b.kind->refine(p.receivers, b.results)) return false;
+    b.demand.kindBytes = b.kind->residentBytes() + b.kind->refineBytes();
+    b.replan();  // the refinement's rasterizer fits, or a clear error
+    {
+        ScopedTimer timer(b.refineSeconds);
+        p.blockers->rewind();
+        std::vector<Triangle> chunk(kTriangleChunk);
+        while (size_t n = p.blockers->read(chunk)) b.kind->refineScan(std::span<const Triangle>(chunk.data(), n));
+        append(p.receivers, b.kind->refinedReceivers());
+    }
+    returnFreedMemory();
+    for (size_t i = b.firstPass; i < p.receivers.size(); ++i)
+        p.sampleSets.push_back(uint32_t(sampleSetOf(i, p.samples.sets, b.scene.seed)));
+    b.results.extend(p.receivers.size());
+    if (b.masks.groups) b.masks.words.resize(p.receivers.size() * size_t(b.masks.groups), 0);
+    b.demand.receivers = p.receivers.size();
+    b.demand.kindBytes = b.kind->residentBytes();
+    b.demand.outputBytes = b.kind->outputBytes(p.receivers.size());
+    b.replan();
+    return true;
+}
+
+void writeOutputs(Bake& b) {
+    const Prepared& p = b.p;
+    b.kind->write(OutputContext{b.scene, p.receivers, p.samples, b.results, b.scene.output, b.firstPass});
+    if (b.dump()) writeBakeDump(b.settings.dumpDir, p.receivers, p.sampleSets, p.samples, b.masks, receiverEpsilonOf(p.options));
+    if (!b.settings.visibilityPath.empty()) {
+        const uint64_t shape[1] = {p.receivers.size()};
+        writeNpy(b.settings.visibilityPath, "<f4", shape, b.results.visibility.data(), b.results.visibility.size() * sizeof(float));
+    }
 }
 
 }  // namespace
 
-Method parseMethod(const std::string& name) {
-    if (name == "hpc") return Method::Hpc;
-    if (name == "reference") return Method::Reference;
-    if (name == "embree") return Method::Embree;
-    if (name == "ssv") return Method::Ssv;
-    if (name == "penumbra-map") return Method::PenumbraMap;
-    if (name == "hh") return Method::Hh;
-    throw InputError("--method: unknown method \"" + name + "\" (known: hpc, reference, embree, ssv, penumbra-map, hh)");
-}
-
-const char* methodName(Method m) {
-    switch (m) {
-        case Method::Hpc: return "hpc";
-        case Method::Reference: return "reference";
-        case Method::Embree: return "embree";
-        case Method::Ssv: return "ssv";
-        case Method::PenumbraMap: return "penumbra-map";
-        case Method::Hh: return "hh";
-    }
-    return "?";
-}
-
 nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
+    InputScope inputs;  // no output may replace a file this bake reads
+    if (settings.threads < 0 || settings.threads > kMaxThreads)
+        fail("--threads", "must be in 0..{} (0: all cores), got {}", kMaxThreads, settings.threads);
+    checkBakeOutputs(scene, settings.statsPath, settings.dumpDir);
+    if (!settings.visibilityPath.empty()) checkOutputAgainstInputs(scene, settings.visibilityPath);
     Stopwatch total;
-    const int threads = settings.threads > 0 ? settings.threads : int(tbb::info::default_concurrency());
-    tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(threads));
-    const bool dump = !settings.dumpDir.empty();
+    Bake b(scene, settings);
+    tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(b.threads));
+    tbb::global_control stacks(tbb::global_control::thread_stack_size, size_t(kWorkerStackBytes));
+    setScratchDirectory(settings.tmpDir);  // spilled OBJ vertices go where the buckets go
 
-    // Check before any work that the scan pass fits; the receiver count is known after it, and
-    // the full plan is checked again then, before casting.
-    std::unique_ptr<ReceiverKind> kind = makeReceiverKind(scene.receivers, scene);
-    if (settings.method == Method::Hh && !kind->receiverPolygons())
-        throw InputError(fmt::format("--method hh: applies to lightmap receivers only (this scene's receivers are \"{}\")",
-                                     scene.receivers.value("type", std::string("?"))));
-    MemoryDemand demand;
-    demand.scanBytes = kind->scanBytes();
-    int samplesTotal = 0;
-    for (const LightDesc& l : scene.lights) samplesTotal += l.samples;
-    demand.groups = (samplesTotal + scene.options.groupSize - 1) / scene.options.groupSize;
-    demand.umbraWords = (demand.groups + 63) / 64;
-    demand.dumpMasks = dump;
-    planMemory(demand, settings.memoryBudget);
+    scanScene(b);
+    castReceivers(b, 0);
+    if (refineReceivers(b)) castReceivers(b, uint32_t(b.firstPass));
+    OutputSet outputs;  // every output of the bake appears together, or none does
+    writeOutputs(b);
 
-    double streamSeconds = 0;
-    BucketStats buckets;
-    Prepared p = prepare(scene, settings, *kind, streamSeconds, buckets);
-    demand.receivers = p.receivers.size();
-    demand.outputBytes = kind->outputBytes(p.receivers.size());
-    demand.groups = p.samples.groupCount();
-    demand.umbraWords = (demand.groups + 63) / 64;
-    demand.sampleBytes = p.samples.positions.size() * sizeof(glm::vec3);
-    if (scene.options.sampleTable)  // one copy per caster; casters (memory tiles) run one at a time
-        for (uint32_t l = 0; l < uint32_t(p.samples.lightCount()); ++l)
-            demand.sampleBytes += SampleMaskTable::plannedBytes(p.samples, l, scene.options.sampleTableAngles,
-                                                                scene.options.sampleTableOffsets);
-    // Bucket buffers, the prefetch queue and the caster's ring of prepared chunks are fixed buffers.
-    demand.bufferBytes = p.bucketBufferBytes + 8 * kTriangleChunk * sizeof(Triangle) +
-                         PenumbraCaster::kMaxRingChunks * PenumbraCaster::preparedChunkBytes(scene.lights.size());
-    demand.kindBytes = kind->residentBytes();
-    if (settings.method == Method::Ssv) demand.sceneBytes = SsvScene::plannedBytes(p.triangleCount, p.samples.lightCount());
-    if (settings.method == Method::PenumbraMap) demand.sceneBytes = scene.penumbraMap.mapBytes();
-    MemoryPlan plan = planMemory(demand, settings.memoryBudget);
-
-    ReceiverResults results;
-    results.resize(p.receivers.size(), int(p.lights.size()));
-    VisibilityMasks masks;
-    if (dump && settings.method == Method::PenumbraMap)
-        throw InputError("--dump: penumbra-map gives each receiver a visible fraction, not per-sample masks (use --visibility)");
-    if (dump || (settings.method != Method::Hpc && settings.method != Method::PenumbraMap)) masks = VisibilityMasks(p.receivers.size(), p.samples.groupCount());
-
-    CastStats cast;
-    MethodStats methodStats;
-    double castSeconds = 0, refineSeconds = 0;
-    std::vector<Triangle> all;  // the ray casters' whole scene, read once
-    // One cast of receivers [first, end): the first pass casts them all, a refinement pass only
-    // the receivers it added.
-    auto castPass = [&](uint32_t first, bool rewind) {
-        ScopedTimer timer(castSeconds);
-        ReceiverShader shader(p.lights, p.samples, p.receivers, p.sampleSets);
-        if (settings.method == Method::Hpc) {
-            accumulate(cast, castHierarchical(p, scene, settings, threads, plan, shader, results, dump ? &masks : nullptr,
-                                              *kind, first, rewind));
-            return;
-        }
-        castOtherMethod(p, scene, settings, *kind, shader, first, all, masks, results, methodStats);
-    };
-    castPass(0, false);
-
-    // Adaptive refinement: the kind looks at the first pass, finds its new receivers in one more
-    // read of the blockers, and only those are cast.
-    const size_t firstPass = p.receivers.size();
-    if (kind->refine(p.receivers, results)) {
-        demand.kindBytes = kind->residentBytes() + kind->refineBytes();
-        // The refinement's rasterizer fits, or a clear error; the stats report the largest minimum.
-        const uint64_t refineMinimum = planMemory(demand, settings.memoryBudget).minimumBudget;
-        {
-            ScopedTimer timer(refineSeconds);
-            if (all.empty()) {  // hpc and the streamed methods read the blockers again
-                p.blockers->rewind();
-                std::vector<Triangle> chunk(kTriangleChunk);
-                while (size_t n = p.blockers->read(chunk)) kind->refineScan(std::span<const Triangle>(chunk.data(), n));
-            } else {
-                forEachChunk(all, [&](std::span<const Triangle> c) { kind->refineScan(c); });
-            }
-            append(p.receivers, kind->refinedReceivers());
-        }
-        returnFreedMemory();
-        for (size_t i = firstPass; i < p.receivers.size(); ++i)
-            p.sampleSets.push_back(uint32_t(sampleSetOf(i, p.samples.sets, scene.seed)));
-        results.extend(p.receivers.size());
-        if (masks.groups) masks.words.resize(p.receivers.size() * size_t(masks.groups), 0);
-        demand.receivers = p.receivers.size();
-        demand.kindBytes = kind->residentBytes();
-        demand.outputBytes = kind->outputBytes(p.receivers.size());
-        plan = planMemory(demand, settings.memoryBudget);
-        plan.minimumBudget = std::max(plan.minimumBudget, refineMinimum);
-        castPass(uint32_t(firstPass), true);
-    }
-
-    kind->write(OutputContext{scene, p.receivers, p.samples, results, scene.output, firstPass});
-    if (!settings.visibilityPath.empty()) {
-        const uint64_t shape[1] = {p.receivers.size()};
-        ensureParentDirectory(settings.visibilityPath);
-        writeNpy(settings.visibilityPath, "<f4", shape, results.visibility.data(), results.visibility.size() * sizeof(float));
-    }
-    if (dump) writeBakeDump(settings.dumpDir, p.receivers, p.sampleSets, p.samples, masks, receiverEpsilonOf(p.options));
-
-    uint64_t blocked = 0;
-    for (float v : results.visibility) blocked += uint64_t(std::llround((1.0 - v) * p.samples.sampleCount));
-    nlohmann::json stats = {
-        {"scene", scene.file},
-        {"method", methodName(settings.method)},
-        {"threads", threads},
-        {"simd", simdName(hardShadowKernels(scene.options.simd).level)},
-        {"receivers", p.receivers.size()},
-        {"light_samples", p.samples.sampleCount},
-        {"sample_sets", p.samples.sets},
-        {"light_sample_groups", p.samples.groupCount()},
-        {"epsilon", {{"relative", p.options.epsilon}, {"length", p.options.epsilonLength}}},
-        {"blocked_relations", blocked},
-        {"table2",
-         {{"sort_time_s", buckets.seconds},
-          {"hierarchy_build_time_s", cast.hierarchyBuildSeconds},
-          {"penumbra_cast_time_s", settings.method == Method::Hpc ? cast.castSeconds : castSeconds},
-          {"replay_read_time_s", cast.replayReadSeconds},
-          {"samples_memory_bytes", p.receivers.bytes() + cast.receiverBytes},
-          {"peak_hierarchy_memory_bytes", cast.peakHierarchyBytes},
-          {"peak_mask_memory_bytes", cast.peakMaskBytes},
-          {"total_time_s", total.seconds()}}},
-        {"counters",
-         {{"triangles_read", p.triangleCount},
-          {"triangles_culled_at_root", cast.trianglesCulledAtRoot},
-          {"closed_back_faces_skipped", cast.closedBackFaces},
-          {"closed_solids_opened", p.openedSolids.ordinals.size()},
-          {"closed_triangles_opened", p.openedSolids.triangles},
-          {"rebuilds", cast.rebuilds},
-          {"peak_live_masks", cast.peakLiveMasks},
-          {"hard_shadow_tests", cast.hardShadowTests},
-          {"table_decided_relations", cast.tableDecidedRelations},
-          {"sample_table_bytes", cast.sampleTableBytes},
-          {"peak_rss_bytes", peakRssBytes()}}},
-        {"memory_plan",
-         {{"budget_bytes", plan.budget},
-          {"tiles", plan.tiles},
-          {"resident_bytes", plan.residentBytes},
-          {"per_receiver_bytes", plan.perReceiverBytes},
-          {"minimum_budget_bytes", plan.minimumBudget}}},
-        {"stream", {{"scan_time_s", streamSeconds}, {"triangles", p.triangleCount}}},
-        {"buckets",
-         {{"files", buckets.nonEmptyFiles},
-          {"bytes_written", buckets.bytesWritten},
-          {"bytes_read", p.replay ? p.replay->bytesRead() : 0},
-          {"bytes_per_triangle", buckets.bytesPerTriangle()},
-          {"write_mb_per_s", buckets.megabytesPerSecond()},
-          {"read_mb_per_s", p.replay && p.replay->readSeconds() > 0 ? double(p.replay->bytesRead()) / 1e6 / p.replay->readSeconds() : 0.0},
-          {"pass_time_s", buckets.seconds}}},
-    };
-    if (nlohmann::json extra = kind->stats(); extra.is_object())
+    BakeStatsInputs in{scene, settings.method, b.threads, b.p.receivers, b.p.samples, b.p.options, b.results,
+                       b.caster->stats(), b.buckets, b.plan, b.demand};
+    in.triangles = b.p.triangleCount, in.replay = b.p.replay, in.openedSolids = &b.p.openedSolids;
+    in.streamSeconds = b.streamSeconds, in.castSeconds = b.castSeconds, in.refineSeconds = b.refineSeconds;
+    in.totalSeconds = total.seconds();
+    nlohmann::json stats = bakeStats(in);
+    if (nlohmann::json extra = b.kind->stats(); extra.is_object())
         for (auto& [key, value] : extra.items()) stats[key] = value;
-    if (refineSeconds > 0) stats["antialias"]["refine_scan_time_s"] = refineSeconds;
-    addMethodStats(stats, settings.method, methodStats, scene);
-    if (!settings.statsPath.empty()) {
-        std::string text = stats.dump(2) + "\n";
-        ensureParentDirectory(settings.statsPath);
-        writeFileAtomically(settings.statsPath, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
-    }
+    if (nlohmann::json extra = b.caster->methodStats(); !extra.is_null()) stats[settings.method] = extra;
+    if (!settings.statsPath.empty()) writeStats(settings.statsPath, stats);
+    outputs.commit();
     return stats;
 }
 

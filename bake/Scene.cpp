@@ -1,13 +1,16 @@
 #include "bake/Scene.h"
 
-#include "bake/ReceiverKind.h"
-#include "bake/ReceiverShading.h"
-#include "bake/SunLight.h"
+#include "bake/cast/Caster.h"
+#include "bake/kinds/ReceiverKind.h"
+#include "bake/shading/ReceiverShading.h"
+#include "bake/light/SunLight.h"
+#include "stream/CheckedMath.h"
 #include "stream/Error.h"
 #include "stream/GeometryFile.h"
 #include "stream/JsonParams.h"
 #include "stream/SourceRegistry.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace penumbra {
@@ -82,6 +85,7 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
     o.sampleTable = j.boolean("sample_table", o.sampleTable);
     o.closedCasters = j.boolean("closed_casters", o.closedCasters);
     o.embreeRuleFilter = j.boolean("embree_rule_filter", o.embreeRuleFilter);
+    o.cullBeforeSpill = j.boolean("cull_before_spill", o.cullBeforeSpill);
     o.sampleTableAngles = int(j.integer("sample_table_angles", o.sampleTableAngles, 4, 4096));
     o.sampleTableOffsets = int(j.integer("sample_table_offsets", o.sampleTableOffsets, 1, 4096));
     o.rebuildThreshold = j.number("rebuild_threshold", o.rebuildThreshold);
@@ -91,26 +95,49 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
     o.hierarchy.medianSplitAbove = int(j.integer("median_split_above", o.hierarchy.medianSplitAbove, 1, 1 << 30));
     o.groupSize = int(j.integer("group_size", o.groupSize, 1, 64));
     o.epsilon = j.number("epsilon", o.epsilon);
-    if (!(o.epsilon >= 0)) fail(j.where("epsilon"), "must not be negative, got {}", o.epsilon);
+    // Beyond a tenth of the scene's scale the receiver-end margin would hide most shadows.
+    if (!(o.epsilon >= 0 && o.epsilon <= kMaxEpsilon))
+        fail(j.where("epsilon"), "must be in 0..{}, got {}", kMaxEpsilon, o.epsilon);
     if (j.has("simd")) o.simd = parseSimdLevel(j.string("simd"), j.where("simd"));
-    scene.seed = uint64_t(j.integer("seed", int64_t(scene.seed), 0, INT64_MAX));
+    scene.seed = j.seed("seed", scene.seed);
     scene.smoothShading = j.boolean("smooth_shading", scene.smoothShading);
-    scene.penumbraMap.resolution = int(j.integer("penumbra_map_resolution", scene.penumbraMap.resolution, 16, 16384));
-    scene.penumbraMap.bias = j.number("penumbra_map_bias", scene.penumbraMap.bias);
-    if (!(scene.penumbraMap.bias >= 0) || !std::isfinite(scene.penumbraMap.bias))
-        fail(j.where("penumbra_map_bias"), "must be finite and non-negative, got {}", scene.penumbraMap.bias);
+    // Every method's own keys are read (and checked) by the method, whichever one bakes.
+    for (const std::string& name : casterNames())
+        if (const auto& check = casterEntry(name).checkOptions) check(j);
     j.finish();
 }
 
 }  // namespace
 
+std::vector<std::string> geometryParts(const JsonParams& entry) {
+    std::vector<std::string> parts;
+    const nlohmann::json* raw = entry.raw("parts");
+    if (!raw) return parts;
+    if (!raw->is_array() || raw->empty()) fail(entry.where("parts"), "expected a non-empty array of o/g group names");
+    for (const nlohmann::json& name : *raw) {
+        if (!name.is_string()) fail(entry.where("parts"), "expected a non-empty array of o/g group names");
+        parts.push_back(name.get<std::string>());
+    }
+    return parts;
+}
+
 void registerFileSourceTypes() {
     for (const char* type : {"obj", "gltf", "glb", "ptri", "file"})
-        registerSourceType(type, [](const SourceRequest& r) {
+        registerSourceType(type, [type = std::string(type)](const SourceRequest& r) {
             JsonParams j(r.params, r.file, r.path);
-            std::string path = resolveScenePath(r.baseDir, j.string("path"));
+            std::string path = resolveScenePath(r.baseDir, j.string("path"), j.where("path"));
+            const std::vector<std::string> parts = geometryParts(j);
             j.finish();
-            return openGeometryFile(path);
+            if (type == "file") return openGeometryFile(path, parts);
+            // The entry's type decides the reader; an extension that names another format is a
+            // mistake worth stopping for, not a hint to follow.
+            const GeometryFormat format = type == "obj" ? GeometryFormat::Obj
+                                          : type == "ptri" ? GeometryFormat::Ptri
+                                                           : GeometryFormat::Gltf;
+            if (std::optional<GeometryFormat> named = geometryFormatOf(path); named && *named != format)
+                fail(r.where() + ".type", "\"{}\" does not match the file {} (use the type of its format, or \"file\")",
+                     type, path);
+            return openGeometryFile(path, format, parts);
         });
 }
 
@@ -140,18 +167,35 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
     const nlohmann::json* lights = j.raw("lights");
     if (!lights) fail(j.where("lights"), "missing required field");
     if (!lights->is_array() || lights->empty()) fail(j.where("lights"), "expected a non-empty array of lights");
-    for (size_t i = 0; i < lights->size(); ++i)
+    uint64_t samples = 0, sets = 1;
+    for (size_t i = 0; i < lights->size(); ++i) {
         scene.lights.push_back(parseLight(JsonParams((*lights)[i], file, indexed("lights", i))));
+        // Every receiver holds a bit per sample of all lights, and every set a position per sample.
+        samples = checkedSum(samples, uint64_t(scene.lights.back().samples), kMaxSceneSamples, j.where("lights"),
+                             "light samples in all");
+        sets = std::max(sets, uint64_t(scene.lights.back().sampleSets));
+    }
+    checkedProduct({samples, sets}, kMaxSamplePositions, j.where("lights"), "sample positions (samples x sets)");
 
     const nlohmann::json* receivers = j.raw("receivers");
     if (!receivers) fail(j.where("receivers"), "missing required field");
     scene.receivers = *receivers;
 
-    scene.output = resolveScenePath(scene.baseDir, j.string("output", scene.output));
-    if (const nlohmann::json* bake = j.raw("bake")) parseOptions(JsonParams(*bake, file, "bake"), scene);
+    // Resolved now, checked against the scene's directory only by a bake that writes it (-o
+    // replaces it): checkSceneOutput().
+    scene.output = (scene.baseDir / j.string("output", scene.output)).lexically_normal().string();
+    if (const nlohmann::json* bake = j.raw("bake")) {
+        scene.bakeOptions = *bake;
+        parseOptions(JsonParams(*bake, file, "bake"), scene);
+    }
     j.finish();
     makeReceiverKind(scene.receivers, scene);  // validates the receivers now; the bake makes its own
     return scene;
+}
+
+void checkSceneOutput(const SceneDesc& scene) {
+    if (!scene.outputFromScene) return;
+    resolveScenePath(scene.baseDir, std::filesystem::absolute(scene.output).string(), scene.file + ": output");
 }
 
 SceneDesc loadScene(const std::string& path) { return parseScene(readJsonFile(path), path); }

@@ -1,5 +1,6 @@
 #include "bucket/BucketFiles.h"
 
+#include "stream/AnonymousFile.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
 #include "stream/Progress.h"
@@ -33,24 +34,6 @@ int writeAll(int fd, const uint8_t* data, size_t bytes, size_t& written) {
         written += static_cast<size_t>(n);
     }
     return 0;
-}
-
-/// Creates a file nobody can open by name, in @p dir. O_TMPFILE where the file system has it;
-/// elsewhere create-then-unlink, with the name registered for signal cleanup in between.
-/// Returns the descriptor, or -1 with errno set.
-int createAnonymousFile(const std::string& dir, size_t index) {
-    int fd = ::open(dir.c_str(), O_RDWR | O_TMPFILE | O_CLOEXEC, 0600);
-    if (fd >= 0) return fd;
-    // EISDIR / EOPNOTSUPP / EINVAL: no O_TMPFILE here (old kernel, some network file systems).
-    if (errno != EISDIR && errno != EOPNOTSUPP && errno != EINVAL) return -1;
-    std::string path = dir + "/anonymous-" + std::to_string(index) + ".tri";
-    registerTempFile(path);
-    fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
-    int err = errno;
-    ::unlink(path.c_str());
-    unregisterTempFile(path);
-    errno = err;
-    return fd;
 }
 
 }  // namespace
@@ -149,7 +132,7 @@ void BucketWriter::open() {
             slot.registered = true;
             slot.fd = ::open(slot.path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
         } else {
-            slot.fd = createAnonymousFile(directory_, i);
+            slot.fd = createAnonymousFile(directory_);
         }
         if (slot.fd < 0) {
             int err = errno;

@@ -13,14 +13,24 @@ BucketRanges planBucketRanges(const BucketOptions& options, const AreaHistogram*
 }
 
 BucketSet writeBuckets(TriangleSource& source, const BucketRanges& ranges, const BucketOptions& options,
-                       BucketStats* stats, const std::function<void(std::span<const Triangle>)>& onChunk) {
+                       BucketStats* stats, const std::function<void(std::span<const Triangle>)>& onChunk,
+                       const std::function<bool(const Triangle&)>& keep) {
     Stopwatch total;
     double writeSeconds = 0;
+    uint64_t culled = 0;
     BucketWriter writer(ranges, options, source.sizeHint());
-    std::vector<Triangle> chunk(kTriangleChunk);
+    std::vector<Triangle> chunk(kTriangleChunk), kept;
+    if (keep) kept.reserve(kTriangleChunk);
     while (size_t n = source.read(chunk)) {
         std::span<const Triangle> got(chunk.data(), n);
         if (onChunk) onChunk(got);
+        if (keep) {
+            kept.clear();
+            for (const Triangle& t : got)
+                if (keep(t)) kept.push_back(t);
+            culled += got.size() - kept.size();
+            got = kept;
+        }
         ScopedTimer timer(writeSeconds);
         writer.write(got);
     }
@@ -34,6 +44,7 @@ BucketSet writeBuckets(TriangleSource& source, const BucketRanges& ranges, const
         stats->opaqueTriangles = set.opaqueTriangles();
         stats->alphaMatteTriangles = set.alphaMatteTriangles();
         stats->bytesWritten = set.bytes();
+        stats->culledTriangles = culled;
         stats->ranges = set.ranges().count();
         for (const BucketInfo& b : set.buckets()) stats->nonEmptyFiles += b.triangles > 0;
         stats->writeSeconds = writeSeconds;

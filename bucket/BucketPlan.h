@@ -31,6 +31,7 @@ struct BucketStats {
     uint64_t opaqueTriangles = 0;
     uint64_t alphaMatteTriangles = 0;
     uint64_t bytesWritten = 0;
+    uint64_t culledTriangles = 0;  ///< read but dropped by the filter: never written
     size_t ranges = 0;          ///< area ranges (buckets per kind)
     size_t nonEmptyFiles = 0;   ///< bucket files holding at least one triangle
     double seconds = 0;         ///< the whole pass: reading the source, sorting into buckets, writing
@@ -55,13 +56,17 @@ BucketRanges planBucketRanges(const BucketOptions& options, const AreaHistogram*
 /// @param ranges the area ranges (planBucketRanges()).
 /// @param options directory, keep, buffer sizes.
 /// @param stats when given, filled in (also on success only).
-/// @param onChunk when given, sees every chunk before it is bucketed: a hook for checks
-///        (finite coordinates) or progress that would otherwise need a pass of their own.
+/// @param onChunk when given, sees every chunk before it is bucketed (all of it, before @p keep):
+///        a hook for checks (finite coordinates) or progress that would otherwise need a pass of
+///        their own.
+/// @param keep when given, only triangles it returns true for are written (the reach cull of
+///        bake/ReachCull.h: what cannot block is never written to disk).
 /// @return the finished set; wrap it in a shared_ptr for BucketReplaySource.
 /// @throw InputError from the source, from @p onChunk, or from BucketWriter (full disk, file-size
 ///        limit, unusable temp directory); no bucket file or directory remains afterwards.
 BucketSet writeBuckets(TriangleSource& source, const BucketRanges& ranges, const BucketOptions& options,
                        BucketStats* stats = nullptr,
-                       const std::function<void(std::span<const Triangle>)>& onChunk = {});
+                       const std::function<void(std::span<const Triangle>)>& onChunk = {},
+                       const std::function<bool(const Triangle&)>& keep = {});
 
 }  // namespace penumbra

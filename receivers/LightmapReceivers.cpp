@@ -47,6 +47,19 @@ const std::vector<glm::vec2>* lightmapUvs(const IndexedMesh& mesh) {
     return nullptr;
 }
 
+bool usableLightmapUvs(const IndexedMesh& mesh) {
+    const std::vector<glm::vec2>* uv = lightmapUvs(mesh);
+    if (!uv) return false;
+    for (glm::vec2 x : *uv)
+        if (!(x.x >= -kUvTolerance && x.x <= 1 + kUvTolerance && x.y >= -kUvTolerance && x.y <= 1 + kUvTolerance)) return false;
+    double area = 0;
+    for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+        const glm::dvec2 a((*uv)[mesh.indices[3 * t]]), b((*uv)[mesh.indices[3 * t + 1]]), c((*uv)[mesh.indices[3 * t + 2]]);
+        area += std::abs(cross2(b - a, c - a));
+    }
+    return area > 0;
+}
+
 double clippedTriangleArea(glm::dvec2 a, glm::dvec2 b, glm::dvec2 c, glm::dvec2 lo, glm::dvec2 hi) {
     // Sutherland-Hodgman against the four sides; a triangle gains at most one vertex per side.
     glm::dvec2 buffer[2][8];

@@ -25,6 +25,29 @@ namespace penumbra {
 /// else TEXCOORD_0 / OBJ vt; nullptr when it has neither.
 const std::vector<glm::vec2>* lightmapUvs(const IndexedMesh& mesh);
 
+/// @brief Whether @p mesh's lightmapUvs() can lay out a lightmap: present, inside [0, 1]^2 (to
+/// within kUvTolerance: lightmaps do not wrap, so tiling texture coordinates are no layout), and
+/// with a positive total UV area.
+bool usableLightmapUvs(const IndexedMesh& mesh);
+
+inline constexpr float kUvTolerance = 1e-3f;
+
+/// @brief A planar receiver polygon with its texture layout: the triangle a lightmap's texels lie
+/// on, and each corner's position in texel units (texel (x, y) covers [x, x+1] x [y, y+1]).
+struct ReceiverPolygon {
+    glm::dvec3 position[3];
+    glm::dvec2 texel[3];
+};
+
+/// @brief The receiver polygons of a kind whose receivers are texels (Heckbert & Herf's radiance
+/// textures, --method hh): per receiver its polygon and texel.
+struct ReceiverPolygons {
+    std::vector<ReceiverPolygon> polygons;
+    std::vector<uint32_t> polygonOf;      ///< per receiver
+    std::vector<glm::ivec2> texelOf;      ///< per receiver: its texel (x, y)
+};
+
+
 /// @brief The receivers of one lightmap.
 struct LightmapLayout {
     int width = 0, height = 0;

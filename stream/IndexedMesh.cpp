@@ -1,15 +1,19 @@
 #include "stream/IndexedMesh.h"
 
 #include "stream/Error.h"
-#include "stream/GltfModel.h"
+#include "stream/GltfBytes.h"
+#include "stream/GltfDocument.h"
+#include "stream/GltfPrimitive.h"
+#include "stream/ObjTokenizer.h"
+#include "stream/Transform.h"
 
 #include <glm/geometric.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
-#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -24,10 +28,10 @@ bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y
 
 /// Applies the load transform (and a node's world matrix) to a finished mesh. Normals use the
 /// inverse transpose so that non-uniform scales keep them perpendicular to the surface.
-void place(IndexedMesh& mesh, const glm::dmat4& m, const std::string& path) {
+void place(IndexedMesh& mesh, const glm::dmat4& m, const std::string& path, bool positions = true) {
     const glm::dmat3 normalMatrix = glm::transpose(glm::inverse(glm::dmat3(m)));
     for (glm::vec3& p : mesh.position) {
-        p = glm::vec3(m * glm::dvec4(p, 1.0));
+        if (positions) p = glm::vec3(m * glm::dvec4(p, 1.0));
         if (!finite(p)) fail(path, "a transformed vertex position is not finite");
     }
     for (glm::vec3& n : mesh.normal) {
@@ -42,224 +46,149 @@ void place(IndexedMesh& mesh, const glm::dmat4& m, const std::string& path) {
 // ---------------------------------------------------------------------------------------------
 // OBJ
 
-struct ObjParser {
-    std::string path;
-    size_t line = 0;
-    std::vector<glm::vec3> v, vn;
-    std::vector<glm::vec2> vt;
+/// One o/g group of an OBJ: a mesh of its own, its corners deduplicated by (v, vt, vn).
+struct ObjPart {
+    std::string name;
     std::map<std::array<int64_t, 3>, uint32_t> corners;  // (v, vt, vn), -1 when absent -> vertex
     IndexedMesh mesh;
     bool allHaveUv = true, allHaveNormal = true;
+};
 
-    [[noreturn]] void error(const std::string& what) const { fail(fmt::format("{}:{}", path, line), "{}", what); }
+/// Reads statements through the tokenizer the blocker stream uses (ObjTokenizer.h), so a file
+/// gives both the same coordinates and the same errors.
+struct ObjParser {
+    std::string path;
+    ObjLocation where;  // "path:line" of the current statement
+    std::vector<glm::vec3> v, vn;
+    std::vector<glm::vec2> vt;
+    std::vector<ObjPart> parts;
+    size_t current = 0;
+    std::vector<ObjCorner> face;
 
-    double number(std::string_view token) const {
-        double x = 0;
-        auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), x);
-        if (ec != std::errc() || end != token.data() + token.size())
-            error(fmt::format("cannot parse number \"{}\"", token));
-        if (!std::isfinite(x)) error(fmt::format("coordinate \"{}\" is not finite", token));
-        return x;
-    }
+    ObjParser(const std::string& file) : path(file), where{path, 0} { parts.emplace_back(); }
 
-    /// A 1-based (or negative, relative) OBJ index into a list of @p count entries.
-    int64_t resolve(std::string_view token, size_t count, const char* what) const {
-        int64_t i = 0;
-        auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), i);
-        if (ec != std::errc() || end != token.data() + token.size())
-            error(fmt::format("cannot parse {} index \"{}\"", what, token));
-        int64_t resolved = i < 0 ? int64_t(count) + i : i - 1;
-        if (i == 0 || resolved < 0 || resolved >= int64_t(count))
-            error(fmt::format("face {} index {} out of range ({} {}s)", what, i, count, what));
-        return resolved;
-    }
-
-    uint32_t corner(std::string_view token) {
-        std::array<std::string_view, 3> part{};
-        size_t n = 0;
-        while (n < 3) {
-            size_t slash = token.find('/');
-            part[n++] = token.substr(0, slash);
-            if (slash == std::string_view::npos) break;
-            token.remove_prefix(slash + 1);
-        }
-        std::array<int64_t, 3> key{resolve(part[0], v.size(), "vertex"), -1, -1};
-        if (!part[1].empty()) key[1] = resolve(part[1], vt.size(), "texture coordinate");
-        if (!part[2].empty()) key[2] = resolve(part[2], vn.size(), "normal");
-        allHaveUv &= key[1] >= 0, allHaveNormal &= key[2] >= 0;
-        auto [it, added] = corners.emplace(key, uint32_t(mesh.position.size()));
+    uint32_t corner(ObjPart& part, const ObjCorner& c) {
+        auto [it, added] = part.corners.emplace(std::array<int64_t, 3>{c.v, c.vt, c.vn}, uint32_t(part.mesh.position.size()));
         if (added) {
-            mesh.position.push_back(v[size_t(key[0])]);
-            mesh.uv0.push_back(key[1] >= 0 ? vt[size_t(key[1])] : glm::vec2(0.0f));
-            mesh.normal.push_back(key[2] >= 0 ? vn[size_t(key[2])] : glm::vec3(0.0f));
+            if (part.mesh.position.size() == UINT32_MAX) fail(where.text(), "more than 2^32 vertices in one mesh");
+            part.mesh.position.push_back(v[size_t(c.v)]);
+            part.mesh.uv0.push_back(c.vt >= 0 ? vt[size_t(c.vt)] : glm::vec2(0.0f));
+            part.mesh.normal.push_back(c.vn >= 0 ? vn[size_t(c.vn)] : glm::vec3(0.0f));
         }
+        part.allHaveUv &= c.vt >= 0, part.allHaveNormal &= c.vn >= 0;
         return it->second;
     }
 
     void statement(std::string_view text) {
-        std::vector<std::string_view> tokens;
-        for (size_t i = 0; i < text.size();) {
-            while (i < text.size() && (text[i] == ' ' || text[i] == '\t' || text[i] == '\r')) ++i;
-            size_t start = i;
-            while (i < text.size() && text[i] != ' ' && text[i] != '\t' && text[i] != '\r') ++i;
-            if (i > start) tokens.push_back(text.substr(start, i - start));
-        }
-        if (tokens.empty() || tokens[0][0] == '#') return;
-        const std::string_view kind = tokens[0];
-        if (kind == "v" || kind == "vn") {
-            if (tokens.size() < 4) error(fmt::format("\"{}\" needs three coordinates", kind));
-            glm::vec3 p(number(tokens[1]), number(tokens[2]), number(tokens[3]));
-            (kind == "v" ? v : vn).push_back(p);
+        ObjTokens tokens(text);
+        const std::string_view kind = tokens.next();
+        if (kind == "v") {
+            v.push_back(parseObjVector(tokens, 3, "vertex", where));
+        } else if (kind == "vn") {
+            vn.push_back(parseObjVector(tokens, 3, "normal", where));
         } else if (kind == "vt") {
-            if (tokens.size() < 3) error("\"vt\" needs two coordinates");
-            vt.emplace_back(number(tokens[1]), 1.0 - number(tokens[2]));  // to glTF's top-left origin
+            const glm::vec3 t = parseObjVector(tokens, 2, "texture coordinate", where);
+            vt.emplace_back(t.x, float(1.0 - double(t.y)));  // to glTF's top-left origin
+        } else if (kind == "o" || kind == "g") {
+            const std::string name(tokens.rest());
+            current = parts.size();
+            for (size_t i = 0; i < parts.size(); ++i)
+                if (parts[i].name == name && (i > 0 || !name.empty())) current = i;
+            if (current == parts.size()) parts.emplace_back().name = name;
         } else if (kind == "f") {
-            if (tokens.size() < 4) error(fmt::format("face has {} corners (needs at least 3)", tokens.size() - 1));
-            const uint32_t first = corner(tokens[1]);
-            uint32_t previous = corner(tokens[2]);
-            for (size_t c = 3; c < tokens.size(); ++c) {
-                uint32_t next = corner(tokens[c]);
-                mesh.indices.insert(mesh.indices.end(), {first, previous, next});
+            const uint64_t counts[3] = {v.size(), vt.size(), vn.size()};
+            parseObjFace(tokens, counts, face, where);
+            ObjPart& part = parts[current];
+            const uint32_t first = corner(part, face[0]);
+            uint32_t previous = corner(part, face[1]);
+            for (size_t c = 2; c < face.size(); ++c) {
+                uint32_t next = corner(part, face[c]);
+                part.mesh.indices.insert(part.mesh.indices.end(), {first, previous, next});
                 previous = next;
             }
         }
     }
 };
 
-IndexedMesh loadObjMesh(const std::string& path) {
+/// The meshes of an OBJ: one per o/g group that has faces (only those named in @p wanted when it
+/// is not empty). A file of one group gives one mesh named after the file's stem.
+std::vector<IndexedMesh> loadObjMeshes(const std::string& path, const std::vector<std::string>& wanted) {
     std::ifstream in(path, std::ios::binary);
     if (!in) fail(path, "cannot open: {}", std::strerror(errno));
-    ObjParser parser;
-    parser.path = path;
+    ObjParser parser(path);
+    uint64_t line = 0;
     for (std::string text; std::getline(in, text);) {
-        ++parser.line;
+        parser.where.line = ++line;
         parser.statement(text);
     }
     if (in.bad()) fail(path, "read error");
-    IndexedMesh mesh = std::move(parser.mesh);
-    if (!parser.allHaveUv) mesh.uv0.clear();
-    if (!parser.allHaveNormal) mesh.normal.clear();
-    mesh.name = std::filesystem::path(path).stem().string();
-    return mesh;
+    for (const std::string& name : wanted)
+        if (std::none_of(parser.parts.begin(), parser.parts.end(), [&](const ObjPart& p) { return p.name == name; }))
+            fail(path, "has no o/g group named \"{}\" (it has {})", name, parser.parts.size() - 1);
+    std::vector<IndexedMesh> meshes;
+    size_t withFaces = 0;
+    for (const ObjPart& part : parser.parts) withFaces += !part.mesh.indices.empty();
+    const std::string stem = std::filesystem::path(path).stem().string();
+    for (ObjPart& part : parser.parts) {
+        if (part.mesh.indices.empty()) continue;
+        if (!wanted.empty() && std::find(wanted.begin(), wanted.end(), part.name) == wanted.end()) continue;
+        IndexedMesh mesh = std::move(part.mesh);
+        if (!part.allHaveUv) mesh.uv0.clear();
+        if (!part.allHaveNormal) mesh.normal.clear();
+        mesh.name = withFaces == 1 || part.name.empty() ? stem : part.name;
+        meshes.push_back(std::move(mesh));
+    }
+    return meshes;
 }
 
 // ---------------------------------------------------------------------------------------------
 // glTF
 
+/// The receiver meshes of a glTF file: one per node that draws a mesh, every triangle primitive
+/// of it merged, read through the shared walker (GltfPrimitive.h).
 class GltfMeshReader {
 public:
-    explicit GltfMeshReader(std::string path) : path_(std::move(path)) {
-        loadGltfModel(path_, model_);
-        accessors_ = checkGltfAccessors(path_, model_);
-    }
+    explicit GltfMeshReader(const std::string& path) : doc_(loadGltfDocument(path)), bytes_(doc_, UINT64_MAX) {}
 
     std::vector<IndexedMesh> read(const glm::dmat4& transform) {
         std::vector<IndexedMesh> meshes;
-        for (const GltfMeshNode& placed : walkGltfScene(path_, model_)) {
+        for (const GltfMeshNode& placed : walkGltfScene(doc_)) {
             IndexedMesh mesh = meshOf(placed.mesh);
             if (mesh.indices.empty()) continue;
-            const tinygltf::Node& node = model_.nodes[size_t(placed.node)];
-            mesh.name = !model_.meshes[size_t(placed.mesh)].name.empty() ? model_.meshes[size_t(placed.mesh)].name : node.name;
-            place(mesh, transform * placed.world, path_);
+            const std::string& meshName = doc_.meshes[size_t(placed.mesh)].name;
+            mesh.name = !meshName.empty() ? meshName : doc_.nodes[size_t(placed.node)].name;
+            place(mesh, transform * placed.world, doc_.path);
             meshes.push_back(std::move(mesh));
         }
         return meshes;
     }
 
 private:
-    /// The checked view of accessor @p index of an attribute of @p components floats.
-    const GltfAccessorView& attribute(int index, int components, size_t vertices, const std::string& where,
-                                      const std::string& name) const {
-        const GltfAccessorView& view = accessors_[size_t(index)];
-        if (view.components != components)
-            fail(where, "{} accessor {} is not VEC{}", name, index, components);
-        if (view.sparse) fail(where, "{} accessor {} uses sparse storage, which penumbra does not support", name, index);
-        if (view.count != vertices)
-            fail(where, "{} accessor {} has {} elements, POSITION has {}", name, index, view.count, vertices);
-        if (!view.data && view.count > 0) fail(where, "{} accessor {} has no bufferView", name, index);
-        int type = view.componentType;
-        if (type == TINYGLTF_COMPONENT_TYPE_INT || type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
-            fail(where, "{} accessor {} has componentType {}, which glTF does not allow", name, index, type);
-        return view;
-    }
-
-    IndexedMesh meshOf(int meshIndex) const {
+    IndexedMesh meshOf(int meshIndex) {
         IndexedMesh mesh;
         bool allNormals = true, allUv0 = true, allUv1 = true;
-        const tinygltf::Mesh& source = model_.meshes[size_t(meshIndex)];
-        for (size_t p = 0; p < source.primitives.size(); ++p) {
-            const tinygltf::Primitive& primitive = source.primitives[p];
-            const std::string where = fmt::format("{}: mesh {} primitive {}", path_, meshIndex, p);
-            for (const auto& [name, accessor] : primitive.attributes)
-                if (accessor < 0 || size_t(accessor) >= accessors_.size())
-                    fail(where, "attribute {} refers to accessor {} (file has {})", name, accessor, accessors_.size());
-            if (primitive.indices < -1 || primitive.indices >= int(accessors_.size()))
-                fail(where, "indices refer to accessor {} (file has {})", primitive.indices, accessors_.size());
-            const int mode = primitive.mode < 0 ? TINYGLTF_MODE_TRIANGLES : primitive.mode;
-            auto found = primitive.attributes.find("POSITION");
-            if (found == primitive.attributes.end() ||
-                (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN))
-                continue;  // not drawn as triangles: no surface to bake on (the blocker reader warns)
-
-            const GltfAccessorView& positions = accessors_[size_t(found->second)];
-            if (positions.components != 3) fail(where, "POSITION accessor {} is not VEC3", found->second);
-            const size_t vertices = positions.count;
-            attribute(found->second, 3, vertices, where, "POSITION");
+        for (size_t p = 0; p < doc_.meshes[size_t(meshIndex)].primitives.size(); ++p) {
+            // Points, lines and primitives without POSITION have no surface to bake on (the
+            // blocker reader warns about them).
+            const auto layout = gltfTrianglePrimitive(doc_, meshIndex, int(p));
+            if (!layout) continue;
+            GltfPrimitiveReader reader(doc_, bytes_, *layout, true);
             const uint32_t base = uint32_t(mesh.position.size());
-            if (uint64_t(base) + vertices > UINT32_MAX) fail(where, "more than 2^32 vertices in one mesh");
-            for (size_t i = 0; i < vertices; ++i) {
-                glm::vec3 x(readGltfElement(positions, i));
-                if (!finite(x)) fail(where, "POSITION accessor {} element {} is not finite", found->second, i);
-                mesh.position.push_back(x);
-            }
+            if (uint64_t(base) + layout->vertices > UINT32_MAX) fail(layout->where(doc_), "more than 2^32 vertices in one mesh");
+            for (uint64_t i = 0; i < layout->vertices; ++i) mesh.position.push_back(reader.position(i));
             auto optional = [&](const char* name, int components, bool& all, auto&& store) {
-                auto it = primitive.attributes.find(name);
-                if (it == primitive.attributes.end()) {
+                if (!reader.has(name)) {
                     all = false;
                     return;
                 }
-                const GltfAccessorView& view = attribute(it->second, components, vertices, where, name);
-                for (size_t i = 0; i < vertices; ++i) {
-                    glm::vec4 x = readGltfElement(view, i);
-                    if (!std::isfinite(x.x) || !std::isfinite(x.y) || !std::isfinite(x.z))
-                        fail(where, "{} accessor {} element {} is not finite", name, it->second, i);
-                    store(x);
-                }
+                for (uint64_t i = 0; i < layout->vertices; ++i) store(reader.attribute(name, components, i));
             };
             optional("NORMAL", 3, allNormals, [&](glm::vec4 x) { mesh.normal.emplace_back(x); });
             optional("TEXCOORD_0", 2, allUv0, [&](glm::vec4 x) { mesh.uv0.emplace_back(x); });
             optional("TEXCOORD_1", 2, allUv1, [&](glm::vec4 x) { mesh.uv1.emplace_back(x); });
-
-            // The drawing sequence, validated, then turned into a triangle list.
-            std::vector<uint32_t> sequence;
-            if (primitive.indices >= 0) {
-                const GltfAccessorView& indices = accessors_[size_t(primitive.indices)];
-                int type = indices.componentType;
-                if (indices.components != 1 || indices.sparse ||
-                    (type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
-                     type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT))
-                    fail(where, "indices accessor {} is not a dense SCALAR of unsigned integers", primitive.indices);
-                for (size_t i = 0; i < indices.count; ++i) {
-                    uint32_t index = readGltfIndex(indices, i);
-                    if (index >= vertices)
-                        fail(where, "accessor {} element {} is index {}, but POSITION has {} vertices", primitive.indices,
-                             i, index, vertices);
-                    sequence.push_back(index);
-                }
-            } else {
-                for (size_t i = 0; i < vertices; ++i) sequence.push_back(uint32_t(i));
-            }
-            auto add = [&](uint32_t a, uint32_t b, uint32_t c) { mesh.indices.insert(mesh.indices.end(), {base + a, base + b, base + c}); };
-            if (mode == TINYGLTF_MODE_TRIANGLES) {
-                if (sequence.size() % 3 != 0)
-                    fail(where, "TRIANGLES primitive has {} vertices, not a multiple of 3", sequence.size());
-                for (size_t t = 0; t < sequence.size(); t += 3) add(sequence[t], sequence[t + 1], sequence[t + 2]);
-            } else {
-                for (size_t t = 0; t + 2 < sequence.size(); ++t) {
-                    if (mode == TINYGLTF_MODE_TRIANGLE_FAN) add(sequence[t + 1], sequence[t + 2], sequence[0]);
-                    else if (t % 2 == 0) add(sequence[t], sequence[t + 1], sequence[t + 2]);
-                    else add(sequence[t], sequence[t + 2], sequence[t + 1]);  // strips alternate winding
-                }
+            for (uint64_t t = 0; t < layout->triangles; ++t) {
+                const std::array<uint32_t, 3> v = reader.triangle(t);
+                mesh.indices.insert(mesh.indices.end(), {base + v[0], base + v[1], base + v[2]});
             }
         }
         if (!allNormals) mesh.normal.clear();
@@ -272,28 +201,34 @@ private:
         return mesh;
     }
 
-    std::string path_;
-    tinygltf::Model model_;
-    std::vector<GltfAccessorView> accessors_;
+    GltfDocument doc_;
+    GltfBytes bytes_;
 };
 
 }  // namespace
 
-std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::mat4& transform) {
+std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::mat4& transform,
+                                           const std::vector<std::string>& parts) {
     std::string ext = std::filesystem::path(path).extension().string();
     for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-    if (ext == ".obj") {
-        IndexedMesh mesh = loadObjMesh(path);
+    if (ext != ".obj") {
+        if (!parts.empty()) fail(path, "\"parts\" selects o/g groups of OBJ files only");
+        return GltfMeshReader(path).read(glm::dmat4(transform));
+    }
+    std::vector<IndexedMesh> meshes = loadObjMeshes(path, parts);
+    for (IndexedMesh& mesh : meshes) {
         for (glm::vec3& n : mesh.normal) {
             float length = glm::length(n);
             n = length > 0 ? n / length : glm::vec3(0.0f);
         }
-        place(mesh, glm::dmat4(transform), path);
-        std::vector<IndexedMesh> meshes;
-        meshes.push_back(std::move(mesh));
-        return meshes;
+        // Positions go through the same float arithmetic as the blocker stream's
+        // TransformedSource, so receivers and blockers of one OBJ have the same bits.
+        // (An identity is not applied at all, as the blocker stream skips it: -0 stays -0.)
+        if (transform != glm::mat4(1.0f))
+            for (glm::vec3& p : mesh.position) p = transformPoint(transform, p);
+        place(mesh, glm::dmat4(transform), path, false);
     }
-    return GltfMeshReader(path).read(glm::dmat4(transform));
+    return meshes;
 }
 
 }  // namespace penumbra

@@ -34,20 +34,26 @@ struct IndexedMesh {
     size_t triangleCount() const { return indices.size() / 3; }
 };
 
-/// @brief Loads every mesh of an OBJ (one mesh), .gltf or .glb file (one mesh per node that
-/// draws one, all its triangle primitives merged).
+/// @brief Loads every mesh of an OBJ (one per o/g group), .gltf or .glb file (one mesh per node
+/// that draws one, all its triangle primitives merged).
 ///
-/// OBJ: `v`, `vt`, `vn` and `f` with any corner form; polygons are fan-triangulated; corners
-/// with distinct (v, vt, vn) triples become distinct vertices. A mesh has uv0 (normals) only when
-/// every face corner names a `vt` (`vn`). glTF: POSITION, NORMAL, TEXCOORD_0, TEXCOORD_1 and
+/// OBJ: statements are read by ObjTokenizer.h, exactly as the blocker stream reads them (same
+/// numbers to the bit, same errors); `v`, `vt`, `vn` and `f` with any corner form; polygons are
+/// fan-triangulated; corners with distinct (v, vt, vn) triples become distinct vertices. Every
+/// `o` or `g` group with faces is a mesh named after the group (a file without groups, or with
+/// one, gives one mesh named after the file's stem). A mesh has uv0 (normals) only when every
+/// face corner names a `vt` (`vn`). Positions are transformed with the blocker stream's float
+/// arithmetic (transformPoint), so they match its triangles bit for bit. glTF: POSITION, NORMAL, TEXCOORD_0, TEXCOORD_1 and
 /// indices of TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN primitives, with node transforms; an
 /// attribute is kept only when every primitive of the mesh has it. Mirroring transforms reverse
 /// the winding so front faces stay front faces.
 /// @param path the file (told apart by extension: .obj, else glTF by content)
 /// @param transform applied to positions (as points) and normals (inverse transpose)
+/// @param parts OBJ only: the o/g groups to load (empty: all); a name the file lacks is an error
 /// @throw InputError naming the file for malformed input: bad numbers or indices
 ///        (`mesh.obj:12: face index 40 out of range (38 vertices)`), out-of-bounds or mistyped
 ///        accessors, attribute counts that differ from POSITION, non-finite values.
-std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::mat4& transform);
+std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::mat4& transform,
+                                           const std::vector<std::string>& parts = {});
 
 }  // namespace penumbra

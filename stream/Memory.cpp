@@ -21,18 +21,43 @@ uint64_t peakRssBytes() {
     return static_cast<uint64_t>(usage.ru_maxrss) * 1024;  // Linux reports KiB
 }
 
-uint64_t currentRssBytes() {
-    // statm holds "size resident shared text lib data dt" in pages; one read of a tiny file is
-    // cheaper and simpler than parsing /proc/self/status.
+namespace {
+
+/// Pages mapped and resident now (/proc/self/statm "size resident ..."); false when unavailable.
+/// One read of a tiny file is cheaper and simpler than parsing /proc/self/status.
+bool statmPages(unsigned long long& size, unsigned long long& resident) {
     std::FILE* f = std::fopen("/proc/self/statm", "r");
-    if (!f) return 0;
-    unsigned long long sizePages = 0, residentPages = 0;
-    int got = std::fscanf(f, "%llu %llu", &sizePages, &residentPages);
+    if (!f) return false;
+    int got = std::fscanf(f, "%llu %llu", &size, &resident);
     std::fclose(f);
-    if (got != 2) return 0;
-    long page = ::sysconf(_SC_PAGESIZE);
-    return residentPages * static_cast<uint64_t>(page > 0 ? page : 4096);
+    return got == 2;
 }
+
+uint64_t pageBytes() {
+    long page = ::sysconf(_SC_PAGESIZE);
+    return static_cast<uint64_t>(page > 0 ? page : 4096);
+}
+
+}  // namespace
+
+uint64_t currentRssBytes() {
+    unsigned long long sizePages = 0, residentPages = 0;
+    return statmPages(sizePages, residentPages) ? residentPages * pageBytes() : 0;
+}
+
+uint64_t addressSpaceLimit() {
+    struct rlimit limit {};
+    if (::getrlimit(RLIMIT_AS, &limit) != 0 || limit.rlim_cur == RLIM_INFINITY) return 0;
+    return uint64_t(limit.rlim_cur);
+}
+
+uint64_t mappedNotResidentBytes() {
+    unsigned long long sizePages = 0, residentPages = 0;
+    if (!statmPages(sizePages, residentPages) || residentPages > sizePages) return 0;
+    return (sizePages - residentPages) * pageBytes();
+}
+
+void useOneMallocArena() { ::mallopt(M_ARENA_MAX, 1); }
 
 uint64_t parseByteSize(const std::string& text, const std::string& what) {
     auto bad = [&](std::string_view why) -> uint64_t {

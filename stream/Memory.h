@@ -13,6 +13,19 @@ uint64_t peakRssBytes();
 /// @brief Current resident set size in bytes (/proc/self/statm); 0 when unavailable.
 uint64_t currentRssBytes();
 
+/// @brief The address-space limit of this process (RLIMIT_AS: `prlimit --as`, `ulimit -v`), or 0
+/// when there is none.
+uint64_t addressSpaceLimit();
+
+/// @brief Address space mapped now but not resident (/proc/self/statm size minus resident):
+/// libraries' code and data, reserved stacks and arenas. Under an address-space limit it is
+/// spent before any bake data; 0 when unavailable.
+uint64_t mappedNotResidentBytes();
+
+/// @brief Makes glibc's malloc use one arena. Each further arena reserves 64 MiB of address space
+/// per thread that allocates, which an address-space limit cannot afford.
+void useOneMallocArena();
+
 /// @brief Returns freed heap memory to the operating system (glibc keeps it per thread arena
 /// otherwise), so that a phase's peak does not carry into the next. Cheap; call between phases.
 void returnFreedMemory();

@@ -1,14 +1,18 @@
 #include "stream/ObjReader.h"
 
 #include "stream/Error.h"
+#include "stream/ObjTokenizer.h"
+#include "stream/RegularFile.h"
+#include "stream/VertexStore.h"
 
+#include <algorithm>
+#include <atomic>
 #include <cerrno>
-#include <cfloat>
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <mutex>
 #include <string_view>
 
 namespace penumbra {
@@ -74,7 +78,9 @@ public:
     /// 1-based number of the line last returned by next().
     uint64_t lineNumber() const { return lineNumber_; }
     /// "path:line" of the line last returned, the location every message starts with.
-    std::string where() const { return path_ + ":" + std::to_string(lineNumber_); }
+    std::string where() const { return location().text(); }
+    /// The same, built only when a message needs it.
+    ObjLocation location() const { return {path_, lineNumber_}; }
 
 private:
     std::string path_;
@@ -86,163 +92,105 @@ private:
     uint64_t lineNumber_ = 0;
 };
 
-/// Splits a line into whitespace-separated tokens, stopping at a '#' comment.
-class Tokens {
-public:
-    explicit Tokens(std::string_view line) : rest_(line.substr(0, line.find('#'))) {}
-
-    /// @brief The next token, or an empty view when the line is used up.
-    std::string_view next() {
-        size_t begin = rest_.find_first_not_of(" \t\v\f");
-        if (begin == std::string_view::npos) return {};
-        size_t end = rest_.find_first_of(" \t\v\f", begin);
-        if (end == std::string_view::npos) end = rest_.size();
-        std::string_view token = rest_.substr(begin, end - begin);
-        rest_.remove_prefix(end);
-        return token;
-    }
-
-private:
-    std::string_view rest_;
-};
-
-/// from_chars does not accept a leading '+', which some exporters write ("+-1" stays invalid).
-std::string_view withoutPlus(std::string_view token) {
-    if (token.size() > 1 && token[0] == '+' && token[1] != '-' && token[1] != '+') token.remove_prefix(1);
-    return token;
-}
-
-/// Parses a coordinate, rounding straight from decimal to float so that a float printed in
-/// shortest round-trip form reads back with the same bits.
-float parseCoordinate(std::string_view token, const LineReader& lines) {
-    std::string_view digits = withoutPlus(token);
-    float value = 0;
-    auto [end, error] = std::from_chars(digits.data(), digits.data() + digits.size(), value);
-    if (end != digits.data() + digits.size() || (error != std::errc() && error != std::errc::result_out_of_range))
-        fail(lines.where(), "unparsable number '{}'", token);
-    if (error == std::errc::result_out_of_range) {
-        // from_chars reports overflow and underflow alike. Underflow (to a denormal or zero) is
-        // harmless, overflow is an infinite coordinate; a double parse tells them apart (strtod
-        // would depend on the locale's decimal point). Beyond double range, the sign of the
-        // exponent decides.
-        double wide = 0;
-        if (std::from_chars(digits.data(), digits.data() + digits.size(), wide).ec != std::errc()) {
-            bool tiny = digits.find("e-") != std::string_view::npos || digits.find("E-") != std::string_view::npos;
-            wide = tiny ? 0.0 : HUGE_VAL;
-        }
-        if (!(std::abs(wide) <= FLT_MAX)) fail(lines.where(), "non-finite coordinate '{}'", token);
-        value = std::copysign(static_cast<float>(wide), digits[0] == '-' ? -1.0f : 1.0f);
-    }
-    if (!std::isfinite(value)) fail(lines.where(), "non-finite coordinate '{}'", token);
-    return value;
-}
-
-/// Parses the integer fields of a face corner; false when @p token is not an integer.
-bool parseInteger(std::string_view token, int64_t& value) {
-    token = withoutPlus(token);
-    auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
-    return error == std::errc() && end == token.data() + token.size();
-}
-
-/// @brief Parses the corners of an `f` statement into zero-based vertex indices.
-/// @param vertexCount vertices defined above this line: the range valid indices address.
-void parseFace(Tokens& tokens, size_t vertexCount, std::vector<uint32_t>& corners, const LineReader& lines) {
-    corners.clear();
-    for (std::string_view corner = tokens.next(); !corner.empty(); corner = tokens.next()) {
-        // "v", "v/vt", "v//vn" or "v/vt/vn": vt and vn must be integers when present, but only
-        // v is used (texture and normal arrays are not kept).
-        std::string_view fields[3];
-        size_t fieldCount = 0;
-        std::string_view rest = corner;
-        while (true) {
-            size_t slash = rest.find('/');
-            if (fieldCount == 3) fail(lines.where(), "unparsable face corner '{}'", corner);
-            fields[fieldCount++] = rest.substr(0, slash);
-            if (slash == std::string_view::npos) break;
-            rest.remove_prefix(slash + 1);
-        }
-        int64_t index = 0, unused = 0;
-        if (!parseInteger(fields[0], index)) fail(lines.where(), "unparsable face corner '{}'", corner);
-        for (size_t i = 1; i < fieldCount; ++i)
-            if (!fields[i].empty() && !parseInteger(fields[i], unused))
-                fail(lines.where(), "unparsable face corner '{}'", corner);
-
-        if (index == 0) fail(lines.where(), "face index 0 is invalid (OBJ indices start at 1)");
-        // Negative indices count back from the last vertex defined above the face.
-        int64_t count = static_cast<int64_t>(vertexCount);
-        int64_t resolved = index > 0 ? index - 1 : count + index;
-        if (resolved < 0 || resolved >= count)
-            fail(lines.where(), "face index {} out of range ({} vertices)", index, vertexCount);
-        corners.push_back(static_cast<uint32_t>(resolved));
-    }
-    if (corners.size() < 3)
-        fail(lines.where(), "face has {} corner{} (needs at least 3)", corners.size(),
-             corners.size() == 1 ? "" : "s");
-}
+/// The size of @p path, which must open as a regular file (a directory would fail only when read).
+uint64_t regularFileSize(const std::string& path) { return RegularFile(path).size(); }
 
 class ObjSource final : public TriangleSource {
 public:
-    explicit ObjSource(const std::string& path) : path_(path), lines_(path) { scan(); }
+    ObjSource(const std::string& path, std::vector<std::string> parts)
+        : path_(path), fileBytes_(regularFileSize(path)), lines_(path), vertices_(path), parts_(std::move(parts)) {
+        lines_.close();  // opened again by the scan, on the first read() or sizeHint()
+    }
 
     size_t read(std::span<Triangle> out) override;
     void rewind() override;
     std::string name() const override { return path_; }
-    std::optional<uint64_t> sizeHint() const override { return triangleCount_; }
+    std::optional<uint64_t> sizeHint() const override {
+        // The scan may be running on a read-ahead thread (PrefetchSource): once, for both.
+        std::call_once(scanOnce_, [this] { const_cast<ObjSource*>(this)->scan(); });
+        return triangleCount_;
+    }
+    std::optional<uint64_t> knownSize() const override {
+        return scanned_ ? std::optional<uint64_t>(triangleCount_) : std::nullopt;
+    }
+    /// The vertex store's bound for the vertices the file can hold (a `v` line has at least 8
+    /// bytes), and the line buffer.
+    uint64_t residentBytes() const override { return VertexStore::residentBytes(fileBytes_ / 8) + (1u << 16); }
 
 private:
     void scan();
+    bool selected(std::string_view part) const;
     bool nextPolygon();
+    void counts(uint64_t c[3]) const { c[0] = verticesSeen_, c[1] = c[2] = UINT32_MAX; }
 
     std::string path_;
+    uint64_t fileBytes_;
     LineReader lines_;
-    std::vector<glm::vec3> vertices_;  // the only per-mesh data kept in memory
+    VertexStore vertices_;  // the only per-mesh data kept, in bounded memory
+    std::vector<std::string> parts_;  // o/g groups streamed; empty: all
+    mutable std::once_flag scanOnce_;
+    std::atomic<bool> scanned_{false};
     uint64_t triangleCount_ = 0;
 
     // Where the streaming pass starts: the first `f` line and what precedes it.
     bool hasFaces_ = false;
     uint64_t firstFaceOffset_ = 0;
     uint64_t linesBeforeFirstFace_ = 0;
-    size_t verticesBeforeFirstFace_ = 0;
+    uint64_t verticesBeforeFirstFace_ = 0;
+    std::string partBeforeFirstFace_;
 
     // Streaming pass state.
-    size_t verticesSeen_ = 0;        // `v` lines passed so far: the range indices may address
-    std::vector<uint32_t> polygon_;  // the face being fan-triangulated
+    uint64_t verticesSeen_ = 0;      // `v` lines passed so far: the range indices may address
+    std::string part_;               // the o/g group of the faces being read
+    std::vector<ObjCorner> polygon_; // the face being fan-triangulated
     size_t nextFan_ = 0;             // next fan triangle is (0, nextFan_, nextFan_ + 1)
     bool finished_ = false;
 };
 
+bool ObjSource::selected(std::string_view part) const {
+    return parts_.empty() || std::find(parts_.begin(), parts_.end(), part) != parts_.end();
+}
+
+/// One pass over the file: every statement is checked (so all errors surface before the first
+/// triangle is handed out and sizeHint() is exact), vertices are stored, faces are counted.
 void ObjSource::scan() {
+    scanned_ = true;
+    lines_.open();
     std::string_view line;
-    std::vector<uint32_t> corners;
+    std::vector<ObjCorner> corners;
+    uint64_t counts[3] = {0, 0, 0};  // v, vt, vn defined so far
+    std::string part;
+    std::vector<std::string> seen;  // part names, for the error about a missing one
     while (lines_.next(line)) {
-        Tokens tokens(line);
+        ObjTokens tokens(line);
         std::string_view keyword = tokens.next();
         if (keyword == "v") {
-            glm::vec3 p;
-            for (int axis = 0; axis < 3; ++axis) {
-                std::string_view token = tokens.next();
-                if (token.empty())
-                    fail(lines_.where(), "vertex has {} coordinate{} (needs 3)", axis, axis == 1 ? "" : "s");
-                p[axis] = parseCoordinate(token, lines_);
-            }
-            // A fourth value (w) or three more (vertex colour) are allowed but must be numbers.
-            for (std::string_view extra = tokens.next(); !extra.empty(); extra = tokens.next())
-                parseCoordinate(extra, lines_);
-            if (vertices_.size() == std::numeric_limits<uint32_t>::max())
-                fail(lines_.where(), "more than {} vertices", vertices_.size());
-            vertices_.push_back(p);
+            vertices_.push(parseObjVector(tokens, 3, "vertex", lines_.location()));
+            if (++counts[0] > std::numeric_limits<uint32_t>::max()) fail(lines_.where(), "more than 2^32 vertices");
+        } else if (keyword == "vt" || keyword == "vn") {
+            // Not kept for blockers, but read exactly as the receiver meshes read them, so that one
+            // file is good or bad for both.
+            parseObjVector(tokens, keyword == "vt" ? 2 : 3, keyword == "vt" ? "texture coordinate" : "normal", lines_.location());
+            ++counts[keyword == "vt" ? 1 : 2];
+        } else if (keyword == "o" || keyword == "g") {
+            part = std::string(tokens.rest());
+            if (std::find(seen.begin(), seen.end(), part) == seen.end()) seen.push_back(part);
         } else if (keyword == "f") {
-            parseFace(tokens, vertices_.size(), corners, lines_);
+            parseObjFace(tokens, counts, corners, lines_.location());
             if (!hasFaces_) {
                 hasFaces_ = true;
                 firstFaceOffset_ = lines_.lineStart();
                 linesBeforeFirstFace_ = lines_.lineNumber() - 1;
-                verticesBeforeFirstFace_ = vertices_.size();
+                verticesBeforeFirstFace_ = counts[0];
+                partBeforeFirstFace_ = part;
             }
-            triangleCount_ += corners.size() - 2;
+            if (selected(part)) triangleCount_ += corners.size() - 2;
         }
     }
-    vertices_.shrink_to_fit();
+    for (const std::string& wanted : parts_)
+        if (std::find(seen.begin(), seen.end(), wanted) == seen.end())
+            fail(path_, "has no o/g group named \"{}\" (it has {} group{})", wanted, seen.size(), seen.size() == 1 ? "" : "s");
+    lines_.close();
     rewind();
 }
 
@@ -251,25 +199,30 @@ void ObjSource::rewind() {
     lines_.close();
     polygon_.clear();
     nextFan_ = 0;
-    finished_ = !hasFaces_;
+    finished_ = scanned_ && !hasFaces_;
     verticesSeen_ = verticesBeforeFirstFace_;
+    part_ = partBeforeFirstFace_;
 }
 
-/// Advances the streaming pass to the next face; false at the end of the file.
+/// Advances the streaming pass to the next face of a selected part; false at the end of the file.
 bool ObjSource::nextPolygon() {
     if (!lines_.isOpen()) {
         lines_.open();
         lines_.seek(firstFaceOffset_, linesBeforeFirstFace_);
     }
     std::string_view line;
+    uint64_t counts[3];
     while (lines_.next(line)) {
-        Tokens tokens(line);
+        ObjTokens tokens(line);
         std::string_view keyword = tokens.next();
         if (keyword == "v") {
             // Already parsed and validated by scan(); only the count matters here.
             if (++verticesSeen_ > vertices_.size()) fail(lines_.where(), "file changed while it was being read");
-        } else if (keyword == "f") {
-            parseFace(tokens, verticesSeen_, polygon_, lines_);
+        } else if (keyword == "o" || keyword == "g") {
+            part_ = std::string(tokens.rest());
+        } else if (keyword == "f" && selected(part_)) {
+            this->counts(counts);  // vt and vn were checked by scan()
+            parseObjFace(tokens, counts, polygon_, lines_.location());
             nextFan_ = 1;
             return true;
         }
@@ -278,6 +231,7 @@ bool ObjSource::nextPolygon() {
 }
 
 size_t ObjSource::read(std::span<Triangle> out) {
+    std::call_once(scanOnce_, [this] { scan(); });
     size_t written = 0;
     while (written < out.size() && !finished_) {
         if (nextFan_ + 1 >= polygon_.size() && !nextPolygon()) {
@@ -287,7 +241,8 @@ size_t ObjSource::read(std::span<Triangle> out) {
         }
         for (; nextFan_ + 1 < polygon_.size() && written < out.size(); ++nextFan_) {
             Triangle& t = out[written++];
-            t.v = {vertices_[polygon_[0]], vertices_[polygon_[nextFan_]], vertices_[polygon_[nextFan_ + 1]]};
+            t.v = {vertices_[uint64_t(polygon_[0].v)], vertices_[uint64_t(polygon_[nextFan_].v)],
+                   vertices_[uint64_t(polygon_[nextFan_ + 1].v)]};
             t.flags = 0;
         }
     }
@@ -296,6 +251,8 @@ size_t ObjSource::read(std::span<Triangle> out) {
 
 }  // namespace
 
-TriangleSourcePtr openObj(const std::string& path) { return std::make_unique<ObjSource>(path); }
+TriangleSourcePtr openObj(const std::string& path, const std::vector<std::string>& parts) {
+    return std::make_unique<ObjSource>(path, parts);
+}
 
 }  // namespace penumbra

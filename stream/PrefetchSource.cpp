@@ -1,6 +1,7 @@
 #include "stream/PrefetchSource.h"
 
 #include <algorithm>
+#include <system_error>
 
 namespace penumbra {
 
@@ -17,7 +18,14 @@ void PrefetchSource::start() {
     currentPos_ = 0;
     finished_ = stopping_ = false;
     error_ = nullptr;
-    thread_ = std::thread([this] { run(); });
+    try {
+        thread_ = std::thread([this] { run(); });
+        inline_ = false;
+    } catch (const std::system_error&) {
+        // No thread to be had (an address-space or process limit): read in the caller's thread,
+        // same triangles, same order, no overlap.
+        inline_ = true;
+    }
 }
 
 void PrefetchSource::stop() {
@@ -55,6 +63,7 @@ void PrefetchSource::run() {
 }
 
 size_t PrefetchSource::read(std::span<Triangle> out) {
+    if (inline_) return inner_->read(out);
     size_t written = 0;
     while (written < out.size()) {
         if (currentPos_ == current_.size()) {

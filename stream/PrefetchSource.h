@@ -2,7 +2,8 @@
 /// @file PrefetchSource.h
 /// @brief Reads a source ahead on a background thread, so that file reads, decompression or
 /// generation overlap with whatever consumes the triangles (casting). Order is preserved exactly,
-/// so the stream is the same as the wrapped source's.
+/// so the stream is the same as the wrapped source's. When no thread can be started (a process
+/// or address-space limit), it reads in the caller's thread instead.
 
 #include "stream/TriangleSource.h"
 
@@ -28,6 +29,12 @@ public:
     void rewind() override;
     std::string name() const override { return inner_->name(); }
     std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
+    std::optional<uint64_t> knownSize() const override { return inner_->knownSize(); }
+    /// The inner source's bytes, the chunks held ahead and the one being handed out.
+    uint64_t residentBytes() const override {
+        return inner_->residentBytes() + (depth_ + 2) * chunkTriangles_ * sizeof(Triangle);
+    }
+    std::string residentDetail() const override { return inner_->residentDetail(); }
 
 private:
     void start();
@@ -44,6 +51,7 @@ private:
     bool finished_ = false, stopping_ = false;
     std::exception_ptr error_;
     std::thread thread_;
+    bool inline_ = false;  ///< no thread could be started: read() reads the inner source itself
 };
 
 }  // namespace penumbra

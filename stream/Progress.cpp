@@ -1,5 +1,7 @@
 #include "stream/Progress.h"
 
+#include <system_error>
+
 #include <fmt/format.h>
 
 #include <unistd.h>
@@ -51,7 +53,11 @@ ProgressReporter::ProgressReporter(std::string phase, uint64_t totalWork, bool q
       uncaughtAtStart_(std::uncaught_exceptions()) {
     if (quiet_) return;
     tty_ = ::isatty(STDERR_FILENO) == 1;
-    thread_ = std::thread([this] { run(); });
+    try {
+        thread_ = std::thread([this] { run(); });
+    } catch (const std::system_error&) {
+        // No thread to be had (a process or address-space limit): only the closing line is printed.
+    }
 }
 
 ProgressReporter::~ProgressReporter() {

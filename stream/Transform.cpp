@@ -71,7 +71,7 @@ size_t TransformedSource::read(std::span<Triangle> out) {
     size_t n = inner_->read(out);
     for (size_t i = 0; i < n; ++i) {
         Triangle& t = out[i];
-        for (auto& p : t.v) p = glm::vec3(matrix_ * glm::vec4(p, 1.0f));
+        for (auto& p : t.v) p = transformPoint(matrix_, p);
         if (mirrors_) std::swap(t.v[1], t.v[2]);
         if (!isFinite(t)) fail(inner_->name(), "transform produced a non-finite vertex");
     }

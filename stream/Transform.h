@@ -30,6 +30,10 @@ struct Transform {
 /// @throw InputError naming the key (zero scale, wrong type, unknown key).
 Transform parseTransform(const JsonParams& entry);
 
+/// @brief @p p transformed by @p m as a point (affine: the bottom row is ignored), in the float
+/// arithmetic every reader uses, so that blockers and receivers from one file agree bit for bit.
+inline glm::vec3 transformPoint(const glm::mat4& m, const glm::vec3& p) { return glm::vec3(m * glm::vec4(p, 1.0f)); }
+
 /// @brief Streams another source with a matrix applied to every vertex (p' = M * (p, 1)).
 ///
 /// The bottom row of the matrix is ignored (affine transforms only). When the matrix mirrors
@@ -47,6 +51,9 @@ public:
     void rewind() override { inner_->rewind(); }
     std::string name() const override { return inner_->name(); }
     std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
+    std::optional<uint64_t> knownSize() const override { return inner_->knownSize(); }
+    uint64_t residentBytes() const override { return inner_->residentBytes(); }
+    std::string residentDetail() const override { return inner_->residentDetail(); }
 
 private:
     TriangleSourcePtr inner_;

@@ -24,14 +24,41 @@ void ConcatSource::rewind() {
     current_ = 0;
 }
 
-std::optional<uint64_t> ConcatSource::sizeHint() const {
+namespace {
+
+/// The sum of @p count over @p parts, or nullopt when one part's is unknown.
+template <class Count>
+std::optional<uint64_t> sumOf(const std::vector<TriangleSourcePtr>& parts, Count&& count) {
     uint64_t total = 0;
-    for (const auto& p : parts_) {
-        auto n = p->sizeHint();
+    for (const auto& p : parts) {
+        std::optional<uint64_t> n = count(*p);
         if (!n) return std::nullopt;
         total += *n;
     }
     return total;
+}
+
+}  // namespace
+
+std::optional<uint64_t> ConcatSource::sizeHint() const {
+    return sumOf(parts_, [](const TriangleSource& s) { return s.sizeHint(); });
+}
+
+std::optional<uint64_t> ConcatSource::knownSize() const {
+    return sumOf(parts_, [](const TriangleSource& s) { return s.knownSize(); });
+}
+
+uint64_t ConcatSource::residentBytes() const {
+    uint64_t total = 0;
+    for (const auto& p : parts_) total += p->residentBytes();
+    return total;
+}
+
+std::string ConcatSource::residentDetail() const {
+    const TriangleSource* largest = nullptr;
+    for (const auto& p : parts_)
+        if (!p->residentDetail().empty() && (!largest || p->residentBytes() > largest->residentBytes())) largest = p.get();
+    return largest ? largest->residentDetail() : std::string();
 }
 
 std::vector<Triangle> readAll(TriangleSource& source) {

@@ -34,6 +34,17 @@ public:
 
     /// The triangle count when known up front (a .ptri header, a glTF accessor sum).
     virtual std::optional<uint64_t> sizeHint() const { return std::nullopt; }
+    /// @brief sizeHint() when it is known without reading the input (an OBJ counts its faces in a
+    /// first pass), for plans made before any work; nullopt otherwise.
+    virtual std::optional<uint64_t> knownSize() const { return sizeHint(); }
+
+    /// @brief Heap bytes the source holds at most while open (document tables, block caches,
+    /// decoder buffers, read-ahead chunks), whatever the triangle count: its part of the memory
+    /// plan. Known right after the source is opened, before any triangle is read.
+    virtual uint64_t residentBytes() const { return 0; }
+    /// @brief What dominates residentBytes() when one item does (a compressed primitive that
+    /// must be decoded whole), for messages; empty otherwise.
+    virtual std::string residentDetail() const { return {}; }
 };
 
 using TriangleSourcePtr = std::unique_ptr<TriangleSource>;
@@ -62,6 +73,10 @@ public:
     void rewind() override;
     std::string name() const override { return "scene"; }
     std::optional<uint64_t> sizeHint() const override;
+    std::optional<uint64_t> knownSize() const override;
+    /// Parts are read one after another, but all stay open: their resident bytes add up.
+    uint64_t residentBytes() const override;
+    std::string residentDetail() const override;
 
 private:
     std::vector<TriangleSourcePtr> parts_;
@@ -85,6 +100,9 @@ public:
     void rewind() override { inner_->rewind(), first_ = true; }
     std::string name() const override { return inner_->name(); }
     std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
+    std::optional<uint64_t> knownSize() const override { return inner_->knownSize(); }
+    uint64_t residentBytes() const override { return inner_->residentBytes(); }
+    std::string residentDetail() const override { return inner_->residentDetail(); }
 
 private:
     TriangleSourcePtr inner_;

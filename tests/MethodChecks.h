@@ -4,8 +4,8 @@
 
 #include "TestScenes.h"
 
-#include "bake/SsvCaster.h"
-#include "bake/TieClassifier.h"
+#include "bake/methods/SsvCaster.h"
+#include "bake/rule/TieClassifier.h"
 
 #include <catch2/catch.hpp>
 

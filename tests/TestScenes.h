@@ -4,11 +4,11 @@
 
 #include "TestSupport.h"
 
-#include "bake/CastOptions.h"
-#include "bake/Light.h"
-#include "bake/PenumbraCaster.h"
-#include "bake/ReferenceCaster.h"
-#include "bake/VisibilityMasks.h"
+#include "bake/cast/CastOptions.h"
+#include "bake/light/Light.h"
+#include "bake/cast/PenumbraCaster.h"
+#include "bake/peers/ReferenceCaster.h"
+#include "bake/cast/VisibilityMasks.h"
 #include "bucket/AreaSort.h"
 #include "procedural/BoxesGenerator.h"
 #include "procedural/GrassGenerator.h"
@@ -19,6 +19,7 @@
 #include "stream/Triangle.h"
 
 #include <catch2/catch.hpp>
+#include <glm/vec2.hpp>
 #include <glm/geometric.hpp>
 
 #include <string>

@@ -7,6 +7,8 @@
 
 #include <catch2/catch.hpp>
 
+#include <filesystem>
+
 using namespace penumbra;
 using namespace penumbra::test;
 
@@ -18,11 +20,12 @@ const char* kCameraScene = R"({
   "receivers": {"type": "camera", "eye": [0,4,5], "target": [0,0.5,0], "width": 48, "height": 36},
   "output": "out/camera.exr"})";
 
-/// The lightmap example's room and blockers at a small resolution.
-std::string lightmapScene() {
-    const std::string examples = std::string(PENUMBRA_SOURCE_DIR) + "/examples/";
-    return R"({"geometry": [{"type": "obj", "path": ")" + examples + R"(room.obj"},
-                             {"type": "obj", "path": ")" + examples + R"(room-blockers.obj"}],
+/// The lightmap example's room and blockers at a small resolution, copied beside the scene (scene
+/// paths stay in the scene's directory).
+std::string lightmapScene(const ScratchDir& dir) {
+    for (const char* name : {"room.obj", "room-blockers.obj"})
+        std::filesystem::copy_file(std::string(PENUMBRA_SOURCE_DIR) + "/examples/" + name, dir / name);
+    return R"({"geometry": [{"type": "obj", "path": "room.obj"}, {"type": "obj", "path": "room-blockers.obj"}],
       "lights": [{"type": "rect", "center": [2.2, 4.0, 1.8], "u": [1.5, 0, 0], "v": [0, 0, 1.5], "samples": 64, "sample_sets": 4}],
       "receivers": {"type": "lightmap", "meshes": [0], "resolution": 48, "padding": 2},
       "output": "out/lightmap.exr"})";
@@ -53,7 +56,7 @@ void requireThreadIndependent(const ScratchDir& dir, const std::string& scene, c
 TEST_CASE("every method gives the same output bytes on one and two threads", "[cli][methods]") {
     ScratchDir dir("methods");
     write(dir / "camera.json", kCameraScene);
-    write(dir / "lightmap.json", lightmapScene());
+    write(dir / "lightmap.json", lightmapScene(dir));
     for (const char* method : {"hpc", "reference", "embree", "ssv", "penumbra-map"})
         requireThreadIndependent(dir, dir / "camera.json", method, {"out.exr", "out.png", "v.npy"});
     for (const char* method : {"hpc", "hh"})
@@ -81,7 +84,7 @@ TEST_CASE("ssv bakes the masks hpc bakes up to ties, and hh and penumbra-map ref
     RunResult dump = runPenumbra("bake " + (dir / "camera.json") + " -q --method penumbra-map --dump " + (dir / "pm"));
     CHECK(dump.exitCode == 1);
     CHECK(lineCount(dump.err) == 1);
-    CHECK_THAT(dump.err, Catch::StartsWith("penumbra: error: --dump: penumbra-map"));
+    CHECK_THAT(dump.err, Catch::StartsWith("penumbra: error: --dump: --method penumbra-map"));
     CHECK_FALSE(std::filesystem::exists(dir / "pm"));
 
     RunResult pm = runPenumbra("bake " + (dir / "camera.json") + " -q --method penumbra-map --penumbra-map-resolution 256 -o " +

@@ -7,8 +7,8 @@
 
 #include "TestScenes.h"
 
-#include "bake/HeckbertHerf.h"
-#include "bake/ReferenceCaster.h"
+#include "bake/methods/HeckbertHerf.h"
+#include "bake/peers/ReferenceCaster.h"
 
 #include <catch2/catch.hpp>
 

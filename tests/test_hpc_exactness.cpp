@@ -4,7 +4,11 @@
 #include "ExactnessScenes.h"
 #include "TestScenes.h"
 
-#include "bake/ReferenceCaster.h"
+#include "bake/peers/ReferenceCaster.h"
+#include "procedural/BoxesGenerator.h"
+#include "procedural/GridGenerator.h"
+#include "stream/ObjReader.h"
+#include "stream/Transform.h"
 
 #include <catch2/catch.hpp>
 

@@ -1,6 +1,6 @@
 // Tests for the EXR/PNG writers, readExr and the sRGB encoder.
 
-#include "bake/ImageWriters.h"
+#include "bake/output/ImageWriters.h"
 #include "stream/Error.h"
 
 #include "TestSupport.h"

@@ -2,11 +2,12 @@
 // counting, OBJ/glTF agreement, parameter errors, and a CLI bake read back from the EXR.
 
 #include "CliRunner.h"
+#include "LightmapTestMeshes.h"
 
-#include "bake/ImageWriters.h"
-#include "bake/Light.h"
-#include "bake/ReceiverKind.h"
-#include "bake/ReceiverShading.h"
+#include "bake/output/ImageWriters.h"
+#include "bake/light/Light.h"
+#include "bake/kinds/ReceiverKind.h"
+#include "bake/shading/ReceiverShading.h"
 #include "bake/Scene.h"
 #include "receivers/LightmapReceivers.h"
 #include "stream/IndexedMesh.h"
@@ -22,12 +23,6 @@ using namespace penumbra;
 using namespace penumbra::test;
 
 namespace {
-
-void write(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
-
-/// Unit quad in the XZ plane facing +Y, UV = (x, 1 - z) after the OBJ flip, two triangles.
-const char* kQuadObj = "v 0 0 0\nv 1 0 0\nv 1 0 -1\nv 0 0 -1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 1 0\n"
-                       "f 1/1/1 2/2/1 3/3/1 4/4/1\n";
 
 /// Separating-axis test of a triangle and an axis-aligned square with positive-area overlap:
 /// an independent check of the rasterizer's clipping.
@@ -182,7 +177,7 @@ TEST_CASE("padding fills the declared margin and no further", "[lightmap]") {
 
 TEST_CASE("a unit quad lit head-on gets the analytic irradiance in every texel", "[lightmap]") {
     ScratchDir dir("lightmap");
-    write(dir / "quad.obj", kQuadObj);
+    writeText(dir / "quad.obj", kQuadObj);
     IndexedMesh mesh = loadIndexedMeshes(dir / "quad.obj", glm::mat4(1.f)).at(0);
     LightmapLayout layout = rasterizeLightmap(mesh, 8, 8);
     REQUIRE(layout.texel.size() == 64);
@@ -219,7 +214,7 @@ TEST_CASE("a unit quad lit head-on gets the analytic irradiance in every texel",
 
 TEST_CASE("overlapping UVs are counted but shared edges are not overlaps", "[lightmap]") {
     ScratchDir dir("lightmap");
-    write(dir / "quad.obj", kQuadObj);
+    writeText(dir / "quad.obj", kQuadObj);
     IndexedMesh quad = loadIndexedMeshes(dir / "quad.obj", glm::mat4(1.f)).at(0);
     CHECK(rasterizeLightmap(quad, 16, 16).overlapping == 0);
 
@@ -231,8 +226,8 @@ TEST_CASE("overlapping UVs are counted but shared edges are not overlaps", "[lig
 
 TEST_CASE("OBJ and glTF of the same mesh give the same receivers", "[lightmap]") {
     ScratchDir dir("lightmap");
-    write(dir / "quad.obj", kQuadObj);
-    write(dir / "quad.gltf", quadGltf());
+    writeText(dir / "quad.obj", kQuadObj);
+    writeText(dir / "quad.gltf", quadGltf());
     glm::mat4 m = Transform{2.f, {0, 90, 0}, {1, 2, 3}}.matrix();
     IndexedMesh obj = loadIndexedMeshes(dir / "quad.obj", m).at(0);
     IndexedMesh gltf = loadIndexedMeshes(dir / "quad.gltf", m).at(0);
@@ -260,8 +255,8 @@ TEST_CASE("malformed glTF never crashes the indexed mesh loader", "[lightmap]") 
 
 TEST_CASE("bad lightmap parameters name the key", "[lightmap]") {
     ScratchDir dir("lightmap");
-    write(dir / "quad.obj", kQuadObj);
-    write(dir / "nouv.obj", "v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 3 2\n");
+    writeText(dir / "quad.obj", kQuadObj);
+    writeText(dir / "nouv.obj", "v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 3 2\n");
     auto scene = [&](const std::string& receivers) {
         nlohmann::json s = nlohmann::json::parse(R"({"geometry": [{"type": "obj", "path": "quad.obj"},
             {"type": "obj", "path": "nouv.obj"}, {"type": "grid"}],
@@ -274,8 +269,18 @@ TEST_CASE("bad lightmap parameters name the key", "[lightmap]") {
                Catch::Contains("receivers.resolution"));
     CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [5]})")),
                Catch::Contains("receivers.meshes[0]") && Catch::Contains("out of range"));
-    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0, 1]})")),
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0, 1], "uv": "mesh"})")),
                Catch::Contains("receivers.meshes[1]") && Catch::Contains("texture coordinates"));
+    CHECK(errorOf(scene(R"({"type": "lightmap", "meshes": [0, 1]})")) == "(no InputError thrown)");  // generated
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "uv": "xatlas"})")), Catch::Contains("receivers.uv"));
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "crease_angle_deg": 200})")),
+               Catch::Contains("receivers.crease_angle_deg"));
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "chart_angle_deg": 0})")),
+               Catch::Contains("receivers.chart_angle_deg"));
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "max_resolution": 0})")),
+               Catch::Contains("receivers.max_resolution"));
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "power_of_two": 1})")),
+               Catch::Contains("receivers.power_of_two"));
     CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [2]})")), Catch::Contains("receivers.meshes[0]"));
     CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "texels_per_unit": -1})")),
                Catch::Contains("receivers.texels_per_unit"));
@@ -288,8 +293,8 @@ TEST_CASE("bad lightmap parameters name the key", "[lightmap]") {
 
 TEST_CASE("bake writes a lightmap EXR per mesh that reads back", "[lightmap][cli]") {
     ScratchDir dir("lightmap");
-    write(dir / "quad.obj", kQuadObj);
-    write(dir / "scene.json", R"({
+    writeText(dir / "quad.obj", kQuadObj);
+    writeText(dir / "scene.json", R"({
       "geometry": [{"type": "obj", "path": "quad.obj"},
                    {"type": "obj", "path": "quad.obj", "transform": {"scale": 0.3, "translate": [0.35, 0.5, 0]}}],
       "lights": [{"type": "rect", "center": [0.5, 2, -0.5], "u": [1,0,0], "v": [0,0,1], "samples": 64, "sample_sets": 2}],

@@ -38,7 +38,7 @@ TEST_CASE("a budget below one smallest tile names the smallest budget that works
     } catch (const InputError& e) {
         message = e.what();
     }
-    CHECK_THAT(message, Catch::StartsWith("--memory-budget 1.00 MiB is too small") && Catch::Contains(formatBytes(p.minimumBudget)));
+    CHECK_THAT(message, Catch::StartsWith("--memory-budget 1.00 MiB is too small") && Catch::Contains("at least " + budgetText(p.minimumBudget) + " is needed"));
     CHECK(planMemory(d, p.minimumBudget).tiles >= 1);
 }
 

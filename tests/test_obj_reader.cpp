@@ -71,7 +71,7 @@ TEST_CASE("OBJ: all corner forms, texture and normal data ignored", "[stream][ob
 TEST_CASE("OBJ: negative indices count back from the face", "[stream][obj]") {
     TempDir dir("obj");
     auto tris = readObjText(dir,
-                            "v 1 0 0\nv 2 0 0\nv 3 0 0\n"
+                            "v 1 0 0\nv 2 0 0\nv 3 0 0\nvt 0 0\nvt 1 1\nvn 0 0 1\n"
                             "f -3 -2 -1\n"
                             "v 4 0 0\nv 5 0 0\nv 6 0 0\n"
                             "f -3 -2 -1\n"

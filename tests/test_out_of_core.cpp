@@ -19,14 +19,15 @@ namespace {
 
 /// Receivers see a floor and a grid; `blades` grass blades stand far outside the light's reach,
 /// so they stream through every stage but are culled at the hierarchy root.
-std::string grassScene(uint64_t blades) {
+std::string grassScene(uint64_t blades, bool cullBeforeSpill = true) {
     nlohmann::json s = {
         {"geometry",
          {{{"type", "grid"}, {"levels", 1}, {"cells", 8}, {"size", 3}, {"floor_size", 8}},
           {{"type", "grass"}, {"count", blades}, {"area", {{40, 40}, {140, 140}}}, {"seed", 3}}}},
         {"lights", {{{"type", "rect"}, {"center", {0, 5, 0}}, {"u", {1.5, 0, 0}}, {"v", {0, 0, 1.5}}, {"samples", 64}}}},
         {"receivers", {{"type", "camera"}, {"eye", {0, 5, 7}}, {"target", {0, 0.5, 0}}, {"width", 160}, {"height", 120}}},
-        {"output", "out.exr"}};
+        {"output", "out.exr"},
+        {"bake", {{"cull_before_spill", cullBeforeSpill}}}};
     return s.dump();
 }
 
@@ -61,9 +62,9 @@ bool anyBucketDirectory(const std::filesystem::path& dir) {
 TEST_CASE("peak RSS is the same for 1M and 10M streamed triangles", "[outofcore]") {
     ScratchDir small("ooc-1m"), large("ooc-10m");
     // Grass blades have 5 triangles by default: 200K and 2M blades.
-    nlohmann::json a = bakeStats(small, grassScene(200'000), "");
+    nlohmann::json a = bakeStats(small, grassScene(200'000, false), "");
     // 10M triangles are 400 MB as records; the bake must run in a 256 MiB address space.
-    nlohmann::json b = bakeStats(large, grassScene(2'000'000), "", "prlimit --as=268435456");
+    nlohmann::json b = bakeStats(large, grassScene(2'000'000, false), "", "prlimit --as=268435456");
     const uint64_t trianglesA = a["counters"]["triangles_read"], trianglesB = b["counters"]["triangles_read"];
     CHECK(trianglesA > 1'000'000);
     CHECK(trianglesB > 10'000'000);
@@ -83,7 +84,7 @@ TEST_CASE("bucket files stay with --keep-buckets and only then", "[outofcore]") 
 
 TEST_CASE("a full disk while bucketing fails cleanly and removes the buckets", "[outofcore]") {
     ScratchDir dir("fsize-buckets");
-    std::ofstream(dir / "scene.json") << grassScene(50'000);
+    std::ofstream(dir / "scene.json") << grassScene(50'000, false);
     RunResult r = runPenumbra("bake " + (dir / "scene.json") + " -q --tmp " + dir.path.string(), "prlimit --fsize=100000");
     INFO(r.err);
     CHECK(r.exitCode == 1);
@@ -94,7 +95,7 @@ TEST_CASE("a full disk while bucketing fails cleanly and removes the buckets", "
 
 TEST_CASE("SIGTERM during a bake removes the bucket files", "[outofcore]") {
     ScratchDir dir("sigterm");
-    std::ofstream(dir / "scene.json") << grassScene(3'000'000);
+    std::ofstream(dir / "scene.json") << grassScene(3'000'000, false);
     std::string cmd = std::string(PENUMBRA_BINARY) + " bake " + (dir / "scene.json") + " -q --tmp " + dir.path.string() +
                       " >/dev/null 2>&1 & echo $! > " + (dir / "pid");
     REQUIRE(std::system(cmd.c_str()) == 0);

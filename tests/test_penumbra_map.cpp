@@ -9,8 +9,8 @@
 
 #include "TestScenes.h"
 
-#include "bake/PenumbraMap.h"
-#include "bake/ReceiverShading.h"
+#include "bake/methods/PenumbraMap.h"
+#include "bake/shading/ReceiverShading.h"
 
 #include <catch2/catch.hpp>
 

@@ -2,6 +2,7 @@
 
 #include "BenchSupport.h"
 
+#include "bake/cast/Caster.h"
 #include "stream/Error.h"
 #include "stream/JsonParams.h"
 #include "stream/Memory.h"
@@ -43,7 +44,7 @@ json columns(const json& s, const std::string& method) {
               {"receivers", s["receivers"]},
               {"light_samples", s["light_samples"]},
               {"triangles", s["counters"]["triangles_read"]}};
-    for (const char* section : {"ssv", "penumbra_map", "hh", "embree"})
+    for (const char* section : {"ssv", "penumbra-map", "hh", "embree"})
         if (s.contains(section)) c[section] = s[section];
     return c;
 }
@@ -81,14 +82,12 @@ json mismatches(const fs::path& scene, const fs::path& hpcDump, const std::strin
             {"ties", v["ties"]}, {"non_ties", differing - v["ties"]}, {"compare_s", c.wallSeconds}};
 }
 
-bool exactMethod(const std::string& m) { return m == "reference" || m == "embree" || m == "ssv"; }
-
 /// Runs @p method on @p file, timed (best of repeat), with its error against hpc's visibility
 /// and, for exact methods, its mismatches against hpc's dump.
 json runMethod(const BenchMethodsOptions& o, const std::string& method, const fs::path& file, const fs::path& work,
                const fs::path& hpcVisibility, const fs::path& hpcDump) {
     std::vector<std::string> extra;
-    if (method != "hpc" && method != "penumbra-map" && method != "hh") extra = {"--disable", "sort"};  // no use for buckets
+    if (casterEntry(method).traits.holdsScene) extra = {"--disable", "sort"};  // reads the scene once: no use for buckets
     const fs::path visibility = work / ("v-" + method + ".npy");
     std::vector<std::string> timed = extra;
     timed.insert(timed.end(), {"--visibility", visibility.string()});
@@ -98,7 +97,7 @@ json runMethod(const BenchMethodsOptions& o, const std::string& method, const fs
     json c = columns(s, method);
     if (method == "hpc") return c;
     c["error_vs_hpc"] = visibilityError(visibility.string(), hpcVisibility.string());
-    if ((exactMethod(method) || method == "hh") && !o.noCompare)
+    if (casterEntry(method).traits.masks && !o.noCompare)
         c["mismatches_vs_hpc"] = mismatches(file, hpcDump, method, o.threads, work, extra);
     return c;
 }
@@ -176,7 +175,8 @@ void runBenchMethods(const BenchMethodsOptions& o, const std::string& commandLin
     if (!(o.scale > 0.0 && o.scale <= 4.0)) fail("--scale", "must be in (0, 4], got {}", o.scale);
     if (o.repeat < 1 || o.repeat > 100) fail("--repeat", "must be in 1..100, got {}", o.repeat);
     if (o.threads < 0 || o.threads > 1024) fail("--threads", "must be in 0..1024, got {}", o.threads);
-    const std::vector<std::string> known = {"reference", "embree", "ssv", "penumbra-map", "hh"};
+    std::vector<std::string> known = casterNames();
+    known.erase(std::remove(known.begin(), known.end(), "hpc"), known.end());
     for (const std::string& m : o.methods)
         if (std::find(known.begin(), known.end(), m) == known.end())
             fail("--methods", "unknown method \"{}\" (known: {})", m, fmt::join(known, ", "));

@@ -1,0 +1,83 @@
+#include "bake/BakeMemory.h"
+
+#include "bake/cast/PenumbraCaster.h"
+#include "bake/cast/SampleMaskTable.h"
+#include "bake/light/SunLight.h"
+#include "bucket/BucketOptions.h"
+#include "stream/Error.h"
+#include "stream/Memory.h"
+#include "stream/PrefetchSource.h"
+
+#include <fmt/format.h>
+
+#include <cstdio>
+
+namespace penumbra {
+
+BakeBudget fitAddressSpace(uint64_t memoryBudget, int& threads, bool quiet) {
+    BakeBudget budget;
+    budget.bytes = memoryBudget;
+    const uint64_t limit = addressSpaceLimit();
+    if (limit == 0) return budget;
+    useOneMallocArena();
+    // Mapped but not resident: the libraries (OpenVDB and Embree alone map about 100 MiB) and
+    // reserved stacks. The baseline of the plan stands for what is resident of it.
+    const uint64_t mapped = mappedNotResidentBytes() + 2 * kReadAheadStackBytes + (16ull << 20);
+    auto room = [&](int n) { return int64_t(limit) - int64_t(mapped) - int64_t(n - 1) * int64_t(kWorkerStackBytes); };
+    const int wanted = threads;
+    // Keep at least the baseline and a little for the bake's own data per thread.
+    while (threads > 1 && room(threads) < int64_t(kBaselineBytes + (16ull << 20) * uint64_t(threads))) --threads;
+    if (threads < wanted && !quiet)
+        fmt::print(stderr, "penumbra: warning: the address-space limit of {} leaves room for {} thread{} (of {})\n",
+                   formatBytes(limit), threads, threads == 1 ? "" : "s", wanted);
+    const int64_t left = std::max<int64_t>(room(threads), 0);
+    budget.overhead = limit - uint64_t(left);
+    budget.bytes = memoryBudget ? std::min<uint64_t>(memoryBudget, uint64_t(left)) : uint64_t(left);
+    if (!memoryBudget || uint64_t(left) < memoryBudget) budget.label = "the address-space limit (prlimit --as, ulimit -v) of";
+    else budget.overhead = 0;
+    return budget;
+}
+
+void addSampleDemand(MemoryDemand& demand, const LightSamples& samples, const SceneDesc& scene) {
+    demand.groups = samples.groupCount();
+    demand.umbraWords = (demand.groups + 63) / 64;
+    demand.sampleBytes = samples.positions.size() * sizeof(glm::vec3);
+    if (scene.options.sampleTable)  // one copy per caster; casters (memory tiles) run one at a time
+        for (uint32_t l = 0; l < uint32_t(samples.lightCount()); ++l)
+            demand.sampleBytes +=
+                SampleMaskTable::plannedBytes(samples, l, scene.options.sampleTableAngles, scene.options.sampleTableOffsets);
+}
+
+MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const TriangleSource& geometry, bool dump) {
+    MemoryDemand d;
+    d.dumpMasks = dump;
+    d.scanBytes = kind.scanBytes();
+    d.receivers = kind.receiverBound().value_or(0);
+    d.kindBytes = kind.maxResidentBytes(d.receivers, geometry.knownSize());
+    d.outputBytes = kind.outputBytes(d.receivers);
+    // The sources read ahead on a thread of their own (PrefetchSource: 4 chunks queued, one being
+    // filled, one handed out).
+    d.sourceBytes = geometry.residentBytes() + 6 * kTriangleChunk * sizeof(Triangle);
+    d.sourceDetail = geometry.residentDetail();
+    d.sourceDuringCast = !scene.options.sortBlockers;
+    addSampleDemand(d, generateLightSamples(scene.lights, scene.options.groupSize, scene.seed), scene);
+    // Bucket buffers, the replay's read-ahead queue and the caster's ring of prepared chunks.
+    const BucketOptions buckets;
+    d.bufferBytes = (scene.options.sortBlockers ? buckets.writeMemoryBytes() + buckets.readBufferBytes : 0) +
+                    8 * kTriangleChunk * sizeof(Triangle) +
+                    PenumbraCaster::kMaxRingChunks * PenumbraCaster::preparedChunkBytes(scene.lights.size());
+    return d;
+}
+
+void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget) {
+    if (budget.bytes == 0) return;
+    const MemoryPlan worst = planMemory(demand, 0);
+    if (budget.bytes >= scanPhaseBytes(demand)) return;  // the scan fits; the exact check follows it
+    std::string why;
+    if (!demand.sourceDetail.empty() && demand.sourceBytes > worst.minimumBudget / 2) why = fmt::format(" ({})", demand.sourceDetail);
+    throw InputError(fmt::format("{} {} is too small for up to {} receivers with {} mask words each; at least {} is needed{}",
+                                 budget.label, formatBytes(budget.bytes + budget.overhead), demand.receivers, demand.groups,
+                                 budgetText(worst.minimumBudget + budget.overhead), why));
+}
+
+}  // namespace penumbra

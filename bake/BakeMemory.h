@@ -1,0 +1,57 @@
+#pragma once
+/// @file BakeMemory.h
+/// @brief The memory side of a bake, as the pipeline checks it: what the budget is (the
+/// `--memory-budget`, or what an address-space limit leaves), and what the bake needs before
+/// its scan pass (worst case) and after it (exact).
+///
+/// Order of checks, so that a failure comes before any work and names a budget that works:
+/// 1. Before the scan: the demand with the most receivers the kind can make (a camera's pixels)
+///    and the most its tables can grow to. A budget below what the scan pass itself needs fails
+///    here, naming that worst-case minimum, which is sure to be enough.
+/// 2. After the scan (before the bucket pass and the cast): the demand with the receivers found,
+///    exact up to the kind's bound on its tables; a failure names the smallest budget that works.
+/// Later plans only see smaller or equal demands, so they cannot fail again (the antialiasing
+/// pass, whose receivers depend on the first cast's results, is checked when they are known).
+
+#include "bake/light/Light.h"
+#include "bake/MemoryPlan.h"
+#include "bake/kinds/ReceiverKind.h"
+#include "bake/Scene.h"
+#include "stream/TriangleSource.h"
+
+#include <cstdint>
+#include <string>
+
+namespace penumbra {
+
+/// @brief The budget a bake plans with.
+struct BakeBudget {
+    uint64_t bytes = 0;  ///< 0: unlimited
+    /// Address space already spent before any bake data (libraries, stacks), added back in
+    /// messages about an address-space limit.
+    uint64_t overhead = 0;
+    std::string label = "--memory-budget";
+
+    MemoryPlan plan(const MemoryDemand& demand) const { return planMemory(demand, bytes, label, overhead); }
+};
+
+/// Stack reserved per TBB worker (set through tbb::global_control) and per read-ahead thread.
+inline constexpr uint64_t kWorkerStackBytes = 4ull << 20;
+inline constexpr uint64_t kReadAheadStackBytes = 8ull << 20;
+
+/// @brief The budget for @p memoryBudget under this process's address-space limit, if any: with a
+/// limit, malloc keeps one arena, thread stacks and what is already mapped are set aside, and
+/// @p threads is lowered (with a warning unless @p quiet) until a bake can fit.
+BakeBudget fitAddressSpace(uint64_t memoryBudget, int& threads, bool quiet);
+
+/// @brief The demand known before the scan pass: the kind's scan buffers and worst cases, the
+/// opened sources' working sets, light samples and fixed buffers.
+MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const TriangleSource& geometry, bool dump);
+
+/// @brief Sets the sample groups and sample bytes (positions and sample mask tables) of @p samples.
+void addSampleDemand(MemoryDemand& demand, const LightSamples& samples, const SceneDesc& scene);
+
+/// @brief Check 1 above. @throw InputError naming the worst-case minimum.
+void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget);
+
+}  // namespace penumbra

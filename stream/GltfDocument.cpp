@@ -1,0 +1,537 @@
+#include "stream/GltfDocument.h"
+
+#include "stream/Error.h"
+#include "stream/InputFile.h"
+#include "stream/JsonText.h"
+#include "stream/RegularFile.h"
+#include "stream/SafePath.h"
+
+#include <nlohmann/json.hpp>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+
+
+namespace penumbra {
+namespace {
+
+using Json = nlohmann::json;
+
+constexpr uint32_t kGlbMagic = 0x46546C67u, kJsonChunk = 0x4E4F534Au, kBinChunk = 0x004E4942u;
+
+uint32_t u32(const unsigned char* p) {
+    uint32_t v;
+    std::memcpy(&v, p, 4);
+    return v;
+}
+
+/// Reads the JSON text; for a .glb also locates the BIN chunk (offset and length in the file).
+std::string readJsonText(const std::string& path, std::optional<std::pair<uint64_t, uint64_t>>& bin) {
+    RegularFile file(path);
+    unsigned char header[20] = {};
+    file.read(header, size_t(std::min<uint64_t>(file.size(), 20)), 0);
+    if (file.size() >= 4 && u32(header) == kGlbMagic) {
+        if (file.size() < 20) fail(path, "truncated GLB header (expected at least 20 bytes, found {})", file.size());
+        if (uint32_t version = u32(header + 4); version != 2) fail(path, "unsupported GLB version {}", version);
+        const uint64_t length = u32(header + 8), jsonLength = u32(header + 12);
+        if (length > file.size()) fail(path, "truncated (GLB header declares {} bytes, file has {})", length, file.size());
+        if (u32(header + 16) != kJsonChunk) fail(path, "first GLB chunk is not JSON");
+        const uint64_t binStart = 20 + jsonLength;
+        if (binStart > length) fail(path, "GLB JSON chunk ({} bytes) runs past the end of the file", jsonLength);
+        if (binStart < length) {
+            if (binStart + 8 > length) fail(path, "truncated GLB chunk header after the JSON chunk");
+            unsigned char chunk[8];
+            file.read(chunk, 8, binStart);
+            const uint64_t binLength = u32(chunk);
+            if (binStart + 8 + binLength > length)
+                fail(path, "GLB BIN chunk ({} bytes) runs past the end of the file", binLength);
+            if (u32(chunk + 4) != kBinChunk) fail(path, "second GLB chunk is not BIN");
+            bin.emplace(binStart + 8, binLength);
+        }
+        std::string text(size_t(jsonLength), '\0');
+        file.read(text.data(), text.size(), 20);
+        return text;
+    }
+    std::string text(size_t(file.size()), '\0');
+    file.read(text.data(), text.size(), 0);
+    return text;
+}
+
+/// Reads typed members with messages naming the object ("accessor 3: count must be ...").
+struct Members {
+    const std::string& path;
+    const Json& object;
+    std::string what;
+
+    const Json* find(const char* key) const {
+        auto it = object.find(key);
+        return it == object.end() ? nullptr : &*it;
+    }
+    uint64_t unsignedOr(const char* key, uint64_t fallback) const {
+        const Json* v = find(key);
+        if (!v) return fallback;
+        if (!v->is_number_unsigned() && !(v->is_number_integer() && v->get<int64_t>() >= 0))
+            fail(path, "{} {} must be a non-negative integer, got {}", what, key, v->dump());
+        return v->get<uint64_t>();
+    }
+    uint64_t required(const char* key) const {
+        if (!find(key)) fail(path, "{} has no {}", what, key);
+        return unsignedOr(key, 0);
+    }
+    int index(const char* key, int fallback = -1) const {
+        const uint64_t v = unsignedOr(key, uint64_t(int64_t(fallback)));
+        if (find(key) && v > uint64_t(std::numeric_limits<int>::max())) fail(path, "{} {} {} is out of range", what, key, v);
+        return int(v);
+    }
+    std::string string(const char* key) const {
+        const Json* v = find(key);
+        if (!v) return {};
+        if (!v->is_string()) fail(path, "{} {} must be a string", what, key);
+        return v->get<std::string>();
+    }
+    const Json& objectAt(const char* key) const {
+        static const Json empty = Json::object();
+        const Json* v = find(key);
+        if (!v) return empty;
+        if (!v->is_object()) fail(path, "{} {} must be an object", what, key);
+        return *v;
+    }
+    std::vector<double> numbers(const char* key) const {
+        const Json* v = find(key);
+        std::vector<double> out;
+        if (!v) return out;
+        if (!v->is_array()) fail(path, "{} {} must be an array of numbers", what, key);
+        for (const Json& x : *v) {
+            if (!x.is_number()) fail(path, "{} {} must be an array of numbers", what, key);
+            out.push_back(x.get<double>());
+        }
+        return out;
+    }
+};
+
+/// The array member @p key of the root (empty when absent).
+const Json& arrayOf(const std::string& path, const Json& root, const char* key) {
+    static const Json empty = Json::array();
+    auto it = root.find(key);
+    if (it == root.end()) return empty;
+    if (!it->is_array()) fail(path, "\"{}\" must be an array", key);
+    for (const Json& e : *it)
+        if (!e.is_object()) fail(path, "\"{}\" must be an array of objects", key);
+    return *it;
+}
+
+int componentsOf(const std::string& type) {
+    if (type == "SCALAR") return 1;
+    if (type == "VEC2") return 2;
+    if (type == "VEC3") return 3;
+    if (type == "VEC4" || type == "MAT2") return 4;
+    if (type == "MAT3") return 9;
+    if (type == "MAT4") return 16;
+    return 0;
+}
+
+std::string percentDecoded(const std::string& uri) {
+    std::string out;
+    for (size_t i = 0; i < uri.size(); ++i) {
+        if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(uint8_t(uri[i + 1])) && std::isxdigit(uint8_t(uri[i + 2]))) {
+            out.push_back(char(std::stoi(uri.substr(i + 1, 2), nullptr, 16)));
+            i += 2;
+        } else {
+            out.push_back(uri[i]);
+        }
+    }
+    return out;
+}
+
+/// Decodes the base64 payload of a data URI; false for malformed text.
+bool decodeBase64(std::string_view text, std::vector<uint8_t>& out) {
+    auto value = [](char c) -> int {
+        if (c >= 'A' && c <= 'Z') return c - 'A';
+        if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+        if (c >= '0' && c <= '9') return c - '0' + 52;
+        if (c == '+' || c == '-') return 62;
+        if (c == '/' || c == '_') return 63;
+        return -1;
+    };
+    uint32_t acc = 0;
+    int bits = 0;
+    for (char c : text) {
+        if (c == '=') break;
+        const int v = value(c);
+        if (v < 0) return false;
+        acc = (acc << 6) | uint32_t(v), bits += 6;
+        if (bits >= 8) bits -= 8, out.push_back(uint8_t(acc >> bits));
+    }
+    return true;
+}
+
+GltfBuffer parseBuffer(const std::string& path, const Json& j, size_t i, const std::optional<std::pair<uint64_t, uint64_t>>& bin) {
+    Members m{path, j, fmt::format("buffer {}", i)};
+    GltfBuffer b;
+    b.byteLength = m.required("byteLength");
+    const std::string uri = m.string("uri");
+    if (uri.empty()) {
+        if (i == 0 && bin) {
+            if (b.byteLength > bin->second)
+                fail(path, "buffer 0 byteLength {} is larger than the GLB BIN chunk ({} bytes)", b.byteLength, bin->second);
+            b.source = GltfBuffer::Source::GlbChunk, b.file = path, b.fileOffset = bin->first;
+        }
+        return b;  // without a source: only meshopt fallback views may refer to it (checked with the views)
+    }
+    if (uri.rfind("data:", 0) == 0) {
+        const size_t comma = uri.find(',');
+        if (comma == std::string::npos || uri.substr(0, comma).find(";base64") == std::string::npos)
+            fail(path, "buffer {}: only base64 data URIs are supported", i);
+        if (b.byteLength > kMaxDataUriBytes || (uri.size() - comma) / 4 * 3 > kMaxDataUriBytes + 3)
+            fail(path, "buffer {}: an embedded data: URI of {} bytes is above the {} MiB limit for embedded buffers (they "
+                 "cannot be read in windows); store it as a .bin file or write a .glb", i, b.byteLength, kMaxDataUriBytes >> 20);
+        if (!decodeBase64(std::string_view(uri).substr(comma + 1), b.bytes))
+            fail(path, "buffer {}: malformed base64 in its data: URI", i);
+        if (b.bytes.size() < b.byteLength)
+            fail(path, "buffer {}: its data: URI holds {} bytes, byteLength says {}", i, b.bytes.size(), b.byteLength);
+        b.bytes.resize(size_t(b.byteLength));
+        b.source = GltfBuffer::Source::DataUri;
+        return b;
+    }
+    if (uri.find("://") != std::string::npos) fail(path, "buffer {}: URI \"{}\" is not a local file", i, uri);
+    std::filesystem::path base = std::filesystem::path(path).parent_path();
+    // The URI must stay in the model's directory (SafePath.h), and is recorded as an input so
+    // that no output of the bake replaces it.
+    b.file = containedPath(base, percentDecoded(uri), fmt::format("{}: buffers[{}].uri", path, i), "the model's directory");
+    checkInputFile(b.file);
+    RegularFile file(b.file);  // a regular file, or an error naming it
+    if (file.size() < b.byteLength)
+        fail(path, "buffer {} ({}) has {} bytes, but its byteLength is {}", i, uri, file.size(), b.byteLength);
+    b.source = GltfBuffer::Source::File;
+    return b;
+}
+
+GltfBufferView parseView(const std::string& path, const Json& j, size_t i, const std::vector<GltfBuffer>& buffers) {
+    Members m{path, j, fmt::format("bufferView {}", i)};
+    GltfBufferView v;
+    v.buffer = m.index("buffer");
+    v.byteOffset = m.unsignedOr("byteOffset", 0);
+    v.byteLength = m.required("byteLength");
+    const uint64_t stride = m.unsignedOr("byteStride", 0);
+    if (stride != 0 && (stride < 4 || stride > 252)) fail(path, "bufferView {} byteStride {} is not in [4, 252]", i, stride);
+    v.byteStride = uint32_t(stride);
+    auto within = [&](int buffer, uint64_t offset, uint64_t length, const char* what) {
+        if (buffer < 0 || size_t(buffer) >= buffers.size())
+            fail(path, "bufferView {}{} refers to buffer {} (file has {})", i, what, buffer, buffers.size());
+        uint64_t end = 0;
+        const uint64_t bytes = buffers[size_t(buffer)].byteLength;
+        if (__builtin_add_overflow(offset, length, &end) || end > bytes)
+            fail(path, "bufferView {}{} (bytes {}..+{}) lies outside buffer {} ({} bytes)", i, what, offset, length, buffer, bytes);
+    };
+    within(v.buffer, v.byteOffset, v.byteLength, "");
+    const Json& extensions = m.objectAt("extensions");
+    if (auto it = extensions.find("EXT_meshopt_compression"); it != extensions.end()) {
+        if (!it->is_object()) fail(path, "bufferView {} EXT_meshopt_compression must be an object", i);
+        Members e{path, *it, fmt::format("bufferView {} EXT_meshopt_compression", i)};
+        GltfMeshoptView c;
+        c.buffer = e.index("buffer");
+        c.byteOffset = e.unsignedOr("byteOffset", 0);
+        c.byteLength = e.required("byteLength");
+        c.byteStride = uint32_t(std::min<uint64_t>(e.required("byteStride"), 1u << 20));
+        c.count = e.required("count");
+        within(c.buffer, c.byteOffset, c.byteLength, " EXT_meshopt_compression");
+        const std::string mode = e.string("mode"), filter = e.string("filter");
+        if (mode == "ATTRIBUTES") c.mode = GltfMeshoptView::Mode::Attributes;
+        else if (mode == "TRIANGLES") c.mode = GltfMeshoptView::Mode::Triangles;
+        else if (mode == "INDICES") c.mode = GltfMeshoptView::Mode::Indices;
+        else fail(path, "bufferView {} EXT_meshopt_compression: unknown mode \"{}\"", i, mode);
+        if (filter.empty() || filter == "NONE") c.filter = GltfMeshoptView::Filter::None;
+        else if (filter == "OCTAHEDRAL") c.filter = GltfMeshoptView::Filter::Octahedral;
+        else if (filter == "QUATERNION") c.filter = GltfMeshoptView::Filter::Quaternion;
+        else if (filter == "EXPONENTIAL") c.filter = GltfMeshoptView::Filter::Exponential;
+        else fail(path, "bufferView {} EXT_meshopt_compression: unknown filter \"{}\"", i, filter);
+        const bool attributes = c.mode == GltfMeshoptView::Mode::Attributes;
+        if ((attributes && (c.byteStride == 0 || c.byteStride > 256 || c.byteStride % 4 != 0)) ||
+            (!attributes && c.byteStride != 2 && c.byteStride != 4))
+            fail(path, "bufferView {} EXT_meshopt_compression: byteStride {} is invalid for mode {}", i, c.byteStride, mode);
+        uint64_t decoded = 0;
+        if (__builtin_mul_overflow(c.count, uint64_t(c.byteStride), &decoded) || decoded > v.byteLength)
+            fail(path, "bufferView {} EXT_meshopt_compression: {} elements of {} bytes do not fit its {} bytes", i, c.count,
+                 c.byteStride, v.byteLength);
+        v.meshopt = c;
+    } else if (buffers[size_t(v.buffer)].source == GltfBuffer::Source::None) {
+        fail(path, "bufferView {} refers to buffer {}, which has no uri (and the file is not a .glb holding it)", i, v.buffer);
+    }
+    return v;
+}
+
+GltfAccessor parseAccessor(const std::string& path, const Json& j, size_t i, const std::vector<GltfBufferView>& views) {
+    Members m{path, j, fmt::format("accessor {}", i)};
+    GltfAccessor a;
+    a.componentType = int(m.required("componentType"));
+    const int componentBytes = gltfComponentBytes(a.componentType);
+    if (componentBytes == 0) fail(path, "accessor {} has invalid componentType {}", i, a.componentType);
+    const std::string type = m.string("type");
+    a.components = componentsOf(type);
+    if (a.components == 0) fail(path, "accessor {} has invalid type \"{}\"", i, type);
+    const Json* normalized = m.find("normalized");
+    a.normalized = normalized && normalized->is_boolean() && normalized->get<bool>();
+    a.count = m.required("count");
+    a.sparse = m.find("sparse") != nullptr;
+    a.byteOffset = m.unsignedOr("byteOffset", 0);
+    a.elementBytes = uint32_t(componentBytes * a.components);
+    a.bufferView = m.index("bufferView");
+    if (a.bufferView < 0) return a;  // zeros (or a Draco-decoded primitive's attribute)
+    if (size_t(a.bufferView) >= views.size())
+        fail(path, "accessor {} refers to bufferView {} (file has {})", i, a.bufferView, views.size());
+    const GltfBufferView& view = views[size_t(a.bufferView)];
+    const uint32_t stride = view.meshopt ? view.meshopt->byteStride : view.byteStride;
+    a.stride = stride == 0 ? a.elementBytes : stride;
+    if (a.stride < a.elementBytes)
+        fail(path, "accessor {}: bufferView {} byteStride {} is smaller than the {}-byte element", i, a.bufferView, stride,
+             a.elementBytes);
+    if (a.count > 0) {
+        // byteOffset + stride * (count - 1) + elementBytes, every step overflow-checked: the
+        // operands come straight from the JSON.
+        uint64_t needed = 0;
+        const bool overflow = __builtin_mul_overflow(uint64_t(a.stride), a.count - 1, &needed) ||
+                              __builtin_add_overflow(needed, a.byteOffset, &needed) ||
+                              __builtin_add_overflow(needed, uint64_t(a.elementBytes), &needed);
+        if (overflow)
+            fail(path, "accessor {} reads past the end of bufferView {} (needs more than 2^64 bytes, has {})", i,
+                 a.bufferView, view.byteLength);
+        if (needed > view.byteLength)
+            fail(path, "accessor {} reads past the end of bufferView {} (needs {} bytes, has {})", i, a.bufferView, needed,
+                 view.byteLength);
+    }
+    return a;
+}
+
+std::vector<std::pair<std::string, int>> indexMap(const std::string& path, const Json& object, const std::string& what) {
+    std::vector<std::pair<std::string, int>> out;
+    for (auto it = object.begin(); it != object.end(); ++it) {
+        if (!it->is_number_integer() || it->get<int64_t>() < 0 || it->get<int64_t>() > std::numeric_limits<int>::max())
+            fail(path, "{} {} must be a non-negative index", what, it.key());
+        out.emplace_back(it.key(), it->get<int>());
+    }
+    return out;
+}
+
+GltfMeshDesc parseMesh(const GltfDocument& doc, const Json& j, size_t i) {
+    const std::string& path = doc.path;
+    Members m{path, j, fmt::format("mesh {}", i)};
+    GltfMeshDesc mesh;
+    mesh.name = m.string("name");
+    const Json* primitives = m.find("primitives");
+    if (!primitives || !primitives->is_array()) fail(path, "mesh {} has no primitives array", i);
+    for (size_t p = 0; p < primitives->size(); ++p) {
+        const Json& pj = (*primitives)[p];
+        const std::string where = fmt::format("mesh {} primitive {}", i, p);
+        if (!pj.is_object()) fail(path, "{} must be an object", where);
+        Members pm{path, pj, where};
+        GltfPrimitiveDesc prim;
+        prim.attributes = indexMap(path, pm.objectAt("attributes"), where + " attribute");
+        for (const auto& [name, accessor] : prim.attributes)
+            if (size_t(accessor) >= doc.accessors.size())
+                fail(path, "{}: attribute {} refers to accessor {} (file has {})", where, name, accessor, doc.accessors.size());
+        prim.indices = pm.index("indices");
+        if (prim.indices >= int(doc.accessors.size()))
+            fail(path, "{}: indices refer to accessor {} (file has {})", where, prim.indices, doc.accessors.size());
+        prim.mode = int(pm.unsignedOr("mode", kGltfTriangles));
+        if (prim.mode > kGltfTriangleFan) fail(path, "{}: invalid mode {}", where, prim.mode);
+        const Json& extensions = pm.objectAt("extensions");
+        if (auto it = extensions.find("KHR_draco_mesh_compression"); it != extensions.end()) {
+            if (!it->is_object()) fail(path, "{}: KHR_draco_mesh_compression must be an object", where);
+            Members d{path, *it, where + " KHR_draco_mesh_compression"};
+            GltfDraco draco;
+            draco.bufferView = d.index("bufferView");
+            if (draco.bufferView < 0 || size_t(draco.bufferView) >= doc.views.size())
+                fail(path, "{}: KHR_draco_mesh_compression refers to bufferView {} (file has {})", where, draco.bufferView,
+                     doc.views.size());
+            draco.attributes = indexMap(path, d.objectAt("attributes"), where + " KHR_draco_mesh_compression attribute");
+            prim.draco = std::move(draco);
+        }
+        mesh.primitives.push_back(std::move(prim));
+    }
+    return mesh;
+}
+
+glm::dmat4 localMatrix(const std::string& path, const Members& m, size_t index) {
+    auto check = [&](const std::vector<double>& values, size_t expected, const char* what) {
+        if (!values.empty() && values.size() != expected)
+            fail(path, "node {} {} has {} values (needs {})", index, what, values.size(), expected);
+        for (double x : values)
+            if (!std::isfinite(x)) fail(path, "node {} {} is not finite", index, what);
+        return !values.empty();
+    };
+    const std::vector<double> matrix = m.numbers("matrix");
+    if (check(matrix, 16, "matrix")) return glm::make_mat4(matrix.data());  // both column-major
+    glm::dmat4 local(1.0);
+    if (std::vector<double> t = m.numbers("translation"); check(t, 3, "translation"))
+        local = glm::translate(local, glm::dvec3(t[0], t[1], t[2]));
+    if (std::vector<double> q = m.numbers("rotation"); check(q, 4, "rotation"))  // glTF order x, y, z, w
+        local *= glm::mat4_cast(glm::normalize(glm::dquat(q[3], q[0], q[1], q[2])));
+    if (std::vector<double> s = m.numbers("scale"); check(s, 3, "scale")) local = glm::scale(local, glm::dvec3(s[0], s[1], s[2]));
+    return local;
+}
+
+GltfNodeDesc parseNode(const GltfDocument& doc, const Json& j, size_t i, size_t nodeCount) {
+    const std::string& path = doc.path;
+    Members m{path, j, fmt::format("node {}", i)};
+    GltfNodeDesc node;
+    node.name = m.string("name");
+    node.mesh = m.index("mesh");
+    if (node.mesh >= int(doc.meshes.size())) fail(path, "node {} refers to mesh {} (file has {})", i, node.mesh, doc.meshes.size());
+    if (const Json* children = m.find("children")) {
+        if (!children->is_array()) fail(path, "node {} children must be an array", i);
+        for (const Json& c : *children) {
+            if (!c.is_number_integer()) fail(path, "node {} children must be node indices", i);
+            const int64_t child = c.get<int64_t>();
+            if (child < 0 || uint64_t(child) >= nodeCount) fail(path, "node {} has child {} (file has {} nodes)", i, child, nodeCount);
+            node.children.push_back(int(child));
+        }
+    }
+    node.local = localMatrix(path, m, i);
+    const Json& extensions = m.objectAt("extensions");
+    if (auto it = extensions.find("EXT_mesh_gpu_instancing"); it != extensions.end() && it->is_object()) {
+        Members e{path, *it, fmt::format("node {} EXT_mesh_gpu_instancing", i)};
+        for (const auto& [name, accessor] : indexMap(path, e.objectAt("attributes"), e.what + " attribute")) {
+            if (size_t(accessor) >= doc.accessors.size())
+                fail(path, "{} attribute {} refers to accessor {} (file has {})", e.what, name, accessor, doc.accessors.size());
+            if (name == "TRANSLATION") node.instanceTranslation = accessor;
+            else if (name == "ROTATION") node.instanceRotation = accessor;
+            else if (name == "SCALE") node.instanceScale = accessor;
+        }
+    }
+    return node;
+}
+
+void findRoots(const Json& root, GltfDocument& doc) {
+    const std::string& path = doc.path;
+    const Json& scenes = arrayOf(path, root, "scenes");
+    int scene = -1;
+    if (auto it = root.find("scene"); it != root.end()) {
+        if (!it->is_number_integer() || it->get<int64_t>() < 0) fail(path, "\"scene\" must be a scene index");
+        if (it->get<uint64_t>() >= scenes.size())
+            fail(path, "default scene {} does not exist (file has {})", it->get<uint64_t>(), scenes.size());
+        scene = it->get<int>();
+    }
+    if (scene < 0 && !scenes.empty()) scene = 0;
+    if (scene >= 0) {
+        Members m{path, scenes[size_t(scene)], fmt::format("scene {}", scene)};
+        if (const Json* nodes = m.find("nodes")) {
+            if (!nodes->is_array()) fail(path, "scene {} nodes must be an array", scene);
+            for (const Json& n : *nodes) {
+                if (!n.is_number_integer() || n.get<int64_t>() < 0 || n.get<uint64_t>() >= doc.nodes.size())
+                    fail(path, "scene {} refers to node {} (file has {})", scene, n.dump(), doc.nodes.size());
+                doc.roots.push_back(n.get<int>());
+            }
+        }
+        return;
+    }
+    // No scenes: every node that is nobody's child is a root.
+    std::vector<bool> isChild(doc.nodes.size(), false);
+    for (const GltfNodeDesc& node : doc.nodes)
+        for (int child : node.children) isChild[size_t(child)] = true;
+    for (size_t n = 0; n < doc.nodes.size(); ++n)
+        if (!isChild[n]) doc.roots.push_back(int(n));
+}
+
+void checkRequiredExtensions(const std::string& path, const Json& root) {
+    static const char* known[] = {"KHR_mesh_quantization", "EXT_mesh_gpu_instancing", "EXT_meshopt_compression",
+                                  "KHR_draco_mesh_compression", "KHR_materials_unlit", "KHR_texture_transform",
+                                  "KHR_texture_basisu", "EXT_texture_webp"};
+    auto it = root.find("extensionsRequired");
+    if (it == root.end() || !it->is_array()) return;
+    for (const Json& e : *it) {
+        if (!e.is_string()) fail(path, "extensionsRequired must hold strings");
+        const std::string name = e.get<std::string>();
+        if (std::none_of(std::begin(known), std::end(known), [&](const char* k) { return name == k; }))
+            fail(path, "requires the glTF extension {}, which penumbra does not support", name);
+    }
+}
+
+}  // namespace
+
+int GltfPrimitiveDesc::attribute(const std::string& name) const {
+    for (const auto& [n, accessor] : attributes)
+        if (n == name) return accessor;
+    return -1;
+}
+
+int gltfComponentBytes(int componentType) {
+    switch (componentType) {
+    case kGltfByte:
+    case kGltfUnsignedByte: return 1;
+    case kGltfShort:
+    case kGltfUnsignedShort: return 2;
+    case kGltfUnsignedInt:
+    case kGltfFloat: return 4;
+    default: return 0;
+    }
+}
+
+uint64_t GltfDocument::residentBytes() const {
+    uint64_t bytes = sizeof(*this) + buffers.size() * sizeof(GltfBuffer) + views.size() * sizeof(GltfBufferView) +
+                     accessors.size() * sizeof(GltfAccessor) + nodes.size() * (sizeof(GltfNodeDesc) + 16) + roots.size() * 4;
+    for (const GltfBuffer& b : buffers) bytes += b.bytes.capacity() + b.file.capacity();
+    for (const GltfMeshDesc& m : meshes)
+        bytes += sizeof(GltfMeshDesc) + m.primitives.size() * (sizeof(GltfPrimitiveDesc) + 4 * 48);
+    return bytes;
+}
+
+GltfDocument loadGltfDocument(const std::string& path) {
+    GltfDocument doc;
+    doc.path = path;
+    std::optional<std::pair<uint64_t, uint64_t>> bin;
+    Json root;
+    {
+        std::string text = readJsonText(path, bin);
+        doc.jsonBytes = text.size();
+        checkJsonDepth(text, path);
+        try {
+            root = Json::parse(text);
+        } catch (const std::exception& e) {
+            fail(path, "{}", e.what());
+        }
+    }
+    if (!root.is_object()) fail(path, "the glTF JSON is not an object");
+    checkRequiredExtensions(path, root);
+    const Json& buffers = arrayOf(path, root, "buffers");
+    for (size_t i = 0; i < buffers.size(); ++i) doc.buffers.push_back(parseBuffer(path, buffers[i], i, bin));
+    const Json& views = arrayOf(path, root, "bufferViews");
+    for (size_t i = 0; i < views.size(); ++i) doc.views.push_back(parseView(path, views[i], i, doc.buffers));
+    const Json& accessors = arrayOf(path, root, "accessors");
+    for (size_t i = 0; i < accessors.size(); ++i) doc.accessors.push_back(parseAccessor(path, accessors[i], i, doc.views));
+    const Json& meshes = arrayOf(path, root, "meshes");
+    for (size_t i = 0; i < meshes.size(); ++i) doc.meshes.push_back(parseMesh(doc, meshes[i], i));
+    const Json& nodes = arrayOf(path, root, "nodes");
+    for (size_t i = 0; i < nodes.size(); ++i) doc.nodes.push_back(parseNode(doc, nodes[i], i, nodes.size()));
+    findRoots(root, doc);
+    return doc;
+}
+
+std::vector<GltfMeshNode> walkGltfScene(const GltfDocument& doc) {
+    // Iterative depth-first walk. glTF requires the hierarchy to be a forest; reaching a node
+    // twice means a cycle (infinite recursion) or a shared child (exponential instancing), both
+    // rejected. Sharing a mesh between nodes is the way to instance, and is fine.
+    std::vector<GltfMeshNode> placed;
+    std::vector<bool> reached(doc.nodes.size(), false);
+    std::vector<std::pair<int, glm::dmat4>> stack;
+    for (auto r = doc.roots.rbegin(); r != doc.roots.rend(); ++r) stack.emplace_back(*r, glm::dmat4(1.0));
+    while (!stack.empty()) {
+        auto [n, parent] = stack.back();
+        stack.pop_back();
+        if (reached[size_t(n)]) fail(doc.path, "node {} is reached twice (the node hierarchy must be a tree)", n);
+        reached[size_t(n)] = true;
+        const GltfNodeDesc& node = doc.nodes[size_t(n)];
+        const glm::dmat4 world = parent * node.local;
+        if (node.mesh >= 0) placed.push_back({n, node.mesh, world});
+        for (auto c = node.children.rbegin(); c != node.children.rend(); ++c) stack.emplace_back(*c, world);
+    }
+    return placed;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,153 @@
+// Out of core for file input (issue #12): the same generated grass as .glb and .obj at 1M and 10M
+// triangles bakes in the same peak RSS, within --memory-budget 256M (files larger than the
+// budget, a procedural scene and a 1600x1200 camera too), and under an address-space limit well
+// below the file's size. Inputs are generated into a temp dir with `penumbra generate` and
+// removed afterwards; every bake runs in a child process, which is where peak RSS is measured.
+
+#include "CliRunner.h"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+
+using namespace penumbra::test;
+
+namespace {
+
+/// Grass far outside the light's reach (it streams through every pass, and is culled), a grid
+/// and floor the camera sees.
+nlohmann::json grass(uint64_t blades) {
+    return {{"type", "grass"}, {"count", blades}, {"area", {{40, 40}, {140, 140}}}, {"seed", 3}};
+}
+
+nlohmann::json scene(const nlohmann::json& geometry, int width = 160, int height = 120) {
+    nlohmann::json all = {{{"type", "grid"}, {"levels", 1}, {"cells", 8}, {"size", 3}, {"floor_size", 8}}};
+    all.push_back(geometry);
+    return {{"geometry", all},
+            {"lights", {{{"type", "rect"}, {"center", {0, 5, 0}}, {"u", {1.5, 0, 0}}, {"v", {0, 0, 1.5}}, {"samples", 64}}}},
+            {"receivers", {{"type", "camera"}, {"eye", {0, 5, 7}}, {"target", {0, 0.5, 0}}, {"width", width}, {"height", height}}},
+            {"output", "out.exr"}};
+}
+
+/// Writes @p geometry's triangles to DIR/NAME with `penumbra generate`; returns the path.
+std::string generate(const ScratchDir& dir, const nlohmann::json& geometry, const std::string& name) {
+    std::ofstream(dir / ("gen-" + name + ".json")) << scene(geometry).dump();
+    RunResult r = runPenumbra("generate " + (dir / ("gen-" + name + ".json")) + " -q -o " + (dir / name));
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    return dir / name;
+}
+
+struct Bake {
+    int exitCode = -1;
+    std::string err;
+    nlohmann::json stats;
+    double rss() const { return stats["counters"]["peak_rss_bytes"].get<double>(); }
+};
+
+Bake bake(const ScratchDir& dir, const nlohmann::json& s, const std::string& extra = "", const std::string& prefix = "") {
+    std::ofstream(dir / "bake.json") << s.dump();
+    std::filesystem::remove(dir / "stats.json");
+    RunResult r = runPenumbra("bake " + (dir / "bake.json") + " -q --tmp " + dir.path.string() + " --stats " + (dir / "stats.json") +
+                                  " " + extra,
+                              prefix);
+    Bake b;
+    b.exitCode = r.exitCode, b.err = r.err;
+    if (r.exitCode == 0) b.stats = nlohmann::json::parse(slurp(dir / "stats.json"));
+    return b;
+}
+
+nlohmann::json file(const std::string& path) { return {{"type", "file"}, {"path", path}}; }
+
+}  // namespace
+
+TEST_CASE("glb and obj at 1M and 10M triangles: flat peak RSS, budgets honoured, an address-space cap below the file",
+          "[outofcore][files]") {
+    ScratchDir dir("files-ooc");
+    constexpr uint64_t kMiB = 1ull << 20;
+    // Grass blades have 5 triangles: 200K and 2M blades.
+    for (const char* ext : {"glb", "obj"}) {
+        INFO(ext);
+        const std::string small = generate(dir, grass(200'000), std::string("small.") + ext);
+        const std::string large = generate(dir, grass(2'000'000), std::string("large.") + ext);
+        const Bake a = bake(dir, scene(file(small))), b = bake(dir, scene(file(large)));
+        INFO(a.err << b.err);
+        REQUIRE(a.exitCode == 0);
+        REQUIRE(b.exitCode == 0);
+        CHECK(a.stats["counters"]["triangles_read"].get<uint64_t>() > 1'000'000);
+        CHECK(b.stats["counters"]["triangles_read"].get<uint64_t>() > 10'000'000);
+        INFO("peak RSS 1M: " << a.rss() / 1e6 << " MB, 10M: " << b.rss() / 1e6 << " MB");
+        CHECK(std::abs(b.rss() - a.rss()) < 0.10 * a.rss());
+
+        // Budgets: the 10M file is larger than the budget (360 MB glb, 1.2 GB obj).
+        REQUIRE(std::filesystem::file_size(large) > 256 * kMiB);
+        const Bake budgeted = bake(dir, scene(file(large)), "--memory-budget 256M");
+        INFO(budgeted.err);
+        REQUIRE(budgeted.exitCode == 0);
+        CHECK(budgeted.rss() <= 256.0 * kMiB);
+        std::filesystem::remove(small);
+        if (std::string(ext) == "obj") {
+            std::filesystem::remove(large);
+            continue;
+        }
+        // An address-space limit below the file's size: nothing is mapped or loaded whole.
+        const Bake capped = bake(dir, scene(file(large)), "", "prlimit --as=" + std::to_string(256 * kMiB));
+        INFO(capped.err);
+        CHECK(capped.exitCode == 0);
+        CHECK(std::filesystem::file_size(large) > 256 * kMiB);
+        std::filesystem::remove(large);
+    }
+}
+
+TEST_CASE("a 256M memory budget holds for a procedural scene and a 1600x1200 camera", "[outofcore][memory]") {
+    ScratchDir dir("budget-256");
+    constexpr double kBudget = 256.0 * (1 << 20);
+    const Bake procedural = bake(dir, scene(grass(2'000'000)), "--memory-budget 256M");
+    INFO(procedural.err);
+    REQUIRE(procedural.exitCode == 0);
+    CHECK(procedural.rss() <= kBudget);
+    // 1.92M pixels: the output stage writes strips, so no full-frame channel is ever held.
+    const Bake camera = bake(dir, scene(grass(1000), 1600, 1200), "--memory-budget 256M");
+    INFO(camera.err);
+    REQUIRE(camera.exitCode == 0);
+    CHECK(camera.stats["receivers"].get<uint64_t>() > 1'000'000);
+    CHECK(camera.rss() <= kBudget);
+}
+
+TEST_CASE("a budget that cannot be met fails before any work, naming a budget that works", "[outofcore][memory]") {
+    ScratchDir dir("budget-first");
+    const nlohmann::json s = scene(grass(1000), 640, 480);
+    for (const char* budget : {"20M", "60M"}) {
+        std::filesystem::remove(dir / "out.exr");
+        const Bake tooSmall = bake(dir, s, std::string("--memory-budget ") + budget);
+        INFO(tooSmall.err);
+        REQUIRE(tooSmall.exitCode == 1);
+        CHECK(lineCount(tooSmall.err) == 1);
+        CHECK_FALSE(std::filesystem::exists(dir / "out.exr"));
+        const size_t at = tooSmall.err.find("at least ");
+        REQUIRE(at != std::string::npos);
+        const std::string named = tooSmall.err.substr(at + 9, tooSmall.err.find(' ', at + 9) - at - 9);
+        // The number named is a valid --memory-budget, and it is enough, the first time.
+        const Bake enough = bake(dir, s, "--memory-budget " + named);
+        INFO(enough.err);
+        CHECK(enough.exitCode == 0);
+        if (enough.exitCode == 0) CHECK(enough.rss() <= double(enough.stats["memory_plan"]["budget_bytes"].get<uint64_t>()));
+    }
+}
+
+TEST_CASE("under an address-space limit a bake completes or says in one line what it needs", "[outofcore][memory]") {
+    ScratchDir dir("as-caps");
+    std::ofstream(dir / "bake.json") << scene(grass(20'000), 320, 240).dump();
+    for (int mib : {160, 192, 224, 256, 320}) {
+        INFO(mib << " MiB");
+        RunResult r = runPenumbra("bake " + (dir / "bake.json") + " -q --tmp " + dir.path.string(),
+                                  "prlimit --as=" + std::to_string(uint64_t(mib) << 20));
+        INFO(r.err);
+        if (r.exitCode == 0) continue;
+        CHECK(r.exitCode == 1);
+        CHECK(lineCount(r.err) == 1);
+        CHECK_THAT(r.err, Catch::Contains("address-space limit") && Catch::Contains("at least"));
+        CHECK_THAT(r.err, !Catch::Contains("bad_alloc") && !Catch::Contains("terminate") && !Catch::Contains("internal error"));
+    }
+}
