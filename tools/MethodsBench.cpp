@@ -226,8 +226,12 @@ void runBenchMethods(const BenchMethodsOptions& o, const std::string& commandLin
             json scene = base;
             for (json& light : scene["lights"]) light["samples"] = samples;
             scene["output"] = (work / "out.exr").string();
-            for (json& g : scene["geometry"])  // the scene file moves: its paths must not
-                if (g.contains("path")) g["path"] = fs::absolute(benchSceneFile(o.examplesDir, o.lightmap).parent_path() / g["path"].get<std::string>()).string();
+            for (json& g : scene["geometry"])  // the scene file moves, and its paths stay in its directory
+                if (g.contains("path")) {
+                    const fs::path from = benchSceneFile(o.examplesDir, o.lightmap).parent_path() / g["path"].get<std::string>();
+                    fs::copy_file(from, work / from.filename(), fs::copy_options::overwrite_existing);
+                    g["path"] = from.filename().string();
+                }
             const fs::path file = work / "scene.json";
             writeText(file.string(), scene.dump(2));
             auto progress = [&](const std::string& line) {
