@@ -95,3 +95,22 @@ TEST_CASE("ssv bakes the masks hpc bakes up to ties, and hh and penumbra-map ref
     REQUIRE(v.shape.size() == 1);
     CHECK(v.shape[0] == readNpy(dir / "hpc/receivers.npy").shape[0]);
 }
+
+TEST_CASE("a method's own scene keys are read by the method whichever method bakes", "[cli][methods]") {
+    ScratchDir dir("methods");
+    auto scene = [&](const std::string& bake) {
+        std::string text = kCameraScene;
+        text.insert(text.rfind('}'), ", \"bake\": {" + bake + "}");
+        write(dir / "keys.json", text);
+        return dir / "keys.json";
+    };
+    // Accepted by every method (hpc ignores them), so a scene tuned for a preview still bakes exactly.
+    RunResult ok = runPenumbra("bake " + scene("\"penumbra_map_resolution\": 64, \"penumbra_map_bias\": 2") + " -q -o " +
+                               (dir / "keys.exr"));
+    INFO(ok.err);
+    CHECK(ok.exitCode == 0);
+    requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_resolution\": 8") + " -q"), "bake.penumbra_map_resolution");
+    requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_bias\": -1") + " -q --method penumbra-map"),
+                      "bake.penumbra_map_bias: must be finite and non-negative");
+    requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_resolutions\": 64") + " -q"), "penumbra_map_resolutions");
+}
