@@ -141,6 +141,15 @@ json runRow(const BenchMethodsOptions& o, const fs::path& file, const fs::path& 
     return row;
 }
 
+/// Removes @p work except the visible fractions this process read: an input stays recorded until
+/// the command ends (InputFile.h), and a later output given the inode of a deleted one would be
+/// refused as that input. TempDir removes them at the end.
+void removeAllButRead(const fs::path& work) {
+    std::error_code ec;
+    for (const fs::directory_entry& e : fs::directory_iterator(work, ec))
+        if (e.path().filename().string().rfind("v-", 0) != 0) fs::remove_all(e.path(), ec);
+}
+
 std::pair<int, int> parseSize(const std::string& text) {
     int w = 0, h = 0;
     char x = 0;
@@ -214,8 +223,7 @@ void runBenchMethods(const BenchMethodsOptions& o, const std::string& commandLin
             json row = runRow(o, file, work, cameraMethods, progress);
             row["scene"] = name, row["width"] = w, row["height"] = h, row["nominal"] = fmt::format("{}x{}", width, height);
             result["rows"].push_back(row);
-            std::error_code ec;
-            fs::remove_all(work, ec);
+            removeAllButRead(work);
             save();
         }
     if (hh) {
@@ -240,8 +248,7 @@ void runBenchMethods(const BenchMethodsOptions& o, const std::string& commandLin
             json row = runRow(o, file, work, {"hh"}, progress);
             row["scene"] = sceneName(o.lightmap), row["samples"] = samples;
             result["hh"].push_back(row);
-            std::error_code ec;
-            fs::remove_all(work, ec);
+            removeAllButRead(work);
             save();
         }
     }
