@@ -20,6 +20,7 @@
 #include "stream/util/Error.h"
 #include "stream/util/InputFile.h"
 #include "stream/util/Memory.h"
+#include "stream/util/Npy.h"
 #include "stream/PrefetchSource.h"
 #include "stream/util/Progress.h"
 
@@ -231,6 +232,9 @@ struct Bake {
 void scanScene(Bake& b) {
     const SceneDesc& scene = b.scene;
     b.kind = makeReceiverKind(scene.receivers, scene);
+    if (b.method.traits.needsPolygons && !b.kind->receiverPolygons())
+        fail("--method " + b.method.name, "applies to lightmap receivers only (this scene's receivers are \"{}\")",
+             scene.receivers.value("type", std::string("?")));
     if (!b.method.traits.masks && b.dump())
         fail("--dump", "--method {} gives visible fractions, not per-sample masks", b.method.name);
     if (!b.method.traits.masks && ShardedCast::keepsMasks(b.settings.shard))
@@ -247,7 +251,7 @@ void scanScene(Bake& b) {
         b.demand.receivers = prepared.receivers.size();
         b.demand.kindBytes = b.kind->maxResidentBytes(b.demand.receivers, triangles);
         b.demand.outputBytes = b.kind->outputBytes(b.demand.receivers);
-        if (b.method.memory) b.demand.methodBytes = b.method.memory(triangles, prepared.samples, scene.bakeOptions);
+        if (b.method.memory) b.demand.methodBytes = b.method.memory(triangles, prepared.receivers.size(), prepared.samples, scene.bakeOptions);
         addSampleDemand(b.demand, prepared.samples, scene);
         b.minimum = b.budget.plan(b.demand).minimumBudget;
     };
@@ -274,6 +278,7 @@ void makeCaster(Bake& b) {
     if (b.kind->wantsCastChunks() && !b.settings.shard.merge)
         context.observeChunk = [&b](std::span<const Triangle> c) { b.kind->castChunk(c); };
     if (b.sharded) context.tileHooks = &b.tileHooks;
+    if (b.method.traits.needsPolygons) context.polygons = b.kind->receiverPolygons();
     b.caster = b.method.make(context);
 }
 
@@ -295,6 +300,7 @@ void castReceivers(Bake& b, uint32_t first) {
             for (int k = 0; k < b.masks.groups; ++k)
                 b.masks.row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
     };
+    sink.visibility = [&](uint32_t r, const float* lightVisibility) { shader.shadeVisibleFraction(r, lightVisibility, b.results); };
     b.caster->cast(first == 0 && b.sharded ? b.sharded->blockers(*p.blockers) : *p.blockers, first, sink);
 }
 
@@ -344,6 +350,10 @@ void writeOutputs(Bake& b) {
     const Prepared& p = b.p;
     if (!b.settings.capture || b.settings.capture->writeOutputs) b.kind->write(OutputContext{b.scene, p.receivers, p.samples, b.results, b.scene.output, b.firstPass});
     if (b.dump()) writeBakeDump(b.settings.dumpDir, p.receivers, p.sampleSets, p.samples, b.masks, receiverEpsilonOf(p.options));
+    if (!b.settings.visibilityPath.empty()) {
+        const uint64_t shape[1] = {p.receivers.size()};
+        writeNpy(b.settings.visibilityPath, "<f4", shape, b.results.visibility.data(), b.results.visibility.size() * sizeof(float));
+    }
 }
 
 }  // namespace
@@ -353,6 +363,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     if (settings.threads < 0 || settings.threads > kMaxThreads)
         fail("--threads", "must be in 0..{} (0: all cores), got {}", kMaxThreads, settings.threads);
     checkBakeOutputs(scene, settings.statsPath, settings.dumpDir);
+    if (!settings.visibilityPath.empty()) checkOutputAgainstInputs(scene, settings.visibilityPath);
     Stopwatch total;
     Bake b(scene, settings);
     tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(b.threads));

@@ -23,6 +23,7 @@ struct BakeSettings {
     int threads = 0;          ///< 0: all cores; at most kMaxThreads
     std::string statsPath;    ///< JSON stats, optional
     std::string dumpDir;      ///< receivers.npy, samples.npy, masks.npy, optional
+    std::string visibilityPath;  ///< --visibility: every receiver's visible fraction as float32 .npy, optional
     bool quiet = false;
     uint64_t memoryBudget = 0;  ///< --memory-budget in bytes; 0: unlimited
     std::string tmpDir;         ///< where bucket files go (default: the system temp dir)

@@ -1,5 +1,6 @@
 #include "bake/Scene.h"
 
+#include "bake/cast/Caster.h"
 #include "bake/kinds/ReceiverKind.h"
 #include "bake/shading/ReceiverShading.h"
 #include "bake/light/SunLight.h"
@@ -100,6 +101,9 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
     if (j.has("simd")) o.simd = parseSimdLevel(j.string("simd"), j.where("simd"));
     scene.seed = j.seed("seed", scene.seed);
     scene.smoothShading = j.boolean("smooth_shading", scene.smoothShading);
+    // Every method's own keys are read (and checked) by the method, whichever one bakes.
+    for (const std::string& name : casterNames())
+        if (const auto& check = casterEntry(name).checkOptions) check(j);
     j.finish();
 }
 

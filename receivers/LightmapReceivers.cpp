@@ -156,6 +156,7 @@ LightmapLayout rasterizeLightmap(const IndexedMesh& mesh, int width, int height)
         layout.receivers.position.emplace_back(l.x * p0 + l.y * p1 + l.z * p2);
         layout.receivers.normal.emplace_back(length > 0 ? normal / length : glm::dvec3(0.0));
         layout.texel.push_back(uint32_t(texel));
+        layout.triangle.push_back(uint32_t(t));
     }
     return layout;
 }

@@ -32,11 +32,28 @@ bool usableLightmapUvs(const IndexedMesh& mesh);
 
 inline constexpr float kUvTolerance = 1e-3f;
 
+/// @brief A planar receiver polygon with its texture layout: the triangle a lightmap's texels lie
+/// on, and each corner's position in texel units (texel (x, y) covers [x, x+1] x [y, y+1]).
+struct ReceiverPolygon {
+    glm::dvec3 position[3];
+    glm::dvec2 texel[3];
+};
+
+/// @brief The receiver polygons of a kind whose receivers are texels (Heckbert & Herf's radiance
+/// textures, --method hh): per receiver its polygon and texel.
+struct ReceiverPolygons {
+    std::vector<ReceiverPolygon> polygons;
+    std::vector<uint32_t> polygonOf;      ///< per receiver
+    std::vector<glm::ivec2> texelOf;      ///< per receiver: its texel (x, y)
+};
+
+
 /// @brief The receivers of one lightmap.
 struct LightmapLayout {
     int width = 0, height = 0;
     ReceiverSet receivers;          ///< position and normal per receiver
     std::vector<uint32_t> texel;    ///< per receiver: y * width + x
+    std::vector<uint32_t> triangle; ///< per receiver: the mesh triangle it lies on (its texel's owner)
     std::vector<float> coverage;    ///< per texel: UV area covered, in [0, 1] (overlaps saturate)
     uint64_t overlapping = 0;       ///< texels whose centre lies inside more than one triangle
 };

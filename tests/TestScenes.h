@@ -10,7 +10,11 @@
 #include "bake/peers/ReferenceCaster.h"
 #include "bake/cast/VisibilityMasks.h"
 #include "AreaSort.h"
+#include "procedural/BoxesGenerator.h"
+#include "procedural/GrassGenerator.h"
 #include "receivers/ReceiverSet.h"
+#include "stream/ObjReader.h"
+#include "stream/Transform.h"
 #include "stream/util/Random.h"
 #include "stream/Triangle.h"
 
@@ -82,6 +86,62 @@ inline LightDesc rectLight(glm::dvec3 center, glm::dvec3 u, glm::dvec3 v, int sa
     LightDesc l;
     l.type = LightType::Rect, l.center = center, l.u = u, l.v = v, l.samples = samples, l.sampleSets = sets;
     return l;
+}
+
+/// A square floor of side 2 @p half at height @p y, as two triangles.
+inline std::vector<Triangle> floorQuad(float half, float y = 0.f) {
+    std::vector<Triangle> t;
+    addQuad(t, {-half, y, -half}, {half, y, -half}, {half, y, half}, {-half, y, half});
+    return t;
+}
+
+/// spot.obj (watertight, wound outward) standing one unit above the origin.
+inline std::vector<Triangle> spotMesh() {
+    Transform place;
+    place.translate = {0, 1.0f, 0};
+    TransformedSource spot(openObj(sharedData("meshes/spot.obj")), place.matrix());
+    std::vector<Triangle> mesh = readAll(spot);
+    REQUIRE(mesh.size() == 5856);
+    return mesh;
+}
+
+inline std::vector<Triangle> everyNth(const std::vector<Triangle>& tris, size_t n) {
+    std::vector<Triangle> some;
+    for (size_t i = 0; i < tris.size(); i += n) some.push_back(tris[i]);
+    return some;
+}
+
+inline LightDesc sunLight(glm::dvec3 direction, double diameterDeg, int samples, int sets = 4) {
+    LightDesc l;
+    l.type = LightType::Sun, l.direction = direction, l.angularDiameterDeg = diameterDeg;
+    l.samples = samples, l.sampleSets = sets, l.where = "sun";
+    return l;
+}
+
+/// A patch of grass blades on a floor, receivers on the floor and on the blades.
+inline void grassScene(std::vector<Triangle>& tris, ReceiverSet& receivers, int blades) {
+    GrassParams g;
+    g.placement.area = {-1, -1, 1, 1};
+    g.placement.count = uint64_t(blades);
+    g.seed = 9;
+    tris = readAll(*makeGrassSource(g));
+    std::vector<Triangle> floor;
+    addQuad(floor, {-2, 0, -2}, {2, 0, -2}, {2, 0, 2}, {-2, 0, 2});
+    addReceiversOnTriangles(receivers, floor, 31, 500);
+    addReceiversOnTriangles(receivers, tris, 32, 1);
+    tris.insert(tris.end(), floor.begin(), floor.end());
+}
+
+/// Three boxes (closed solids) on a floor, receivers on the floor and on the boxes.
+inline void boxesScene(std::vector<Triangle>& tris, ReceiverSet& receivers) {
+    std::vector<BoxShape> boxes = {{{-1, 0, -1}, {-0.4, 0.8, -0.2}}, {{0.2, 0, 0.1}, {0.9, 0.4, 0.7}},
+                                   {{-0.3, 0.9, 0.2}, {0.1, 1.1, 0.6}}};
+    tris = readAll(*makeBoxSource(boxes));
+    std::vector<Triangle> floor;
+    addQuad(floor, {-3, 0, -3}, {3, 0, -3}, {3, 0, 3}, {-3, 0, 3});
+    addReceiversOnTriangles(receivers, floor, 41, 700);
+    addReceiversOnTriangles(receivers, tris, 42, 8);
+    tris.insert(tris.end(), floor.begin(), floor.end());
 }
 
 /// The disk, sphere and tilted polygon lights of the light-type tests (all above y = 4).

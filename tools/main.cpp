@@ -4,6 +4,7 @@
 #include "Compare.h"
 #include "Generate.h"
 #include "GeneratorBench.h"
+#include "MethodsBench.h"
 #include "ShardCommands.h"
 #include "TableBench.h"
 
@@ -145,6 +146,14 @@ int main(int argc, char** argv) {
                      "on or off: skip closed surfaces' triangles that face away from the light (overrides "
                      "bake.closed_casters)")
         ->check(CLI::IsMember({"on", "off"}));
+    std::string visibilityPath;
+    bake->add_option("--visibility", visibilityPath, "write every receiver's visible fraction as a float32 .npy");
+    int mapResolution = 0;
+    double mapBias = -1;
+    bake->add_option("--penumbra-map-resolution", mapResolution, "penumbra-map: texels per side of a shadow map (overrides bake.penumbra_map_resolution)")
+        ->check(CLI::Range(16, 16384));
+    bake->add_option("--penumbra-map-bias", mapBias, "penumbra-map: depth bias in texels (overrides bake.penumbra_map_bias)")
+        ->check(CLI::Range(0.0, 1e6));
     std::string memoryBudget, tmpDir;
     bool keepBuckets = false;
     CLI::Option* budgetOption =
@@ -197,6 +206,8 @@ int main(int argc, char** argv) {
     CLI::App* benchGenerators = addBenchGeneratorsCommand(*bench, benchGeneratorsOptions);
     BenchTableOptions benchTableOptions;
     CLI::App* benchTable = addBenchTableCommand(*bench, benchTableOptions);
+    BenchMethodsOptions benchMethodsOptions;
+    CLI::App* benchMethods = addBenchMethodsCommand(*bench, benchMethodsOptions);
 
     std::vector<std::string> argumentStorage;  // `merge` is a bake of shard files (ShardCommands.h)
     std::vector<char*> arguments = rewriteMergeCommand(argc, argv, argumentStorage);
@@ -223,6 +234,8 @@ int main(int argc, char** argv) {
             if (!sampleTable.empty()) scene.options.sampleTable = sampleTable == "on";
             if (!closedCasters.empty()) scene.options.closedCasters = closedCasters == "on";
             if (!embreeFilter.empty()) scene.options.embreeRuleFilter = embreeFilter == "on";
+            if (mapResolution > 0) scene.bakeOptions["penumbra_map_resolution"] = mapResolution;
+            if (mapBias >= 0) scene.bakeOptions["penumbra_map_bias"] = mapBias;
             BakeSettings settings;
             settings.method = casterEntry(method).name;
             if (threads < 0 || threads > kMaxThreads)
@@ -230,6 +243,7 @@ int main(int argc, char** argv) {
             settings.threads = threads;
             settings.statsPath = statsPath;
             settings.dumpDir = dumpDir;
+            settings.visibilityPath = visibilityPath;
             settings.quiet = quiet;
             if (budgetOption->count()) {
                 settings.memoryBudget = parseByteSize(memoryBudget, "--memory-budget");
@@ -272,10 +286,11 @@ int main(int argc, char** argv) {
             runGenerate(generateOptions);
         } else if (*benchGenerators) {
             runBenchGenerators(benchGeneratorsOptions);
-        } else if (*benchTable) {
-            std::string commandLine = "penumbra";
+        } else if (*benchTable || *benchMethods) {
+            std::string commandLine = "penumbra";  // recorded in the benchmark's outputs
             for (int i = 1; i < argc; ++i) commandLine += std::string(" ") + argv[i];
-            runBenchTable(benchTableOptions, commandLine);
+            if (*benchTable) runBenchTable(benchTableOptions, commandLine);
+            else runBenchMethods(benchMethodsOptions, commandLine);
         } else if (*slice) {
             context = sliceIn;
             writeVolumeSlicePng(sliceIn, sliceOut, sliceGrid, sliceAxis[0], sliceAt);

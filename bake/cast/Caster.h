@@ -11,6 +11,7 @@
 #include "bake/cast/CastOptions.h"
 #include "bake/light/Light.h"
 #include "receivers/ReceiverSet.h"
+#include "stream/util/JsonParams.h"
 #include "stream/Triangle.h"
 #include "stream/TriangleSource.h"
 
@@ -25,7 +26,7 @@
 
 namespace penumbra {
 
-struct ReceiverPolygons;  // receivers/LightmapReceivers.h: the lightmap texels' triangles
+struct ReceiverPolygons;  // bake/kinds/ReceiverKind.h: the lightmap texels' triangles
 
 /// @brief Where a caster reports results; called concurrently for different receivers.
 struct CastSink {
@@ -86,8 +87,10 @@ struct CasterTraits {
     const char* summary = "";   ///< one line for --help
 };
 
-/// @brief Bytes a method holds beyond the common memory plan, for @p triangles blockers.
-using CasterMemory = std::function<uint64_t(uint64_t triangles, const LightSamples& samples, const nlohmann::json& methodOptions)>;
+/// @brief Bytes a method holds beyond the common memory plan, for @p triangles blockers and
+/// @p receivers receivers (the first pass's).
+using CasterMemory = std::function<uint64_t(uint64_t triangles, uint64_t receivers, const LightSamples& samples,
+                                            const nlohmann::json& methodOptions)>;
 using CasterFactory = std::function<std::unique_ptr<Caster>(const CastContext& context)>;
 
 struct CasterEntry {
@@ -95,8 +98,9 @@ struct CasterEntry {
     CasterTraits traits;
     CasterFactory make;
     CasterMemory memory;  ///< optional
-    /// Validates the method's keys of the scene's "bake" object (optional); throws InputError.
-    std::function<void(const nlohmann::json& bake, const std::string& file)> checkOptions;
+    /// Reads and validates the method's keys of the scene's "bake" object (optional), so that its
+    /// finish() accepts them whichever method bakes; throws InputError naming the key.
+    std::function<void(const JsonParams& bake)> checkOptions;
 };
 
 /// @brief Registers a method at static-initialization time: `static CasterRegistration r{{...}};`

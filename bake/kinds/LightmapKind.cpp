@@ -95,6 +95,7 @@ public:
         ReceiverSet all;
         for (Lightmap& map : maps_) {
             map.layout = rasterizeLightmap(map.mesh, map.width, map.height);
+            addPolygons(map, all.size());
             map.mesh = IndexedMesh{};  // the layout is all the writer needs
             if (map.layout.overlapping > 0)
                 fmt::print(stderr, "penumbra: warning: {}: {} texels covered by more than one triangle (overlapping UVs; \"uv\": \"generate\" makes new ones)\n",
@@ -107,6 +108,8 @@ public:
         }
         return all;
     }
+
+    const ReceiverPolygons* receiverPolygons() const override { return &polygons_; }
 
     void write(const OutputContext& c) override {
         outputs_.clear();
@@ -133,6 +136,26 @@ public:
     }
 
 private:
+    /// The mesh's triangles as receiver polygons (--method hh), and each receiver's polygon and texel.
+    void addPolygons(const Lightmap& map, size_t firstReceiver) {
+        const std::vector<glm::vec2>& uv = *lightmapUvs(map.mesh);
+        const uint32_t first = uint32_t(polygons_.polygons.size());
+        for (size_t t = 0; t < map.mesh.triangleCount(); ++t) {
+            ReceiverPolygon p;
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t i = map.mesh.indices[3 * t + k];
+                p.position[k] = glm::dvec3(map.mesh.position[i]);
+                p.texel[k] = glm::dvec2(uv[i]) * glm::dvec2(map.width, map.height);
+            }
+            polygons_.polygons.push_back(p);
+        }
+        polygons_.polygonOf.resize(firstReceiver), polygons_.texelOf.resize(firstReceiver);
+        for (size_t k = 0; k < map.layout.texel.size(); ++k) {
+            polygons_.polygonOf.push_back(first + map.layout.triangle[k]);
+            polygons_.texelOf.push_back({int(map.layout.texel[k] % uint32_t(map.width)), int(map.layout.texel[k] / uint32_t(map.width))});
+        }
+    }
+
     void writeMap(const OutputContext& c, const Lightmap& map) {
         const LightmapLayout& layout = map.layout;
         const size_t texels = size_t(map.width) * map.height;
@@ -243,6 +266,7 @@ private:
     std::vector<IndexedMesh> atlasMeshes_;  ///< the atlas's meshes with their generated uv1
     nlohmann::json atlasStats_;
     std::vector<std::string> outputs_;      ///< files written
+    ReceiverPolygons polygons_;             ///< --method hh: the maps' triangles and texels
 };
 
 /// The file behind geometry entry @p index, which must be an obj/gltf/glb file.

@@ -28,6 +28,7 @@
 namespace penumbra {
 
 struct SceneDesc;
+struct ReceiverPolygons;  // receivers/LightmapReceivers.h
 
 /// @brief What a kind's writer gets.
 struct OutputContext {
@@ -86,6 +87,10 @@ public:
     virtual ReceiverSet refinedReceivers() { return {}; }
     /// Bytes held during refineScan(), for the memory plan (asked after refine()).
     virtual uint64_t refineBytes() const { return 0; }
+    /// The receivers' polygons and texels, for kinds whose receivers are texels of receiver
+    /// polygons (lightmaps); null for the others. Filled by receivers(), so it is complete after it;
+    /// the pointer itself may be asked for before, to see whether the kind has polygons.
+    virtual const ReceiverPolygons* receiverPolygons() const { return nullptr; }
     /// Kind-specific entries for the stats JSON (null for none), asked after write().
     virtual nlohmann::json stats() const { return nullptr; }
     /// Writes the outputs. Every file goes through AtomicFile (no partial outputs).

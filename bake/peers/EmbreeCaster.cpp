@@ -438,7 +438,7 @@ private:
 const CasterRegistration kEmbree{{"embree",
                                   {.holdsScene = true, .summary = "Intel Embree 3 shadow rays over the same receivers and samples"},
                                   [](const CastContext& c) { return std::make_unique<EmbreeSceneCaster>(c); },
-                                  [](uint64_t triangles, const LightSamples&, const nlohmann::json&) {
+                                  [](uint64_t triangles, uint64_t, const LightSamples&, const nlohmann::json&) {
                                       // The scene read once, Embree's buffers and an estimate of its BVH
                                       // (Embree does not report the BVH's size).
                                       return triangles * (sizeof(Triangle) + 52 + 120);

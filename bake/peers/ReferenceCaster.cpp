@@ -57,7 +57,7 @@ const CasterRegistration kReference{{"reference",
                                                  return castReference(samples, targets, sets, all, eps, progress, alphaTableOf(options));
                                              });
                                      },
-                                     [](uint64_t triangles, const LightSamples&, const nlohmann::json&) {
+                                     [](uint64_t triangles, uint64_t, const LightSamples&, const nlohmann::json&) {
                                          return triangles * (sizeof(Triangle) + sizeof(BlockerTriangle));
                                      },
                                      nullptr}};

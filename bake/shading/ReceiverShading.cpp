@@ -5,6 +5,8 @@
 #include <glm/geometric.hpp>
 #include <glm/gtc/constants.hpp>
 
+#include <immintrin.h>
+
 #include <bit>
 #include <cmath>
 
@@ -37,46 +39,150 @@ ReceiverShader::ReceiverShader(const std::vector<LightDesc>& lights, const Light
     }
 }
 
-void ReceiverShader::shade(uint32_t r, const uint64_t* groupWords, bool fullUmbra, ReceiverResults& out) const {
+glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* groupWords, bool fullUmbra,
+                                           uint64_t& blocked) const {
     const glm::dvec3 p(receivers_.position[r]), n(receivers_.normal[r]);
     const int set = int(sets_[r]);
+    const PerLight& light = lights_[li];
+    const bool planar = glm::dot(light.normal, light.normal) > 0;
+    blocked = 0;
+    glm::dvec3 e(0.0);
+    for (uint32_t k = samples_.lightFirstGroup[li]; k < samples_.lightFirstGroup[li + 1]; ++k) {
+        const LightSampleGroup& g = samples_.groups[k];
+        const uint64_t word = fullUmbra ? g.fullMask() : (groupWords ? groupWords[k] : 0);
+        blocked += uint64_t(std::popcount(word));
+        for (uint64_t visible = ~word & g.fullMask(); visible; visible &= visible - 1) {
+            // A sun's sample is a direction (w = 0): the receiver's position does not matter.
+            const glm::dvec3 l(samples_.position(set, int(g.first) + std::countr_zero(visible)));
+            glm::dvec3 d = light.sun ? l : l - p;
+            double dist2 = glm::dot(d, d);
+            if (!(dist2 > 0)) continue;
+            glm::dvec3 w = d / std::sqrt(dist2);
+            // A zero normal (volume receivers) means no receiver cosine: fluence-like irradiance.
+            double cosReceiver = n == glm::dvec3(0.0) ? 1.0 : std::max(0.0, glm::dot(n, w));
+            if (light.sun) {
+                e += light.weight * cosReceiver;
+                continue;
+            }
+            double cosEmitter = planar ? std::max(0.0, -glm::dot(light.normal, w)) : 1.0;
+            e += light.weight * (cosReceiver * cosEmitter / dist2);
+        }
+    }
+    return e;
+}
+
+namespace {
+
+/// Sum over samples [0, n) of the SoA arrays of (cos receiver) (cos emitter) / d^2 (planar
+/// emitters), cos / d^2 (volumes) or cos (directions): lightIrradiance's terms without weights.
+/// Four partial sums in a fixed order; the AVX2 path below computes the same lanes with the same
+/// correctly rounded operations (no fused multiply-add), so both give the same bits.
+double sampleSumScalar(const double* x, const double* y, const double* z, size_t n, glm::dvec3 p, glm::dvec3 normal,
+                       glm::dvec3 emitter) {
+    double lanes[4] = {0, 0, 0, 0};
+    for (size_t j = 0; j < n; ++j) {
+        const double dx = x[j] - p.x, dy = y[j] - p.y, dz = z[j] - p.z;
+        const double d2 = std::max(dx * dx + dy * dy + dz * dz, 1e-300);  // d = 0 gives zero cosines
+        const double inv = 1.0 / std::sqrt(d2);
+        const double cr = std::max(0.0, (normal.x * dx + normal.y * dy + normal.z * dz) * inv);
+        const double ce = std::max(0.0, -(emitter.x * dx + emitter.y * dy + emitter.z * dz) * inv);
+        lanes[j % 4] += cr * ce / d2;
+    }
+    return (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+}
+
+__attribute__((target("avx2"))) double sampleSumAvx2(const double* x, const double* y, const double* z, size_t n, glm::dvec3 p,
+                                                     glm::dvec3 normal, glm::dvec3 emitter) {
+    const __m256d px = _mm256_set1_pd(p.x), py = _mm256_set1_pd(p.y), pz = _mm256_set1_pd(p.z);
+    const __m256d nx = _mm256_set1_pd(normal.x), ny = _mm256_set1_pd(normal.y), nz = _mm256_set1_pd(normal.z);
+    const __m256d ex = _mm256_set1_pd(-emitter.x), ey = _mm256_set1_pd(-emitter.y), ez = _mm256_set1_pd(-emitter.z);
+    const __m256d tiny = _mm256_set1_pd(1e-300), one = _mm256_set1_pd(1.0), zero = _mm256_setzero_pd();
+    __m256d acc = zero;
+    size_t j = 0;
+    for (; j + 4 <= n; j += 4) {
+        const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(x + j), px), dy = _mm256_sub_pd(_mm256_loadu_pd(y + j), py),
+                      dz = _mm256_sub_pd(_mm256_loadu_pd(z + j), pz);
+        const __m256d d2 = _mm256_max_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz)), tiny);
+        const __m256d inv = _mm256_div_pd(one, _mm256_sqrt_pd(d2));
+        const __m256d dn = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(nx, dx), _mm256_mul_pd(ny, dy)), _mm256_mul_pd(nz, dz));
+        // -(e . d) as (-e.x) dx + (-e.y) dy + (-e.z) dz: negation commutes with rounding.
+        const __m256d de = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(ex, dx), _mm256_mul_pd(ey, dy)), _mm256_mul_pd(ez, dz));
+        const __m256d cr = _mm256_max_pd(_mm256_mul_pd(dn, inv), zero), ce = _mm256_max_pd(_mm256_mul_pd(de, inv), zero);
+        acc = _mm256_add_pd(acc, _mm256_div_pd(_mm256_mul_pd(cr, ce), d2));
+    }
+    alignas(32) double lanes[4];
+    _mm256_store_pd(lanes, acc);
+    for (; j < n; ++j) {  // the tail, into the lanes the scalar loop would use
+        const double dx = x[j] - p.x, dy = y[j] - p.y, dz = z[j] - p.z;
+        const double d2 = std::max(dx * dx + dy * dy + dz * dz, 1e-300);
+        const double inv = 1.0 / std::sqrt(d2);
+        const double cr = std::max(0.0, (normal.x * dx + normal.y * dy + normal.z * dz) * inv);
+        const double ce = std::max(0.0, -(emitter.x * dx + emitter.y * dy + emitter.z * dz) * inv);
+        lanes[j % 4] += cr * ce / d2;
+    }
+    return (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+}
+
+/// Sum over samples [0, n) of the SoA arrays of (cos receiver) (cos emitter) / d^2: the terms of
+/// lightIrradiance for a planar emitter, without its weight.
+double sampleSum(const double* x, const double* y, const double* z, size_t n, glm::dvec3 p, glm::dvec3 normal, glm::dvec3 emitter) {
+    static const bool avx2 = __builtin_cpu_supports("avx2");
+    return avx2 ? sampleSumAvx2(x, y, z, n, p, normal, emitter) : sampleSumScalar(x, y, z, n, p, normal, emitter);
+}
+
+}  // namespace
+
+glm::dvec3 ReceiverShader::unoccludedIrradiance(uint32_t r, int li) const {
+    std::call_once(soaOnce_, [&] {
+        const size_t n = samples_.positions.size();
+        soa_.resize(3 * n);
+        for (size_t i = 0; i < n; ++i)
+            for (int c = 0; c < 3; ++c) soa_[c * n + i] = samples_.positions[i][c];
+    });
+    const PerLight& light = lights_[li];
+    const glm::dvec3 p(receivers_.position[r]), n(receivers_.normal[r]);
+    const size_t total = samples_.positions.size();
+    const size_t first = size_t(sets_[r]) * samples_.sampleCount + samples_.groups[samples_.lightFirstGroup[li]].first;
+    // The vectorized sum covers planar emitters seen by oriented receivers, the common case.
+    if (!light.sun && glm::dot(light.normal, light.normal) > 0 && n != glm::dvec3(0.0))
+        return light.weight * sampleSum(&soa_[first], &soa_[total + first], &soa_[2 * total + first], size_t(light.samples), p, n,
+                                        light.normal);
+    uint64_t none = 0;
+    return lightIrradiance(r, li, nullptr, false, none);
+}
+
+void ReceiverShader::shade(uint32_t r, const uint64_t* groupWords, bool fullUmbra, ReceiverResults& out) const {
     const bool perLight = out.lights > 1;
     uint64_t blocked = 0;
     glm::dvec3 total(0.0);
     for (int li = 0; li < samples_.lightCount(); ++li) {
-        const PerLight& light = lights_[li];
-        const bool planar = glm::dot(light.normal, light.normal) > 0;
         uint64_t lightBlocked = 0;
-        glm::dvec3 e(0.0);
-        for (uint32_t k = samples_.lightFirstGroup[li]; k < samples_.lightFirstGroup[li + 1]; ++k) {
-            const LightSampleGroup& g = samples_.groups[k];
-            const uint64_t word = fullUmbra ? g.fullMask() : (groupWords ? groupWords[k] : 0);
-            lightBlocked += uint64_t(std::popcount(word));
-            for (uint64_t visible = ~word & g.fullMask(); visible; visible &= visible - 1) {
-                // A sun's sample is a direction (w = 0): the receiver's position does not matter.
-                const glm::dvec3 l(samples_.position(set, int(g.first) + std::countr_zero(visible)));
-                glm::dvec3 d = light.sun ? l : l - p;
-                double dist2 = glm::dot(d, d);
-                if (!(dist2 > 0)) continue;
-                glm::dvec3 w = d / std::sqrt(dist2);
-                // A zero normal (volume receivers) means no receiver cosine: fluence-like irradiance.
-                double cosReceiver = n == glm::dvec3(0.0) ? 1.0 : std::max(0.0, glm::dot(n, w));
-                if (light.sun) {
-                    e += light.weight * cosReceiver;
-                    continue;
-                }
-                double cosEmitter = planar ? std::max(0.0, -glm::dot(light.normal, w)) : 1.0;
-                e += light.weight * (cosReceiver * cosEmitter / dist2);
-            }
-        }
+        const glm::dvec3 e = lightIrradiance(r, li, groupWords, fullUmbra, lightBlocked);
         blocked += lightBlocked;
         total += e;
         if (perLight) {
-            out.lightVisibility[size_t(r) * out.lights + li] = float(1.0 - double(lightBlocked) / light.samples);
+            out.lightVisibility[size_t(r) * out.lights + li] = float(1.0 - double(lightBlocked) / lights_[li].samples);
             out.lightIrradiance[size_t(r) * out.lights + li] = glm::vec3(e);
         }
     }
     out.visibility[r] = samples_.sampleCount ? float(1.0 - double(blocked) / samples_.sampleCount) : 1.f;
+    out.irradiance[r] = glm::vec3(total);
+}
+
+void ReceiverShader::shadeVisibleFraction(uint32_t r, const float* lightVisibility, ReceiverResults& out) const {
+    double visible = 0;
+    glm::dvec3 total(0.0);
+    for (int li = 0; li < samples_.lightCount(); ++li) {
+        // A light fully blocked brings nothing: most receivers of a hard-edged preview are there.
+        const glm::dvec3 e = lightVisibility[li] > 0 ? unoccludedIrradiance(r, li) * double(lightVisibility[li]) : glm::dvec3(0.0);
+        visible += double(lightVisibility[li]) * lights_[li].samples;
+        total += e;
+        if (out.lights > 1) {
+            out.lightVisibility[size_t(r) * out.lights + li] = lightVisibility[li];
+            out.lightIrradiance[size_t(r) * out.lights + li] = glm::vec3(e);
+        }
+    }
+    out.visibility[r] = samples_.sampleCount ? float(visible / samples_.sampleCount) : 1.f;
     out.irradiance[r] = glm::vec3(total);
 }
 

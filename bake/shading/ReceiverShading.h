@@ -9,6 +9,7 @@
 
 #include <glm/vec3.hpp>
 
+#include <mutex>
 #include <span>
 #include <vector>
 
@@ -60,7 +61,19 @@ public:
     /// @param fullUmbra every sample blocked (groupWords is ignored)
     void shade(uint32_t r, const uint64_t* groupWords, bool fullUmbra, ReceiverResults& out) const;
 
+    /// @brief For methods that give a visible fraction per light instead of masks (penumbra-map):
+    /// each light's irradiance is its unoccluded irradiance times that fraction.
+    /// @param lightVisibility one value in [0, 1] per light
+    void shadeVisibleFraction(uint32_t r, const float* lightVisibility, ReceiverResults& out) const;
+
 private:
+    /// Light @p li's irradiance at receiver @p r from its unblocked samples; @p blocked gets how
+    /// many of its samples are blocked.
+    glm::dvec3 lightIrradiance(uint32_t r, int li, const uint64_t* groupWords, bool fullUmbra, uint64_t& blocked) const;
+    /// The same with every sample visible, summed in a loop the compiler vectorizes (the order of
+    /// the sum differs from lightIrradiance's, so the last bits may differ).
+    glm::dvec3 unoccludedIrradiance(uint32_t r, int li) const;
+
     struct PerLight {
         glm::dvec3 normal;  ///< emitting side; zero for volumetric lights (no emitter cosine)
         glm::dvec3 weight;  ///< radiance x area per sample; for a sun, irradiance per sample
@@ -71,6 +84,9 @@ private:
     const ReceiverSet& receivers_;
     std::span<const uint32_t> sets_;
     std::vector<PerLight> lights_;
+    /// The samples as three arrays of double per set (x, then y, then z), made on first use.
+    mutable std::vector<double> soa_;
+    mutable std::once_flag soaOnce_;
 };
 
 }  // namespace penumbra

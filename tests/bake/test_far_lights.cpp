@@ -1,6 +1,7 @@
 // Suns at infinity and far area lights: hpc and the reference agree bit for bit, both agree with
 // the blocking rule in exact rational arithmetic, and Embree agrees up to classified ties.
 
+#include "ExactnessScenes.h"
 #include "RationalRule.h"
 #include "TestScenes.h"
 
@@ -15,38 +16,6 @@ using namespace penumbra;
 using namespace penumbra::test;
 
 namespace {
-
-LightDesc sunLight(glm::dvec3 direction, double diameterDeg, int samples, int sets = 4) {
-    LightDesc l;
-    l.type = LightType::Sun, l.direction = direction, l.angularDiameterDeg = diameterDeg;
-    l.samples = samples, l.sampleSets = sets, l.where = "sun";
-    return l;
-}
-
-/// A patch of grass blades on a floor, receivers on the floor and on the blades.
-void grassScene(std::vector<Triangle>& tris, ReceiverSet& receivers, int blades) {
-    GrassParams g;
-    g.placement.area = {-1, -1, 1, 1};
-    g.placement.count = uint64_t(blades);
-    g.seed = 9;
-    tris = readAll(*makeGrassSource(g));
-    std::vector<Triangle> floor;
-    addQuad(floor, {-2, 0, -2}, {2, 0, -2}, {2, 0, 2}, {-2, 0, 2});
-    addReceiversOnTriangles(receivers, floor, 31, 500);
-    addReceiversOnTriangles(receivers, tris, 32, 1);
-    tris.insert(tris.end(), floor.begin(), floor.end());
-}
-
-void boxesScene(std::vector<Triangle>& tris, ReceiverSet& receivers) {
-    std::vector<BoxShape> boxes = {{{-1, 0, -1}, {-0.4, 0.8, -0.2}}, {{0.2, 0, 0.1}, {0.9, 0.4, 0.7}},
-                                   {{-0.3, 0.9, 0.2}, {0.1, 1.1, 0.6}}};
-    tris = readAll(*makeBoxSource(boxes));
-    std::vector<Triangle> floor;
-    addQuad(floor, {-3, 0, -3}, {3, 0, -3}, {3, 0, 3}, {-3, 0, 3});
-    addReceiversOnTriangles(receivers, floor, 41, 700);
-    addReceiversOnTriangles(receivers, tris, 42, 8);
-    tris.insert(tris.end(), floor.begin(), floor.end());
-}
 
 /// Could the segment from @p r along @p d (t in [0, t1]) meet @p t? A conservative box test
 /// (margin 1e-6 of the coordinates) that spares the exact rule most triangles.
@@ -179,15 +148,8 @@ TEST_CASE("disk and rect lights 1e2, 1e4 and 4e5 scene sizes away give the refer
     std::vector<Triangle> tris;
     ReceiverSet receivers;
     soupOverFloor(tris, receivers);  // a scene about 8 units across
-    const glm::dvec3 towards = glm::normalize(glm::dvec3(0.3, 1, 0.2));
     for (double sizes : {1e2, 1e4, 4e5}) {
-        const double distance = 8 * sizes, radius = distance * 0.03;  // about 3.4 degrees across
-        LightDesc disk;
-        disk.type = LightType::Disk, disk.center = distance * towards, disk.normal = -towards, disk.radius = radius;
-        disk.samples = 64, disk.sampleSets = 4, disk.where = "disk";
-        const glm::dvec3 u = glm::normalize(glm::cross(towards, glm::dvec3(0, 0, 1))), v = glm::cross(towards, u);
-        LightDesc rect = rectLight(distance * towards, 2 * radius * v, 2 * radius * u, 64, 4);
-        for (const LightDesc& light : {disk, rect}) {
+        for (const LightDesc& light : farLights(sizes)) {
             INFO(sizes << " scene sizes away, " << light.where);
             requireMatchesReference("far", {light}, receivers, tris);
             LightSamples samples = generateLightSamples({light}, 64, 7);

@@ -1,0 +1,265 @@
+#include "bake/methods/HeckbertHerf.h"
+
+#include "bake/methods/StreamedCaster.h"
+#include "stream/util/Error.h"
+#include "stream/util/Progress.h"
+
+#include <glm/geometric.hpp>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+
+namespace penumbra {
+namespace {
+
+/// One receiver polygon prepared for projection: its plane, its affine map from the plane to
+/// texel units (the paper's parallelogram: corners p0, p0 + ea, p0 + eb) and a grid of its texels
+/// holding the receiver of each (or -1).
+struct Polygon {
+    glm::dvec3 p0, n;      ///< a corner and the unit normal of the side the receivers face
+    glm::dvec3 ga, gb;     ///< dual basis: plane point x has parameters (ga . (x - p0), gb . (x - p0))
+    glm::dvec2 t0, ta, tb; ///< texel coordinates of p0, and of the two edge vectors
+    int x0 = 0, y0 = 0, width = 0, height = 0;  ///< the texel box of its receivers
+    std::vector<int32_t> grid;
+    uint64_t sets = 0;     ///< bit s set when a receiver uses sample set s (s < 64; bit 63 for the rest)
+    double eps = 0;
+};
+
+uint64_t setBit(uint32_t set) { return 1ull << std::min<uint32_t>(set, 63); }
+
+/// Builds the polygons that have receivers.
+std::vector<Polygon> preparePolygons(const ReceiverSet& receivers, std::span<const uint32_t> sets,
+                                     const ReceiverPolygons& in, const ReceiverEpsilon& epsilon) {
+    std::vector<std::vector<uint32_t>> members(in.polygons.size());
+    for (uint32_t r = 0; r < receivers.size(); ++r) members[in.polygonOf[r]].push_back(r);
+    std::vector<Polygon> out;
+    for (size_t i = 0; i < in.polygons.size(); ++i) {
+        if (members[i].empty()) continue;
+        const ReceiverPolygon& src = in.polygons[i];
+        Polygon p;
+        p.p0 = src.position[0];
+        const glm::dvec3 ea = src.position[1] - p.p0, eb = src.position[2] - p.p0, nn = glm::cross(ea, eb);
+        const double length = glm::length(nn);
+        if (!(length > 0)) continue;  // a degenerate polygon: its texels stay unblocked
+        p.n = nn / length;
+        glm::dvec3 facing(0.0);  // the receivers' side: their (shading) normals
+        for (uint32_t r : members[i]) facing += glm::dvec3(receivers.normal[r]);
+        if (glm::dot(facing, p.n) < 0) p.n = -p.n;
+        p.ga = glm::cross(eb, nn) / glm::dot(ea, glm::cross(eb, nn));
+        p.gb = glm::cross(nn, ea) / glm::dot(eb, glm::cross(nn, ea));
+        p.t0 = src.texel[0], p.ta = src.texel[1] - src.texel[0], p.tb = src.texel[2] - src.texel[0];
+        glm::ivec2 lo(INT32_MAX), hi(INT32_MIN);
+        for (uint32_t r : members[i]) lo = glm::min(lo, in.texelOf[r]), hi = glm::max(hi, in.texelOf[r]);
+        p.x0 = lo.x, p.y0 = lo.y, p.width = hi.x - lo.x + 1, p.height = hi.y - lo.y + 1;
+        p.grid.assign(size_t(p.width) * p.height, -1);
+        double scale = 0;
+        for (uint32_t r : members[i]) {
+            const glm::ivec2 t = in.texelOf[r] - lo;
+            p.grid[size_t(t.y) * p.width + t.x] = int32_t(r);
+            p.sets |= setBit(sets[r]);
+            scale = std::max(scale, epsilon.at(glm::dvec3(receivers.position[r])));
+        }
+        p.eps = scale;
+        out.push_back(std::move(p));
+    }
+    return out;
+}
+
+/// Everything one polygon's projections share: the samples and where their mask bits go.
+struct Context {
+    const LightSamples& samples;
+    std::span<const uint32_t> sets;
+    std::vector<uint32_t> groupOf;  ///< per global sample: its group
+    VisibilityMasks& masks;
+};
+
+/// Scan-converts the convex polygon @p v (texel units, @p count corners) over @p p's texels and
+/// sets sample @p k's bit of every receiver of set @p set whose texel centre it covers.
+uint64_t cover(const Polygon& p, const glm::dvec2* v, int count, uint32_t set, uint32_t k, Context& c) {
+    glm::dvec2 lo(INFINITY), hi(-INFINITY);
+    for (int i = 0; i < count; ++i) lo = glm::min(lo, v[i]), hi = glm::max(hi, v[i]);
+    const int xa = std::max(p.x0, int(std::ceil(lo.x - 0.5))), xb = std::min(p.x0 + p.width - 1, int(std::floor(hi.x - 0.5)));
+    const int ya = std::max(p.y0, int(std::ceil(lo.y - 0.5))), yb = std::min(p.y0 + p.height - 1, int(std::floor(hi.y - 0.5)));
+    if (xa > xb || ya > yb) return 0;
+    double area = 0;
+    for (int i = 0; i < count; ++i) area += v[i].x * v[(i + 1) % count].y - v[(i + 1) % count].x * v[i].y;
+    if (!(std::abs(area) > 0)) return 0;
+    const double orient = area > 0 ? 1.0 : -1.0;
+    const uint32_t group = c.groupOf[k], bit = k - c.samples.groups[group].first;
+    uint64_t covered = 0;
+    for (int y = ya; y <= yb; ++y)
+        for (int x = xa; x <= xb; ++x) {
+            const int32_t r = p.grid[size_t(y - p.y0) * p.width + (x - p.x0)];
+            if (r < 0 || c.sets[r] != set) continue;
+            const glm::dvec2 q(x + 0.5, y + 0.5);
+            bool inside = true;
+            for (int i = 0; i < count && inside; ++i) {
+                const glm::dvec2 a = v[i], b = v[(i + 1) % count];
+                inside = orient * ((b.x - a.x) * (q.y - a.y) - (b.y - a.y) * (q.x - a.x)) >= 0;
+            }
+            if (!inside) continue;
+            c.masks.row(size_t(r))[group] |= 1ull << bit;
+            ++covered;
+        }
+    return covered;
+}
+
+/// Clips @p in (@p n corners, heights @p h above the polygon's plane) to h >= lo and h <= hi.
+int clipSlab(const glm::dvec3* in, const double* h, int n, double lo, double hi, glm::dvec3* out) {
+    glm::dvec3 buffer[8];
+    double hb[8];
+    int m = 0;
+    for (int i = 0; i < n; ++i) {  // h >= lo
+        const int j = (i + 1) % n;
+        if (h[i] >= lo) buffer[m] = in[i], hb[m++] = h[i];
+        if ((h[i] >= lo) != (h[j] >= lo)) {
+            const double t = (lo - h[i]) / (h[j] - h[i]);
+            buffer[m] = in[i] + t * (in[j] - in[i]), hb[m++] = lo;
+        }
+    }
+    int k = 0;
+    for (int i = 0; i < m; ++i) {  // h <= hi
+        const int j = (i + 1) % m;
+        if (hb[i] <= hi) out[k++] = buffer[i];
+        if ((hb[i] <= hi) != (hb[j] <= hi)) out[k++] = buffer[i] + ((hi - hb[i]) / (hb[j] - hb[i])) * (buffer[j] - buffer[i]);
+    }
+    return k;
+}
+
+/// Projects blocker @p t from every sample the polygon's receivers use into its texels.
+void shadePolygon(const Polygon& p, const Triangle& t, Context& c, HeckbertHerfStats& local) {
+    glm::dvec3 v[3];
+    double h[3];
+    for (int i = 0; i < 3; ++i) v[i] = glm::dvec3(t.v[i]), h[i] = glm::dot(p.n, v[i] - p.p0);
+    if (std::max({h[0], h[1], h[2]}) <= p.eps) return;  // on or behind the polygon's plane
+    const LightSamples& s = c.samples;
+    for (uint32_t set = 0; set < uint32_t(s.sets); ++set) {
+        if (!(p.sets & setBit(set))) continue;
+        for (uint32_t k = 0; k < uint32_t(s.sampleCount); ++k) {
+            const glm::dvec3 l(s.position(int(set), int(k)));
+            const double w = s.sampleW(k);
+            // Height of the sample (w = 1) or of its direction (w = 0) above the plane.
+            const double hl = w == 1.0 ? glm::dot(p.n, l - p.p0) : glm::dot(p.n, l);
+            if (!(hl > 0)) continue;  // behind the polygon (the back-face test): see behindPolygon()
+            if (w == 1.0 && std::min({h[0], h[1], h[2]}) >= hl) continue;  // wholly beyond the sample
+            glm::dvec3 clipped[5];
+            const int n = clipSlab(v, h, 3, p.eps, w == 1.0 ? hl * (1 - 1e-9) : INFINITY, clipped);
+            if (n < 3) continue;
+            glm::dvec2 texels[5];
+            for (int i = 0; i < n; ++i) {
+                const double hx = glm::dot(p.n, clipped[i] - p.p0);
+                const glm::dvec3 x = w == 1.0 ? l + (clipped[i] - l) * (hl / (hl - hx)) : clipped[i] - l * (hx / hl);
+                const glm::dvec3 q = x - p.p0;
+                texels[i] = p.t0 + glm::dot(p.ga, q) * p.ta + glm::dot(p.gb, q) * p.tb;
+            }
+            ++local.projections;
+            local.coveredTexels += cover(p, texels, n, set, k, c);
+        }
+    }
+}
+
+/// Section 3.6's back-face test: a sample behind the polygon's plane lights none of its texels.
+/// Such samples are not projected; they are counted as blocked (a closed surface blocks them from
+/// behind, and they bring no irradiance either way).
+void behindPolygon(const Polygon& p, Context& c) {
+    const LightSamples& s = c.samples;
+    for (int y = 0; y < p.height; ++y)
+        for (int x = 0; x < p.width; ++x) {
+            const int32_t r = p.grid[size_t(y) * p.width + x];
+            if (r < 0) continue;
+            for (uint32_t k = 0; k < uint32_t(s.sampleCount); ++k) {
+                const glm::dvec3 l(s.position(int(c.sets[r]), int(k)));
+                const double hl = s.sampleW(k) == 1.0 ? glm::dot(p.n, l - p.p0) : glm::dot(p.n, l);
+                if (!(hl > 0)) c.masks.row(size_t(r))[c.groupOf[k]] |= 1ull << (k - s.groups[c.groupOf[k]].first);
+            }
+        }
+}
+
+}  // namespace
+
+VisibilityMasks castHeckbertHerf(const LightSamples& samples, const ReceiverSet& receivers,
+                                 std::span<const uint32_t> sampleSets, TriangleSource& blockers,
+                                 const ReceiverEpsilon& epsilon, const ReceiverPolygons& polygons,
+                                 HeckbertHerfStats* stats, const std::function<void(uint64_t)>& progress) {
+    Stopwatch watch;
+    VisibilityMasks masks(receivers.size(), samples.groupCount());
+    const std::vector<Polygon> prepared = preparePolygons(receivers, sampleSets, polygons, epsilon);
+    Context c{samples, sampleSets, std::vector<uint32_t>(size_t(samples.sampleCount)), masks};
+    for (uint32_t g = 0; g < uint32_t(samples.groupCount()); ++g)
+        for (uint32_t j = 0; j < samples.groups[g].count; ++j) c.groupOf[samples.groups[g].first + j] = g;
+    std::atomic<uint64_t> projections{0}, covered{0};
+    HeckbertHerfStats local;
+    local.polygons = prepared.size();
+    tbb::parallel_for(size_t(0), prepared.size(), [&](size_t i) { behindPolygon(prepared[i], c); });
+    blockers.rewind();
+    std::vector<Triangle> chunk(kTriangleChunk);
+    while (size_t n = blockers.read(chunk)) {
+        // Polygons own disjoint receivers, so their masks never share a row.
+        tbb::parallel_for(size_t(0), prepared.size(), [&](size_t i) {
+            HeckbertHerfStats counts;
+            for (size_t t = 0; t < n; ++t) shadePolygon(prepared[i], chunk[t], c, counts);
+            projections += counts.projections, covered += counts.coveredTexels;
+        });
+        local.trianglesRead += n;
+        if (progress) progress(n);
+    }
+    local.projections = projections.load(), local.coveredTexels = covered.load();
+    local.seconds = watch.seconds();
+    if (stats) *stats = local;
+    return masks;
+}
+
+nlohmann::json heckbertHerfStatsJson(const HeckbertHerfStats& s) {
+    return {{"polygons", s.polygons},
+            {"projections", s.projections},
+            {"covered_texels", s.coveredTexels},
+            {"triangles_read", s.trianglesRead},
+            {"time_s", s.seconds}};
+}
+
+}  // namespace penumbra
+
+namespace penumbra {
+namespace {
+
+/// Heckbert & Herf over the receiver kind's polygons, streaming the blockers once per cast.
+class HeckbertHerfCaster final : public StreamedCaster {
+public:
+    explicit HeckbertHerfCaster(const CastContext& c) : StreamedCaster(c) {}
+
+    void cast(TriangleSource& blockers, uint32_t first, const CastSink& sink) override {
+        // Polygons belong to the kind's own receivers; lightmaps are never refined.
+        if (!c_.polygons || first != 0 || c_.polygons->polygonOf.size() != c_.receivers.size())
+            fail("--method", "hh needs every receiver on a receiver polygon (lightmap receivers)");
+        observeOnce(blockers);
+        ProgressReporter progress("hh", blockers.sizeHint().value_or(0), c_.quiet);
+        const VisibilityMasks masks = castHeckbertHerf(c_.samples, c_.receivers, c_.sampleSets, blockers, receiverEpsilonOf(c_.options),
+                                                       *c_.polygons, &stats_, [&](uint64_t n) { progress.update(n); });
+        progress.done();
+        reportInParallel(0, uint32_t(c_.receivers.size()), [&](uint32_t r) { sink.masks(r, masks.row(r), false); });
+    }
+
+    nlohmann::json methodStats() const override { return heckbertHerfStatsJson(stats_); }
+
+private:
+    HeckbertHerfStats stats_;
+};
+
+const CasterRegistration kHeckbertHerf{
+    {"hh",
+     {.exact = false, .sortedBlockers = false, .needsPolygons = true,
+      .summary = "Heckbert & Herf 1997 hard shadows accumulated into lightmap textures: approximate at texel edges"},
+     [](const CastContext& c) { return std::make_unique<HeckbertHerfCaster>(c); },
+     [](uint64_t, uint64_t receivers, const LightSamples& samples, const nlohmann::json&) {
+         // Every receiver's masks, its place in its polygon's member list and texel grid (a
+         // triangle's texel box is at most twice its texels), and the kind's polygon and texel of
+         // it; polygons with receivers are at most one per receiver, prepared and as the kind has them.
+         return receivers * (uint64_t(samples.groupCount()) * sizeof(uint64_t) + 4 + 2 * 4 + 12 +
+                             sizeof(Polygon) + sizeof(ReceiverPolygon));
+     },
+     nullptr}};
+
+}  // namespace
+}  // namespace penumbra

@@ -1,0 +1,190 @@
+#include "bake/methods/LightView.h"
+
+#include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace penumbra {
+namespace {
+
+/// Two unit vectors completing @p axis to an orthonormal frame.
+void frame(const glm::dvec3& axis, glm::dvec3& e1, glm::dvec3& e2) {
+    const glm::dvec3 helper = std::abs(axis.y) < 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0);
+    e1 = glm::normalize(glm::cross(helper, axis));
+    e2 = glm::cross(axis, e1);
+}
+
+constexpr int kBands = 64;  ///< row bands rasterized in parallel
+
+/// Scan-converts one projected triangle into rows [y0, y1) of @p map.
+void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1, DepthMap& map) {
+    const double area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
+    if (!(std::abs(area) > 1e-12)) return;
+    double lin[3];
+    for (int i = 0; i < 3; ++i) lin[i] = view.linearDepth(p[i].z);
+    const double xmin = std::min({p[0].x, p[1].x, p[2].x}), xmax = std::max({p[0].x, p[1].x, p[2].x});
+    const double ymin = std::min({p[0].y, p[1].y, p[2].y}), ymax = std::max({p[0].y, p[1].y, p[2].y});
+    const int ya = std::max(y0, int(std::ceil(ymin - 0.5))), yb = std::min(y1 - 1, int(std::floor(ymax - 0.5)));
+    const int xa = std::max(0, int(std::ceil(xmin - 0.5))), xb = std::min(map.res - 1, int(std::floor(xmax - 0.5)));
+    for (int y = ya; y <= yb; ++y)
+        for (int x = xa; x <= xb; ++x) {
+            const double cx = x + 0.5, cy = y + 0.5;
+            double b[3];
+            for (int i = 0; i < 3; ++i) {
+                const ViewPoint &u = p[(i + 1) % 3], &v = p[(i + 2) % 3];
+                b[i] = ((u.x - cx) * (v.y - cy) - (v.x - cx) * (u.y - cy)) / area;
+            }
+            if (b[0] < 0 || b[1] < 0 || b[2] < 0) continue;
+            const float z = float(view.fromLinear(b[0] * lin[0] + b[1] * lin[1] + b[2] * lin[2]));
+            float& d = map.depth[size_t(y) * map.res + x];
+            d = std::min(d, z);
+        }
+}
+
+/// Clips @p t at the near plane (perspective views) and draws the pieces into rows [y0, y1).
+void drawClipped(const LightView& view, const Triangle& t, int y0, int y1, DepthMap& map) {
+    glm::dvec3 in[3] = {glm::dvec3(t.v[0]), glm::dvec3(t.v[1]), glm::dvec3(t.v[2])};
+    double d[3];
+    int nearCount = 0;
+    for (int i = 0; i < 3; ++i) d[i] = view.depth(in[i]) - view.zNear, nearCount += !(d[i] >= 0);
+    if (nearCount == 3) return;
+    glm::dvec3 poly[4];
+    int n = 0;
+    if (nearCount == 0) {
+        poly[0] = in[0], poly[1] = in[1], poly[2] = in[2], n = 3;
+    } else {
+        for (int i = 0; i < 3; ++i) {
+            const int j = (i + 1) % 3;
+            if (d[i] >= 0) poly[n++] = in[i];
+            if ((d[i] >= 0) != (d[j] >= 0)) poly[n++] = in[i] + (in[j] - in[i]) * (d[i] / (d[i] - d[j]));
+        }
+    }
+    ViewPoint p[4];
+    for (int i = 0; i < n; ++i) p[i] = view.project(poly[i]);
+    for (int i = 1; i + 1 < n; ++i) {
+        const ViewPoint tri[3] = {p[0], p[i], p[i + 1]};
+        drawTriangle(view, tri, y0, y1, map);
+    }
+}
+
+}  // namespace
+
+double LightView::depth(const glm::dvec3& p) const { return glm::dot(p - origin, axis); }
+
+ViewPoint LightView::project(const glm::dvec3& p) const {
+    const glm::dvec3 d = p - origin;
+    const double z = glm::dot(d, axis), scale = ortho ? halfExtent : z * halfExtent;
+    return {0.5 * res * (1.0 + glm::dot(d, e1) / scale), 0.5 * res * (1.0 + glm::dot(d, e2) / scale), z};
+}
+
+glm::dvec3 lightCentre(const LightSamples& samples, int light) {
+    const ConvexBound& bound = samples.lightBounds[size_t(light)];
+    glm::dvec3 c(0.0);
+    for (const glm::dvec3& v : bound.vertices) c += v;
+    return c / double(std::max<size_t>(1, bound.vertices.size()));
+}
+
+std::vector<LightView> makeLightViews(const LightSamples& samples, int light, const ReceiverSet& receivers, int resolution,
+                                      int cubeResolution) {
+    const glm::dvec3 c = lightCentre(samples, light);
+    const ConvexBound& bound = samples.lightBounds[size_t(light)];
+    std::vector<LightView> views;
+    if (bound.directional()) {
+        LightView v;
+        v.ortho = true, v.res = resolution, v.axis = -glm::normalize(c);
+        frame(v.axis, v.e1, v.e2);
+        double tanRadius = 0;  // the sun's angular radius
+        for (const glm::dvec3& d : bound.vertices)
+            tanRadius = std::max(tanRadius, glm::length(d - glm::dot(d, -v.axis) * -v.axis) / glm::dot(d, -v.axis));
+        glm::dvec2 lo(INFINITY), hi(-INFINITY);
+        double zlo = INFINITY, zhi = -INFINITY;
+        for (const glm::vec3& r : receivers.position) {
+            const glm::dvec3 p(r);
+            const glm::dvec2 q(glm::dot(p, v.e1), glm::dot(p, v.e2));
+            lo = glm::min(lo, q), hi = glm::max(hi, q), zlo = std::min(zlo, glm::dot(p, v.axis)), zhi = std::max(zhi, glm::dot(p, v.axis));
+        }
+        if (receivers.size() == 0) lo = hi = glm::dvec2(0), zlo = zhi = 0;
+        const double margin = tanRadius * (zhi - zlo) + 0.02 * std::max(hi.x - lo.x, hi.y - lo.y) + 1e-6;
+        const glm::dvec2 mid = 0.5 * (lo + hi);
+        v.origin = mid.x * v.e1 + mid.y * v.e2;
+        v.halfExtent = 0.5 * std::max(hi.x - lo.x, hi.y - lo.y) + margin;
+        v.zNear = -INFINITY, v.zFar = zhi;
+        views.push_back(v);
+        return views;
+    }
+    glm::dvec3 mean(0.0);
+    double farthest = 0;
+    for (const glm::vec3& r : receivers.position) {
+        const glm::dvec3 d = glm::dvec3(r) - c;
+        const double length = glm::length(d);
+        if (length > 0) mean += d / length;
+        farthest = std::max(farthest, length);
+    }
+    double halfAngle = 0;
+    const bool hasMean = glm::length(mean) > 1e-9;
+    if (hasMean) {
+        mean = glm::normalize(mean);
+        for (const glm::vec3& r : receivers.position) {
+            const glm::dvec3 d = glm::dvec3(r) - c;
+            const double length = glm::length(d);
+            if (length > 0) halfAngle = std::max(halfAngle, std::acos(std::clamp(glm::dot(d / length, mean), -1.0, 1.0)));
+        }
+    }
+    const double zNear = 1e-6 * std::max(farthest, 1e-300);
+    if (hasMean && halfAngle <= glm::radians(70.0)) {
+        LightView v;
+        v.origin = c, v.axis = mean, v.res = resolution, v.zNear = zNear, v.zFar = farthest;
+        frame(v.axis, v.e1, v.e2);
+        v.halfExtent = std::tan(std::min(halfAngle + glm::radians(3.0), glm::radians(73.0)));
+        views.push_back(v);
+        return views;
+    }
+    for (int face = 0; face < 6; ++face) {
+        LightView v;
+        v.origin = c, v.res = cubeResolution, v.zNear = zNear, v.zFar = farthest, v.halfExtent = 1.02;
+        v.axis = glm::dvec3(0.0);
+        v.axis[face / 2] = face % 2 ? -1.0 : 1.0;
+        frame(v.axis, v.e1, v.e2);
+        views.push_back(v);
+    }
+    return views;
+}
+
+bool projectTriangle(const LightView& view, const Triangle& t, ViewPoint (&out)[3]) {
+    for (int i = 0; i < 3; ++i) {
+        out[i] = view.project(glm::dvec3(t.v[i]));
+        if (!(out[i].z >= view.zNear) || !std::isfinite(out[i].x) || !std::isfinite(out[i].y)) return false;
+    }
+    return true;
+}
+
+void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, DepthMap& map) {
+    // Project each triangle once, then let row bands draw the ones that reach them.
+    struct Projected {
+        ViewPoint p[3];
+        double ymin, ymax;
+        bool clip;  ///< crosses the near plane: drawn through drawClipped
+    };
+    std::vector<Projected> projected(chunk.size());
+    tbb::parallel_for(size_t(0), chunk.size(), [&](size_t i) {
+        Projected& q = projected[i];
+        q.clip = !projectTriangle(view, chunk[i], q.p);
+        q.ymin = q.clip ? -INFINITY : std::min({q.p[0].y, q.p[1].y, q.p[2].y});
+        q.ymax = q.clip ? INFINITY : std::max({q.p[0].y, q.p[1].y, q.p[2].y});
+    });
+    const int rows = (map.res + kBands - 1) / kBands;
+    tbb::parallel_for(0, kBands, [&](int band) {
+        const int y0 = band * rows, y1 = std::min(map.res, y0 + rows);
+        for (size_t i = 0; i < chunk.size() && y0 < y1; ++i) {
+            const Projected& q = projected[i];
+            if (q.ymax < y0 - 0.5 || q.ymin > y1 + 0.5) continue;
+            if (q.clip) drawClipped(view, chunk[i], y0, y1, map);
+            else drawTriangle(view, q.p, y0, y1, map);
+        }
+    });
+}
+
+}  // namespace penumbra

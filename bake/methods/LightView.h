@@ -1,0 +1,80 @@
+#pragma once
+/// @file LightView.h
+/// @brief The light's-eye views of `--method penumbra-map` (Wyman & Hansen 2003): a perspective
+/// view from the centre of an area light (or six cube faces when the receivers surround it), or an
+/// orthographic view along a sun's central direction, each with a square map of depths, and the
+/// scan conversion of triangles into them.
+///
+/// A view maps a world point to texel coordinates (x, y) in [0, res)^2 and a depth z: the
+/// distance along the view axis (from the light's centre; for a sun, from an origin plane). The
+/// texel grid is uniform in tangent space (perspective) or world units (orthographic), so an
+/// image distance of d texels is an angle (tangent) of d * texel() or a lateral distance of
+/// d * texel() world units.
+
+#include "bake/light/Light.h"
+#include "receivers/ReceiverSet.h"
+#include "stream/Triangle.h"
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace penumbra {
+
+/// @brief A projected point: texel coordinates and depth.
+struct ViewPoint {
+    double x = 0, y = 0, z = 0;
+};
+
+class LightView {
+public:
+    bool ortho = false;
+    glm::dvec3 origin{0.0};  ///< the light's centre (perspective) or a point on the sun's origin plane
+    glm::dvec3 axis{0, -1, 0}, e1{1, 0, 0}, e2{0, 0, 1};  ///< orthonormal: view direction and image axes
+    double halfExtent = 1;   ///< tan of the half angle (perspective) or half the side in world units
+    double zNear = 1e-6;     ///< geometry nearer than this is clipped
+    double zFar = 1;         ///< the farthest receiver, for the reach of penumbra sheets
+    int res = 1024;
+
+    /// One texel in tangent units (perspective) or world units (orthographic).
+    double texel() const { return 2 * halfExtent / res; }
+    /// The world size of a texel at depth @p z.
+    double texelWorld(double z) const { return ortho ? texel() : z * texel(); }
+    /// Depth of @p p; projection is valid only for depth >= zNear.
+    double depth(const glm::dvec3& p) const;
+    ViewPoint project(const glm::dvec3& p) const;
+    /// The value interpolated linearly across the image: 1/z (perspective) or z (orthographic).
+    double linearDepth(double z) const { return ortho ? z : 1.0 / z; }
+    double fromLinear(double v) const { return ortho ? v : 1.0 / v; }
+};
+
+/// @brief The views of light @p light: one perspective view fitted to the receivers' directions
+/// from the light's centre when they lie within 70 degrees of their mean, else the six faces of a
+/// cube at @p cubeResolution; a sun gets one orthographic view covering the receivers, grown by
+/// the reach of its penumbrae.
+std::vector<LightView> makeLightViews(const LightSamples& samples, int light, const ReceiverSet& receivers, int resolution,
+                                      int cubeResolution);
+
+/// @brief The light's centre (w = 1) or central direction towards it (w = 0): the mean of its
+/// bound's vertices.
+glm::dvec3 lightCentre(const LightSamples& samples, int light);
+
+/// @brief A depth map: the nearest depth per texel (+infinity where nothing was drawn).
+struct DepthMap {
+    int res = 0;
+    std::vector<float> depth;
+    float at(int x, int y) const { return depth[size_t(y) * res + x]; }
+};
+
+/// @brief Scan-converts @p chunk into @p map (nearest depth wins), texel centres inside or on a
+/// triangle's edges; triangles are clipped at the near plane. Rows are split between threads;
+/// the minimum does not depend on the order, so the map does not depend on the thread count.
+void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, DepthMap& map);
+
+/// @brief Projects @p t's vertices, or returns false when one is nearer than zNear.
+bool projectTriangle(const LightView& view, const Triangle& t, ViewPoint (&out)[3]);
+
+}  // namespace penumbra

@@ -1,0 +1,395 @@
+#include "bake/methods/PenumbraMap.h"
+
+#include "bake/methods/LightView.h"
+#include "bake/cast/SceneCaster.h"
+#include "bake/methods/StreamedCaster.h"
+#include "stream/util/Error.h"
+#include "stream/util/Progress.h"
+
+#include <glm/geometric.hpp>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace penumbra {
+namespace {
+
+constexpr int kBands = 64;  ///< row bands drawn in parallel
+
+/// One light's view with its maps and the light's outline seen from its centre.
+struct ViewMaps {
+    LightView view;
+    DepthMap shadow;
+    std::vector<float> penumbra;        ///< per texel: the darkest intensity drawn (1: none)
+    std::vector<glm::dvec2> outline;    ///< the light bound's vertices in image axes (world or tangent units)
+    std::vector<float> tileFar;         ///< per kTile x kTile texels: the farthest surface (0: none)
+    int tiles = 0;                      ///< tiles per side
+    /// The farthest surface in the texel box [lo, hi] (conservative: whole tiles).
+    float farthest(glm::dvec2 lo, glm::dvec2 hi) const;
+};
+
+constexpr int kTile = 16;
+
+float ViewMaps::farthest(glm::dvec2 lo, glm::dvec2 hi) const {
+    const int x0 = std::clamp(int(std::floor(lo.x)) / kTile, 0, tiles - 1), x1 = std::clamp(int(std::floor(hi.x)) / kTile, 0, tiles - 1);
+    const int y0 = std::clamp(int(std::floor(lo.y)) / kTile, 0, tiles - 1), y1 = std::clamp(int(std::floor(hi.y)) / kTile, 0, tiles - 1);
+    float z = 0;
+    for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x) z = std::max(z, tileFar[size_t(y) * tiles + x]);
+    return z;
+}
+
+/// Fills @p m.tileFar from the finished shadow map.
+void buildTiles(ViewMaps& m) {
+    m.tiles = (m.view.res + kTile - 1) / kTile;
+    m.tileFar.assign(size_t(m.tiles) * m.tiles, 0.0f);
+    for (int y = 0; y < m.view.res; ++y)
+        for (int x = 0; x < m.view.res; ++x) {
+            const float z = m.shadow.at(x, y);
+            float& t = m.tileFar[size_t(y / kTile) * m.tiles + x / kTile];
+            if (std::isfinite(z)) t = std::max(t, z);
+        }
+}
+
+/// A run of silhouette edge, projected: end points, their linear depths, and the light's half-width
+/// across it.
+struct Run {
+    glm::dvec2 a, b;
+    glm::dvec2 out;  ///< unit normal of the edge away from its triangle: sheets are drawn on that side
+    double linA, linB;
+    double radius;  ///< L_r: world units (perspective) or tangent of the angular radius (orthographic)
+    double reach;   ///< texels beyond which the sheet is never darker than 1
+};
+
+/// The light's half-width across an image direction with unit normal @p m.
+double halfWidth(const ViewMaps& v, const glm::dvec2& m) {
+    double lo = INFINITY, hi = -INFINITY;
+    for (const glm::dvec2& p : v.outline) lo = std::min(lo, glm::dot(p, m)), hi = std::max(hi, glm::dot(p, m));
+    return v.outline.empty() ? 0.0 : 0.5 * (hi - lo);
+}
+
+float depthAt(const DepthMap& m, const glm::dvec2& q) {
+    const int x = int(std::floor(q.x)), y = int(std::floor(q.y));
+    if (x < 0 || y < 0 || x >= m.res || y >= m.res) return INFINITY;
+    return m.at(x, y);
+}
+
+/// The depth margin of the silhouette and shadow tests at depth @p z: the bias in texels, plus
+/// @p slope (world depth per texel) times @p texels.
+double gap(const LightView& view, double z, double bias, double slope, double texels) {
+    return bias * view.texelWorld(z) + texels * slope;
+}
+
+/// Finds the silhouette runs of @p t's edges in @p v (read-only) and appends them to @p out.
+void findRuns(const ViewMaps& v, const Triangle& t, double bias, std::vector<Run>& out) {
+    const LightView& view = v.view;
+    ViewPoint p[3];
+    if (!projectTriangle(view, t, p)) return;
+    double lin[3];
+    for (int i = 0; i < 3; ++i) lin[i] = view.linearDepth(p[i].z);
+    // The triangle's depth slope per texel, from its plane in (x, y, linear depth).
+    const double area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
+    if (!(std::abs(area) > 1e-12)) return;
+    const double gx = ((lin[1] - lin[0]) * (p[2].y - p[0].y) - (lin[2] - lin[0]) * (p[1].y - p[0].y)) / area;
+    const double gy = ((lin[2] - lin[0]) * (p[1].x - p[0].x) - (lin[1] - lin[0]) * (p[2].x - p[0].x)) / area;
+    const double linSlope = std::hypot(gx, gy);
+    for (int e = 0; e < 3; ++e) {
+        const ViewPoint &a = p[e], &b = p[(e + 1) % 3], &c = p[(e + 2) % 3];
+        const glm::dvec2 A(a.x, a.y), B(b.x, b.y), dir = B - A;
+        const double length = glm::length(dir);
+        if (!(length > 1e-9)) continue;
+        glm::dvec2 n(-dir.y / length, dir.x / length);
+        if (glm::dot(n, glm::dvec2(c.x, c.y) - A) > 0) n = -n;  // away from the triangle
+        const int steps = int(std::clamp(std::ceil(length), 1.0, 4096.0));
+        int start = -1;
+        auto close = [&](int end) {  // samples [start, end) are silhouette
+            const double t0 = double(start) / steps, t1 = double(end) / steps;
+            Run r;
+            r.a = A + t0 * dir, r.b = A + t1 * dir, r.out = n;
+            r.linA = lin[e] + t0 * (lin[(e + 1) % 3] - lin[e]), r.linB = lin[e] + t1 * (lin[(e + 1) % 3] - lin[e]);
+            r.radius = halfWidth(v, n);
+            // How far the sheet can reach: first to the farthest receiver, then only as far as the
+            // farthest surface in the map around it.
+            const double zv = std::min(view.fromLinear(r.linA), view.fromLinear(r.linB));
+            auto reach = [&](double zFar) {
+                const double spread = view.ortho ? r.radius * (zFar - zv) : r.radius * (zFar - zv) / (zv * zFar);
+                return std::clamp(spread / view.texel(), 0.0, double(view.res));
+            };
+            r.reach = reach(view.zFar);
+            r.reach = reach(std::min(view.zFar, double(v.farthest(glm::min(r.a, r.b) - r.reach, glm::max(r.a, r.b) + r.reach))));
+            if (r.reach > 0 && r.radius > 0) out.push_back(r);
+            start = -1;
+        };
+        for (int i = 0; i < steps; ++i) {
+            const double s = (i + 0.5) / steps;
+            const glm::dvec2 q = A + s * dir;
+            const double lq = lin[e] + s * (lin[(e + 1) % 3] - lin[e]), zq = view.fromLinear(lq);
+            const double slope = view.ortho ? linSlope : linSlope * zq * zq;  // world depth per texel
+            const bool visible = depthAt(v.shadow, q) >= zq - gap(view, zq, bias, slope, 1.5);
+            const bool silhouette = visible && depthAt(v.shadow, q + 1.5 * n) > zq + gap(view, zq, bias, slope, 3.0);
+            if (silhouette && start < 0) start = i;
+            if (!silhouette && start >= 0) close(i);
+        }
+        if (start >= 0) close(steps);
+    }
+}
+
+/// The x-interval of row @p cy inside the outer half of @p run's capsule (the sheet and the end
+/// cones, within reach of the segment, on the side away from the triangle); empty when lo > hi.
+void rowSpan(const Run& run, double cy, double& lo, double& hi) {
+    lo = INFINITY, hi = -INFINITY;
+    const glm::dvec2 ab = run.b - run.a, n = run.out;
+    const double length = glm::length(ab), R = run.reach;
+    auto add = [&](double a, double b) {
+        if (a <= b) lo = std::min(lo, a), hi = std::max(hi, b);
+    };
+    // x where a linear function f(x) = c0 + c1 x lies in [fmin, fmax], intersected with [a, b].
+    auto clip = [](double c0, double c1, double fmin, double fmax, double& a, double& b) {
+        if (c1 == 0) {
+            if (c0 < fmin || c0 > fmax) a = INFINITY, b = -INFINITY;
+            return;
+        }
+        double x0 = (fmin - c0) / c1, x1 = (fmax - c0) / c1;
+        if (x0 > x1) std::swap(x0, x1);
+        a = std::max(a, x0), b = std::min(b, x1);
+    };
+    for (const glm::dvec2& c : {run.a, run.b}) {  // end cones: disks clipped to the outer side
+        const double dy = cy - c.y;
+        if (std::abs(dy) > R) continue;
+        const double w = std::sqrt(R * R - dy * dy);
+        double a = c.x - w, b = c.x + w;
+        clip(-run.a.x * n.x + (cy - run.a.y) * n.y, n.x, 0.0, INFINITY, a, b);
+        add(a, b);
+    }
+    if (length > 0) {  // the sheet: a rectangle beside the segment
+        const glm::dvec2 u = ab / length;
+        double a = -INFINITY, b = INFINITY;
+        clip(-run.a.x * u.x + (cy - run.a.y) * u.y, u.x, 0.0, length, a, b);
+        clip(-run.a.x * n.x + (cy - run.a.y) * n.y, n.x, 0.0, R, a, b);
+        add(a, b);
+    }
+}
+
+/// Draws @p run's sheet and end cones into rows [y0, y1) of the penumbra map (darkest wins).
+/// With lv = 1 / Z_v the paper's intensity becomes one division: perspective
+/// I = a / ((L_r lv - a) (Z_P lv - 1)), orthographic I = (a / tan r) / (Z_P - Z_v).
+void drawRun(ViewMaps& v, const Run& run, double bias, int y0, int y1) {
+    const LightView& view = v.view;
+    const int res = view.res;
+    const glm::dvec2 lo = glm::min(run.a, run.b) - run.reach, hi = glm::max(run.a, run.b) + run.reach;
+    const int ya = std::max(y0, int(std::floor(lo.y))), yb = std::min(y1 - 1, int(std::ceil(hi.y)));
+    const glm::dvec2 ab = run.b - run.a;
+    const double length = glm::length(ab), texel = view.texel();
+    const glm::dvec2 u = length > 0 ? ab / length : glm::dvec2(0.0);
+    const double gapTexels = bias * texel;  // the bias at depth z is gapTexels * z (perspective)
+    for (int y = ya; y <= yb; ++y) {
+        double x0, x1;
+        rowSpan(run, y + 0.5, x0, x1);
+        const int xa = std::max(0, int(std::ceil(x0 - 0.5))), xb = std::min(res - 1, int(std::floor(x1 - 0.5)));
+        float* row = &v.penumbra[size_t(y) * res];
+        const float* depth = &v.shadow.depth[size_t(y) * res];
+        for (int x = xa; x <= xb; ++x) {
+            if (!(row[x] > 0.0f)) continue;  // already as dark as it gets
+            const double zp = depth[x];
+            const glm::dvec2 d = glm::dvec2(x + 0.5, y + 0.5) - run.a;
+            const double along = glm::dot(d, u), t = length > 0 ? std::clamp(along / length, 0.0, 1.0) : 0.0;
+            const double across = glm::dot(d, run.out);
+            const double distance = along >= 0 && along <= length ? across : glm::length(d - t * ab);
+            const double lv = run.linA + t * (run.linB - run.linA), a = distance * texel;
+            double i;
+            if (view.ortho) {
+                const double zgap = zp - lv;
+                if (!(zgap > view.texelWorld(lv) * bias)) continue;  // the occluder itself, or nothing
+                i = a / run.radius / zgap;
+            } else {
+                const double behind = zp * lv - 1.0, reach = run.radius * lv - a;
+                if (!(behind > gapTexels) || !(reach > 0)) continue;  // Z_P - Z_v > bias Z_v; the cone reaches
+                i = a / (reach * behind);
+            }
+            if (!(i <= 1.0)) continue;  // beyond the outer edge of this penumbra
+            row[x] = std::min(row[x], float(i * i * (3.0 - 2.0 * i)));
+        }
+    }
+}
+
+/// Reads every chunk of @p blockers from the start, calling @p f with each.
+template <class F>
+void forEachChunk(TriangleSource& blockers, PenumbraMapStats& stats, const std::function<void(uint64_t)>& progress, F&& f) {
+    blockers.rewind();
+    std::vector<Triangle> chunk(kTriangleChunk);
+    while (size_t n = blockers.read(chunk)) {
+        f(std::span<const Triangle>(chunk.data(), n));
+        stats.trianglesRead += n;
+        if (progress) progress(n);
+    }
+}
+
+std::vector<ViewMaps> prepareViews(const LightSamples& samples, int li, const ReceiverSet& receivers,
+                                   const PenumbraMapOptions& options) {
+    std::vector<ViewMaps> maps;
+    const glm::dvec3 c = lightCentre(samples, li);
+    const ConvexBound& bound = samples.lightBounds[size_t(li)];
+    for (const LightView& view : makeLightViews(samples, li, receivers, options.resolution, options.resolution / 2)) {
+        ViewMaps m;
+        m.view = view;
+        m.shadow.res = view.res;
+        m.shadow.depth.assign(size_t(view.res) * view.res, INFINITY);
+        m.penumbra.assign(size_t(view.res) * view.res, 1.0f);
+        for (const glm::dvec3& p : bound.vertices) {
+            if (bound.directional()) {  // tangent offsets of the sun's directions from its axis
+                const double along = glm::dot(p, -view.axis);
+                m.outline.push_back(glm::dvec2(glm::dot(p, view.e1), glm::dot(p, view.e2)) / along);
+            } else {
+                m.outline.push_back({glm::dot(p - c, view.e1), glm::dot(p - c, view.e2)});
+            }
+        }
+        maps.push_back(std::move(m));
+    }
+    return maps;
+}
+
+/// The visible fraction of receiver @p r from one light's maps.
+float lookup(const std::vector<ViewMaps>& maps, const glm::dvec3& r, const glm::dvec3& normal, double bias, double eps) {
+    const ViewMaps* best = &maps[0];
+    if (maps.size() > 1)  // a cube: the face the receiver's direction points through
+        for (const ViewMaps& m : maps)
+            if (m.view.depth(r) > best->view.depth(r)) best = &m;
+    const LightView& view = best->view;
+    const ViewPoint p = view.project(r);
+    const int x = int(std::floor(p.x)), y = int(std::floor(p.y));
+    if (!(p.z >= view.zNear) || x < 0 || y < 0 || x >= view.res || y >= view.res) return 1.0f;
+    const glm::dvec3 towards = view.ortho ? -view.axis : glm::normalize(view.origin - r);
+    const double cosine = std::abs(glm::dot(normal, towards));
+    const double slope = glm::length(normal) > 0 ? std::min(8.0, std::sqrt(std::max(0.0, 1 - cosine * cosine)) / std::max(cosine, 1e-3)) : 0.0;
+    const double b = bias * view.texelWorld(p.z) * (1.0 + slope) + eps;
+    if (double(best->shadow.at(x, y)) < p.z - b) return 0.0f;
+    return best->penumbra[size_t(y) * view.res + x];
+}
+
+}  // namespace
+
+uint64_t PenumbraMapOptions::mapBytes() const {
+    const uint64_t fitted = uint64_t(resolution) * resolution, cube = 6 * uint64_t(resolution / 2) * (resolution / 2);
+    return 2 * sizeof(float) * std::max(fitted, cube);
+}
+
+std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSet& receivers,
+                                   std::span<const uint32_t>, TriangleSource& blockers, const ReceiverEpsilon& epsilon,
+                                   const PenumbraMapOptions& options, PenumbraMapStats* stats,
+                                   const std::function<void(uint64_t)>& progress) {
+    PenumbraMapStats local;
+    const int lights = samples.lightCount();
+    std::vector<float> visibility(receivers.size() * size_t(lights), 1.0f);
+    for (int li = 0; li < lights; ++li) {
+        std::vector<ViewMaps> maps = prepareViews(samples, li, receivers, options);
+        local.views += int(maps.size());
+        uint64_t bytes = 0;
+        for (const ViewMaps& m : maps) bytes += (m.shadow.depth.size() + m.penumbra.size()) * sizeof(float);
+        local.mapBytes = std::max(local.mapBytes, bytes);
+        {
+            ScopedTimer timer(local.shadowSeconds);
+            forEachChunk(blockers, local, progress, [&](std::span<const Triangle> chunk) {
+                for (ViewMaps& m : maps) rasterizeDepth(m.view, chunk, m.shadow);
+            });
+            for (ViewMaps& m : maps) buildTiles(m);
+        }
+        {
+            ScopedTimer timer(local.penumbraSeconds);
+            std::vector<std::vector<Run>> perTriangle;
+            std::vector<Run> runs;
+            forEachChunk(blockers, local, progress, [&](std::span<const Triangle> chunk) {
+                for (ViewMaps& m : maps) {
+                    perTriangle.assign(chunk.size(), {});
+                    tbb::parallel_for(size_t(0), chunk.size(), [&](size_t i) { findRuns(m, chunk[i], options.bias, perTriangle[i]); });
+                    runs.clear();
+                    for (const std::vector<Run>& r : perTriangle) runs.insert(runs.end(), r.begin(), r.end());
+                    local.silhouetteRuns += runs.size();
+                    const int rows = (m.view.res + kBands - 1) / kBands;
+                    tbb::parallel_for(0, kBands, [&](int band) {
+                        const int y0 = band * rows, y1 = std::min(m.view.res, y0 + rows);
+                        for (const Run& run : runs)
+                            if (std::max(run.a.y, run.b.y) + run.reach >= y0 && std::min(run.a.y, run.b.y) - run.reach <= y1)
+                                drawRun(m, run, options.bias, y0, y1);
+                    });
+                }
+            });
+        }
+        ScopedTimer timer(local.lookupSeconds);
+        tbb::parallel_for(size_t(0), receivers.size(), [&](size_t r) {
+            const glm::dvec3 p(receivers.position[r]);
+            visibility[r * lights + li] = lookup(maps, p, glm::dvec3(receivers.normal[r]), options.bias, epsilon.at(p));
+        });
+    }
+    if (stats) *stats = local;
+    return visibility;
+}
+
+nlohmann::json penumbraMapStatsJson(const PenumbraMapStats& s, const PenumbraMapOptions& o) {
+    return {{"resolution", o.resolution},
+            {"bias_texels", o.bias},
+            {"views", s.views},
+            {"map_bytes", s.mapBytes},
+            {"shadow_map_time_s", s.shadowSeconds},
+            {"penumbra_map_time_s", s.penumbraSeconds},
+            {"lookup_time_s", s.lookupSeconds},
+            {"silhouette_runs", s.silhouetteRuns},
+            {"triangles_read", s.trianglesRead}};
+}
+
+}  // namespace penumbra
+
+namespace penumbra {
+
+PenumbraMapOptions penumbraMapOptions(const JsonParams& bake) {
+    PenumbraMapOptions o;
+    o.resolution = int(bake.integer("penumbra_map_resolution", o.resolution, 16, 16384));
+    o.bias = bake.number("penumbra_map_bias", o.bias);
+    if (!(o.bias >= 0) || !std::isfinite(o.bias))
+        fail(bake.where("penumbra_map_bias"), "must be finite and non-negative, got {}", o.bias);
+    return o;
+}
+
+namespace {
+
+PenumbraMapOptions optionsOf(const nlohmann::json& bake) { return penumbraMapOptions(JsonParams(bake, "scene", "bake")); }
+
+/// Penumbra maps per light, streaming the blockers twice per light and cast; gives visible fractions.
+class PenumbraMapCaster final : public StreamedCaster {
+public:
+    explicit PenumbraMapCaster(const CastContext& c) : StreamedCaster(c), options_(optionsOf(c.methodOptions)) {}
+
+    void cast(TriangleSource& blockers, uint32_t first, const CastSink& sink) override {
+        observeOnce(blockers);
+        const ReceiverSet targets = receiversFrom(c_.receivers, first);
+        const int lights = c_.samples.lightCount();
+        ProgressReporter progress("penumbra-map", 2 * blockers.sizeHint().value_or(0) * uint64_t(lights), c_.quiet);
+        PenumbraMapStats s;
+        const std::vector<float> v = castPenumbraMap(c_.samples, targets, std::span<const uint32_t>(c_.sampleSets).subspan(first), blockers,
+                                                     receiverEpsilonOf(c_.options), options_, &s, [&](uint64_t n) { progress.update(n); });
+        progress.done();
+        if (first == 0) stats_ = s;  // the first pass's: a refinement's few receivers would hide them
+        reportInParallel(first, uint32_t(c_.receivers.size()),
+                         [&](uint32_t r) { sink.visibility(r, &v[size_t(r - first) * size_t(lights)]); });
+    }
+
+    nlohmann::json methodStats() const override { return penumbraMapStatsJson(stats_, options_); }
+
+private:
+    PenumbraMapOptions options_;
+    PenumbraMapStats stats_;
+};
+
+const CasterRegistration kPenumbraMap{
+    {"penumbra-map",
+     {.exact = false, .masks = false, .sortedBlockers = false,
+      .summary = "penumbra maps (Wyman & Hansen 2003): an approximate preview, visible fractions only"},
+     [](const CastContext& c) { return std::make_unique<PenumbraMapCaster>(c); },
+     [](uint64_t, uint64_t receivers, const LightSamples& samples, const nlohmann::json& bake) {
+         // One light's maps at a time, and every receiver's visible fraction of every light.
+         return optionsOf(bake).mapBytes() + receivers * uint64_t(samples.lightCount()) * sizeof(float);
+     },
+     [](const JsonParams& bake) { penumbraMapOptions(bake); }}};
+
+}  // namespace
+}  // namespace penumbra

@@ -1,0 +1,75 @@
+#pragma once
+/// @file PenumbraMap.h
+/// @brief `--method penumbra-map`: Wyman & Hansen's penumbra maps (2003), an approximate preview.
+///
+/// Per light, from its centre (a sun: along its central direction), over the streamed geometry
+/// and in memory bounded by the maps (never by the triangle count):
+///  1. a shadow map: the nearest depth per texel (LightView.h);
+///  2. a penumbra map, built in a second pass from the silhouette edges seen from the light's
+///     centre: an edge is a silhouette where the shadow map, 1.5 texels beyond the edge on the
+///     side away from its triangle, holds a surface farther than the edge by more than the bias,
+///     while the edge itself is the nearest surface. This needs no adjacency, so triangle soups
+///     work and nothing but the maps is held. Along each silhouette run a sheet, closed by cones
+///     at its ends, is drawn: at angular distance a from the edge, the cone of a vertex at depth
+///     Z_v reaches depth Z_F = Z_v / (1 - a Z_v / L_r) (orthographic: Z_v + a / tan r), and the
+///     texel, whose nearest surface is at Z_P, gets the paper's intensity
+///     I = (Z_F - Z_v) / (Z_P - Z_v), smoothed to 3 I^2 - 2 I^3; the darkest value wins.
+///     L_r is the light's half-width across the edge, seen from the centre.
+///  3. A receiver is in full shadow when the shadow map holds a surface nearer than it by more
+///     than the bias (slope-scaled); otherwise its visible fraction is its penumbra-map texel.
+/// Umbrae are the hard shadow from the centre and only outer penumbrae exist, so shadows come out
+/// larger and darker than the exact ones; overlapping penumbrae take the darkest, not the product.
+///
+/// The result is a visible fraction per receiver and light, not per-sample masks; irradiance is
+/// the unoccluded irradiance scaled by it (ReceiverShader::shadeVisibleFraction).
+
+#include "bake/rule/BlockingRule.h"
+#include "bake/light/Light.h"
+#include "receivers/ReceiverSet.h"
+#include "stream/util/JsonParams.h"
+#include "stream/TriangleSource.h"
+
+#include <nlohmann/json.hpp>
+
+#include <functional>
+#include <span>
+#include <vector>
+
+namespace penumbra {
+
+/// @brief Scene keys bake.penumbra_map_resolution, bake.penumbra_map_bias (and the flags of the
+/// same names).
+struct PenumbraMapOptions {
+    int resolution = 1024;      ///< texels per side of a fitted view; cube faces get half
+    double bias = 1.5;          ///< depth bias in texels of the shadow map, scaled by the receiver's slope
+    /// Bytes of one light's maps (depth and penumbra, float, at most six cube faces).
+    uint64_t mapBytes() const;
+};
+
+/// @brief Reads bake.penumbra_map_resolution and bake.penumbra_map_bias (defaults when absent).
+/// @throw InputError naming the key for a value out of range
+PenumbraMapOptions penumbraMapOptions(const JsonParams& bake);
+
+struct PenumbraMapStats {
+    int views = 0;
+    uint64_t mapBytes = 0;        ///< the largest light's maps
+    double shadowSeconds = 0;     ///< pass 1: shadow maps
+    double penumbraSeconds = 0;   ///< pass 2: silhouettes, cones and sheets
+    double lookupSeconds = 0;
+    uint64_t silhouetteRuns = 0;  ///< runs of silhouette edge drawn as sheets
+    uint64_t trianglesRead = 0;
+};
+
+/// @brief The visible fraction of every light for every receiver, receiver-major (r * lights + l).
+/// @param sampleSets unused: the method has no samples (kept for a common caster signature)
+/// @param epsilon the rule's receiver epsilon, the smallest depth bias
+/// @param blockers read twice per light, from the start (rewound)
+std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSet& receivers,
+                                   std::span<const uint32_t> sampleSets, TriangleSource& blockers,
+                                   const ReceiverEpsilon& epsilon, const PenumbraMapOptions& options,
+                                   PenumbraMapStats* stats = nullptr, const std::function<void(uint64_t)>& progress = {});
+
+/// @brief The stats JSON's "penumbra_map" section.
+nlohmann::json penumbraMapStatsJson(const PenumbraMapStats& stats, const PenumbraMapOptions& options);
+
+}  // namespace penumbra

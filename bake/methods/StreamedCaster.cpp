@@ -1,0 +1,23 @@
+#include "bake/methods/StreamedCaster.h"
+
+#include <tbb/parallel_for.h>
+
+#include <vector>
+
+namespace penumbra {
+
+void StreamedCaster::observeOnce(TriangleSource& blockers) {
+    if (observed_ || !c_.observeChunk) return;
+    observed_ = true;
+    blockers.rewind();
+    std::vector<Triangle> chunk(kTriangleChunk);
+    while (size_t n = blockers.read(chunk)) c_.observeChunk(std::span<const Triangle>(chunk.data(), n));
+}
+
+void StreamedCaster::reportInParallel(uint32_t first, uint32_t end, const std::function<void(uint32_t)>& report) {
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(first, end, 1024), [&](const tbb::blocked_range<uint32_t>& range) {
+        for (uint32_t r = range.begin(); r != range.end(); ++r) report(r);
+    });
+}
+
+}  // namespace penumbra

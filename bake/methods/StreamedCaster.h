@@ -1,0 +1,29 @@
+#pragma once
+/// @file StreamedCaster.h
+/// @brief The part the methods that stream the blockers in any order share (penumbra-map, hh):
+/// they read the blockers in passes of their own, so a receiver kind that wants to see every
+/// chunk (CastContext::observeChunk) gets one read of its own, and results reach the sink from the
+/// worker threads.
+
+#include "bake/cast/Caster.h"
+
+#include <functional>
+
+namespace penumbra {
+
+class StreamedCaster : public Caster {
+protected:
+    explicit StreamedCaster(const CastContext& context) : c_(context) {}
+
+    /// @brief Shows every blocker chunk to the receiver kind, on the first cast only.
+    void observeOnce(TriangleSource& blockers);
+    /// @brief Calls @p report for receivers [@p first, @p end) on the worker threads.
+    static void reportInParallel(uint32_t first, uint32_t end, const std::function<void(uint32_t)>& report);
+
+    const CastContext c_;
+
+private:
+    bool observed_ = false;
+};
+
+}  // namespace penumbra

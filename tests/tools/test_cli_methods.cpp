@@ -1,0 +1,116 @@
+// The other methods end to end (ssv, penumbra-map, hh, and the existing ones): the same output
+// bytes for one and two threads, ssv equal to hpc up to ties, and clean refusals.
+
+#include "CliRunner.h"
+
+#include "stream/util/Npy.h"
+
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+
+using namespace penumbra;
+using namespace penumbra::test;
+
+namespace {
+
+const char* kCameraScene = R"({
+  "geometry": [{"type": "grid", "cells": 4, "levels": 2, "size": 2, "floor_size": 5}],
+  "lights": [{"type": "rect", "center": [0,4,0], "u": [1,0,0], "v": [0,0,1], "samples": 64, "sample_sets": 4}],
+  "receivers": {"type": "camera", "eye": [0,4,5], "target": [0,0.5,0], "width": 48, "height": 36},
+  "output": "out/camera.exr"})";
+
+/// The lightmap example's room and blockers at a small resolution, copied beside the scene (scene
+/// paths stay in the scene's directory).
+std::string lightmapScene(const ScratchDir& dir) {
+    for (const char* name : {"room.obj", "room-blockers.obj"})
+        std::filesystem::copy_file(std::string(PENUMBRA_SOURCE_DIR) + "/examples/" + name, dir / name);
+    return R"({"geometry": [{"type": "obj", "path": "room.obj"}, {"type": "obj", "path": "room-blockers.obj"}],
+      "lights": [{"type": "rect", "center": [2.2, 4.0, 1.8], "u": [1.5, 0, 0], "v": [0, 0, 1.5], "samples": 64, "sample_sets": 4}],
+      "receivers": {"type": "lightmap", "meshes": [0], "resolution": 48, "padding": 2},
+      "output": "out/lightmap.exr"})";
+}
+
+void write(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+
+/// Bakes @p scene with @p method on 1 and 2 threads and requires identical output files.
+void requireThreadIndependent(const ScratchDir& dir, const std::string& scene, const std::string& method,
+                              const std::vector<std::string>& outputs) {
+    for (int threads : {1, 2}) {
+        const std::string out = dir / ("t" + std::to_string(threads) + "-" + method);
+        RunResult r = runPenumbra("bake " + scene + " -q --method " + method + " --threads " + std::to_string(threads) +
+                                  " -o " + out + "/out.exr --visibility " + out + "/v.npy");
+        INFO(method << ", " << threads << " threads: " << r.err);
+        REQUIRE(r.exitCode == 0);
+    }
+    for (const std::string& name : outputs) {
+        INFO(method << ": " << name);
+        const std::string a = slurp(dir / ("t1-" + method + "/" + name)), b = slurp(dir / ("t2-" + method + "/" + name));
+        CHECK(!a.empty());
+        CHECK(a == b);
+    }
+}
+
+}  // namespace
+
+TEST_CASE("every method gives the same output bytes on one and two threads", "[cli][methods]") {
+    ScratchDir dir("methods");
+    write(dir / "camera.json", kCameraScene);
+    write(dir / "lightmap.json", lightmapScene(dir));
+    for (const char* method : {"hpc", "reference", "embree", "ssv", "penumbra-map"})
+        requireThreadIndependent(dir, dir / "camera.json", method, {"out.exr", "out.png", "v.npy"});
+    for (const char* method : {"hpc", "hh"})
+        requireThreadIndependent(dir, dir / "lightmap.json", method, {"out-room.exr", "out-room.png", "v.npy"});
+}
+
+TEST_CASE("ssv bakes the masks hpc bakes up to ties, and hh and penumbra-map refuse what they cannot do", "[cli][methods]") {
+    ScratchDir dir("methods");
+    write(dir / "camera.json", kCameraScene);
+    for (const char* method : {"hpc", "ssv"}) {
+        RunResult r = runPenumbra("bake " + (dir / "camera.json") + " -q --method " + method + " -o " + (dir / method) +
+                                  ".exr --dump " + (dir / method) + " --stats " + (dir / method) + ".json");
+        INFO(r.err);
+        REQUIRE(r.exitCode == 0);
+    }
+    RunResult cmp = runPenumbra("compare " + (dir / "hpc") + " " + (dir / "ssv") + " --scene " + (dir / "camera.json"));
+    INFO(cmp.out);
+    CHECK(cmp.exitCode == 0);
+    CHECK_THAT(slurp(dir / "ssv.json"), Catch::Contains("\"edges_per_frustum\"") && Catch::Contains("\"kd_tree\""));
+
+    RunResult hh = runPenumbra("bake " + (dir / "camera.json") + " -q --method hh");
+    CHECK(hh.exitCode == 1);
+    CHECK(lineCount(hh.err) == 1);
+    CHECK_THAT(hh.err, Catch::StartsWith("penumbra: error: --method hh: applies to lightmap receivers only"));
+    RunResult dump = runPenumbra("bake " + (dir / "camera.json") + " -q --method penumbra-map --dump " + (dir / "pm"));
+    CHECK(dump.exitCode == 1);
+    CHECK(lineCount(dump.err) == 1);
+    CHECK_THAT(dump.err, Catch::StartsWith("penumbra: error: --dump: --method penumbra-map"));
+    CHECK_FALSE(std::filesystem::exists(dir / "pm"));
+
+    RunResult pm = runPenumbra("bake " + (dir / "camera.json") + " -q --method penumbra-map --penumbra-map-resolution 256 -o " +
+                               (dir / "pm.exr") + " --visibility " + (dir / "pm.npy"));
+    REQUIRE(pm.exitCode == 0);
+    const NpyArray v = readNpy(dir / "pm.npy");
+    CHECK(v.dtype == "<f4");
+    REQUIRE(v.shape.size() == 1);
+    CHECK(v.shape[0] == readNpy(dir / "hpc/receivers.npy").shape[0]);
+}
+
+TEST_CASE("a method's own scene keys are read by the method whichever method bakes", "[cli][methods]") {
+    ScratchDir dir("methods");
+    auto scene = [&](const std::string& bake) {
+        std::string text = kCameraScene;
+        text.insert(text.rfind('}'), ", \"bake\": {" + bake + "}");
+        write(dir / "keys.json", text);
+        return dir / "keys.json";
+    };
+    // Accepted by every method (hpc ignores them), so a scene tuned for a preview still bakes exactly.
+    RunResult ok = runPenumbra("bake " + scene("\"penumbra_map_resolution\": 64, \"penumbra_map_bias\": 2") + " -q -o " +
+                               (dir / "keys.exr"));
+    INFO(ok.err);
+    CHECK(ok.exitCode == 0);
+    requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_resolution\": 8") + " -q"), "bake.penumbra_map_resolution");
+    requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_bias\": -1") + " -q --method penumbra-map"),
+                      "bake.penumbra_map_bias: must be finite and non-negative");
+    requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_resolutions\": 64") + " -q"), "penumbra_map_resolutions");
+}

@@ -1,0 +1,85 @@
+#pragma once
+/// @file BenchSupport.h
+/// @brief What the benchmarks share: bakes in child processes (so peak RSS is each bake's own),
+/// the machine and load they ran on, scene files resized for a row, and the generated sections
+/// they splice into docs/BENCHMARKS.md.
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace penumbra {
+
+std::string slurpFile(const std::string& path);
+/// Writes @p text to @p path atomically, creating its folder.
+void writeText(const std::string& path, const std::string& text);
+/// CPU, cores, RAM, OS, compiler and commit, for the record.
+nlohmann::json machineInfo();
+/// The 1-minute load average: on a shared machine it says how many cores the bench really had.
+double loadAverage();
+std::string utcNow();
+
+/// A finished child process: exit status, wall time, peak RSS and what it printed.
+struct ChildResult {
+    int exitCode = -1;
+    double wallSeconds = 0;
+    uint64_t peakRssBytes = 0;  ///< wait4() ru_maxrss: this child's own peak
+    double cpuSeconds = 0;      ///< user + system time of the child, all its threads
+    std::string out, err;
+};
+
+/// @brief Runs this executable with @p args in a child process, stdout and stderr to files in @p dir.
+ChildResult runSelf(const std::vector<std::string>& args, const std::filesystem::path& dir);
+/// Last non-empty line of a child's stderr, for error records.
+std::string lastLine(const std::string& text);
+
+/// A temporary directory removed with its contents when the benchmark ends (or throws).
+struct TempDir {
+    std::filesystem::path path;
+    explicit TempDir(const std::string& parent);
+    ~TempDir();
+};
+
+/// @brief Runs one bake in a child and returns its stats with the child's wall time, CPU time and
+/// peak RSS added (or {"error": ...}).
+nlohmann::json bakeChild(const std::filesystem::path& scene, const std::string& method, int threads,
+                         const std::filesystem::path& work, const std::vector<std::string>& extra = {});
+
+/// The fastest of @p repeat bakes by @p seconds (errors win only if every run failed).
+template <class Seconds>
+nlohmann::json bestOf(int repeat, Seconds seconds, const std::function<nlohmann::json()>& run) {
+    nlohmann::json best;
+    for (int i = 0; i < repeat; ++i) {
+        nlohmann::json s = run();
+        if (s.contains("error")) {
+            if (best.is_null()) best = s;
+            continue;
+        }
+        if (best.is_null() || best.contains("error") || seconds(s) < seconds(best)) best = s;
+    }
+    return best;
+}
+
+/// Parses `penumbra compare` output: its "key value" lines (the listed mismatches are skipped).
+std::map<std::string, uint64_t> parseCompare(const std::string& text);
+
+/// @brief A scene name in @p examplesDir ("grids") or a .json path. @throw InputError when missing.
+std::filesystem::path benchSceneFile(const std::string& examplesDir, const std::string& name);
+std::string sceneName(const std::string& name);
+
+/// @brief @p scene with its camera at @p width x @p height, every light at @p samples samples
+/// with u and v scaled by @p lightScale, writing its output to @p output.
+nlohmann::json resizedScene(nlohmann::json scene, int width, int height, int samples, double lightScale,
+                            const std::filesystem::path& output);
+
+/// @brief Replaces the part of @p document between @p begin and @p end (marker lines) with
+/// @p generated; without markers, appends @p heading and the markers. Other sections are kept.
+std::string replaceGeneratedSection(const std::string& document, const std::string& begin, const std::string& end,
+                                    const std::string& heading, const std::string& generated);
+
+}  // namespace penumbra
