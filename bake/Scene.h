@@ -4,6 +4,7 @@
 /// docs/scene-format.md is the reference for every key.
 
 #include "bake/CastOptions.h"
+#include "bake/ExrSettings.h"
 #include "bake/Light.h"
 #include "stream/JsonParams.h"
 #include "stream/Transform.h"
@@ -38,6 +39,7 @@ struct SceneDesc {
     std::vector<LightDesc> lights;
     nlohmann::json receivers;  ///< the "receivers" object; ReceiverKind.h makes the kind from it
     std::string output = "out/shadows.exr";
+    ExrSettings exr;  ///< "exr": pixel type, tiles and what R, G, B hold (camera and lightmap EXRs)
     CastOptions options;
     uint64_t seed = 1;
     /// bake.smooth_shading: smooth coherent shading in the camera's PNG preview (the EXR keeps the
