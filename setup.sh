@@ -10,7 +10,7 @@ packages=(build-essential cmake ninja-build ccache pkg-config
   libopenvdb-dev libboost-iostreams-dev libopenexr-dev libimath-dev libtinygltf-dev
   libglm-dev libtbb-dev catch2 libembree-dev nlohmann-json3-dev libcli11-dev
   libfmt-dev libstb-dev libdraco-dev libmeshoptimizer-dev gltfpack draco
-  zlib1g-dev)
+  zlib1g-dev clang libfuzzer-14-dev)
 
 missing=()
 for p in "${packages[@]}"; do
@@ -24,6 +24,10 @@ if ((${#missing[@]})); then
 fi
 
 build=${PENUMBRA_BUILD_DIR:-build}
+# The tests CI runs under the sanitizers: every reader, output and command-line error test.
+sanitize_spec=${PENUMBRA_SANITIZE_SPEC:-"[stream],[io],[cli]~[memory],[obj],[gltf],[ptri],[scene],[geometry],[inputs],[paths],[output-safety],[full-disk]"}
+# Clones in other directories share the compiler cache: ccache hashes paths relative to here.
+export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$PWD}"
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$build" --parallel "$(nproc)"
 
@@ -46,7 +50,18 @@ case "$mode" in
     "$build/penumbra" bake examples/grids.json -o out/default.exr --stats out/default-stats.json
     echo "setup: wrote out/default.exr and out/default.png" >&2 ;;
   test)
-    cd "$build" && ctest --output-on-failure --timeout 1200 ;;
+    (cd "$build" && ctest --output-on-failure --timeout 1200)
+    # The same tests of readers, outputs and the command line under AddressSanitizer and UBSan,
+    # then every parser's fuzzer for a bounded time (docs/reliability.md). PENUMBRA_FUZZ_SECONDS
+    # sets the time per harness; PENUMBRA_SANITIZE_TESTS=0 skips both.
+    if [ "${PENUMBRA_SANITIZE_TESTS:-1}" != 0 ]; then
+      fuzzbuild=${PENUMBRA_FUZZ_BUILD_DIR:-build-fuzz}
+      cmake -S . -B "$fuzzbuild" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_COMPILER=clang++ \
+        -DPENUMBRA_FUZZ=ON -DPENUMBRA_SANITIZE=address,undefined -DPENUMBRA_TEST_SPEC="$sanitize_spec" >/dev/null
+      cmake --build "$fuzzbuild" --parallel "$(nproc)"
+      (cd "$fuzzbuild" && ctest --output-on-failure --timeout 1200)
+      fuzz/run.sh "$fuzzbuild" "${PENUMBRA_FUZZ_SECONDS:-60}"
+    fi ;;
   build) ;;
   *) echo "usage: ./setup.sh [bake|test|build]" >&2; exit 2 ;;
 esac

@@ -1,8 +1,8 @@
 #include "bake/BakeMemory.h"
 
-#include "bake/PenumbraCaster.h"
-#include "bake/SampleMaskTable.h"
-#include "bake/SunLight.h"
+#include "bake/cast/PenumbraCaster.h"
+#include "bake/cast/SampleMaskTable.h"
+#include "bake/light/SunLight.h"
 #include "bucket/BucketOptions.h"
 #include "stream/Error.h"
 #include "stream/Memory.h"
@@ -52,7 +52,7 @@ MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, 
     MemoryDemand d;
     d.dumpMasks = dump;
     d.scanBytes = kind.scanBytes();
-    d.receivers = kind.maxReceivers();
+    d.receivers = kind.receiverBound().value_or(0);
     d.kindBytes = kind.maxResidentBytes(d.receivers, geometry.knownSize());
     d.outputBytes = kind.outputBytes(d.receivers);
     // The sources read ahead on a thread of their own (PrefetchSource: 4 chunks queued, one being

@@ -13,9 +13,9 @@
 /// Later plans only see smaller or equal demands, so they cannot fail again (the antialiasing
 /// pass, whose receivers depend on the first cast's results, is checked when they are known).
 
-#include "bake/Light.h"
+#include "bake/light/Light.h"
 #include "bake/MemoryPlan.h"
-#include "bake/ReceiverKind.h"
+#include "bake/kinds/ReceiverKind.h"
 #include "bake/Scene.h"
 #include "stream/TriangleSource.h"
 

@@ -4,9 +4,9 @@
 /// (software, capDate, utcOffset, worldToCamera, worldToNDC) and the bake's settings, each with
 /// its own type (int, float, v3f, float vector), never numbers in strings.
 
-#include "bake/ExrSettings.h"
-#include "bake/ImageWriters.h"
-#include "bake/Light.h"
+#include "bake/output/ExrSettings.h"
+#include "bake/output/ImageWriters.h"
+#include "bake/light/Light.h"
 #include "receivers/CameraReceivers.h"
 
 #include <vector>

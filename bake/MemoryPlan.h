@@ -26,6 +26,7 @@ struct MemoryDemand {
     bool dumpMasks = false;      ///< --dump keeps every receiver's final mask
     uint64_t bufferBytes = 0;    ///< bucket buffers, chunks and other fixed buffers
     uint64_t kindBytes = 0;      ///< held by the receiver kind through casting (smooth shading's vertex table, a refinement pass)
+    uint64_t methodBytes = 0;    ///< held by the method while it casts (CasterEntry::memory: a ray caster's scene)
     uint64_t sourceBytes = 0;    ///< the geometry sources' working set while they stream (TriangleSource::residentBytes)
     std::string sourceDetail;    ///< what dominates sourceBytes, for the message (a large compressed primitive)
     bool sourceDuringCast = false;  ///< the sources are replayed by the cast (no bucket files)

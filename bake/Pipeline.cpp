@@ -1,23 +1,24 @@
 #include "bake/Pipeline.h"
 
-#include "bake/BakeDump.h"
-#include "bake/ClosedSolids.h"
+#include "bake/output/BakeDump.h"
 #include "bake/BakeMemory.h"
-#include "bake/EmbreeCaster.h"
+#include "bake/BakeOutputs.h"
+#include "bake/BakeStats.h"
 #include "bake/MemoryPlan.h"
-#include "bake/PenumbraCaster.h"
-#include "bake/ReachCull.h"
-#include "bake/ReceiverKind.h"
-#include "bake/ReceiverShading.h"
-#include "bake/ReferenceCaster.h"
-#include "bake/SampleMaskTable.h"
-#include "bake/SunLight.h"
+#include "bake/kinds/ReceiverKind.h"
+#include "bake/shading/ReceiverShading.h"
+#include "bake/WorkPlan.h"
+#include "bake/cast/Caster.h"
+#include "bake/cast/ClosedSolids.h"
+#include "bake/cast/ReachCull.h"
+#include "bake/cast/VisibilityMasks.h"
+#include "bake/light/SunLight.h"
 #include "bucket/BucketPlan.h"
 #include "stream/AnonymousFile.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
+#include "stream/InputFile.h"
 #include "stream/Memory.h"
-#include "stream/Npy.h"
 #include "stream/PrefetchSource.h"
 #include "stream/Progress.h"
 
@@ -104,6 +105,10 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     // Read ahead on a thread of its own, so parsing or generation overlaps with rasterizing
     // receivers (scan pass) and writing bucket files (bucket pass).
     TriangleSourcePtr source = std::make_unique<PrefetchSource>(std::move(geometry));
+    // Before any triangle is read: the bucket files must fit on disk, and hours of work are announced.
+    checkBucketDisk(settings.tmpDir, source->sizeHint(), scene.options.sortBlockers);
+    noteLongBake(source->sizeHint().value_or(0), 1,
+                 int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)), settings.quiet);
     AreaHistogram histogram;
     {
         ScopedTimer timer(streamSeconds);
@@ -134,7 +139,9 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     source->rewind();
     if (!p.openedSolids.ordinals.empty())
         source = std::make_unique<OpenSolidsSource>(std::move(source), p.openedSolids.ordinals);
-    if (!scene.options.sortBlockers) {  // stream order: replay the source itself
+    // A method that gains nothing from largest-first order (it holds or streams the scene in any
+    // order) skips the bucket pass.
+    if (!scene.options.sortBlockers || !casterEntry(settings.method).traits.sortedBlockers) {  // replay the source itself
         if (kind.wantsRescan()) {  // no bucket pass to ride along with: a read of its own
             std::vector<Triangle> chunk(kTriangleChunk);
             while (size_t n = source->read(chunk)) kind.rescan(std::span<const Triangle>(chunk.data(), n));
@@ -167,97 +174,6 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     return p;
 }
 
-/// Adds the stats of one more tile or cast pass to @p total; they run one after another, so
-/// peaks are the largest one's, not the sum.
-void accumulate(CastStats& total, const CastStats& s) {
-    total.hierarchyBuildSeconds += s.hierarchyBuildSeconds;
-    total.castSeconds += s.castSeconds;
-    total.replayReadSeconds += s.replayReadSeconds;
-    total.trianglesProcessed += s.trianglesProcessed;
-    total.trianglesCulledAtRoot += s.trianglesCulledAtRoot;
-    total.closedBackFaces += s.closedBackFaces;
-    total.rebuilds += s.rebuilds;
-    total.hardShadowTests += s.hardShadowTests;
-    total.tableDecidedRelations += s.tableDecidedRelations;
-    total.sampleTableBytes = std::max(total.sampleTableBytes, s.sampleTableBytes);
-    // Tiles run one after another: peaks are the largest tile's, not the sum.
-    total.peakLiveMasks = std::max(total.peakLiveMasks, s.peakLiveMasks);
-    total.peakMaskBytes = std::max(total.peakMaskBytes, s.peakMaskBytes);
-    total.peakHierarchyBytes = std::max(total.peakHierarchyBytes, s.peakHierarchyBytes);
-    total.receiverBytes = std::max(total.receiverBytes, s.receiverBytes);
-}
-
-/// Within a memory tile, threads work on disjoint sub-tiles, four per thread: more sub-tiles even
-/// out uneven work (measured on GRIDS with a barrier per chunk, 2 threads: 2 per thread cast in
-/// 4.28 s, 4 in 3.86 s, 8 in 3.92 s; docs/performance.md, "Parallelism").
-int subTiles(int threads) { return threads > 1 ? 4 * threads : 1; }
-
-/// Hierarchical penumbra casting of receivers [first, end), one memory tile after another; each
-/// tile replays the blockers. The first tile of the bake's first pass reads the replay the scan
-/// pass left ready; every other tile rewinds it. The kind sees the first tile's chunks when it
-/// asks for them.
-CastStats castHierarchical(Prepared& p, const SceneDesc& scene, const BakeSettings& settings, int threads,
-                           const MemoryPlan& plan, const ReceiverShader& shader, ReceiverResults& results,
-                           VisibilityMasks* dumpMasks, ReceiverKind& kind, uint32_t first, bool rewindFirst) {
-    CastStats total;
-    std::vector<uint32_t> ids(p.receivers.size() - first);
-    for (uint32_t i = 0; i < ids.size(); ++i) ids[i] = first + i;
-    const auto tiles = partitionReceivers(p.receivers, ids, plan.tiles);
-    ProgressReporter progress("cast", p.blockers->sizeHint().value_or(p.triangleCount) * tiles.size(), settings.quiet);
-    const bool feedKind = kind.wantsCastChunks();
-    std::vector<Triangle> chunk(kTriangleChunk);
-    for (size_t t = 0; t < tiles.size(); ++t) {
-        const auto& tile = tiles[t];
-        double readSeconds = 0;
-        PenumbraCaster caster(p.samples, p.receivers, p.sampleSets, p.options, subTiles(threads), tile);
-        if (t > 0 || rewindFirst) p.blockers->rewind();
-        for (;;) {
-            size_t n;
-            {
-                ScopedTimer timer(readSeconds);
-                n = p.blockers->read(chunk);
-            }
-            if (n == 0) break;
-            std::span<const Triangle> part(chunk.data(), n);
-            // Smooth shading's pass over the faces runs on this thread while the tiles cast earlier
-            // chunks on the others. (As a parallel_invoke beside cast() it could sit unstolen in
-            // this thread's queue while cast() waited for a ring slot.)
-            if (feedKind && t == 0) kind.castChunk(part);
-            caster.cast(part);
-            progress.update(n);
-        }
-        caster.finish([&](uint32_t r, const uint64_t* words, bool full) {
-            shader.shade(r, words, full, results);
-            if (dumpMasks)
-                for (int k = 0; k < dumpMasks->groups; ++k)
-                    dumpMasks->row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
-        });
-        // Tile hierarchies are built on worker threads, in their malloc arenas; hand the freed
-        // memory back before the next tile, or arenas keep it and RSS creeps past the plan.
-        returnFreedMemory();
-        CastStats s = caster.stats();
-        s.replayReadSeconds = readSeconds;
-        accumulate(total, s);
-    }
-    progress.done();
-    return total;
-}
-
-/// Calls @p f with @p all in chunks of kTriangleChunk.
-template <class F>
-void forEachChunk(const std::vector<Triangle>& all, F&& f) {
-    for (size_t i = 0; i < all.size(); i += kTriangleChunk)
-        f(std::span<const Triangle>(all).subspan(i, std::min(kTriangleChunk, all.size() - i)));
-}
-
-/// Receivers [first, end) of @p set as a set of their own (the ray casters take whole sets).
-ReceiverSet tailOf(const ReceiverSet& set, size_t first) {
-    ReceiverSet out;
-    out.position.assign(set.position.begin() + first, set.position.end());
-    out.normal.assign(set.normal.begin() + first, set.normal.end());
-    return out;
-}
-
 /// Appends @p extra (refinement receivers) to @p set.
 void append(ReceiverSet& set, const ReceiverSet& extra) {
     set.position.insert(set.position.end(), extra.position.begin(), extra.position.end());
@@ -266,195 +182,151 @@ void append(ReceiverSet& set, const ReceiverSet& extra) {
     set.depth.insert(set.depth.end(), extra.depth.begin(), extra.depth.end());
 }
 
+/// One bake's state, filled stage by stage.
+struct Bake {
+    const SceneDesc& scene;
+    const BakeSettings& settings;
+    const CasterEntry& method;
+    int threads;
+    BakeBudget budget;
+    std::unique_ptr<ReceiverKind> kind;
+    MemoryDemand demand;
+    uint64_t minimum = 0;  ///< the largest minimum budget any stage found
+    MemoryPlan plan;
+    Prepared p;
+    BucketStats buckets;
+    ReceiverResults results;
+    VisibilityMasks masks;  ///< every receiver's masks, for --dump only
+    std::unique_ptr<Caster> caster;
+    size_t firstPass = 0;  ///< receivers of the first pass; later ones are a refinement's
+    double streamSeconds = 0, castSeconds = 0, refineSeconds = 0;
+
+    Bake(const SceneDesc& s, const BakeSettings& b)
+        : scene(s), settings(b), method(casterEntry(b.method)),
+          threads(b.threads > 0 ? b.threads : int(tbb::info::default_concurrency())),
+          budget(fitAddressSpace(b.memoryBudget, threads, b.quiet)) {}
+    bool dump() const { return !settings.dumpDir.empty(); }
+    void replan() {
+        plan = budget.plan(demand);
+        minimum = std::max(minimum, plan.minimumBudget);
+        plan.minimumBudget = minimum;
+    }
+};
+
+/// Plan, scan, bucket: the receivers and light samples, and the blockers ready to replay. The
+/// worst case is checked before any work, the exact plan once the scan has found the receivers
+/// (BakeMemory.h).
+void scanScene(Bake& b) {
+    const SceneDesc& scene = b.scene;
+    b.kind = makeReceiverKind(scene.receivers, scene);
+    if (!b.method.traits.masks && b.dump())
+        fail("--dump", "--method {} gives visible fractions, not per-sample masks", b.method.name);
+    TriangleSourcePtr geometry = openSceneGeometry(scene);
+    b.demand = demandBeforeScan(scene, *b.kind, *geometry, b.dump());
+    checkBeforeScan(b.demand, b.budget);
+    // Without a budget the machine is the bound: refuse before any work what it cannot hold.
+    checkMemoryFits(scene.file, "the scan pass", scanPhaseBytes(b.demand));
+    checkMemoryFits(scene.file, "casting", planMemory(b.demand, 0).minimumBudget);
+    auto afterScan = [&](const Prepared& prepared, uint64_t triangles) {
+        b.demand.receivers = prepared.receivers.size();
+        b.demand.kindBytes = b.kind->maxResidentBytes(b.demand.receivers, triangles);
+        b.demand.outputBytes = b.kind->outputBytes(b.demand.receivers);
+        if (b.method.memory) b.demand.methodBytes = b.method.memory(triangles, prepared.samples, scene.bakeOptions);
+        addSampleDemand(b.demand, prepared.samples, scene);
+        b.minimum = b.budget.plan(b.demand).minimumBudget;
+    };
+    b.p = prepare(scene, b.settings, *b.kind, std::move(geometry), afterScan, b.streamSeconds, b.buckets);
+    b.demand.kindBytes = b.kind->residentBytes();
+    b.replan();
+    checkMemoryFits(scene.file, "casting", b.plan.minimumBudget);
+    b.results.resize(b.p.receivers.size(), int(b.p.lights.size()));
+    if (b.dump()) b.masks = VisibilityMasks(b.p.receivers.size(), b.p.samples.groupCount());
+    b.firstPass = b.p.receivers.size();
+}
+
+/// Casts receivers [first, end) with the bake's method, shading each as its result arrives.
+void castReceivers(Bake& b, uint32_t first) {
+    ScopedTimer timer(b.castSeconds);
+    Prepared& p = b.p;
+    if (!b.caster) {
+        CastContext context{p.samples, p.receivers,       p.sampleSets,      p.options, b.scene.bakeOptions,
+                            b.threads, b.plan.tiles,      b.settings.quiet, {},        nullptr};
+        if (b.kind->wantsCastChunks()) context.observeChunk = [&b](std::span<const Triangle> c) { b.kind->castChunk(c); };
+        b.caster = b.method.make(context);
+    }
+    const ReceiverShader shader(p.lights, p.samples, p.receivers, p.sampleSets);
+    CastSink sink;
+    sink.masks = [&](uint32_t r, const uint64_t* words, bool full) {
+        shader.shade(r, words, full, b.results);
+        if (b.dump())
+            for (int k = 0; k < b.masks.groups; ++k)
+                b.masks.row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
+    };
+    b.caster->cast(*p.blockers, first, sink);
+}
+
+/// Adaptive refinement: the kind looks at the first pass, finds its new receivers in one more read
+/// of the blockers, and only those are cast. @return whether receivers were added.
+bool refineReceivers(Bake& b) {
+    Prepared& p = b.p;
+    if (!b.kind->refine(p.receivers, b.results)) return false;
+    b.demand.kindBytes = b.kind->residentBytes() + b.kind->refineBytes();
+    b.replan();  // the refinement's rasterizer fits, or a clear error
+    {
+        ScopedTimer timer(b.refineSeconds);
+        p.blockers->rewind();
+        std::vector<Triangle> chunk(kTriangleChunk);
+        while (size_t n = p.blockers->read(chunk)) b.kind->refineScan(std::span<const Triangle>(chunk.data(), n));
+        append(p.receivers, b.kind->refinedReceivers());
+    }
+    returnFreedMemory();
+    for (size_t i = b.firstPass; i < p.receivers.size(); ++i)
+        p.sampleSets.push_back(uint32_t(sampleSetOf(i, p.samples.sets, b.scene.seed)));
+    b.results.extend(p.receivers.size());
+    if (b.masks.groups) b.masks.words.resize(p.receivers.size() * size_t(b.masks.groups), 0);
+    b.demand.receivers = p.receivers.size();
+    b.demand.kindBytes = b.kind->residentBytes();
+    b.demand.outputBytes = b.kind->outputBytes(p.receivers.size());
+    b.replan();
+    return true;
+}
+
+void writeOutputs(Bake& b) {
+    const Prepared& p = b.p;
+    b.kind->write(OutputContext{b.scene, p.receivers, p.samples, b.results, b.scene.output, b.firstPass});
+    if (b.dump()) writeBakeDump(b.settings.dumpDir, p.receivers, p.sampleSets, p.samples, b.masks, receiverEpsilonOf(p.options));
+}
+
 }  // namespace
 
-Method parseMethod(const std::string& name) {
-    if (name == "hpc") return Method::Hpc;
-    if (name == "reference") return Method::Reference;
-    if (name == "embree") return Method::Embree;
-    throw InputError("--method: unknown method \"" + name + "\" (known: hpc, reference, embree)");
-}
-
-const char* methodName(Method m) {
-    switch (m) {
-        case Method::Hpc: return "hpc";
-        case Method::Reference: return "reference";
-        case Method::Embree: return "embree";
-    }
-    return "?";
-}
-
 nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
+    InputScope inputs;  // no output may replace a file this bake reads
+    if (settings.threads < 0 || settings.threads > kMaxThreads)
+        fail("--threads", "must be in 0..{} (0: all cores), got {}", kMaxThreads, settings.threads);
+    checkBakeOutputs(scene, settings.statsPath, settings.dumpDir);
     Stopwatch total;
-    int threads = settings.threads > 0 ? settings.threads : int(tbb::info::default_concurrency());
-    BakeBudget budget = fitAddressSpace(settings.memoryBudget, threads, settings.quiet);
-    tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    Bake b(scene, settings);
+    tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(b.threads));
     tbb::global_control stacks(tbb::global_control::thread_stack_size, size_t(kWorkerStackBytes));
-    const bool dump = !settings.dumpDir.empty();
     setScratchDirectory(settings.tmpDir);  // spilled OBJ vertices go where the buckets go
 
-    // Check before any work that the bake fits (BakeMemory.h): the worst case now, exactly once the
-    // scan has found the receivers.
-    std::unique_ptr<ReceiverKind> kind = makeReceiverKind(scene.receivers, scene);
-    TriangleSourcePtr geometry = openSceneGeometry(scene);
-    MemoryDemand demand = demandBeforeScan(scene, *kind, *geometry, dump);
-    checkBeforeScan(demand, budget);
-    uint64_t scanMinimum = 0;  // the smallest budget that works, as the check after the scan found it
-    auto afterScan = [&](const Prepared& prepared, uint64_t triangles) {
-        demand.receivers = prepared.receivers.size();
-        demand.kindBytes = kind->maxResidentBytes(demand.receivers, triangles);
-        demand.outputBytes = kind->outputBytes(demand.receivers);
-        addSampleDemand(demand, prepared.samples, scene);
-        scanMinimum = budget.plan(demand).minimumBudget;
-    };
+    scanScene(b);
+    castReceivers(b, 0);
+    if (refineReceivers(b)) castReceivers(b, uint32_t(b.firstPass));
+    OutputSet outputs;  // every output of the bake appears together, or none does
+    writeOutputs(b);
 
-    double streamSeconds = 0;
-    BucketStats buckets;
-    Prepared p = prepare(scene, settings, *kind, std::move(geometry), afterScan, streamSeconds, buckets);
-    demand.kindBytes = kind->residentBytes();
-    MemoryPlan plan = budget.plan(demand);
-    plan.minimumBudget = std::max(plan.minimumBudget, scanMinimum);
-
-    ReceiverResults results;
-    results.resize(p.receivers.size(), int(p.lights.size()));
-    VisibilityMasks masks;
-    if (dump || settings.method != Method::Hpc) masks = VisibilityMasks(p.receivers.size(), p.samples.groupCount());
-
-    CastStats cast;
-    EmbreeStats embree;
-    double castSeconds = 0, refineSeconds = 0;
-    std::vector<Triangle> all;  // the ray casters' whole scene, read once
-    // One cast of receivers [first, end): the first pass casts them all, a refinement pass only
-    // the receivers it added.
-    auto castPass = [&](uint32_t first, bool rewind) {
-        ScopedTimer timer(castSeconds);
-        ReceiverShader shader(p.lights, p.samples, p.receivers, p.sampleSets);
-        if (settings.method == Method::Hpc) {
-            accumulate(cast, castHierarchical(p, scene, settings, threads, plan, shader, results, dump ? &masks : nullptr,
-                                              *kind, first, rewind));
-            return;
-        }
-        // The ray casters need the whole scene in memory: that is their nature, not ours.
-        if (all.empty()) {
-            all = readAll(*p.blockers);
-        }
-        if (kind->wantsCastChunks()) forEachChunk(all, [&](std::span<const Triangle> c) { kind->castChunk(c); });
-        const ReceiverSet part = first == 0 ? ReceiverSet{} : tailOf(p.receivers, first);
-        const ReceiverSet& targets = first == 0 ? p.receivers : part;
-        const std::span<const uint32_t> sets = std::span<const uint32_t>(p.sampleSets).subspan(first);
-        ProgressReporter progress(methodName(settings.method), targets.size(), settings.quiet);
-        auto tick = [&](uint64_t n) { progress.update(n); };
-        VisibilityMasks m = settings.method == Method::Reference
-                                ? castReference(p.samples, targets, sets, all, receiverEpsilonOf(p.options), tick)
-                                : castEmbree(p.samples, targets, sets, all, receiverEpsilonOf(p.options), &embree, tick,
-                                             p.options.embreeRuleFilter);
-        progress.done();
-        std::copy(m.words.begin(), m.words.end(), masks.words.begin() + size_t(first) * masks.groups);
-        for (uint32_t r = first; r < p.receivers.size(); ++r) shader.shade(r, masks.row(r), false, results);
-    };
-    castPass(0, false);
-
-    // Adaptive refinement: the kind looks at the first pass, finds its new receivers in one more
-    // read of the blockers, and only those are cast.
-    const size_t firstPass = p.receivers.size();
-    if (kind->refine(p.receivers, results)) {
-        demand.kindBytes = kind->residentBytes() + kind->refineBytes();
-        // The refinement's rasterizer fits, or a clear error; the stats report the largest minimum.
-        const uint64_t refineMinimum = budget.plan(demand).minimumBudget;
-        {
-            ScopedTimer timer(refineSeconds);
-            if (settings.method == Method::Hpc) {
-                p.blockers->rewind();
-                std::vector<Triangle> chunk(kTriangleChunk);
-                while (size_t n = p.blockers->read(chunk)) kind->refineScan(std::span<const Triangle>(chunk.data(), n));
-            } else {
-                forEachChunk(all, [&](std::span<const Triangle> c) { kind->refineScan(c); });
-            }
-            append(p.receivers, kind->refinedReceivers());
-        }
-        returnFreedMemory();
-        for (size_t i = firstPass; i < p.receivers.size(); ++i)
-            p.sampleSets.push_back(uint32_t(sampleSetOf(i, p.samples.sets, scene.seed)));
-        results.extend(p.receivers.size());
-        if (masks.groups) masks.words.resize(p.receivers.size() * size_t(masks.groups), 0);
-        demand.receivers = p.receivers.size();
-        demand.kindBytes = kind->residentBytes();
-        demand.outputBytes = kind->outputBytes(p.receivers.size());
-        plan = budget.plan(demand);
-        plan.minimumBudget = std::max({plan.minimumBudget, refineMinimum, scanMinimum});
-        castPass(uint32_t(firstPass), true);
-    }
-
-    kind->write(OutputContext{scene, p.receivers, p.samples, results, scene.output, firstPass});
-    if (dump) writeBakeDump(settings.dumpDir, p.receivers, p.sampleSets, p.samples, masks, receiverEpsilonOf(p.options));
-
-    uint64_t blocked = 0;
-    for (float v : results.visibility) blocked += uint64_t(std::llround((1.0 - v) * p.samples.sampleCount));
-    nlohmann::json stats = {
-        {"scene", scene.file},
-        {"method", methodName(settings.method)},
-        {"threads", threads},
-        {"simd", simdName(hardShadowKernels(scene.options.simd).level)},
-        {"receivers", p.receivers.size()},
-        {"light_samples", p.samples.sampleCount},
-        {"sample_sets", p.samples.sets},
-        {"light_sample_groups", p.samples.groupCount()},
-        {"epsilon", {{"relative", p.options.epsilon}, {"length", p.options.epsilonLength}}},
-        {"blocked_relations", blocked},
-        {"table2",
-         {{"sort_time_s", buckets.seconds},
-          {"hierarchy_build_time_s", cast.hierarchyBuildSeconds},
-          {"penumbra_cast_time_s", settings.method == Method::Hpc ? cast.castSeconds : castSeconds},
-          {"replay_read_time_s", cast.replayReadSeconds},
-          {"samples_memory_bytes", p.receivers.bytes() + cast.receiverBytes},
-          {"peak_hierarchy_memory_bytes", cast.peakHierarchyBytes},
-          {"peak_mask_memory_bytes", cast.peakMaskBytes},
-          {"total_time_s", total.seconds()}}},
-        {"counters",
-         {{"triangles_read", p.triangleCount},
-          // Culled by the reach tests, whether in the bucket pass (never written) or by the caster.
-          {"triangles_culled_at_root", cast.trianglesCulledAtRoot + buckets.culledTriangles},
-          {"triangles_culled_before_spill", buckets.culledTriangles},
-          {"closed_back_faces_skipped", cast.closedBackFaces},
-          {"closed_solids_opened", p.openedSolids.ordinals.size()},
-          {"closed_triangles_opened", p.openedSolids.triangles},
-          {"rebuilds", cast.rebuilds},
-          {"peak_live_masks", cast.peakLiveMasks},
-          {"hard_shadow_tests", cast.hardShadowTests},
-          {"table_decided_relations", cast.tableDecidedRelations},
-          {"sample_table_bytes", cast.sampleTableBytes},
-          {"peak_rss_bytes", peakRssBytes()}}},
-        {"memory_plan",
-         {{"budget_bytes", plan.budget},
-          {"tiles", plan.tiles},
-          {"resident_bytes", plan.residentBytes},
-          {"per_receiver_bytes", plan.perReceiverBytes},
-          {"minimum_budget_bytes", plan.minimumBudget},
-          {"source_bytes", demand.sourceBytes}}},
-        {"stream", {{"scan_time_s", streamSeconds}, {"triangles", p.triangleCount}}},
-        {"buckets",
-         {{"files", buckets.nonEmptyFiles},
-          {"bytes_written", buckets.bytesWritten},
-          {"triangles_culled", buckets.culledTriangles},
-          {"bytes_read", p.replay ? p.replay->bytesRead() : 0},
-          {"bytes_per_triangle", buckets.bytesPerTriangle()},
-          {"write_mb_per_s", buckets.megabytesPerSecond()},
-          {"read_mb_per_s", p.replay && p.replay->readSeconds() > 0 ? double(p.replay->bytesRead()) / 1e6 / p.replay->readSeconds() : 0.0},
-          {"pass_time_s", buckets.seconds}}},
-    };
-    if (nlohmann::json extra = kind->stats(); extra.is_object())
+    BakeStatsInputs in{scene, settings.method, b.threads, b.p.receivers, b.p.samples, b.p.options, b.results,
+                       b.caster->stats(), b.buckets, b.plan, b.demand};
+    in.triangles = b.p.triangleCount, in.replay = b.p.replay, in.openedSolids = &b.p.openedSolids;
+    in.streamSeconds = b.streamSeconds, in.castSeconds = b.castSeconds, in.refineSeconds = b.refineSeconds;
+    in.totalSeconds = total.seconds();
+    nlohmann::json stats = bakeStats(in);
+    if (nlohmann::json extra = b.kind->stats(); extra.is_object())
         for (auto& [key, value] : extra.items()) stats[key] = value;
-    if (refineSeconds > 0) stats["antialias"]["refine_scan_time_s"] = refineSeconds;
-    if (settings.method == Method::Embree)
-        stats["embree"] = {{"build_time_s", embree.buildSeconds}, {"trace_time_s", embree.traceSeconds},
-                           {"rays", embree.rays}, {"scene_bytes", embree.sceneBytes},
-                           {"filter_calls", embree.filterCalls}, {"filter_exact", embree.filterExact},
-                           {"filter_rejected", embree.filterRejected}};
-    if (!settings.statsPath.empty()) {
-        std::string text = stats.dump(2) + "\n";
-        ensureParentDirectory(settings.statsPath);
-        writeFileAtomically(settings.statsPath, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
-    }
+    if (nlohmann::json extra = b.caster->methodStats(); !extra.is_null()) stats[settings.method] = extra;
+    if (!settings.statsPath.empty()) writeStats(settings.statsPath, stats);
+    outputs.commit();
     return stats;
 }
 

@@ -11,16 +11,14 @@
 
 namespace penumbra {
 
-enum class Method { Hpc, Reference, Embree };
-
-/// @brief Parses "hpc", "reference" or "embree". @throw InputError otherwise.
-Method parseMethod(const std::string& name);
-const char* methodName(Method method);
+/// Most worker threads a bake or `generate` accepts (`--threads`); more is a typing mistake, and
+/// four sub-tiles per thread must stay countable.
+inline constexpr int kMaxThreads = 4096;
 
 /// @brief How to run a bake (the CLI's flags); the scene says what to bake.
 struct BakeSettings {
-    Method method = Method::Hpc;
-    int threads = 0;          ///< 0: all cores
+    std::string method = "hpc";  ///< a registered method (bake/cast/Caster.h: casterNames())
+    int threads = 0;          ///< 0: all cores; at most kMaxThreads
     std::string statsPath;    ///< JSON stats, optional
     std::string dumpDir;      ///< receivers.npy, samples.npy, masks.npy, optional
     bool quiet = false;

@@ -1,13 +1,15 @@
 #include "bake/Scene.h"
 
-#include "bake/ReceiverKind.h"
-#include "bake/ReceiverShading.h"
-#include "bake/SunLight.h"
+#include "bake/kinds/ReceiverKind.h"
+#include "bake/shading/ReceiverShading.h"
+#include "bake/light/SunLight.h"
+#include "stream/CheckedMath.h"
 #include "stream/Error.h"
 #include "stream/GeometryFile.h"
 #include "stream/JsonParams.h"
 #include "stream/SourceRegistry.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace penumbra {
@@ -92,9 +94,11 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
     o.hierarchy.medianSplitAbove = int(j.integer("median_split_above", o.hierarchy.medianSplitAbove, 1, 1 << 30));
     o.groupSize = int(j.integer("group_size", o.groupSize, 1, 64));
     o.epsilon = j.number("epsilon", o.epsilon);
-    if (!(o.epsilon >= 0)) fail(j.where("epsilon"), "must not be negative, got {}", o.epsilon);
+    // Beyond a tenth of the scene's scale the receiver-end margin would hide most shadows.
+    if (!(o.epsilon >= 0 && o.epsilon <= kMaxEpsilon))
+        fail(j.where("epsilon"), "must be in 0..{}, got {}", kMaxEpsilon, o.epsilon);
     if (j.has("simd")) o.simd = parseSimdLevel(j.string("simd"), j.where("simd"));
-    scene.seed = uint64_t(j.integer("seed", int64_t(scene.seed), 0, INT64_MAX));
+    scene.seed = j.seed("seed", scene.seed);
     scene.smoothShading = j.boolean("smooth_shading", scene.smoothShading);
     j.finish();
 }
@@ -115,12 +119,21 @@ std::vector<std::string> geometryParts(const JsonParams& entry) {
 
 void registerFileSourceTypes() {
     for (const char* type : {"obj", "gltf", "glb", "ptri", "file"})
-        registerSourceType(type, [](const SourceRequest& r) {
+        registerSourceType(type, [type = std::string(type)](const SourceRequest& r) {
             JsonParams j(r.params, r.file, r.path);
-            std::string path = resolveScenePath(r.baseDir, j.string("path"));
+            std::string path = resolveScenePath(r.baseDir, j.string("path"), j.where("path"));
             const std::vector<std::string> parts = geometryParts(j);
             j.finish();
-            return openGeometryFile(path, parts);
+            if (type == "file") return openGeometryFile(path, parts);
+            // The entry's type decides the reader; an extension that names another format is a
+            // mistake worth stopping for, not a hint to follow.
+            const GeometryFormat format = type == "obj" ? GeometryFormat::Obj
+                                          : type == "ptri" ? GeometryFormat::Ptri
+                                                           : GeometryFormat::Gltf;
+            if (std::optional<GeometryFormat> named = geometryFormatOf(path); named && *named != format)
+                fail(r.where() + ".type", "\"{}\" does not match the file {} (use the type of its format, or \"file\")",
+                     type, path);
+            return openGeometryFile(path, format, parts);
         });
 }
 
@@ -150,19 +163,36 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
     const nlohmann::json* lights = j.raw("lights");
     if (!lights) fail(j.where("lights"), "missing required field");
     if (!lights->is_array() || lights->empty()) fail(j.where("lights"), "expected a non-empty array of lights");
-    for (size_t i = 0; i < lights->size(); ++i)
+    uint64_t samples = 0, sets = 1;
+    for (size_t i = 0; i < lights->size(); ++i) {
         scene.lights.push_back(parseLight(JsonParams((*lights)[i], file, indexed("lights", i))));
+        // Every receiver holds a bit per sample of all lights, and every set a position per sample.
+        samples = checkedSum(samples, uint64_t(scene.lights.back().samples), kMaxSceneSamples, j.where("lights"),
+                             "light samples in all");
+        sets = std::max(sets, uint64_t(scene.lights.back().sampleSets));
+    }
+    checkedProduct({samples, sets}, kMaxSamplePositions, j.where("lights"), "sample positions (samples x sets)");
 
     const nlohmann::json* receivers = j.raw("receivers");
     if (!receivers) fail(j.where("receivers"), "missing required field");
     scene.receivers = *receivers;
 
-    scene.output = resolveScenePath(scene.baseDir, j.string("output", scene.output));
-    if (const nlohmann::json* bake = j.raw("bake")) parseOptions(JsonParams(*bake, file, "bake"), scene);
+    // Resolved now, checked against the scene's directory only by a bake that writes it (-o
+    // replaces it): checkSceneOutput().
+    scene.output = (scene.baseDir / j.string("output", scene.output)).lexically_normal().string();
+    if (const nlohmann::json* bake = j.raw("bake")) {
+        scene.bakeOptions = *bake;
+        parseOptions(JsonParams(*bake, file, "bake"), scene);
+    }
     if (const nlohmann::json* exr = j.raw("exr")) scene.exr = parseExrSettings(JsonParams(*exr, file, "exr"));
     j.finish();
     makeReceiverKind(scene.receivers, scene);  // validates the receivers now; the bake makes its own
     return scene;
+}
+
+void checkSceneOutput(const SceneDesc& scene) {
+    if (!scene.outputFromScene) return;
+    resolveScenePath(scene.baseDir, std::filesystem::absolute(scene.output).string(), scene.file + ": output");
 }
 
 SceneDesc loadScene(const std::string& path) { return parseScene(readJsonFile(path), path); }

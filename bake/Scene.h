@@ -3,9 +3,9 @@
 /// @brief The scene file (JSON): geometry, lights, receivers, output and bake options.
 /// docs/scene-format.md is the reference for every key.
 
-#include "bake/CastOptions.h"
-#include "bake/ExrSettings.h"
-#include "bake/Light.h"
+#include "bake/cast/CastOptions.h"
+#include "bake/output/ExrSettings.h"
+#include "bake/light/Light.h"
 #include "stream/JsonParams.h"
 #include "stream/Transform.h"
 #include "stream/TriangleSource.h"
@@ -19,6 +19,14 @@
 #include <vector>
 
 namespace penumbra {
+
+/// Largest bake.epsilon: the receiver-end margin is epsilon * max(1, |r|), and a tenth of the
+/// scene's scale already removes almost every shadow.
+inline constexpr double kMaxEpsilon = 0.1;
+/// Most light samples of all lights together: every receiver keeps a bit per sample.
+inline constexpr uint64_t kMaxSceneSamples = uint64_t(1) << 20;
+/// Most sample positions (samples of all lights x the largest number of sets), 768 MiB of them.
+inline constexpr uint64_t kMaxSamplePositions = uint64_t(1) << 26;
 
 /// @brief One "geometry" entry: a file or a generator, with its placement.
 struct GeometryDesc {
@@ -39,8 +47,12 @@ struct SceneDesc {
     std::vector<LightDesc> lights;
     nlohmann::json receivers;  ///< the "receivers" object; ReceiverKind.h makes the kind from it
     std::string output = "out/shadows.exr";
+    /// True while `output` is the scene's own (not -o), which must stay in the scene's directory.
+    bool outputFromScene = true;
     ExrSettings exr;  ///< "exr": pixel type, tiles and what R, G, B hold (camera and lightmap EXRs)
     CastOptions options;
+    /// The scene's "bake" object as written, for the keys a method reads itself (Caster.h).
+    nlohmann::json bakeOptions = nlohmann::json::object();
     uint64_t seed = 1;
     /// bake.smooth_shading: smooth coherent shading in the camera's PNG preview (the EXR keeps the
     /// plain irradiance). On by default: it costs 8 bytes per pixel during the scan (the visible
@@ -54,6 +66,11 @@ struct SceneDesc {
 SceneDesc loadScene(const std::string& path);
 /// @brief Same, from JSON text already in memory; @p file is used in messages and for paths.
 SceneDesc parseScene(const nlohmann::json& root, const std::string& file);
+
+/// @brief Refuses a scene-named output outside the scene's directory (SafePath.h), unless -o
+/// replaced it (outputFromScene false) or `--allow-outside-uris` was given.
+/// @throw InputError "scene.json: output: "../x.exr" leaves the scene's directory ...".
+void checkSceneOutput(const SceneDesc& scene);
 
 /// @brief Opens every geometry entry as one stream, in scene order, with transforms applied.
 TriangleSourcePtr openSceneGeometry(const SceneDesc& scene);

@@ -20,7 +20,8 @@
 /// however the process ends: normal exit, exception, SIGINT/SIGTERM, and also SIGKILL, the OOM
 /// killer or a crash, which no handler sees. The only named objects ever on disk are the
 /// directory and, in the fallback, one file at a time, each for microseconds; the fallback's
-/// file is registered with the temp-file registry (AtomicFile.h) for that window. With keep,
+/// file is registered with the temp-file registry (TempRegistry.h) for that window; the
+/// environment variable PENUMBRA_NO_TMPFILE=1 forces the fallback (AtomicFile.h), for its tests. With keep,
 /// the named files are registered until finish() succeeds, so SIGINT/SIGTERM during the bucket
 /// pass still removes them (the registry unlinks files only, so the empty directory remains).
 ///

@@ -1,6 +1,7 @@
 #include "procedural/FlowerGenerator.h"
 
 #include "procedural/IndexedSource.h"
+#include "stream/CheckedMath.h"
 #include "stream/Error.h"
 #include "stream/JsonParams.h"
 #include "stream/Random.h"
@@ -114,7 +115,7 @@ FlowerParams parseFlowerParams(const SourceRequest& request) {
     p.stemSegments = int(j.integer("stem_segments", p.stemSegments, 1, 4));
     p.petals = int(j.integer("petals", p.petals, 3, 16));
     p.leaves = int(j.integer("leaves", p.leaves, 0, 6));
-    p.placement = parsePlacement(j, 1000, (uint64_t(1) << 62) / flowerTriangleCount(p));
+    p.placement = parsePlacement(j, 1000, kMaxSceneTriangles / flowerTriangleCount(p));
     p.height = j.range("height", p.height);
     p.stemRadius = j.number("stem_radius", p.stemRadius);
     p.stemBend = j.range("stem_bend", p.stemBend);
@@ -124,7 +125,7 @@ FlowerParams parseFlowerParams(const SourceRequest& request) {
     p.leafLength = j.range("leaf_length", p.leafLength);
     p.leafWidth = j.number("leaf_width", p.leafWidth);
     p.alphaMatte = j.boolean("alpha_matte", p.alphaMatte);
-    p.seed = uint64_t(j.integer("seed", int64_t(p.seed), 0, INT64_MAX));
+    p.seed = j.seed("seed", p.seed);
     j.finish();
     requireRange(j, "height", p.height, 0, 1e6, true);
     requireRange(j, "stem_bend", p.stemBend, -4, 4, false);

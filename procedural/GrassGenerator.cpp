@@ -1,6 +1,7 @@
 #include "procedural/GrassGenerator.h"
 
 #include "procedural/IndexedSource.h"
+#include "stream/CheckedMath.h"
 #include "stream/Error.h"
 #include "stream/JsonParams.h"
 #include "stream/Random.h"
@@ -137,13 +138,13 @@ GrassParams parseGrassParams(const SourceRequest& request) {
     JsonParams j(request.params, request.file, request.path);
     GrassParams p;
     p.segments = int(j.integer("segments", p.segments, 3, kMaxSegments));
-    p.placement = parsePlacement(j, 10000, (uint64_t(1) << 62) / uint64_t(p.segments));
+    p.placement = parsePlacement(j, 10000, kMaxSceneTriangles / uint64_t(p.segments));
     p.height = j.range("height", p.height);
     p.width = j.range("width", p.width);
     p.bend = j.range("bend", p.bend);
     p.orientationDeg = j.range("orientation_deg", p.orientationDeg);
     p.alphaMatte = j.boolean("alpha_matte", p.alphaMatte);
-    p.seed = uint64_t(j.integer("seed", int64_t(p.seed), 0, INT64_MAX));
+    p.seed = j.seed("seed", p.seed);
     p.clump.seed = hashIndex(p.seed, kClumpStream) >> 1;  // >> 1: expressible as a JSON seed
     if (const nlohmann::json* c = j.raw("clump")) {
         JsonParams cj(*c, j.file(), j.path("clump"));
@@ -154,7 +155,7 @@ GrassParams parseGrassParams(const SourceRequest& request) {
         m.threshold = cj.number("threshold", m.threshold);
         m.edge = cj.number("edge", m.edge);
         m.tries = int(cj.integer("tries", m.tries, 1, 64));
-        m.seed = uint64_t(cj.integer("seed", int64_t(m.seed), 0, INT64_MAX));
+        m.seed = cj.seed("seed", m.seed);
         cj.finish();
         if (!(m.noise.frequency > 0 && m.noise.frequency <= 1e6))
             fail(cj.where("frequency"), "must be in (0, 1e6], got {}", m.noise.frequency);

@@ -9,6 +9,7 @@
 #include <glm/trigonometric.hpp>
 
 #include <cmath>
+#include <utility>
 
 namespace penumbra {
 namespace {
@@ -89,10 +90,15 @@ GridParams parseGridParams(const SourceRequest& request) {
     p.rotateStep = j.number("rotate_step_deg", p.rotateStep);
     p.floorSize = j.number("floor_size", p.floorSize);
     j.finish();
-    if (!(p.size > 0)) fail(j.where("size"), "must be positive, got {}", p.size);
+    // Coordinates stay where floats can hold them (the generators' common bound, 1e9).
+    if (!(p.size > 0 && p.size <= 1e9)) fail(j.where("size"), "must be in (0, 1e9], got {}", p.size);
+    for (auto [key, value] : {std::pair{"height", p.height}, {"spacing", p.spacing}, {"thickness", p.thickness}})
+        if (!(std::abs(value) <= 1e9)) fail(j.where(key), "must be within +-1e9, got {}", value);
+    if (!(std::abs(p.height) + p.levels * std::abs(p.spacing) <= 1e9))
+        fail(j.where("spacing"), "the top level would lie beyond 1e9 ({} levels of {})", p.levels, p.spacing);
     if (!(p.bar > 0 && p.bar < 1)) fail(j.where("bar"), "must be in (0, 1), got {}", p.bar);
     if (p.thickness < 0) fail(j.where("thickness"), "must not be negative, got {}", p.thickness);
-    if (p.floorSize < 0) fail(j.where("floor_size"), "must not be negative, got {}", p.floorSize);
+    if (!(p.floorSize >= 0 && p.floorSize <= 1e9)) fail(j.where("floor_size"), "must be in 0..1e9, got {}", p.floorSize);
     return p;
 }
 

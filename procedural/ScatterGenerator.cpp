@@ -1,6 +1,7 @@
 #include "procedural/ScatterGenerator.h"
 
 #include "procedural/IndexedSource.h"
+#include "stream/CheckedMath.h"
 #include "stream/Error.h"
 #include "stream/JsonParams.h"
 #include "stream/Random.h"
@@ -129,20 +130,29 @@ TriangleSourcePtr makeScatterSource(const ScatterParams& params, TriangleSourceP
         per = *hint;
     }
     source->rewind();
-    if (per > 0 && params.placement.count > (uint64_t(1) << 62) / per)
-        fail(where, "{} instances of {} triangles are too many", params.placement.count, per);
+    if (per > 0 && params.placement.count > kMaxSceneTriangles / per)
+        fail(where, "{} instances of {} triangles are more than the limit of {} triangles (count)", params.placement.count,
+             per, kMaxSceneTriangles);
     if (per <= params.cacheTriangles) return std::make_unique<CachedScatter>(params, std::move(local));
     return std::make_unique<StreamedScatter>(params, std::move(source), per);
 }
 
 TriangleSourcePtr openScatterSource(const SourceRequest& request) {
+    // Each level opens the next one recursively: bound the depth before the stack does.
+    static thread_local int depth = 0;
+    if (depth >= kMaxScatterNesting)
+        fail(request.where(), "scatter sources nest more than {} deep", kMaxScatterNesting);
+    struct Level {
+        Level() { ++depth; }
+        ~Level() { --depth; }
+    } level;
     JsonParams j(request.params, request.file, request.path);
     ScatterParams p;
-    p.placement = parsePlacement(j, 100, uint64_t(1) << 62);
+    p.placement = parsePlacement(j, 100, kMaxSceneTriangles);
     p.scale = j.range("scale", p.scale);
     p.rotationDeg = j.range("rotation_deg", p.rotationDeg);
     p.cacheTriangles = uint64_t(j.integer("cache_triangles", int64_t(p.cacheTriangles), 0, int64_t(1) << 26));
-    p.seed = uint64_t(j.integer("seed", int64_t(p.seed), 0, INT64_MAX));
+    p.seed = j.seed("seed", p.seed);
     const nlohmann::json* inline_ = j.raw("source");
     if (!inline_) fail(j.where("source"), "missing required field (a geometry entry such as {{\"type\": \"obj\", \"path\": \"rock.obj\"}})");
     j.finish();

@@ -17,6 +17,10 @@
 
 namespace penumbra {
 
+/// Deepest nesting of scatter sources (a scatter of a scatter of ...): each level is opened by a
+/// recursive call, and no real scene needs more than a few.
+inline constexpr int kMaxScatterNesting = 16;
+
 struct ScatterParams {
     Placement placement;                 ///< count (or density), area, ground
     glm::dvec2 scale{1.0, 1.0};          ///< uniform scale range

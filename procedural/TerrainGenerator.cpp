@@ -103,7 +103,7 @@ TerrainParams parseTerrainParams(const JsonParams& j) {
     p.noise.frequency = j.number("frequency", p.noise.frequency);
     p.noise.lacunarity = j.number("lacunarity", p.noise.lacunarity);
     p.noise.gain = j.number("gain", p.noise.gain);
-    p.seed = uint64_t(j.integer("seed", int64_t(p.seed), 0, INT64_MAX));
+    p.seed = j.seed("seed", p.seed);
     j.finish();
     if (!(p.amplitude >= 0 && p.amplitude <= kMaxCoordinate))
         fail(j.where("amplitude"), "must be in 0..1e9, got {}", p.amplitude);

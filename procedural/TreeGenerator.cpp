@@ -1,6 +1,7 @@
 #include "procedural/TreeGenerator.h"
 
 #include "procedural/IndexedSource.h"
+#include "stream/CheckedMath.h"
 #include "stream/Error.h"
 #include "stream/JsonParams.h"
 #include "stream/Random.h"
@@ -15,6 +16,8 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 /// Per-tree triangle cap: a tree is held in memory (a forest holds `variants` of them).
 constexpr uint64_t kMaxTreeTriangles = uint64_t(1) << 20;
+/// Triangles of all of a forest's variants together (160 MB of them, held in memory).
+constexpr uint64_t kMaxForestVariantTriangles = uint64_t(1) << 22;
 constexpr uint64_t kVariantStream = 0x7472656573ull;  // "trees"
 
 uint64_t power(uint64_t base, int exponent) {
@@ -186,7 +189,7 @@ TreeParams readTreeKeys(const JsonParams& j) {
     p.leafSize = j.number("leaf_size", p.leafSize);
     p.alphaMatte = j.boolean("alpha_matte", p.alphaMatte);
     p.jitter = j.number("jitter", p.jitter);
-    p.seed = uint64_t(j.integer("seed", int64_t(p.seed), 0, INT64_MAX));
+    p.seed = j.seed("seed", p.seed);
     return p;
 }
 
@@ -238,8 +241,11 @@ ForestParams parseForestParams(const SourceRequest& request) {
     f.tree = readTreeKeys(j);
     f.seed = f.tree.seed;
     validateTree(j, f.tree);
-    f.placement = parsePlacement(j, 100, (uint64_t(1) << 62) / treeTriangleCount(f.tree));
+    f.placement = parsePlacement(j, 100, kMaxSceneTriangles / treeTriangleCount(f.tree));
     f.variants = int(j.integer("variants", f.variants, 1, 64));
+    // The variants are built and kept whole: bound their memory like one big tree's.
+    checkedProduct({uint64_t(f.variants), treeTriangleCount(f.tree)}, kMaxForestVariantTriangles, j.where("variants"),
+                   "triangles kept for the variants");
     f.scale = j.range("scale", f.scale);
     j.finish();
     if (!(f.scale.x > 0 && f.scale.y <= 1e3)) fail(j.where("scale"), "must lie in (0, 1000], got [{}, {}]", f.scale.x, f.scale.y);

@@ -1,8 +1,10 @@
 #include "stream/AtomicFile.h"
 
 #include "stream/Error.h"
+#include "stream/InputFile.h"
 
 #include <fcntl.h>
+#include <pthread.h>
 #include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -10,12 +12,38 @@
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
-#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
 #include <system_error>
+#include <utility>
 
 namespace penumbra {
+
+/// A file whose bytes are all written, waiting to be put in place. Owns its descriptor and
+/// any name it has; destroying it discards the file.
+struct AtomicFile::Finished {
+    std::string finalPath, targetPath;
+    Target target = Target::Regular;
+    int fd = -1;
+    std::string tempName;  ///< the named temporary (fallback), if any
+    std::string staged;    ///< a registered link name while an OutputSet commits
+
+    Finished() = default;
+    Finished(const Finished&) = delete;
+    Finished& operator=(const Finished&) = delete;
+    ~Finished() {
+        if (fd >= 0) ::close(fd);
+        for (std::string* name : {&tempName, &staged})
+            if (!name->empty()) {
+                ::unlink(name->c_str());
+                unregisterTempFile(*name);
+            }
+    }
+};
 
 namespace {
 
@@ -25,31 +53,186 @@ constexpr size_t kBufferBytes = 256 * 1024;
 
 std::string errnoText(int err) { return std::error_code(err, std::generic_category()).message(); }
 
+std::mutex g_setMutex;
+OutputSet* g_openSet = nullptr;
+
+/// "BASE.tmp-<pid>-<n>": the pid keeps processes apart, the counter the files of one process.
+std::string uniqueName(const std::string& base) {
+    static std::atomic<uint64_t> counter{0};
+    return fmt::format("{}.tmp-{}-{}", base, static_cast<long>(::getpid()), counter.fetch_add(1));
+}
+
+/// Anonymous files are reopened (by libraries) and linked through /proc/self/fd.
+bool procFdWorks() {
+    static const bool works = ::access("/proc/self/fd", X_OK) == 0;
+    return works;
+}
+
+std::string procPath(int fd) { return "/proc/self/fd/" + std::to_string(fd); }
+
+/// Blocks the termination signals that have handlers on this thread while it lives, so that a
+/// handler does not run between linking a temporary name and renaming it.
+class SignalsHeld {
+public:
+    SignalsHeld() {
+        sigset_t set;
+        sigemptyset(&set);
+        for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) sigaddset(&set, sig);
+        ::pthread_sigmask(SIG_BLOCK, &set, &old_);
+    }
+    ~SignalsHeld() { ::pthread_sigmask(SIG_SETMASK, &old_, nullptr); }
+
+private:
+    sigset_t old_;
+};
+
+/// Links the anonymous file @p fd as @p name; 0 or the errno.
+int linkAnonymous(int fd, const std::string& name) {
+    return ::linkat(AT_FDCWD, procPath(fd).c_str(), AT_FDCWD, name.c_str(), AT_SYMLINK_FOLLOW) == 0 ? 0 : errno;
+}
+
+/// Links @p f's anonymous file under a fresh, registered name beside its target.
+void stage(AtomicFile::Finished& f) {
+    for (int attempt = 0;; ++attempt) {
+        std::string name = uniqueName(f.targetPath);
+        registerTempFile(name);
+        const int err = linkAnonymous(f.fd, name);
+        if (err == 0) {
+            f.staged = std::move(name);
+            return;
+        }
+        unregisterTempFile(name);
+        if (err != EEXIST || attempt >= 1000) fail(f.finalPath, "cannot create file: {}", errnoText(err));
+    }
+}
+
+/// Renames @p from over @p f's target, refusing to replace anything but a regular file.
+void renameOver(AtomicFile::Finished& f, std::string& from) {
+    struct stat st {};
+    if (::lstat(f.targetPath.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+        fail(f.finalPath, "is {} now, which is never replaced", fileKindName(st.st_mode));
+    if (::rename(from.c_str(), f.targetPath.c_str()) != 0) fail(f.finalPath, "cannot replace file: {}", errnoText(errno));
+    unregisterTempFile(from);
+    from.clear();
+}
+
+/// Copies @p f's bytes into the device or FIFO it is meant for.
+void writeSpecial(AtomicFile::Finished& f) {
+    const int out = ::open(f.targetPath.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);
+    if (out < 0) {
+        if (errno == ENXIO) fail(f.finalPath, "is a FIFO that no process reads");
+        fail(f.finalPath, "cannot open: {}", errnoText(errno));
+    }
+    std::unique_ptr<int, void (*)(int*)> guard(new int(out), [](int* fd) { ::close(*fd), delete fd; });
+    if (int flags = ::fcntl(out, F_GETFL); flags >= 0) ::fcntl(out, F_SETFL, flags & ~O_NONBLOCK);
+    std::vector<uint8_t> block(1 << 20);
+    for (off_t offset = 0;;) {
+        const ssize_t n = ::pread(f.fd, block.data(), block.size(), offset);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) fail(f.finalPath, "cannot read the finished output back: {}", errnoText(errno));
+        if (n == 0) break;
+        for (ssize_t done = 0; done < n;) {
+            const ssize_t w = ::write(out, block.data() + done, size_t(n - done));
+            if (w < 0 && errno == EINTR) continue;
+            if (w <= 0) fail(f.finalPath, "write failed: {}", errnoText(w < 0 ? errno : EIO));
+            done += w;
+        }
+        offset += n;
+    }
+}
+
+/// Puts a regular file in place: a link under the final name when it is free, else a staged
+/// link renamed over the old file; a named temporary is renamed.
+void placeRegular(AtomicFile::Finished& f) {
+    if (!f.tempName.empty()) return renameOver(f, f.tempName);
+    if (f.staged.empty()) {
+        const int err = linkAnonymous(f.fd, f.targetPath);
+        if (err == 0) return;
+        if (err != EEXIST) fail(f.finalPath, "cannot create file: {}", errnoText(err));
+        stage(f);
+    }
+    renameOver(f, f.staged);
+}
+
+void place(AtomicFile::Finished& f) {
+    SignalsHeld held;
+    if (f.target == AtomicFile::Target::Special) writeSpecial(f);
+    else placeRegular(f);
+}
+
+/// What AtomicFile does with @p path: the file to replace (symbolic links followed) and how.
+AtomicFile::Target inspectTarget(const std::string& path, std::string& resolved) {
+    resolved = path;
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0) {
+        if (errno != ENOENT) fail(path, "cannot create file: {}", errnoText(errno));
+        if (::lstat(path.c_str(), &st) == 0) fail(path, "is a symbolic link to a missing file");
+        return AtomicFile::Target::Regular;
+    }
+    if (std::optional<std::string> input = recordedInput(st.st_dev, st.st_ino))
+        fail(path, "is also an input of this run ({}); refusing to overwrite it", *input);
+    if (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode)) return AtomicFile::Target::Special;
+    if (!S_ISREG(st.st_mode))
+        fail(path, "is {}; outputs are regular files, character devices or FIFOs", fileKindName(st.st_mode));
+    if (::lstat(path.c_str(), &st) == 0 && S_ISLNK(st.st_mode)) {
+        std::error_code ec;
+        std::filesystem::path real = std::filesystem::canonical(path, ec);
+        if (!ec) resolved = real.string();
+    }
+    return AtomicFile::Target::Regular;
+}
+
 }  // namespace
+
+bool anonymousFilesDisabled() {
+    const char* value = std::getenv("PENUMBRA_NO_TMPFILE");
+    return value && *value && std::strcmp(value, "0") != 0;
+}
 
 // ---------------------------------------------------------------------------------------------
 // AtomicFile
 
 AtomicFile::AtomicFile(std::string finalPath) : finalPath_(std::move(finalPath)) {
     if (finalPath_.empty()) throw InputError("cannot create file: the output path is empty");
+    target_ = inspectTarget(finalPath_, targetPath_);
+    // A device's data waits in the temp directory; a regular file's beside its final name, so
+    // that linking and renaming never cross a file system.
+    std::string dir;
+    if (target_ == Target::Special) {
+        std::error_code ec;
+        dir = std::filesystem::temp_directory_path(ec).string();
+        if (ec) dir = "/tmp";
+    } else dir = std::filesystem::path(targetPath_).parent_path().string();
+    createTemporary(dir.empty() ? "." : dir);
+}
 
-    // The pid keeps concurrent penumbra processes apart; the counter keeps several outputs of
-    // one process (or one path written twice) apart. O_EXCL makes a stale leftover from a
-    // killed run harmless: we just take the next number.
-    static std::atomic<uint64_t> counter{0};
+void AtomicFile::createTemporary(const std::string& dir) {
+    if (!anonymousFilesDisabled() && procFdWorks()) {
+        fd_ = ::open(dir.c_str(), O_RDWR | O_TMPFILE | O_CLOEXEC, 0666);
+        if (fd_ >= 0) {
+            tempPath_ = procPath(fd_);
+            return;
+        }
+        // EISDIR / EOPNOTSUPP / EINVAL: no O_TMPFILE here (old kernel, some network file systems).
+        if (errno != EISDIR && errno != EOPNOTSUPP && errno != EINVAL)
+            fail(finalPath_, "cannot create file: {}", errnoText(errno));
+    }
+    const std::string base = target_ == Target::Special
+                                 ? (std::filesystem::path(dir) / std::filesystem::path(targetPath_).filename()).string()
+                                 : targetPath_;
     for (int attempt = 0;; ++attempt) {
-        tempPath_ = fmt::format("{}.tmp-{}-{}", finalPath_, static_cast<long>(::getpid()),
-                                counter.fetch_add(1));
-        // Register before creating so there is no window in which a signal would leave an
-        // unregistered file behind; unlinking a name that was never created is harmless.
-        registerTempFile(tempPath_);
-        fd_ = ::open(tempPath_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-        if (fd_ >= 0) return;
-        int err = errno;
-        unregisterTempFile(tempPath_);
-        if (err == EEXIST && attempt < 1000) continue;
-        tempPath_.clear();
-        fail(finalPath_, "cannot create file: {}", errnoText(err));
+        tempName_ = uniqueName(base);
+        // Registered before it exists, so no signal can come between creating and registering.
+        registerTempFile(tempName_);
+        fd_ = ::open(tempName_.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+        if (fd_ >= 0) {
+            tempPath_ = tempName_;
+            return;
+        }
+        const int err = errno;
+        unregisterTempFile(tempName_);
+        tempName_.clear();
+        if (err != EEXIST || attempt >= 1000) fail(finalPath_, "cannot create file: {}", errnoText(err));
     }
 }
 
@@ -58,13 +241,12 @@ AtomicFile::~AtomicFile() {
 }
 
 void AtomicFile::discard() noexcept {
-    if (fd_ >= 0) {
-        ::close(fd_);
-        fd_ = -1;
-    }
-    if (!tempPath_.empty()) {
-        ::unlink(tempPath_.c_str());
-        unregisterTempFile(tempPath_);
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+    if (!tempName_.empty()) {
+        ::unlink(tempName_.c_str());
+        unregisterTempFile(tempName_);
+        tempName_.clear();
     }
 }
 
@@ -85,8 +267,7 @@ void AtomicFile::write(const void* data, size_t bytes) {
                 if (n <= 0) {
                     int err = n < 0 ? errno : EIO;
                     failed_ = true;
-                    fail(finalPath_, "write failed: {} (needed {} more bytes)", errnoText(err),
-                         bytes - done);
+                    fail(finalPath_, "write failed: {} (needed {} more bytes)", errnoText(err), bytes - done);
                 }
                 done += static_cast<size_t>(n);
             }
@@ -113,23 +294,11 @@ void AtomicFile::flushBuffer(size_t pendingAfter) {
         if (n <= 0) {
             int err = n < 0 ? errno : EIO;
             failed_ = true;
-            fail(finalPath_, "write failed: {} (needed {} more bytes)", errnoText(err),
-                 used_ - done + pendingAfter);
+            fail(finalPath_, "write failed: {} (needed {} more bytes)", errnoText(err), used_ - done + pendingAfter);
         }
         done += static_cast<size_t>(n);
     }
     used_ = 0;
-}
-
-void AtomicFile::closeFd() {
-    int fd = fd_;
-    fd_ = -1;
-    // Some file systems (NFS, quota-enforcing ones) only report a failed write at close.
-    // EINTR from close on Linux still releases the descriptor, so it is not an error.
-    if (::close(fd) != 0 && errno != EINTR) {
-        failed_ = true;
-        fail(finalPath_, "write failed: {}", errnoText(errno));
-    }
 }
 
 void AtomicFile::commit() {
@@ -137,21 +306,77 @@ void AtomicFile::commit() {
     if (failed_) fail(finalPath_, "cannot commit: an earlier write to this file failed");
     try {
         if (used_ > 0) flushBuffer(0);
-        if (fd_ >= 0) closeFd();
-        // A library writing by name may have failed without us knowing; the file must at
-        // least still be there.
-        struct stat st {};
-        if (::stat(tempPath_.c_str(), &st) != 0)
-            fail(finalPath_, "output was not written (temporary file {} is missing)", tempPath_);
-        if (::rename(tempPath_.c_str(), finalPath_.c_str()) != 0)
-            fail(finalPath_, "cannot replace file: {}", errnoText(errno));
+        auto f = std::make_unique<Finished>();
+        f->finalPath = finalPath_, f->targetPath = targetPath_, f->target = target_;
+        if (!tempName_.empty()) {
+            // A library writing by name may have failed and removed it without our knowing.
+            struct stat st {};
+            if (::stat(tempName_.c_str(), &st) != 0)
+                fail(finalPath_, "output was not written (temporary file {} is missing)", tempName_);
+            // Some file systems (NFS, quota-enforcing ones) only report a failed write at close;
+            // these are the ones without O_TMPFILE. A device's data is still to be read back.
+            if (target_ == Target::Regular) {
+                const int fd = std::exchange(fd_, -1);
+                if (::close(fd) != 0 && errno != EINTR) fail(finalPath_, "write failed: {}", errnoText(errno));
+            }
+        }
+        f->fd = std::exchange(fd_, -1);
+        f->tempName = std::exchange(tempName_, std::string());
+        {
+            std::lock_guard lock(g_setMutex);
+            if (g_openSet) {
+                g_openSet->files_.push_back(std::move(f));
+                committed_ = true;
+                return;
+            }
+        }
+        place(*f);
     } catch (...) {
         discard();
         throw;
     }
-    unregisterTempFile(tempPath_);
     committed_ = true;
 }
+
+// ---------------------------------------------------------------------------------------------
+// OutputSet
+
+OutputSet::OutputSet() {
+    std::lock_guard lock(g_setMutex);
+    if (g_openSet) throw std::logic_error("OutputSet: only one set may be open at a time");
+    g_openSet = this;
+}
+
+OutputSet::~OutputSet() {
+    std::lock_guard lock(g_setMutex);
+    if (g_openSet == this) g_openSet = nullptr;
+}
+
+void OutputSet::commit() {
+    {
+        std::lock_guard lock(g_setMutex);
+        if (g_openSet == this) g_openSet = nullptr;
+    }
+    if (!open_) return;
+    open_ = false;
+    SignalsHeld held;
+    try {
+        // Every rename is staged first, so a failure to link one leaves no file of the set in place.
+        for (auto& f : files_)
+            if (f->target == AtomicFile::Target::Regular && f->tempName.empty() && ::access(f->targetPath.c_str(), F_OK) == 0)
+                stage(*f);
+        for (auto& f : files_)
+            if (f->target == AtomicFile::Target::Special) writeSpecial(*f);
+        for (auto& f : files_)
+            if (f->target == AtomicFile::Target::Regular) placeRegular(*f);
+    } catch (...) {
+        files_.clear();  // discards what is not in place, staged names included
+        throw;
+    }
+    files_.clear();
+}
+
+// ---------------------------------------------------------------------------------------------
 
 void writeFileAtomically(const std::string& path, std::span<const uint8_t> bytes) {
     AtomicFile file(path);
@@ -171,90 +396,16 @@ void ensureParentDirectory(const std::string& path) {
         fail(path, "cannot create directory {}: {}", parent.string(), errnoText(ENOTDIR));
 }
 
-// ---------------------------------------------------------------------------------------------
-// Temp-file registry
-
-namespace {
-
-constexpr size_t kRegistrySlots = 64;
-constexpr size_t kRegistryPathBytes = 4096;
-
-enum SlotState : int { kSlotFree = 0, kSlotBusy = 1, kSlotUsed = 2 };
-
-/// One registered path. `state` is the only synchronisation: a slot's path is written while
-/// the slot is Busy and read only while it is Used, so the signal handler never sees a torn
-/// path and never has to wait.
-struct RegistrySlot {
-    std::atomic<int> state{kSlotFree};
-    char path[kRegistryPathBytes];
-};
-static_assert(std::atomic<int>::is_always_lock_free, "the signal handler relies on lock-free atomics");
-
-RegistrySlot g_registry[kRegistrySlots];
-
-}  // namespace
-
-void registerTempFile(const std::string& path) {
-    if (path.empty() || path.size() >= kRegistryPathBytes) return;
-    for (auto& slot : g_registry) {
-        int expected = kSlotFree;
-        if (!slot.state.compare_exchange_strong(expected, kSlotBusy)) continue;
-        std::memcpy(slot.path, path.c_str(), path.size() + 1);
-        slot.state.store(kSlotUsed, std::memory_order_release);
-        return;
-    }
-}
-
-void unregisterTempFile(const std::string& path) {
-    if (path.empty() || path.size() >= kRegistryPathBytes) return;
-    for (auto& slot : g_registry) {
-        if (slot.state.load(std::memory_order_acquire) != kSlotUsed) continue;
-        if (std::strcmp(slot.path, path.c_str()) != 0) continue;
-        int expected = kSlotUsed;
-        if (slot.state.compare_exchange_strong(expected, kSlotBusy)) {
-            slot.path[0] = '\0';
-            slot.state.store(kSlotFree, std::memory_order_release);
-            return;
-        }
-    }
-}
-
-void removeRegisteredTempFiles() noexcept {
-    for (auto& slot : g_registry) {
-        int expected = kSlotUsed;
-        // A Busy slot is being (un)registered by another thread right now; skipping it is the
-        // price of never blocking in a signal handler.
-        if (!slot.state.compare_exchange_strong(expected, kSlotBusy)) continue;
-        ::unlink(slot.path);
-        slot.path[0] = '\0';
-        slot.state.store(kSlotFree, std::memory_order_release);
-    }
-}
-
-namespace {
-
-extern "C" void cleanupSignalHandler(int sig) {
-    int savedErrno = errno;
-    removeRegisteredTempFiles();
-    // SA_RESETHAND already restored the default action; the signal is blocked while we are in
-    // the handler, so the re-raised one is delivered (and kills us) as soon as we return.
-    ::raise(sig);
-    errno = savedErrno;
-}
-
-}  // namespace
-
-void installCleanupSignalHandlers() {
-    struct sigaction action {};
-    action.sa_handler = cleanupSignalHandler;
-    sigemptyset(&action.sa_mask);
-    action.sa_flags = SA_RESETHAND;
-    for (int sig : {SIGINT, SIGTERM}) {
-        // Respect an "ignore" inherited from the parent (nohup, background jobs).
-        struct sigaction old {};
-        if (::sigaction(sig, nullptr, &old) == 0 && old.sa_handler == SIG_IGN) continue;
-        ::sigaction(sig, &action, nullptr);
-    }
+void checkOutputPath(const std::string& path) {
+    if (path.empty()) throw InputError("cannot create file: the output path is empty");
+    std::string resolved;
+    if (inspectTarget(path, resolved) == AtomicFile::Target::Special) return;
+    // The nearest existing directory above the file must be one we can create files in.
+    std::filesystem::path dir = std::filesystem::absolute(resolved).parent_path();
+    std::error_code ec;
+    while (!std::filesystem::exists(dir, ec) && dir != dir.root_path()) dir = dir.parent_path();
+    if (!std::filesystem::is_directory(dir, ec)) fail(path, "cannot create file: {} is not a directory", dir.string());
+    if (::access(dir.c_str(), W_OK | X_OK) != 0) fail(path, "cannot create file in {}: {}", dir.string(), errnoText(errno));
 }
 
 }  // namespace penumbra

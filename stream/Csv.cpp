@@ -2,13 +2,17 @@
 
 #include "stream/Error.h"
 
+#include "stream/InputFile.h"
+#include "stream/TextInput.h"
+
 #include <cerrno>
 #include <charconv>
 #include <cmath>
-#include <filesystem>
-#include <fstream>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
 #include <string_view>
-#include <system_error>
 
 namespace penumbra {
 
@@ -49,18 +53,26 @@ std::vector<std::string_view> splitFields(std::string_view line) {
 }  // namespace
 
 std::vector<std::vector<double>> readCsvNumbers(const std::string& path, size_t expectedColumns) {
-    std::error_code ec;
-    if (std::filesystem::is_directory(path, ec)) fail(path, "is a directory, not a CSV file");
-    std::ifstream in(path, std::ios::binary);
-    if (!in) fail(path, "cannot open: {}", std::error_code(errno, std::generic_category()).message());
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> in(openInputStream(path), &std::fclose);
+    std::unique_ptr<char, void (*)(void*)> buffer(nullptr, &std::free);  // getline(3)'s, hence malloc
+    size_t capacity = 0;
 
     std::vector<std::vector<double>> rows;
-    std::string raw;
     size_t lineNo = 0;
     bool sawContent = false;  // a header is only allowed before the first content line
-    while (std::getline(in, raw)) {
+    for (;;) {
+        char* raw = buffer.release();
+        errno = 0;
+        const ssize_t length = ::getline(&raw, &capacity, in.get());
+        buffer.reset(raw);
+        if (length < 0) {
+            checkLineReadEnded(in.get(), fmt::format("{}:{}", path, lineNo + 1), errno);
+            break;
+        }
         ++lineNo;
-        std::string_view line = raw;
+        std::string_view line(raw, size_t(length));
+        if (!line.empty() && line.back() == '\n') line.remove_suffix(1);
+        if (std::memchr(raw, 0, size_t(length))) fail(fmt::format("{}:{}", path, lineNo), "is binary, not CSV text (a NUL byte)");
         if (lineNo == 1 && line.substr(0, 3) == "\xEF\xBB\xBF") line.remove_prefix(3);  // BOM
         line = trim(line);
         if (line.empty() || line.front() == '#') continue;
@@ -102,7 +114,6 @@ std::vector<std::vector<double>> readCsvNumbers(const std::string& path, size_t 
             fail(where, "expected {} columns but found {}", expectedColumns, values.size());
         rows.push_back(std::move(values));
     }
-    if (in.bad()) fail(path, "read failed");
     return rows;
 }
 

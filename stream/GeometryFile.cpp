@@ -3,7 +3,9 @@
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
 #include "stream/GltfReader.h"
+#include "stream/InputFile.h"
 #include "stream/ObjReader.h"
+#include "stream/TextInput.h"
 #include "stream/PtriFormat.h"
 
 #include <tiny_gltf.h>
@@ -133,13 +135,35 @@ void writeGltf(TriangleSource& in, const std::string& outPath, bool binary) {
 
 }  // namespace
 
-TriangleSourcePtr openGeometryFile(const std::string& path, const std::vector<std::string>& parts) {
+std::optional<GeometryFormat> geometryFormatOf(const std::string& path) {
     std::string ext = lowercaseExtension(path);
-    if (ext == ".obj") return openObj(path, parts);
-    if (!parts.empty()) fail(path, "\"parts\" selects o/g groups of OBJ files only");
-    if (ext == ".gltf" || ext == ".glb") return openGltf(path);
-    if (ext == ".ptri") return openPtri(path);
-    fail(path, "unknown geometry file extension '{}' (expected .obj, .gltf, .glb or .ptri)", ext);
+    if (ext == ".obj") return GeometryFormat::Obj;
+    if (ext == ".gltf" || ext == ".glb") return GeometryFormat::Gltf;
+    if (ext == ".ptri") return GeometryFormat::Ptri;
+    return std::nullopt;
+}
+
+TriangleSourcePtr openGeometryFile(const std::string& path, const std::vector<std::string>& parts) {
+    std::optional<GeometryFormat> format = geometryFormatOf(path);
+    if (!format)
+        fail(path, "unknown geometry file extension '{}' (expected .obj, .gltf, .glb or .ptri)", lowercaseExtension(path));
+    return openGeometryFile(path, *format, parts);
+}
+
+TriangleSourcePtr openGeometryFile(const std::string& path, GeometryFormat format, const std::vector<std::string>& parts) {
+    checkInputFile(path);
+    if (format != GeometryFormat::Obj && !parts.empty()) fail(path, "\"parts\" selects o/g groups of OBJ files only");
+    switch (format) {
+        case GeometryFormat::Obj: {
+            checkTextFile(path, "OBJ");
+            TriangleSourcePtr source = openObj(path, parts);
+            warnIfNoFaces(path, source->sizeHint().value_or(1));
+            return source;
+        }
+        case GeometryFormat::Gltf: return openGltf(path);
+        case GeometryFormat::Ptri: return openPtri(path);
+    }
+    fail(path, "unknown geometry format");
 }
 
 GeometryInfo scanGeometry(TriangleSource& source) {

@@ -8,16 +8,30 @@
 #include <glm/vec3.hpp>
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 namespace penumbra {
+
+/// The geometry file formats (.gltf and .glb are one format: the reader tells them apart by content).
+enum class GeometryFormat { Obj, Gltf, Ptri };
+
+/// @brief The format a file name's extension names (case-insensitive), if any.
+std::optional<GeometryFormat> geometryFormatOf(const std::string& path);
 
 /// @brief Opens a geometry file, choosing the reader by extension (case-insensitive):
 /// .obj (ObjReader.h), .gltf / .glb (GltfReader.h), .ptri (PtriFormat.h).
 /// @param parts OBJ o/g groups to read (empty: all); an error for other formats.
 /// @throw InputError naming @p path for an unknown extension, or whatever the reader throws.
 TriangleSourcePtr openGeometryFile(const std::string& path, const std::vector<std::string>& parts = {});
+
+/// @brief Opens a geometry file with the reader of @p format, whatever its name. Only regular
+/// files are opened (InputFile.h: a FIFO or device is refused before any reader sees it), and an
+/// OBJ must be text (ObjText.h); a non-empty OBJ without faces gets a warning.
+/// @param parts as above.
+/// @throw InputError naming @p path, or whatever the reader throws.
+TriangleSourcePtr openGeometryFile(const std::string& path, GeometryFormat format, const std::vector<std::string>& parts = {});
 
 /// What a pass over a source found.
 struct GeometryInfo {

@@ -1,7 +1,10 @@
 #include "stream/GltfDocument.h"
 
 #include "stream/Error.h"
+#include "stream/InputFile.h"
+#include "stream/JsonText.h"
 #include "stream/RegularFile.h"
+#include "stream/SafePath.h"
 
 #include <nlohmann/json.hpp>
 
@@ -199,7 +202,10 @@ GltfBuffer parseBuffer(const std::string& path, const Json& j, size_t i, const s
     }
     if (uri.find("://") != std::string::npos) fail(path, "buffer {}: URI \"{}\" is not a local file", i, uri);
     std::filesystem::path base = std::filesystem::path(path).parent_path();
-    b.file = (base / percentDecoded(uri)).string();
+    // The URI must stay in the model's directory (SafePath.h), and is recorded as an input so
+    // that no output of the bake replaces it.
+    b.file = containedPath(base, percentDecoded(uri), fmt::format("{}: buffers[{}].uri", path, i), "the model's directory");
+    checkInputFile(b.file);
     RegularFile file(b.file);  // a regular file, or an error naming it
     if (file.size() < b.byteLength)
         fail(path, "buffer {} ({}) has {} bytes, but its byteLength is {}", i, uri, file.size(), b.byteLength);
@@ -484,6 +490,7 @@ GltfDocument loadGltfDocument(const std::string& path) {
     {
         std::string text = readJsonText(path, bin);
         doc.jsonBytes = text.size();
+        checkJsonDepth(text, path);
         try {
             root = Json::parse(text);
         } catch (const std::exception& e) {

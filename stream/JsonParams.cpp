@@ -1,16 +1,24 @@
 #include "stream/JsonParams.h"
 
 #include "stream/Error.h"
+#include "stream/InputFile.h"
+#include "stream/JsonText.h"
 
 #include <fmt/ranges.h>
 
 #include <cerrno>
 #include <cmath>
 #include <cstring>
-#include <fstream>
-#include <sstream>
+#include <cstdio>
+#include <memory>
 
 namespace penumbra {
+
+namespace {
+/// A scene or benchmark file is a few kilobytes; this only keeps a mistaken huge file from
+/// being read into memory whole.
+constexpr size_t kMaxJsonFileBytes = size_t(1) << 28;
+}  // namespace
 
 JsonParams::JsonParams(const nlohmann::json& object, std::string file, std::string path)
     : object_(object), file_(std::move(file)), path_(std::move(path)) {
@@ -55,15 +63,41 @@ double JsonParams::number(const std::string& key, double fallback) const {
     return has(key) ? number(key) : fallback;
 }
 
+namespace {
+
+/// An integer-valued JSON number: an integer, or a float with no fraction that a double holds
+/// exactly. Anything else is refused naming @p where.
+void requireIntegral(const nlohmann::json& v, const std::string& where) {
+    const bool integral = v.is_number_integer() || (v.is_number_float() && std::floor(v.get<double>()) == v.get<double>() &&
+                                                     std::abs(v.get<double>()) < 9e15);
+    if (!integral) fail(where, "expected an integer, got {}", v.dump());
+}
+
+}  // namespace
+
 int64_t JsonParams::integer(const std::string& key, int64_t lo, int64_t hi) const {
     const auto& v = get(key);
-    bool integral = v.is_number_integer() || (v.is_number_float() && std::floor(v.get<double>()) == v.get<double>() &&
-                                              std::abs(v.get<double>()) < 9e15);
-    if (!integral) fail(where(key), "expected an integer, got {}", v.dump());
-    int64_t i = v.is_number_unsigned() ? int64_t(std::min<uint64_t>(v.get<uint64_t>(), INT64_MAX))
-                                       : (v.is_number_integer() ? v.get<int64_t>() : int64_t(v.get<double>()));
+    requireIntegral(v, where(key));
+    // An unsigned value beyond int64 is out of every signed range: refuse it, never clamp it.
+    if (v.is_number_unsigned() && v.get<uint64_t>() > uint64_t(INT64_MAX))
+        fail(where(key), "must be in {}..{}, got {}", lo, hi, v.dump());
+    const int64_t i = v.is_number_integer() ? v.get<int64_t>() : int64_t(v.get<double>());
     if (i < lo || i > hi) fail(where(key), "must be in {}..{}, got {}", lo, hi, i);
     return i;
+}
+
+uint64_t JsonParams::unsignedInteger(const std::string& key, uint64_t fallback, uint64_t lo, uint64_t hi) const {
+    if (!has(key)) return fallback;
+    const auto& v = get(key);
+    requireIntegral(v, where(key));
+    const bool negative = v.is_number_integer() ? !v.is_number_unsigned() && v.get<int64_t>() < 0 : v.get<double>() < 0;
+    const uint64_t u = v.is_number_unsigned() ? v.get<uint64_t>() : (v.is_number_integer() ? uint64_t(v.get<int64_t>()) : uint64_t(v.get<double>()));
+    if (negative || u < lo || u > hi) fail(where(key), "must be in {}..{}, got {}", lo, hi, v.dump());
+    return u;
+}
+
+uint64_t JsonParams::seed(const std::string& key, uint64_t fallback) const {
+    return unsignedInteger(key, fallback, 0, UINT64_MAX);
 }
 
 int64_t JsonParams::integer(const std::string& key, int64_t fallback, int64_t lo, int64_t hi) const {
@@ -134,16 +168,16 @@ void JsonParams::finish() const {
 }
 
 nlohmann::json readJsonFile(const std::string& path) {
-    std::ifstream in(path);
-    if (!in) fail(path, "cannot open: {}", std::strerror(errno));
-    std::stringstream text;
-    text << in.rdbuf();
-    try {
-        return nlohmann::json::parse(text.str());
-    } catch (const nlohmann::json::parse_error& e) {
-        std::string what = e.what();
-        fail(path, "invalid JSON at byte {}: {}", e.byte, what.substr(what.find(']') + 2));
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(openInputStream(path), &std::fclose);
+    std::string text;
+    char block[1 << 16];
+    while (size_t n = std::fread(block, 1, sizeof block, file.get())) {
+        if (text.size() + n > kMaxJsonFileBytes)
+            fail(path, "larger than {} MiB, which is too large for a JSON file", kMaxJsonFileBytes >> 20);
+        text.append(block, n);
     }
+    if (std::ferror(file.get())) fail(path, "read failed: {}", std::strerror(errno));
+    return parseJsonText(text, path);
 }
 
 }  // namespace penumbra

@@ -31,6 +31,10 @@ public:
     double number(const std::string& key, double fallback) const;
     int64_t integer(const std::string& key, int64_t fallback, int64_t lo, int64_t hi) const;
     int64_t integer(const std::string& key, int64_t lo, int64_t hi) const;
+    /// An integer in [lo, hi] of the whole unsigned 64-bit range (never clamped).
+    uint64_t unsignedInteger(const std::string& key, uint64_t fallback, uint64_t lo, uint64_t hi) const;
+    /// A random seed: any integer in 0..2^64-1.
+    uint64_t seed(const std::string& key, uint64_t fallback) const;
     bool boolean(const std::string& key, bool fallback) const;
     std::string string(const std::string& key) const;
     std::string string(const std::string& key, const std::string& fallback) const;

@@ -1,7 +1,9 @@
 #include "stream/Npy.h"
 
 #include "stream/AtomicFile.h"
+#include "stream/CheckedMath.h"
 #include "stream/Error.h"
+#include "stream/InputFile.h"
 
 #include <fmt/ranges.h>
 
@@ -87,12 +89,9 @@ std::string shapeText(std::span<const uint64_t> shape) {
 
 /// Product of @p shape times @p itemSize, or nullopt on overflow.
 std::optional<uint64_t> byteCount(std::span<const uint64_t> shape, size_t itemSize) {
-    uint64_t total = itemSize;
-    for (uint64_t d : shape) {
-        if (d != 0 && total > std::numeric_limits<uint64_t>::max() / d) return std::nullopt;
-        total *= d;
-    }
-    return total;
+    const std::optional<uint64_t> elements = productOf(shape);
+    const uint64_t factors[2] = {elements.value_or(0), itemSize};
+    return elements ? productOf(factors) : std::nullopt;
 }
 
 /// Parser for the header dict. It accepts exactly the Python literal subset numpy emits
@@ -270,11 +269,9 @@ struct OpenedNpy {
 };
 
 OpenedNpy openNpy(const std::string& path) {
-    std::unique_ptr<std::FILE, FileCloser> file(std::fopen(path.c_str(), "rb"));
-    if (!file) fail(path, "cannot open: {}", errnoText(errno));
+    std::unique_ptr<std::FILE, FileCloser> file(openInputStream(path));
     struct stat st {};
     if (::fstat(::fileno(file.get()), &st) != 0) fail(path, "cannot stat: {}", errnoText(errno));
-    if (S_ISDIR(st.st_mode)) fail(path, "is a directory, not a .npy file");
     const uint64_t fileBytes = static_cast<uint64_t>(st.st_size);
 
     auto readExact = [&](void* dst, size_t n, const char* what) { readFully(file.get(), path, dst, n, what); };

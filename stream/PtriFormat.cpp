@@ -2,6 +2,7 @@
 
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"
+#include "stream/InputFile.h"
 
 #include <glm/common.hpp>
 
@@ -85,8 +86,7 @@ struct OpenFile {
 
 /// Opens @p path and verifies everything the header promises (see readPtriHeader).
 OpenFile openVerified(const std::string& path) {
-    std::FILE* file = std::fopen(path.c_str(), "rb");
-    if (!file) fail(path, "cannot open: {}", std::strerror(errno));
+    std::FILE* file = openInputStream(path);  // regular files only: a FIFO would block here
     // Closes the file on every throw below.
     std::unique_ptr<std::FILE, int (*)(std::FILE*)> guard(file, &std::fclose);
 
@@ -233,22 +233,19 @@ PtriWriter::PtriWriter(std::string path, uint32_t chunkSize)
     : path_(std::move(path)), chunkSize_(chunkSize) {
     if (chunkSize_ == 0 || chunkSize_ > kPtriMaxChunk)
         fail(path_, "invalid chunk size {} (must be 1..{})", chunkSize_, kPtriMaxChunk);
-    // AtomicFile creates, registers and eventually renames or removes the temporary; the bytes
-    // go through a descriptor of our own because the header is patched in place at the end,
-    // which AtomicFile's append-only write() cannot do (its "write by name" mode).
+    // AtomicFile creates the temporary and eventually puts it in place or discards it; the bytes
+    // go straight to its descriptor because the header is patched in place at the end, which
+    // its append-only write() cannot do.
     file_ = std::make_unique<AtomicFile>(path_);
-    fd_ = ::open(file_->tempPath().c_str(), O_WRONLY | O_CLOEXEC);
-    if (fd_ < 0) fail(path_, "cannot open temporary file {}: {}", file_->tempPath(), std::strerror(errno));
+    fd_ = file_->descriptor();
     // Placeholder header; finish() overwrites it once count and bounds are known.
     HeaderBytes placeholder;
     writeBytes(placeholder.bytes, kPtriHeaderBytes, -1);
     chunk_.reserve(chunkSize_);
 }
 
-PtriWriter::~PtriWriter() {
-    // Without finish(), file_'s destructor deletes the temporary.
-    if (fd_ >= 0) ::close(fd_);
-}
+// Without finish(), file_'s destructor discards the temporary.
+PtriWriter::~PtriWriter() = default;
 
 void PtriWriter::writeBytes(const void* data, size_t size, int64_t offset) {
     const auto* bytes = static_cast<const unsigned char*>(data);
@@ -300,10 +297,7 @@ void PtriWriter::finish() {
     info.chunkSize = chunkSize_;
     HeaderBytes header = encodeHeader(info);
     writeBytes(header.bytes, kPtriHeaderBytes, 0);
-    // close() is where some file systems report deferred write errors (quota, NFS).
-    int fd = fd_;
     fd_ = -1;
-    if (::close(fd) != 0 && errno != EINTR) fail(path_, "write failed at close: {}", std::strerror(errno));
     file_->commit();
     finished_ = true;
 }

@@ -105,7 +105,7 @@ private:
     std::string path_;
     uint32_t chunkSize_;
     std::unique_ptr<AtomicFile> file_;  // owns the temporary's name, cleanup and final rename
-    int fd_ = -1;                       // our own descriptor on it: the header needs pwrite
+    int fd_ = -1;                       // file_'s descriptor: the header needs pwrite
     std::vector<Triangle> chunk_;
     uint64_t count_ = 0;
     glm::vec3 lo_{0}, hi_{0};

@@ -1,5 +1,7 @@
 #include "stream/TinyGltfLoad.h"
 
+#include "stream/GltfPrecheck.h"
+
 #include "stream/Error.h"
 #include "stream/RegularFile.h"
 
@@ -108,6 +110,7 @@ size_t checkGlbContainer(const std::string& path, const std::vector<unsigned cha
 
 void loadTinyGltf(const std::string& path, tinygltf::Model& model) {
     std::vector<unsigned char> bytes = readWholeFile(path);
+    checkGltfBeforeParsing(path, bytes);
     if (bytes.size() > std::numeric_limits<unsigned int>::max())  // grew while being read
         fail(path, "file is larger than 4 GiB, which tinygltf cannot address");
     std::string baseDir = std::filesystem::path(path).parent_path().string();

@@ -4,7 +4,7 @@
 
 #include "TestScenes.h"
 
-#include "bake/ReferenceCaster.h"
+#include "bake/peers/ReferenceCaster.h"
 
 #include <catch2/catch.hpp>
 

@@ -4,11 +4,11 @@
 
 #include "TestSupport.h"
 
-#include "bake/CastOptions.h"
-#include "bake/Light.h"
-#include "bake/PenumbraCaster.h"
-#include "bake/ReferenceCaster.h"
-#include "bake/VisibilityMasks.h"
+#include "bake/cast/CastOptions.h"
+#include "bake/light/Light.h"
+#include "bake/cast/PenumbraCaster.h"
+#include "bake/peers/ReferenceCaster.h"
+#include "bake/cast/VisibilityMasks.h"
 #include "bucket/AreaSort.h"
 #include "receivers/ReceiverSet.h"
 #include "stream/Random.h"

@@ -2,6 +2,7 @@
 // Fixtures shared by the tests: scratch directories, error capture, whole-file reads.
 
 #include "stream/Error.h"
+#include "stream/SafePath.h"
 
 #include <catch2/catch.hpp>
 
@@ -25,6 +26,15 @@ namespace penumbra::test {
 
 /// A file of the shared test data (../shared/data beside the project; see CMakeLists.txt), e.g. "meshes/spot.obj".
 inline std::string sharedData(const std::string& rel) { return std::string(PENUMBRA_SHARED_DATA) + "/" + rel; }
+
+/// Lets scenes name files outside their own directory while it lives (`--allow-outside-uris`), for
+/// tests whose scenes in a scratch directory use the examples' files.
+struct AllowOutsidePaths {
+    AllowOutsidePaths() { setOutsidePathsAllowed(true); }
+    ~AllowOutsidePaths() { setOutsidePathsAllowed(false); }
+    AllowOutsidePaths(const AllowOutsidePaths&) = delete;
+    AllowOutsidePaths& operator=(const AllowOutsidePaths&) = delete;
+};
 
 /// A fresh directory under the system temp dir (mkdtemp), removed with everything in it.
 struct ScratchDir {

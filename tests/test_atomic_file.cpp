@@ -48,17 +48,35 @@ int runHelper(const std::string& tag, const std::string& dir, rlim_t fileSizeLim
 
 const char* helperDir() { return std::getenv("PENUMBRA_IO_HELPER_DIR"); }
 
+/// Forces the named-temporary fallback (PENUMBRA_NO_TMPFILE) while alive, when @p on.
+struct NamedTemporaries {
+    explicit NamedTemporaries(bool on) : on_(on) {
+        if (on_) ::setenv("PENUMBRA_NO_TMPFILE", "1", 1);
+    }
+    ~NamedTemporaries() {
+        if (on_) ::unsetenv("PENUMBRA_NO_TMPFILE");
+    }
+    bool on_;
+};
+
 }  // namespace
 
-TEST_CASE("AtomicFile commit renames the temporary into place", "[io]") {
+TEST_CASE("AtomicFile commit puts the file into place", "[io]") {
     ScratchDir dir;
     const std::string target = dir.file("a.bin");
+    const bool named = GENERATE(false, true);  // O_TMPFILE, and the fallback without it
+    NamedTemporaries fallback(named);
     std::string expected;
     {
         AtomicFile f(target);
         CHECK(f.finalPath() == target);
-        CHECK(f.tempPath().rfind(target + ".tmp-" + std::to_string(::getpid()) + "-", 0) == 0);
-        CHECK(fs::path(f.tempPath()).parent_path() == dir.path);
+        if (named) {
+            CHECK(f.tempPath().rfind(target + ".tmp-" + std::to_string(::getpid()) + "-", 0) == 0);
+            CHECK(fs::path(f.tempPath()).parent_path() == dir.path);
+        } else {
+            CHECK(f.tempPath().rfind("/proc/self/fd/", 0) == 0);
+            CHECK(dir.entries().empty());  // nothing has a name before commit()
+        }
         CHECK(fs::exists(f.tempPath()));
         CHECK_FALSE(fs::exists(target));
 
@@ -110,20 +128,27 @@ TEST_CASE("AtomicFile destroyed without commit leaves nothing behind", "[io]") {
 
 TEST_CASE("AtomicFile works with libraries that write by file name", "[io]") {
     ScratchDir dir;
+    const bool named = GENERATE(false, true);
+    NamedTemporaries fallback(named);
     const std::string target = dir.file("lib.dat");
+    { std::ofstream(target) << "an older, longer file"; }
     {
         AtomicFile f(target);
         { std::ofstream(f.tempPath(), std::ios::binary | std::ios::trunc) << "written by name"; }
         f.commit();
     }
     CHECK(slurp(target) == "written by name");
+    CHECK(dir.entries() == std::vector<std::string>{"lib.dat"});
 
-    // A library that failed and deleted its output must not produce a final file.
-    AtomicFile g(dir.file("gone.dat"));
-    fs::remove(g.tempPath());
-    std::string msg = errorOf([&] { g.commit(); });
-    CHECK(msg.rfind(dir.file("gone.dat") + ": output was not written", 0) == 0);
-    CHECK_FALSE(fs::exists(dir.file("gone.dat")));
+    // A library that failed and deleted its output must not produce a final file (only a named
+    // temporary can be deleted).
+    if (named) {
+        AtomicFile g(dir.file("gone.dat"));
+        fs::remove(g.tempPath());
+        std::string msg = errorOf([&] { g.commit(); });
+        CHECK(msg.rfind(dir.file("gone.dat") + ": output was not written", 0) == 0);
+        CHECK_FALSE(fs::exists(dir.file("gone.dat")));
+    }
 }
 
 TEST_CASE("AtomicFile reports an uncreatable file in one line naming the final path", "[io]") {
@@ -184,7 +209,8 @@ TEST_CASE("Temp-file registry removes registered files", "[io]") {
     CHECK_FALSE(fs::exists(a));
     CHECK(fs::exists(b));
 
-    // AtomicFile registers its temporary, and unregisters it once committed.
+    // AtomicFile registers a named temporary, and unregisters it once committed.
+    NamedTemporaries fallback(true);
     AtomicFile pending(dir.file("pending.bin"));
     AtomicFile done(dir.file("done.bin"));
     done.write("ok", 2);

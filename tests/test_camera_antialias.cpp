@@ -4,12 +4,12 @@
 
 #include "TestScenes.h"
 
-#include "bake/CameraKind.h"
-#include "bake/ImageWriters.h"
+#include "bake/kinds/CameraKind.h"
+#include "bake/output/ImageWriters.h"
 #include "bake/Pipeline.h"
-#include "bake/ReceiverKind.h"
+#include "bake/kinds/ReceiverKind.h"
 #include "bake/Scene.h"
-#include "bake/SmoothShading.h"
+#include "bake/shading/SmoothShading.h"
 #include "receivers/CameraReceivers.h"
 
 #include <catch2/catch.hpp>
@@ -47,7 +47,7 @@ struct Baked {
     std::string bytes;
 };
 
-Baked bake(const ScratchDir& dir, const nlohmann::json& scene, Method method = Method::Hpc, int threads = 2,
+Baked bake(const ScratchDir& dir, const nlohmann::json& scene, const std::string& method = "hpc", int threads = 2,
            uint64_t memoryBudget = 0) {
     registerFileSourceTypes();
     SceneDesc desc = parseScene(scene, dir / "scene.json");
@@ -130,9 +130,9 @@ TEST_CASE("antialiased camera bakes match the reference bit for bit and do not d
     writeEdgeGeometry(dir);
     nlohmann::json scene = edgeScene(320, 240, true);  // enough receivers for several memory tiles
     scene["lights"][0]["sample_sets"] = 4;  // sub-pixel receivers continue the receivers' set order
-    Baked hpc1 = bake(dir, scene, Method::Hpc, 1);
-    Baked hpc2 = bake(dir, scene, Method::Hpc, 2);
-    Baked reference = bake(dir, scene, Method::Reference, 2);
+    Baked hpc1 = bake(dir, scene, "hpc", 1);
+    Baked hpc2 = bake(dir, scene, "hpc", 2);
+    Baked reference = bake(dir, scene, "reference", 2);
     REQUIRE(hpc1.stats["antialias"]["refined_pixels"].get<int>() > 0);
     CHECK(hpc1.bytes == hpc2.bytes);
     for (const char* key : {"refined_pixels", "added_receivers"}) CHECK(reference.stats["antialias"][key] == hpc1.stats["antialias"][key]);
@@ -141,7 +141,7 @@ TEST_CASE("antialiased camera bakes match the reference bit for bit and do not d
     const nlohmann::json& plan = hpc1.stats["memory_plan"];
     const uint64_t half = plan["resident_bytes"].get<uint64_t>() +
                           plan["per_receiver_bytes"].get<uint64_t>() * hpc1.stats["receivers"].get<uint64_t>() / 2;
-    Baked tiled = bake(dir, scene, Method::Hpc, 2, std::max(half, plan["minimum_budget_bytes"].get<uint64_t>()));
+    Baked tiled = bake(dir, scene, "hpc", 2, std::max(half, plan["minimum_budget_bytes"].get<uint64_t>()));
     CHECK(tiled.stats["memory_plan"]["tiles"].get<int>() > 1);
     CHECK(tiled.bytes == hpc1.bytes);
     for (const auto& [name, values] : hpc1.image.channels) {

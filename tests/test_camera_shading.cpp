@@ -3,12 +3,12 @@
 
 #include "TestScenes.h"
 
-#include "bake/CameraOutput.h"
-#include "bake/ImageWriters.h"
+#include "bake/kinds/CameraOutput.h"
+#include "bake/output/ImageWriters.h"
 #include "bake/Pipeline.h"
-#include "bake/ReceiverShading.h"
+#include "bake/shading/ReceiverShading.h"
 #include "bake/Scene.h"
-#include "bake/SmoothShading.h"
+#include "bake/shading/SmoothShading.h"
 #include "receivers/CameraReceivers.h"
 
 #include <catch2/catch.hpp>

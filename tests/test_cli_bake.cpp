@@ -3,7 +3,7 @@
 
 #include "CliRunner.h"
 
-#include "bake/ImageWriters.h"
+#include "bake/output/ImageWriters.h"
 #include "stream/Npy.h"
 
 #include <catch2/catch.hpp>
@@ -21,20 +21,6 @@ const char* kSmallScene = R"({
   "output": "out/small.exr"})";
 
 void write(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
-
-void requireCleanError(const RunResult& r, const std::string& fragment) {
-    INFO("stderr: " << r.err);
-    CHECK(r.exitCode == 1);
-    CHECK(lineCount(r.err) == 1);
-    CHECK_THAT(r.err, Catch::StartsWith("penumbra: error: ") && Catch::Contains(fragment));
-}
-
-bool hasTempFiles(const std::filesystem::path& dir) {
-    if (!std::filesystem::exists(dir)) return false;
-    for (const auto& e : std::filesystem::recursive_directory_iterator(dir))
-        if (e.path().filename().string().find(".tmp") != std::string::npos) return true;
-    return false;
-}
 
 }  // namespace
 

@@ -4,7 +4,7 @@
 #include "CliRunner.h"
 #include "TestSupport.h"
 
-#include "bake/ClosedSolids.h"
+#include "bake/cast/ClosedSolids.h"
 #include "stream/Npy.h"
 
 #include <catch2/catch.hpp>
@@ -35,11 +35,11 @@ struct Bakes {
 /// Bakes @p scene with hpc (closed casters on) and the reference, and requires identical masks.
 Bakes requireReferenceMasks(const ScratchDir& dir, const nlohmann::json& scene, const std::string& name) {
     std::ofstream(dir / (name + ".json")) << scene.dump();
-    RunResult hpc = runPenumbra("bake " + (dir / (name + ".json")) + " --closed-casters on --dump " + (dir / (name + "-hpc")) +
+    RunResult hpc = runPenumbra("bake " + (dir / (name + ".json")) + " --closed-casters on --allow-outside-uris --dump " + (dir / (name + "-hpc")) +
                                 " --stats " + (dir / (name + ".stats.json")) + " -o " + (dir / (name + "-hpc.npy")));
     INFO(hpc.err);
     REQUIRE(hpc.exitCode == 0);
-    RunResult ref = runPenumbra("bake " + (dir / (name + ".json")) + " -q --method reference --dump " + (dir / (name + "-ref")) +
+    RunResult ref = runPenumbra("bake " + (dir / (name + ".json")) + " -q --method reference --allow-outside-uris --dump " + (dir / (name + "-ref")) +
                                 " -o " + (dir / (name + "-ref.npy")));
     REQUIRE(ref.exitCode == 0);
     RunResult cmp = runPenumbra("compare " + (dir / (name + "-hpc")) + " " + (dir / (name + "-ref")));

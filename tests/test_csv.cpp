@@ -94,5 +94,5 @@ TEST_CASE("readCsvNumbers names an unreadable file", "[io]") {
     CsvFile f("1\n");
     CHECK(errorOf([&] { readCsvNumbers(f.path + ".missing", 1); }) ==
           f.path + ".missing: cannot open: No such file or directory");
-    CHECK(errorOf([&] { readCsvNumbers(f.dir.path.string(), 1); }) == f.dir.path.string() + ": is a directory, not a CSV file");
+    CHECK(errorOf([&] { readCsvNumbers(f.dir.path.string(), 1); }) == f.dir.path.string() + ": is a directory, not a regular file");
 }

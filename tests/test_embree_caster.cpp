@@ -1,11 +1,11 @@
 // Tests for the Embree caster: it must agree with the brute-force reference (the blocking rule)
 // on every relation except ties, and ties must be rare; plus exact analytic cases.
 
-#include "bake/BlockingRule.h"
-#include "bake/EmbreeCaster.h"
-#include "bake/TieClassifier.h"
-#include "bake/Light.h"
-#include "bake/ReferenceCaster.h"
+#include "bake/rule/BlockingRule.h"
+#include "bake/peers/EmbreeCaster.h"
+#include "bake/rule/TieClassifier.h"
+#include "bake/light/Light.h"
+#include "bake/peers/ReferenceCaster.h"
 #include "stream/Random.h"
 
 #include <catch2/catch.hpp>

@@ -6,8 +6,8 @@
 #include "TestScenes.h"
 #include "TestSupport.h"
 
-#include "bake/BakeDump.h"
-#include "bake/TieClassifier.h"
+#include "bake/output/BakeDump.h"
+#include "bake/rule/TieClassifier.h"
 #include "stream/Npy.h"
 #include "stream/ObjReader.h"
 

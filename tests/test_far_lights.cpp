@@ -4,8 +4,8 @@
 #include "RationalRule.h"
 #include "TestScenes.h"
 
-#include "bake/EmbreeCaster.h"
-#include "bake/TieClassifier.h"
+#include "bake/peers/EmbreeCaster.h"
+#include "bake/rule/TieClassifier.h"
 #include "procedural/BoxesGenerator.h"
 #include "procedural/GrassGenerator.h"
 

@@ -2,7 +2,7 @@
 
 #include "TestScenes.h"
 
-#include "bake/HardShadowBlock.h"
+#include "bake/cast/HardShadowBlock.h"
 #include "stream/Error.h"
 
 #include <catch2/catch.hpp>

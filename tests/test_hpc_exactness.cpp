@@ -3,7 +3,7 @@
 
 #include "TestScenes.h"
 
-#include "bake/ReferenceCaster.h"
+#include "bake/peers/ReferenceCaster.h"
 #include "procedural/BoxesGenerator.h"
 #include "procedural/GridGenerator.h"
 #include "stream/ObjReader.h"

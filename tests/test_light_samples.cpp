@@ -2,7 +2,7 @@
 
 #include "TestScenes.h"
 
-#include "bake/Light.h"
+#include "bake/light/Light.h"
 #include "stream/Error.h"
 
 #include <catch2/catch.hpp>

@@ -8,7 +8,7 @@
 #include "LightmapTestMeshes.h"
 #include "GltfValidator.h"
 
-#include "bake/ImageWriters.h"
+#include "bake/output/ImageWriters.h"
 #include "receivers/LightmapReceivers.h"
 #include "stream/IndexedMesh.h"
 #include "stream/Npy.h"

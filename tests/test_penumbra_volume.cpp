@@ -3,8 +3,8 @@
 
 #include "TestScenes.h"
 
-#include "bake/BlockingRule.h"
-#include "bake/PenumbraVolume.h"
+#include "bake/rule/BlockingRule.h"
+#include "bake/cast/PenumbraVolume.h"
 
 #include <catch2/catch.hpp>
 

@@ -46,6 +46,6 @@ TEST_CASE("grid: bad parameters give an error naming the key", "[procedural]") {
     requireInputError({{"type", "grid"}, {"cells", 0}}, "scene.json: geometry[0].cells: must be in 1..4096");
     requireInputError({{"type", "grid"}, {"levels", -1}}, "geometry[0].levels: must be in 0..1024");
     requireInputError({{"type", "grid"}, {"bar", 1.5}}, "geometry[0].bar: must be in (0, 1)");
-    requireInputError({{"type", "grid"}, {"size", 0}}, "geometry[0].size: must be positive");
+    requireInputError({{"type", "grid"}, {"size", 0}}, "geometry[0].size: must be in (0, 1e9]");
     requireInputError({{"type", "grid"}, {"holes", 3}}, "geometry[0].holes: unknown key");
 }

@@ -105,5 +105,5 @@ TEST_CASE("scatter: bad parameters give an error naming the key", "[procedural]"
     requireInputError(scatterOf({{"depth", 1}}), "geometry[0].source.type: missing required field");
     requireInputError(scatterOf({{"type", "tree"}, {"depth", 40}}), "geometry[0].source.depth: must be in 0..12");
     requireInputError(scatterOf({{"type", "tree"}, {"transform", {{"spin", 1}}}}), "geometry[0].source.transform.spin: unknown key");
-    requireInputError(scatterOf(tree, {{"count", 4611686018427387904}}), "geometry[0]: ");
+    requireInputError(scatterOf(tree, {{"count", 4611686018427387904}}), "geometry[0].count: ");
 }

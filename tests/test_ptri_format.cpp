@@ -2,6 +2,7 @@
 // errors, and a reader that rejects every truncation and every single-byte corruption.
 
 #include "stream/Error.h"
+#include "stream/AtomicFile.h"
 #include "stream/PtriFormat.h"
 #include "StreamTestFiles.h"
 
@@ -146,7 +147,8 @@ TEST_CASE("PTRI: writing is atomic", "[stream][ptri]") {
         PtriWriter writer(path, 4);
         writer.write(someTriangles(9));
         CHECK(readBytes(path).size() == std::string("previous contents").size());  // untouched so far
-        CHECK(dir.entries().size() == 2);                                           // plus the temporary
+        // The temporary has no name at all (O_TMPFILE), except where the file system lacks it.
+        CHECK(dir.entries().size() == (anonymousFilesDisabled() ? 2u : 1u));
         // Destroyed without finish(): as if an exception had unwound the conversion.
     }
     CHECK(dir.entries() == std::vector<std::string>{"scene.ptri"});

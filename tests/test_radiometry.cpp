@@ -4,9 +4,9 @@
 
 #include "TestScenes.h"
 
-#include "bake/ReceiverShading.h"
-#include "bake/ReferenceCaster.h"
-#include "bake/SunLight.h"
+#include "bake/shading/ReceiverShading.h"
+#include "bake/peers/ReferenceCaster.h"
+#include "bake/light/SunLight.h"
 
 #include <catch2/catch.hpp>
 

@@ -1,7 +1,7 @@
 // The reach hull: every segment between the two balls lies inside it, and its distance is not an
 // over-estimate (a blocker it culls really misses every segment).
 
-#include "bake/ReachHull.h"
+#include "bake/rule/ReachHull.h"
 #include "stream/Random.h"
 
 #include <catch2/catch.hpp>

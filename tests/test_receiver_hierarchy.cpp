@@ -3,8 +3,8 @@
 
 #include "TestScenes.h"
 
-#include "receivers/MaskPool.h"
-#include "receivers/ReceiverHierarchy.h"
+#include "bake/cast/MaskPool.h"
+#include "bake/cast/ReceiverHierarchy.h"
 
 #include <catch2/catch.hpp>
 

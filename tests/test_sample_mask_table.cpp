@@ -4,8 +4,8 @@
 
 #include "TestScenes.h"
 
-#include "bake/BlockingRule.h"
-#include "bake/SampleMaskTable.h"
+#include "bake/rule/BlockingRule.h"
+#include "bake/cast/SampleMaskTable.h"
 
 #include <catch2/catch.hpp>
 

@@ -5,7 +5,7 @@
 #include "TestScenes.h"
 #include "TestSupport.h"
 
-#include "bake/TieClassifier.h"
+#include "bake/rule/TieClassifier.h"
 #include "stream/Npy.h"
 
 #include <catch2/catch.hpp>

@@ -36,6 +36,7 @@ nlohmann::json sceneJson(const std::string& mesh, const std::string& output, nlo
 
 nlohmann::json bake(const ScratchDir& dir, const nlohmann::json& scene) {
     registerFileSourceTypes();
+    AllowOutsidePaths examples;  // the scene in the scratch directory bakes the examples' floor
     BakeSettings settings;
     settings.quiet = true;
     settings.threads = 2;
@@ -144,6 +145,7 @@ TEST_CASE("vertices: an existing COLOR_0 is kept and the result goes to _VISIBIL
 TEST_CASE("vertices: bad parameters are one-line errors naming the key", "[vertices]") {
     ScratchDir dir("vertices-errors");
     auto error = [&](nlohmann::json receivers, const std::string& output = "out.glb", const std::string& mesh = kFloor) {
+        AllowOutsidePaths examples;
         return errorOf([&] { parseScene(sceneJson(mesh, output, receivers), dir / "scene.json"); });
     };
     CHECK_THAT(error({{"type", "vertices"}}), Catch::Contains("receivers.meshes") && Catch::Contains("missing"));
@@ -155,6 +157,7 @@ TEST_CASE("vertices: bad parameters are one-line errors naming the key", "[verti
     std::ofstream(dir / "tri.obj") << "v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 2 3\n";
     nlohmann::json scene = sceneJson(kFloor, "out.glb");
     scene["geometry"][0] = {{"type", "obj"}, {"path", dir / "tri.obj"}};
+    AllowOutsidePaths examples;
     CHECK_THAT(errorOf([&] { parseScene(scene, dir / "scene.json"); }),
                Catch::Contains("receivers.meshes[0]") && Catch::Contains(".gltf or .glb"));
 }

@@ -1,6 +1,6 @@
 #include "Compare.h"
 
-#include "bake/BakeDump.h"
+#include "bake/output/BakeDump.h"
 #include "bake/Scene.h"
 #include "stream/AtomicFile.h"
 #include "stream/Error.h"

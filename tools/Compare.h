@@ -6,7 +6,7 @@
 /// receivers (hundreds of MB) are compared in a few MB; `penumbra bench table2` uses this for its
 /// mismatch column.
 
-#include "bake/TieClassifier.h"
+#include "bake/rule/TieClassifier.h"
 
 #include <cstdint>
 #include <map>

@@ -1,8 +1,11 @@
 #include "Generate.h"
 
+#include "bake/BakeOutputs.h"
+#include "bake/Pipeline.h"
 #include "bake/Scene.h"
 #include "stream/Error.h"
 #include "stream/GeometryFile.h"
+#include "stream/InputFile.h"
 
 #include <fmt/format.h>
 #include <tbb/global_control.h>
@@ -22,7 +25,10 @@ CLI::App* addGenerateCommand(CLI::App& app, GenerateOptions& options) {
 }
 
 uint64_t runGenerate(const GenerateOptions& options) {
-    if (options.threads < 0) throw InputError(fmt::format("--threads: must not be negative, got {}", options.threads));
+    if (options.threads < 0 || options.threads > kMaxThreads)
+        throw InputError(fmt::format("--threads: must be in 0..{} (0: all cores), got {}", kMaxThreads, options.threads));
+    if (options.output.empty()) throw InputError("--output: must not be empty");
+    InputScope inputs;  // the output must not replace a file the scene reads
     // Generators split chunks across TBB workers; this caps how many there are.
     std::unique_ptr<tbb::global_control> limit;
     if (options.threads > 0)
@@ -30,6 +36,7 @@ uint64_t runGenerate(const GenerateOptions& options) {
 
     const auto start = std::chrono::steady_clock::now();
     SceneDesc scene = loadScene(options.scene);
+    checkOutputAgainstInputs(scene, options.output);
     TriangleSourcePtr source = openSceneGeometry(scene);
     convertGeometry(*source, options.output);
     // convertGeometry does not report a count; the stream's size is known for every generator,

@@ -2,6 +2,7 @@
 
 #include "procedural/Generators.h"
 #include "stream/AtomicFile.h"
+#include "stream/CheckedMath.h"
 #include "stream/Error.h"
 #include "stream/SourceRegistry.h"
 
@@ -122,7 +123,8 @@ std::string generatorBenchTable(const nlohmann::json& result) {
 
 CLI::App* addBenchGeneratorsCommand(CLI::App& bench, BenchGeneratorsOptions& options) {
     CLI::App* cmd = bench.add_subcommand("generators", "triangles per second of every procedural generator");
-    cmd->add_option("--triangles", options.triangles, "triangles pulled per generator and thread count (default 20M)");
+    cmd->add_option("--triangles", options.triangles, "triangles pulled per generator and thread count (default 20M)")
+        ->check(CLI::Range(uint64_t(1), kMaxSceneTriangles));
     cmd->add_option("--threads", options.threads, "thread counts to measure, e.g. 1,2 (default)")->delimiter(',');
     cmd->add_option("--json", options.jsonPath, "also write the full result as JSON");
     cmd->add_option("--only", options.only, "measure only generators whose name contains this text");

@@ -2,6 +2,7 @@
 #include "TableBenchReport.h"
 
 #include "stream/AtomicFile.h"
+#include "stream/CheckedMath.h"
 #include "stream/Error.h"
 #include "stream/JsonParams.h"
 #include "stream/Memory.h"
@@ -441,7 +442,8 @@ CLI::App* addBenchTableCommand(CLI::App& bench, BenchTableOptions& o) {
     cmd->add_flag("--no-embree", o.noEmbree, "measure ours only");
     cmd->add_flag("--no-compare", o.noCompare, "skip the --dump runs that count mismatches against Embree");
     cmd->add_flag("--no-cull", o.noCull, "skip the root-cull throughput measurement");
-    cmd->add_option("--cull-triangles", o.cullTriangles, "triangles per root-cull case (default 20M)");
+    cmd->add_option("--cull-triangles", o.cullTriangles, "triangles per root-cull case (default 20M)")
+        ->check(CLI::Range(uint64_t(1), kMaxSceneTriangles));
     cmd->add_flag("-q,--quiet", o.quiet, "no progress lines on stderr");
     return cmd;
 }

@@ -6,20 +6,29 @@
 #include "GeneratorBench.h"
 #include "TableBench.h"
 
+#include "bake/LibraryErrors.h"
 #include "bake/Pipeline.h"
+#include "bake/cast/Caster.h"
 #include "bake/Scene.h"
-#include "bake/VolumeKind.h"
+#include "bake/kinds/VolumeKind.h"
 #include "procedural/Generators.h"
 #include "stream/AtomicFile.h"
+#include "stream/Diagnostics.h"
 #include "stream/Error.h"
 #include "stream/GeometryFile.h"
+#include "stream/InputFile.h"
 #include "stream/Memory.h"
+#include "stream/SafePath.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include <cerrno>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
+#include <exception>
+#include <utility>
 #include <sstream>
 
 using namespace penumbra;
@@ -47,9 +56,51 @@ void disableOptimizations(CastOptions& o, const std::vector<std::string>& names)
     }
 }
 
+/// Writes a command's result to stdout; a failed write (a full disk, a closed pipe) is an error,
+/// since the result is what the command is for.
+void printResult(const std::string& text) {
+    if (std::fwrite(text.data(), 1, text.size(), stdout) != text.size() || std::fflush(stdout) != 0)
+        throw InputError(fmt::format("stdout: write failed: {}", std::strerror(errno)));
+}
+
+/// An option given with an empty value ("-o ''") is a mistake, never "not given".
+void requireNonEmpty(const CLI::Option* option, const std::string& value) {
+    if (option->count() > 0 && value.empty()) throw InputError(option->get_name() + ": must not be empty");
+}
+
+/// Prints the one line for an exception that ended a command and returns the exit code: 1 for
+/// errors in the input or the environment (a library's included), 70 for penumbra's own bugs.
+/// @param context the command's main input, named when the library did not.
+int reportError(std::exception_ptr error, const std::string& context) {
+    const std::string prefix = context.empty() ? "penumbra: error: " : "penumbra: error: " + context + ": ";
+    try {
+        std::rethrow_exception(error);
+    } catch (const InputError& e) {
+        printDiagnostic(fmt::format("penumbra: error: {}\n", e.what()));
+    } catch (const std::bad_alloc&) {
+        printDiagnostic("penumbra: error: out of memory (try --memory-budget or fewer receivers)\n");
+    } catch (const std::length_error& e) {  // a size from the input beyond what a container can hold
+        printDiagnostic(fmt::format("{}too large to hold in memory ({})\n", prefix, e.what()));
+    } catch (const std::exception& e) {
+        if (std::optional<std::string> message = libraryErrorMessage(e)) {
+            printDiagnostic(prefix + *message + "\n");
+            return 1;
+        }
+        printDiagnostic(fmt::format("penumbra: internal error: {}\n", e.what()));
+        return 70;
+    } catch (...) {
+        printDiagnostic("penumbra: internal error: an unknown exception\n");
+        return 70;
+    }
+    return 1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+    // Diagnostics must never change how a run ends: stderr may be full or closed, stdout a pipe
+    // that `head` has left.
+    makeStandardStreamsSafe();
     // A file-size limit (prlimit --fsize) must surface as EFBIG from write(), which the writers
     // report with the file name, instead of killing the process with SIGXFSZ.
     std::signal(SIGXFSZ, SIG_IGN);
@@ -66,11 +117,14 @@ int main(int argc, char** argv) {
     std::vector<std::string> disabled;
     CLI::App* bake = app.add_subcommand("bake", "bake soft shadows for a scene file");
     bake->add_option("scene", scenePath, "scene file (JSON)")->required();
-    bake->add_option("-o,--output", output, "output file (overrides the scene's \"output\")");
-    bake->add_option("--method", method, "hpc (default), reference or embree");
+    CLI::Option* outputOption = bake->add_option("-o,--output", output, "output file (overrides the scene's \"output\")");
+    std::string methods;
+    for (const std::string& name : casterNames()) methods += (methods.empty() ? "" : ", ") + name;
+    bake->add_option("--method", method, "shadow method: " + methods + " (default hpc)");
     bake->add_option("--threads", threads, "worker threads (default: all cores)");
-    bake->add_option("--stats", statsPath, "write JSON stats to this file");
-    bake->add_option("--dump", dumpDir, "write receivers.npy, samples.npy, masks.npy and rule.json to this directory");
+    CLI::Option* statsOption = bake->add_option("--stats", statsPath, "write JSON stats to this file");
+    CLI::Option* dumpOption = bake->add_option("--dump", dumpDir,
+                                               "write receivers.npy, samples.npy, masks.npy and rule.json to this directory");
     bake->add_option("--disable", disabled,
                      "switch optimizations off: umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, closed-casters, "
                      "cull-before-spill, all")
@@ -91,8 +145,9 @@ int main(int argc, char** argv) {
         ->check(CLI::IsMember({"on", "off"}));
     std::string memoryBudget, tmpDir;
     bool keepBuckets = false;
-    bake->add_option("--memory-budget", memoryBudget, "bound on bake memory, e.g. 256M or 2G; receivers are tiled to fit");
-    bake->add_option("--tmp", tmpDir, "directory for temporary bucket files (default: the system temp dir)");
+    CLI::Option* budgetOption =
+        bake->add_option("--memory-budget", memoryBudget, "bound on bake memory, e.g. 256M or 2G; receivers are tiled to fit");
+    CLI::Option* tmpOption = bake->add_option("--tmp", tmpDir, "directory for temporary bucket files (default: the system temp dir)");
     bake->add_flag("--keep-buckets", keepBuckets, "keep the bucket files (for debugging)");
 
     CompareOptions compareOptions;
@@ -123,6 +178,10 @@ int main(int argc, char** argv) {
 
     GenerateOptions generateOptions;
     CLI::App* generate = addGenerateCommand(app, generateOptions);
+    bool allowOutside = false;
+    for (CLI::App* command : {bake, generate, info, convert})
+        command->add_flag("--allow-outside-uris", allowOutside,
+                          "let scenes and glTF files name files outside their own directory");
 
     BenchGeneratorsOptions benchGeneratorsOptions;
     CLI::App* bench = app.add_subcommand("bench", "benchmarks");
@@ -137,23 +196,36 @@ int main(int argc, char** argv) {
         return app.exit(e);
     }
 
+    // Inputs of the command are recorded, so that no output replaces one (InputFile.h).
+    InputScope inputs;
+    setOutsidePathsAllowed(allowOutside);
+    std::string context;  // the command's main input, for errors a library throws
     try {
         if (*bake) {
+            context = scenePath;
+            for (auto [option, value] : {std::pair{outputOption, &output}, {statsOption, &statsPath},
+                                         {dumpOption, &dumpDir}, {tmpOption, &tmpDir}, {budgetOption, &memoryBudget}})
+                requireNonEmpty(option, *value);
             SceneDesc scene = loadScene(scenePath);
-            if (!output.empty()) scene.output = output;
+            if (outputOption->count()) scene.output = output, scene.outputFromScene = false;
             disableOptimizations(scene.options, disabled);
             if (!simd.empty()) scene.options.simd = parseSimdLevel(simd, "--simd");
             if (!sampleTable.empty()) scene.options.sampleTable = sampleTable == "on";
             if (!closedCasters.empty()) scene.options.closedCasters = closedCasters == "on";
             if (!embreeFilter.empty()) scene.options.embreeRuleFilter = embreeFilter == "on";
             BakeSettings settings;
-            settings.method = parseMethod(method);
-            if (threads < 0) throw InputError(fmt::format("--threads: must not be negative, got {}", threads));
+            settings.method = casterEntry(method).name;
+            if (threads < 0 || threads > kMaxThreads)
+                throw InputError(fmt::format("--threads: must be in 0..{} (0: all cores), got {}", kMaxThreads, threads));
             settings.threads = threads;
             settings.statsPath = statsPath;
             settings.dumpDir = dumpDir;
             settings.quiet = quiet;
-            if (!memoryBudget.empty()) settings.memoryBudget = parseByteSize(memoryBudget, "--memory-budget");
+            if (budgetOption->count()) {
+                settings.memoryBudget = parseByteSize(memoryBudget, "--memory-budget");
+                if (settings.memoryBudget == 0)
+                    throw InputError("--memory-budget: must be more than 0 (leave it out for no budget)");
+            }
             settings.tmpDir = tmpDir;
             settings.keepBuckets = keepBuckets;
             nlohmann::json stats = runBake(scene, settings);
@@ -163,21 +235,24 @@ int main(int argc, char** argv) {
                            stats["counters"]["triangles_read"].get<uint64_t>(),
                            stats["table2"]["total_time_s"].get<double>(), scene.output);
         } else if (*compare) {
+            context = compareOptions.dirA;
             CompareResult r = compareDumps(compareOptions);
-            fmt::print("receivers {}\nsamples {}\nrelations {}\nblocked_a {}\nblocked_b {}\nonly_a {}\nonly_b {}\n",
-                       r.receivers, r.samples, r.relations, r.blockedA, r.blockedB, r.onlyA, r.onlyB);
+            printResult(fmt::format("receivers {}\nsamples {}\nrelations {}\nblocked_a {}\nblocked_b {}\nonly_a {}\nonly_b {}\n",
+                                    r.receivers, r.samples, r.relations, r.blockedA, r.blockedB, r.onlyA, r.onlyB));
             if (r.classified) {
-                fmt::print("ties {}\nunexplained {}\n", r.ties, r.unexplained());
-                for (const auto& [quantity, count] : r.tiesByQuantity) fmt::print("ties_{} {}\n", quantity, count);
+                printResult(fmt::format("ties {}\nunexplained {}\n", r.ties, r.unexplained()));
+                for (const auto& [quantity, count] : r.tiesByQuantity) printResult(fmt::format("ties_{} {}\n", quantity, count));
             }
             bool same = r.classified ? r.unexplained() == 0 : r.onlyA + r.onlyB == 0;
             return same ? 0 : 3;
         } else if (*info) {
+            context = infoPath;
             TriangleSourcePtr source = openGeometryFile(infoPath);
             GeometryInfo g = scanGeometry(*source);
-            fmt::print("triangles {}\nbounds_min {} {} {}\nbounds_max {} {} {}\narea {}\n", g.triangles, g.lo.x, g.lo.y,
-                       g.lo.z, g.hi.x, g.hi.y, g.hi.z, g.area);
+            printResult(fmt::format("triangles {}\nbounds_min {} {} {}\nbounds_max {} {} {}\narea {}\n", g.triangles, g.lo.x,
+                                    g.lo.y, g.lo.z, g.hi.x, g.hi.y, g.hi.z, g.area));
         } else if (*generate) {
+            context = generateOptions.scene;
             runGenerate(generateOptions);
         } else if (*benchGenerators) {
             runBenchGenerators(benchGeneratorsOptions);
@@ -186,20 +261,15 @@ int main(int argc, char** argv) {
             for (int i = 1; i < argc; ++i) commandLine += std::string(" ") + argv[i];
             runBenchTable(benchTableOptions, commandLine);
         } else if (*slice) {
+            context = sliceIn;
             writeVolumeSlicePng(sliceIn, sliceOut, sliceGrid, sliceAxis[0], sliceAt);
         } else if (*convert) {
+            context = convertIn;
             TriangleSourcePtr source = openGeometryFile(convertIn);
             convertGeometry(*source, convertOut);
         }
-    } catch (const InputError& e) {
-        fmt::print(stderr, "penumbra: error: {}\n", e.what());
-        return 1;
-    } catch (const std::bad_alloc&) {
-        fmt::print(stderr, "penumbra: error: out of memory (try --memory-budget or fewer receivers)\n");
-        return 1;
-    } catch (const std::exception& e) {
-        fmt::print(stderr, "penumbra: internal error: {}\n", e.what());
-        return 70;
+    } catch (...) {
+        return reportError(std::current_exception(), context);
     }
     return 0;
 }

@@ -1,0 +1,72 @@
+#include "bake/BakeOutputs.h"
+
+#include "stream/AtomicFile.h"
+#include "stream/Error.h"
+
+#include <sys/stat.h>
+
+#include <filesystem>
+#include <vector>
+
+namespace fs = std::filesystem;
+
+namespace penumbra {
+namespace {
+
+/// Every string under a "path" key in @p j (scatter sources nest entries), resolved against
+/// @p base. The JSON is depth-limited when read (JsonText.h), so the recursion is bounded.
+void collectPaths(const nlohmann::json& j, const fs::path& base, std::vector<std::string>& out) {
+    if (j.is_object()) {
+        for (auto it = j.begin(); it != j.end(); ++it) {
+            if (it.key() == "path" && it->is_string()) out.push_back((base / it->get<std::string>()).lexically_normal().string());
+            else collectPaths(*it, base, out);
+        }
+    } else if (j.is_array()) {
+        for (const nlohmann::json& e : j) collectPaths(e, base, out);
+    }
+}
+
+/// The files a bake of @p scene reads.
+std::vector<std::string> sceneInputs(const SceneDesc& scene) {
+    std::vector<std::string> inputs{scene.file};
+    for (const GeometryDesc& g : scene.geometry) collectPaths(g.params, scene.baseDir, inputs);
+    collectPaths(scene.receivers, scene.baseDir, inputs);
+    return inputs;
+}
+
+/// Refuses @p output when it is the same file as one of @p inputs (device and inode).
+void refuseInputs(const std::string& output, const std::vector<std::string>& inputs) {
+    struct stat out {};
+    if (::stat(output.c_str(), &out) != 0) return;  // a new file cannot be an input
+    for (const std::string& input : inputs) {
+        struct stat in {};
+        if (::stat(input.c_str(), &in) == 0 && in.st_dev == out.st_dev && in.st_ino == out.st_ino)
+            fail(output, "is also an input of this bake ({}); refusing to overwrite it", input);
+    }
+}
+
+}  // namespace
+
+void checkOutputAgainstInputs(const SceneDesc& scene, const std::string& output) {
+    checkOutputPath(output);
+    refuseInputs(output, sceneInputs(scene));
+}
+
+void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, const std::string& dumpDir) {
+    checkSceneOutput(scene);
+    std::vector<std::string> outputs{scene.output};
+    if (!statsPath.empty()) outputs.push_back(statsPath);
+    if (!dumpDir.empty())
+        for (const char* name : {"receivers.npy", "samples.npy", "masks.npy"}) outputs.push_back((fs::path(dumpDir) / name).string());
+    const std::vector<std::string> inputs = sceneInputs(scene);
+    for (size_t i = 0; i < outputs.size(); ++i) {
+        checkOutputPath(outputs[i]);
+        refuseInputs(outputs[i], inputs);
+        const fs::path a = fs::absolute(outputs[i]).lexically_normal();
+        for (size_t j = 0; j < i; ++j)
+            if (a == fs::absolute(outputs[j]).lexically_normal())
+                fail(outputs[i], "is named for two outputs of this bake; give each its own file");
+    }
+}
+
+}  // namespace penumbra

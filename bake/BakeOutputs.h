@@ -1,0 +1,26 @@
+#pragma once
+/// @file BakeOutputs.h
+/// @brief Where a bake's outputs go, checked before any work: an unwritable `-o`, a stats file
+/// that is a directory, or an output that is also an input must stop the bake in its first
+/// second, not after an hour of casting. (The files themselves are written through AtomicFile
+/// in one OutputSet, so that they appear together or not at all.)
+
+#include "bake/Scene.h"
+
+#include <string>
+
+namespace penumbra {
+
+/// @brief Checks every output location of a bake of @p scene: the scene's output (which must stay
+/// in the scene's directory unless -o named it, Scene.h), @p statsPath and the dump files in
+/// @p dumpDir (either may be empty), and that no two of them, and none of them and an input the
+/// scene names (its geometry and points files, the scene file itself), are the same file.
+/// @throw InputError naming the output and what is wrong with it.
+void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, const std::string& dumpDir);
+
+/// @brief Checks one output path against the files the scene reads (checkOutputPath() and the
+/// device-and-inode comparison), for commands with a single output (`generate`).
+/// @throw InputError naming @p output.
+void checkOutputAgainstInputs(const SceneDesc& scene, const std::string& output);
+
+}  // namespace penumbra

@@ -1,0 +1,26 @@
+#include "bake/LibraryErrors.h"
+
+#include <Iex.h>
+#include <nlohmann/json.hpp>
+#include <openvdb/Exceptions.h>
+
+#include <filesystem>
+
+namespace penumbra {
+
+std::optional<std::string> libraryErrorMessage(const std::exception& e) {
+    std::string what;
+    if (const auto* fs = dynamic_cast<const std::filesystem::filesystem_error*>(&e)) {
+        what = fs->path1().empty() ? fs->code().message() : fs->path1().string() + ": " + fs->code().message();
+    } else if (dynamic_cast<const nlohmann::json::exception*>(&e) || dynamic_cast<const Iex::BaseExc*>(&e) ||
+               dynamic_cast<const openvdb::Exception*>(&e)) {
+        what = e.what();
+    } else {
+        return std::nullopt;
+    }
+    // One line: libraries sometimes append details on further lines.
+    what = what.substr(0, what.find('\n'));
+    return what.empty() ? std::string("a library reported an error without a message") : what;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,94 @@
+#include "bake/WorkPlan.h"
+
+#include "bucket/BucketOptions.h"
+#include "stream/Diagnostics.h"
+#include "stream/Error.h"
+#include "stream/Memory.h"
+#include "stream/Progress.h"
+
+#include <sys/statvfs.h>
+#include <sys/sysinfo.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace penumbra {
+namespace {
+
+/// The cgroup v2 memory limit of this process, if it has one.
+std::optional<uint64_t> cgroupMemoryLimit() {
+    std::ifstream cgroup("/proc/self/cgroup");
+    std::string line, path;
+    while (std::getline(cgroup, line))
+        if (line.rfind("0::", 0) == 0) path = line.substr(3);
+    if (path.empty()) return std::nullopt;
+    std::ifstream max("/sys/fs/cgroup" + path + "/memory.max");
+    std::string value;
+    if (!(max >> value) || value == "max") return std::nullopt;
+    try {
+        return std::stoull(value);
+    } catch (const std::exception&) {
+        return std::nullopt;
+    }
+}
+
+}  // namespace
+
+uint64_t machineMemoryBytes() {
+    struct sysinfo info {};
+    if (::sysinfo(&info) != 0) return 0;
+    uint64_t bytes = (uint64_t(info.totalram) + uint64_t(info.totalswap)) * info.mem_unit;
+    if (std::optional<uint64_t> limit = cgroupMemoryLimit()) bytes = std::min(bytes, *limit);
+    return bytes;
+}
+
+uint64_t freeDiskBytes(const std::string& dir) {
+    struct statvfs fs {};
+    if (::statvfs(dir.c_str(), &fs) != 0) return 0;
+    return uint64_t(fs.f_bavail) * fs.f_frsize;
+}
+
+void checkMemoryFits(const std::string& scene, const char* what, uint64_t neededBytes) {
+    const uint64_t machine = machineMemoryBytes();
+    if (machine == 0 || neededBytes <= machine) return;
+    fail(scene, "{} needs at least {} of memory, but this machine has {} (physical memory and swap); make the "
+                "receivers fewer (a smaller image, lightmap or volume)",
+         what, formatBytes(neededBytes), formatBytes(machine));
+}
+
+void checkReceiverBoundFits(const std::string& scene, MemoryDemand demand, std::optional<uint64_t> bound) {
+    if (!bound) return;
+    demand.receivers = *bound;
+    checkMemoryFits(scene, fmt::format("casting {} receivers", *bound).c_str(), planMemory(demand, 0).minimumBudget);
+}
+
+void checkBucketDisk(const std::string& tmpDir, std::optional<uint64_t> triangles, bool sort) {
+    if (!sort || !triangles) return;
+    std::string dir = tmpDir;
+    if (dir.empty()) {
+        std::error_code ec;
+        dir = std::filesystem::temp_directory_path(ec).string();
+        if (ec) return;  // the bucket writer reports it
+    }
+    const uint64_t free = freeDiskBytes(dir);
+    const double needed = double(*triangles) * double(kBucketRecordBytes);
+    if (free == 0 || needed <= double(free)) return;
+    fail("--tmp " + dir, "the bucket files of {} triangles need {}, but it has {} free (give --tmp on a larger disk, or "
+                         "stream fewer triangles)",
+         *triangles, needed >= 1.8e19 ? std::string("more than 16 EiB") : formatBytes(uint64_t(needed)), formatBytes(free));
+}
+
+double estimatedSeconds(uint64_t triangles, int tiles, int threads) {
+    return double(triangles) * double(2 + std::max(tiles, 1)) * kSecondsPerTrianglePass / double(std::max(threads, 1));
+}
+
+void noteLongBake(uint64_t triangles, int tiles, int threads, bool quiet) {
+    const double seconds = estimatedSeconds(triangles, tiles, threads);
+    if (seconds < 3600) return;
+    notice(quiet, "this bake streams {} triangles {} times; expect about {} on {} thread{} (the plan's estimate)", triangles,
+           2 + std::max(tiles, 1), formatDuration(seconds), threads, threads == 1 ? "" : "s");
+}
+
+}  // namespace penumbra

@@ -1,0 +1,55 @@
+#pragma once
+/// @file WorkPlan.h
+/// @brief What a bake will need of the machine, checked before the work that needs it: memory
+/// against what the machine has, bucket files against the free space of `--tmp`, and time. A
+/// request that cannot fit is refused before any work with the numbers (a 65536² camera's
+/// z-buffer, the 344 GB of bucket files of a 65536² terrain on an 80 GB disk); one that fits but
+/// will take hours says so up front, with the estimate (`--quiet` keeps that quiet).
+///
+/// The memory needed comes from the memory plan (MemoryPlan.h: its smallest budget that works);
+/// the machine's memory is its physical memory plus swap, or less under a cgroup limit.
+
+#include "bake/MemoryPlan.h"
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace penumbra {
+
+/// @brief Physical memory plus swap, capped by the cgroup's memory.max when there is one; 0 when
+/// unknown (no check is made then).
+uint64_t machineMemoryBytes();
+
+/// @brief Bytes free for an unprivileged writer on the file system of @p dir; 0 when unknown.
+uint64_t freeDiskBytes(const std::string& dir);
+
+/// @brief Refuses a bake whose smallest workable memory, @p neededBytes, exceeds
+/// machineMemoryBytes(). @p what says which phase needs it ("the scan pass", "casting").
+/// @throw InputError "SCENE: the scan pass needs at least 64.0 GiB of memory, but this machine has
+///        23.4 GiB (physical memory and swap) ...".
+void checkMemoryFits(const std::string& scene, const char* what, uint64_t neededBytes);
+
+/// @brief With the receivers a kind can bound before the scan (@p bound, ReceiverKind.h), refuses a
+/// bake whose memory plan for that many receivers cannot fit (checkMemoryFits()); @p demand is the
+/// rest of the plan's demand as known before the scan.
+void checkReceiverBoundFits(const std::string& scene, MemoryDemand demand, std::optional<uint64_t> bound);
+
+/// @brief Refuses a bake whose bucket files (40 bytes per triangle of @p triangles, when @p sort)
+/// cannot fit in the free space of @p tmpDir ("" = the system temp directory).
+/// @throw InputError "--tmp /tmp: the bucket files of 8590007494 triangles need 320 GiB, but it
+///        has 75.2 GiB free ...".
+void checkBucketDisk(const std::string& tmpDir, std::optional<uint64_t> triangles, bool sort);
+
+/// @brief The plan's estimate of a bake's wall time: every triangle is streamed `2 + tiles` times
+/// (scan, buckets, one cast per memory tile), at kSecondsPerTrianglePass per pass and thread.
+double estimatedSeconds(uint64_t triangles, int tiles, int threads);
+
+/// CPU seconds per triangle and pass, from meadow-1b (docs/BENCHMARKS.md: 1,040 CPU s for
+/// 1.0G triangles in three passes).
+inline constexpr double kSecondsPerTrianglePass = 0.35e-6;
+
+/// @brief Prints a note with the estimate when it is an hour or more (unless @p quiet).
+void noteLongBake(uint64_t triangles, int tiles, int threads, bool quiet);
+
+}  // namespace penumbra

@@ -1,0 +1,77 @@
+#pragma once
+/// @file CastOptions.h
+/// @brief Switches and parameters of hierarchical penumbra casting, and what a cast measures.
+
+#include "bake/cast/HardShadowBlock.h"
+#include "bake/cast/ReceiverHierarchy.h"
+
+#include <cstdint>
+
+namespace penumbra {
+
+/// @brief Each optimization of Laine & Aila's Figure 3 can be switched off for testing and
+/// measurement; all combinations give identical masks.
+struct CastOptions {
+    bool umbraBits = true;     ///< A: group/full-umbra bits on nodes and receivers
+    bool activePlanes = true;  ///< B: active plane sets
+    bool lazyVolumes = true;   ///< C: build V_Gk and hard-shadow volumes only when needed
+    bool lazyMasks = true;     ///< D: allocate masks on demand, release them in full umbra
+    bool rebuild = true;       ///< rebuild the hierarchy without umbra receivers (needs A)
+    bool sortBlockers = true;  ///< process blockers largest first
+    /// The bucket pass drops blockers out of every light's reach (bake/ReachCull.h) instead of
+    /// writing them to disk for the caster to cull; masks do not change.
+    bool cullBeforeSpill = true;
+    /// Sintorn et al. 2008 plane-to-bitmask tables (SampleMaskTable.h) decide most of a group's
+    /// bits before the per-sample test; exact, so masks do not change. Measured faster on GRIDS
+    /// and flowers: docs/performance.md, "Sample mask table".
+    bool sampleTable = true;
+    /// Sintorn et al. 2008: a triangle marked kTriangleClosed whose plane has the whole light
+    /// strictly behind it is skipped. A segment that crosses it enters the solid and leaves it
+    /// through a triangle facing the light sample, which blocks it, so masks do not change as long
+    /// as no light sample lies inside a closed solid (except for ties of the blocking rule:
+    /// segments that only graze the solid).
+    bool closedCasters = true;
+    /// --method embree: accept a hit only when the blocking rule blocks (an occlusion filter), so
+    /// Embree decides like hpc but for float edge ties. Off: Embree's native answer, with the
+    /// epsilon as tnear along the ray, which also blocks grazing rays the rule does not.
+    bool embreeRuleFilter = true;
+    int sampleTableAngles = 128;   ///< angle bins of each table
+    int sampleTableOffsets = 128;  ///< offset bins of each table
+    double rebuildThreshold = 0.25;  ///< rebuild when this fraction of live receivers is in umbra
+    HierarchyParams hierarchy;
+    double epsilon = 1e-5;     ///< receiver-end epsilon, relative (BlockingRule.h)
+    /// L of eps(r) = epsilon * max(|r|_inf, L): the largest |coordinate| of the first pass's
+    /// receivers, set by the pipeline after the scan pass (1 until then, and in unit tests).
+    double epsilonLength = 1.0;
+    int groupSize = 64;        ///< light samples per group, 1..64
+    SimdLevel simd = SimdLevel::Auto;  ///< instruction set of the hard-shadow tests (same bits for all)
+};
+
+/// @brief The rule's receiver epsilon for @p options.
+inline ReceiverEpsilon receiverEpsilonOf(const CastOptions& options) { return {options.epsilon, options.epsilonLength}; }
+
+/// @brief Counters and timers of one cast, summed over tiles (the paper's Table 2 columns).
+struct CastStats {
+    double hierarchyBuildSeconds = 0;  ///< thread-seconds, all builds and rebuilds
+    /// Wall-clock seconds from the first cast() to the end of flush(): tiles cast in the background
+    /// while the caller reads the next chunk, so this includes the replay read.
+    double castSeconds = 0;
+    double replayReadSeconds = 0;  ///< of castSeconds, the caller's time reading the bucket replay
+    uint64_t trianglesProcessed = 0;
+    uint64_t trianglesCulledAtRoot = 0;  ///< no tile root box intersected V_L
+    uint64_t closedBackFaces = 0;        ///< closed-surface triangles facing away from every light
+    uint64_t rebuilds = 0;
+    uint64_t peakLiveMasks = 0;
+    uint64_t peakMaskBytes = 0;
+    uint64_t peakHierarchyBytes = 0;
+    uint64_t receiverBytes = 0;
+    uint64_t hardShadowTests = 0;
+    uint64_t tableDecidedRelations = 0;  ///< open relations the sample mask table decided
+    uint64_t sampleTableBytes = 0;       ///< memory of the sample mask tables
+};
+
+/// @brief Adds the stats of one more tile or cast pass to @p total. Tiles and passes run one
+/// after another, so peaks are the largest one's, not the sum.
+void addSequential(CastStats& total, const CastStats& s);
+
+}  // namespace penumbra

@@ -1,0 +1,79 @@
+#include "bake/cast/Caster.h"
+
+#include "stream/Error.h"
+
+#include <algorithm>
+#include <map>
+#include <mutex>
+
+namespace penumbra {
+namespace {
+
+/// The registry lives in a function so that registrations from any translation unit's static
+/// initializers find it constructed.
+struct Registry {
+    std::mutex mutex;
+    std::vector<std::unique_ptr<CasterEntry>> entries;  ///< stable addresses for casterEntry()
+};
+
+Registry& registry() {
+    static Registry r;
+    return r;
+}
+
+/// Listing order: the exact methods people compare first, then the rest alphabetically.
+int rank(const std::string& name) {
+    static const std::vector<std::string> first = {"hpc", "reference", "embree"};
+    auto it = std::find(first.begin(), first.end(), name);
+    return it == first.end() ? int(first.size()) : int(it - first.begin());
+}
+
+}  // namespace
+
+void addSequential(CastStats& total, const CastStats& s) {
+    total.hierarchyBuildSeconds += s.hierarchyBuildSeconds;
+    total.castSeconds += s.castSeconds;
+    total.replayReadSeconds += s.replayReadSeconds;
+    total.trianglesProcessed += s.trianglesProcessed;
+    total.trianglesCulledAtRoot += s.trianglesCulledAtRoot;
+    total.closedBackFaces += s.closedBackFaces;
+    total.rebuilds += s.rebuilds;
+    total.hardShadowTests += s.hardShadowTests;
+    total.tableDecidedRelations += s.tableDecidedRelations;
+    total.sampleTableBytes = std::max(total.sampleTableBytes, s.sampleTableBytes);
+    total.peakLiveMasks = std::max(total.peakLiveMasks, s.peakLiveMasks);
+    total.peakMaskBytes = std::max(total.peakMaskBytes, s.peakMaskBytes);
+    total.peakHierarchyBytes = std::max(total.peakHierarchyBytes, s.peakHierarchyBytes);
+    total.receiverBytes = std::max(total.receiverBytes, s.receiverBytes);
+}
+
+CasterRegistration::CasterRegistration(CasterEntry entry) {
+    Registry& r = registry();
+    std::lock_guard lock(r.mutex);
+    r.entries.push_back(std::make_unique<CasterEntry>(std::move(entry)));
+    std::sort(r.entries.begin(), r.entries.end(), [](const auto& a, const auto& b) {
+        return rank(a->name) != rank(b->name) ? rank(a->name) < rank(b->name) : a->name < b->name;
+    });
+}
+
+std::vector<std::string> casterNames() {
+    Registry& r = registry();
+    std::lock_guard lock(r.mutex);
+    std::vector<std::string> names;
+    for (const auto& e : r.entries) names.push_back(e->name);
+    return names;
+}
+
+const CasterEntry& casterEntry(const std::string& name) {
+    Registry& r = registry();
+    {
+        std::lock_guard lock(r.mutex);
+        for (const auto& e : r.entries)
+            if (e->name == name) return *e;
+    }
+    std::string known;
+    for (const std::string& n : casterNames()) known += (known.empty() ? "" : ", ") + n;
+    throw InputError(fmt::format("--method: unknown method \"{}\" (known: {})", name, known));
+}
+
+}  // namespace penumbra

@@ -1,0 +1,102 @@
+#pragma once
+/// @file Caster.h
+/// @brief The one interface every shadow method implements (`--method`): cast a replayable
+/// stream of blockers against receivers and light samples, and report each receiver's result.
+///
+/// Methods register themselves by name (CasterRegistration in their own .cpp, so that no central
+/// file lists them), with their traits: whether they stream or hold the scene, want the
+/// largest-first replay of the bucket pass, give per-sample masks or only visible fractions, and
+/// what they hold in memory. The pipeline (bake/Pipeline.cpp) only ever sees this interface.
+
+#include "bake/cast/CastOptions.h"
+#include "bake/light/Light.h"
+#include "receivers/ReceiverSet.h"
+#include "stream/Triangle.h"
+#include "stream/TriangleSource.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace penumbra {
+
+struct ReceiverPolygons;  // receivers/LightmapReceivers.h: the lightmap texels' triangles
+
+/// @brief Where a caster reports results; called concurrently for different receivers.
+struct CastSink {
+    /// Exact methods: @p groupWords holds one word per light sample group (nullptr: nothing
+    /// blocked), @p fullUmbra means every sample is blocked.
+    std::function<void(uint32_t receiver, const uint64_t* groupWords, bool fullUmbra)> masks;
+    /// Methods without per-sample masks: the visible fraction of each light, lightCount() floats.
+    std::function<void(uint32_t receiver, const float* lightVisibility)> visibility;
+};
+
+/// @brief Everything a method needs to cast, fixed for the bake.
+struct CastContext {
+    const LightSamples& samples;
+    const ReceiverSet& receivers;  ///< every receiver of the bake (refinement ones appended)
+    const std::vector<uint32_t>& sampleSets;  ///< grows with the receivers on refinement
+    const CastOptions& options;    ///< the scene's, with the rule's epsilon length set
+    const nlohmann::json& methodOptions;  ///< the scene's "bake" object, for method-specific keys
+    int threads = 1;
+    int memoryTiles = 1;           ///< hpc: receiver tiles cast one after another (--memory-budget)
+    bool quiet = false;
+    /// Sees every blocker chunk once during the first cast (a receiver kind's cast pass), or empty.
+    std::function<void(std::span<const Triangle>)> observeChunk;
+    const ReceiverPolygons* polygons = nullptr;  ///< lightmap receivers' polygons, when the kind has them
+};
+
+/// @brief One bake's method.
+class Caster {
+public:
+    virtual ~Caster() = default;
+    /// @brief Casts receivers [@p first, end) against @p blockers, which the caster may rewind
+    /// and read as often as it needs; reports each of those receivers exactly once to @p sink.
+    virtual void cast(TriangleSource& blockers, uint32_t first, const CastSink& sink) = 0;
+    /// @brief The paper's counters and timers, summed over every cast() so far.
+    virtual CastStats stats() const { return {}; }
+    /// @brief The method's own stats (for the stats JSON under its name), or null.
+    virtual nlohmann::json methodStats() const { return nullptr; }
+};
+
+/// @brief What the pipeline must know of a method before it casts.
+struct CasterTraits {
+    bool exact = true;          ///< the rule's masks, up to classified ties
+    bool masks = true;          ///< reports per-sample masks (else visible fractions only)
+    bool sortedBlockers = true; ///< wants the largest-first replay of the bucket pass
+    bool holdsScene = false;    ///< reads every blocker into memory (ray casters)
+    bool needsPolygons = false; ///< needs the receiver kind's polygons (lightmaps)
+    const char* summary = "";   ///< one line for --help
+};
+
+/// @brief Bytes a method holds beyond the common memory plan, for @p triangles blockers.
+using CasterMemory = std::function<uint64_t(uint64_t triangles, const LightSamples& samples, const nlohmann::json& methodOptions)>;
+using CasterFactory = std::function<std::unique_ptr<Caster>(const CastContext& context)>;
+
+struct CasterEntry {
+    std::string name;
+    CasterTraits traits;
+    CasterFactory make;
+    CasterMemory memory;  ///< optional
+    /// Validates the method's keys of the scene's "bake" object (optional); throws InputError.
+    std::function<void(const nlohmann::json& bake, const std::string& file)> checkOptions;
+};
+
+/// @brief Registers a method at static-initialization time: `static CasterRegistration r{{...}};`
+struct CasterRegistration {
+    explicit CasterRegistration(CasterEntry entry);
+};
+
+/// @brief The method named @p name.
+/// @throw InputError ("--method: unknown method ... (known: ...)") for an unknown name.
+const CasterEntry& casterEntry(const std::string& name);
+
+/// @brief Every registered method's name, in the order they are listed (hpc first).
+std::vector<std::string> casterNames();
+
+}  // namespace penumbra

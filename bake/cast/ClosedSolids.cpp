@@ -1,0 +1,70 @@
+#include "bake/cast/ClosedSolids.h"
+
+#include <glm/common.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace penumbra {
+
+ClosedSolidScan::ClosedSolidScan(const LightSamples& samples) : result_{{}, 0, std::vector<uint64_t>(samples.lightCount(), 0)} {
+    for (const ConvexBound& bound : samples.lightBounds) {
+        Aabb box{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+        if (!bound.directional())
+            for (const glm::dvec3& v : bound.vertices) {
+                // Grown by a relative margin: the bound holds the float samples up to roundoff.
+                const double m = 1e-6 * std::max({1.0, std::abs(v.x), std::abs(v.y), std::abs(v.z)});
+                box.lo = glm::min(box.lo, roundToFloat(v - m, true));
+                box.hi = glm::max(box.hi, roundToFloat(v + m, false));
+            }
+        lights_.push_back(box);
+    }
+}
+
+void ClosedSolidScan::closeSolid() {
+    if (current_ == SolidSegmenter::kNone) return;
+    bool opened = false;
+    for (size_t l = 0; l < lights_.size(); ++l) {
+        const Aabb& a = lights_[l];
+        const bool meets = a.lo.x <= box_.hi.x && a.hi.x >= box_.lo.x && a.lo.y <= box_.hi.y && a.hi.y >= box_.lo.y &&
+                           a.lo.z <= box_.hi.z && a.hi.z >= box_.lo.z;
+        if (meets) ++result_.perLight[l], opened = true;
+    }
+    if (opened) result_.ordinals.push_back(current_), result_.triangles += currentTriangles_;
+    current_ = SolidSegmenter::kNone;
+}
+
+void ClosedSolidScan::scan(std::span<const Triangle> chunk) {
+    for (const Triangle& t : chunk) {
+        const uint64_t solid = segmenter_.next(t);
+        if (solid != current_) {
+            closeSolid();
+            current_ = solid;
+            currentTriangles_ = 0;
+            box_ = {glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+        }
+        if (solid == SolidSegmenter::kNone) continue;
+        ++currentTriangles_;
+        for (const glm::vec3& v : t.v) box_.lo = glm::min(box_.lo, v), box_.hi = glm::max(box_.hi, v);
+    }
+}
+
+OpenedSolids ClosedSolidScan::finish() {
+    closeSolid();
+    return result_;  // ordinals were appended in stream order: sorted
+}
+
+size_t OpenSolidsSource::read(std::span<Triangle> out) {
+    const size_t n = inner_->read(out);
+    if (opened_.empty()) return n;
+    for (size_t i = 0; i < n; ++i) {
+        const uint64_t solid = segmenter_.next(out[i]);
+        if (solid == SolidSegmenter::kNone) continue;
+        while (nextOpened_ < opened_.size() && opened_[nextOpened_] < solid) ++nextOpened_;
+        if (nextOpened_ < opened_.size() && opened_[nextOpened_] == solid)
+            out[i].flags &= ~(kTriangleClosed | kTriangleSolidStart);
+    }
+    return n;
+}
+
+}  // namespace penumbra

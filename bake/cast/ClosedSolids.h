@@ -1,0 +1,93 @@
+#pragma once
+/// @file ClosedSolids.h
+/// @brief Finds the closed solids that a light can reach inside, so that closed-caster culling
+/// (Sintorn et al. 2008, bake.closed_casters) never loses a shadow silently.
+///
+/// Skipping a closed surface's triangle that faces away from the whole light is exact only when
+/// no light sample lies inside that triangle's solid: the segment that enters the solid there
+/// must leave it again through a face that blocks. The scan pass therefore follows the solids of
+/// the stream (kTriangleSolidStart marks where one begins; a run of closed triangles without marks
+/// is one solid) and keeps the box of the current one only. A solid whose box meets the box of a
+/// point light's sample bound (a conservative test: a sample inside the solid is inside its box)
+/// is *opened*: its triangles are cast as open surfaces (OpenSolidsSource clears their closed
+/// mark in every later pass, which reads the stream in the same order). A sun's samples are at
+/// infinity and are never inside a solid.
+///
+/// Memory: one box while scanning, plus the ordinals of the opened solids (8 bytes each), which
+/// are only the solids that touch a light's box.
+
+#include "bake/light/Light.h"
+#include "stream/TriangleSource.h"
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace penumbra {
+
+/// @brief Splits a stream into closed solids. Feed every triangle in stream order; the same
+/// stream always gives the same solids and ordinals.
+class SolidSegmenter {
+public:
+    static constexpr uint64_t kNone = ~uint64_t(0);
+    /// @return the ordinal of the solid @p t belongs to, or kNone for an open triangle.
+    uint64_t next(const Triangle& t) {
+        if (!(t.flags & kTriangleClosed)) return inSolid_ = false, kNone;
+        if (!inSolid_ || (t.flags & kTriangleSolidStart)) ++count_, inSolid_ = true;
+        return count_ - 1;
+    }
+    uint64_t solids() const { return count_; }
+    void reset() { count_ = 0, inSolid_ = false; }
+
+private:
+    uint64_t count_ = 0;
+    bool inSolid_ = false;
+};
+
+/// @brief What the scan found: which solids are opened, and for which lights.
+struct OpenedSolids {
+    std::vector<uint64_t> ordinals;       ///< sorted
+    uint64_t triangles = 0;               ///< closed triangles that are cast as open
+    std::vector<uint64_t> perLight;       ///< solids each light reaches inside
+};
+
+/// @brief Scan-pass half: tracks the current solid's box and opens the solids whose box meets a
+/// point light's box (the light's sample bound, with a relative margin).
+class ClosedSolidScan {
+public:
+    explicit ClosedSolidScan(const LightSamples& samples);
+    void scan(std::span<const Triangle> chunk);
+    /// @brief Ends the scan (closes the last solid) and returns the result.
+    OpenedSolids finish();
+
+private:
+    struct Aabb {
+        glm::vec3 lo, hi;
+    };
+    void closeSolid();
+
+    std::vector<Aabb> lights_;  ///< per light; empty box for directional lights
+    SolidSegmenter segmenter_;
+    uint64_t current_ = SolidSegmenter::kNone, currentTriangles_ = 0;
+    Aabb box_{};
+    OpenedSolids result_;
+};
+
+/// @brief Later passes' half: clears kTriangleClosed on the triangles of the opened solids.
+class OpenSolidsSource final : public TriangleSource {
+public:
+    OpenSolidsSource(TriangleSourcePtr inner, std::vector<uint64_t> opened)
+        : inner_(std::move(inner)), opened_(std::move(opened)) {}
+    size_t read(std::span<Triangle> out) override;
+    void rewind() override { inner_->rewind(), segmenter_.reset(), nextOpened_ = 0; }
+    std::string name() const override { return inner_->name(); }
+    std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
+
+private:
+    TriangleSourcePtr inner_;
+    std::vector<uint64_t> opened_;
+    SolidSegmenter segmenter_;
+    size_t nextOpened_ = 0;
+};
+
+}  // namespace penumbra

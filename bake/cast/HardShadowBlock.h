@@ -1,0 +1,77 @@
+#pragma once
+/// @file HardShadowBlock.h
+/// @brief Four hard-shadow volumes in structure-of-arrays form, built and tested against a
+/// receiver four samples at a time with SSE2 or AVX2 (chosen at run time).
+///
+/// Exactness: the kernels evaluate exactly the double-precision expressions of BlockingRule.h,
+/// operation for operation and in the same order (dot products as (x + y) + z, cross products as
+/// glm computes them, every edge plane evaluated at r - v_e), with no fused multiply-add (the AVX2 code is compiled for
+/// "avx2" without "fma", and the project builds with -ffp-contract=off). IEEE arithmetic is then
+/// the same in every lane as in the scalar code, so the SIMD result equals blocks() bit for bit;
+/// tests/test_hard_shadow_block.cpp checks it lane by lane and through the whole caster.
+/// Double precision is kept on purpose: a float pre-test with a double fallback near the planes
+/// needs a rigorous error bound per test and a second pass, and measured no faster than four
+/// double lanes here (docs/performance.md).
+
+#include "bake/rule/BlockingRule.h"
+
+#include <glm/vec3.hpp>
+
+#include <cstdint>
+#include <string_view>
+
+namespace penumbra {
+
+/// Which instruction set evaluates hard-shadow volumes. Auto picks the best the CPU supports.
+enum class SimdLevel : uint8_t { Scalar, Sse2, Avx2, Auto };
+
+/// @brief Hard-shadow volumes (BlockingRule.h) of up to four light samples and one triangle.
+/// Lane i holds the normal of edge plane e as (nx[e][i], ny[e][i], nz[e][i]) (anchored at the
+/// triangle's vertex e) and the side sign in side[i]. Unused lanes and samples in T's plane have
+/// side 0, which blocks nothing.
+struct alignas(32) HardShadowBlock {
+    static constexpr int kLanes = 4;
+    double nx[3][kLanes], ny[3][kLanes], nz[3][kLanes];
+    double side[kLanes];
+};
+
+/// @brief Builds the block for @p count (1..4) consecutive samples starting at @p samples, all of
+/// homogeneous weight @p w (1: points, 0: directions; one light's samples share it).
+using BuildBlockFn = void (*)(HardShadowBlock& out, const glm::vec3* samples, int count, double w,
+                              const BlockerTriangle& t);
+
+/// @brief The receiver relative to each edge plane's anchor: rel[e] = r - t.v[e].
+struct EdgeOffsets {
+    glm::dvec3 rel[3];
+    EdgeOffsets() = default;
+    EdgeOffsets(const BlockerTriangle& t, const glm::dvec3& r) : rel{r - t.v[0], r - t.v[1], r - t.v[2]} {}
+};
+
+/// @brief Tests a receiver against the blocks selected by @p which (bit b: blocks[b]).
+/// @param at the receiver relative to the edge anchors; @param dist distanceBehind(t, r);
+/// @param eps the receiver's epsilon.
+/// @return bit 4b+i set when lane i of block b blocks r (the sample blocks the relation).
+using TestBlocksFn = uint64_t (*)(const HardShadowBlock* blocks, uint32_t which, const EdgeOffsets& at, double dist,
+                                  double eps);
+
+/// @brief The build and test kernels of one instruction set.
+struct HardShadowKernels {
+    SimdLevel level = SimdLevel::Scalar;
+    BuildBlockFn build = nullptr;
+    TestBlocksFn test = nullptr;
+};
+
+/// @brief The kernels for @p level; Auto resolves to the best level this CPU supports.
+/// @throw InputError when @p level is not supported by this CPU.
+HardShadowKernels hardShadowKernels(SimdLevel level);
+
+/// @brief Whether this CPU can run @p level.
+bool simdSupported(SimdLevel level);
+
+/// @brief "scalar", "sse2", "avx2" or "auto".
+const char* simdName(SimdLevel level);
+
+/// @brief Parses a name of simdName(); @throw InputError naming @p where and the value.
+SimdLevel parseSimdLevel(std::string_view name, std::string_view where);
+
+}  // namespace penumbra

@@ -1,0 +1,254 @@
+#include "bake/cast/PenumbraCaster.h"
+
+#include "bake/cast/BlockerBatch.h"
+#include "bake/cast/SampleMaskTable.h"
+#include "bake/cast/TileCaster.h"
+#include "stream/TriangleSource.h"
+
+#include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <numeric>
+#include <thread>
+
+namespace penumbra {
+namespace {
+
+double secondsSince(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+/// The tiles and the ring of prepared chunks. Tiles need not wait for one another: each casts the
+/// chunks in order at its own pace, in a task of its own, and may run up to the ring's length
+/// behind the others (a barrier per chunk left a thread idle at the end of every chunk). A tile
+/// is held through an atomic busy flag; the holder re-checks after letting go, so no chunk is
+/// missed.
+struct PenumbraCaster::Impl {
+    const LightSamples& samples;
+    CastOptions options;
+    std::vector<SampleMaskTable> tables;  ///< per light when options.sampleTable; shared by tiles
+    std::vector<std::unique_ptr<TileCaster>> tiles;
+    std::unique_ptr<BlockerCulls> culls;
+    CastStats stats;
+    std::vector<std::unique_ptr<BlockerBatch>> ring;
+    std::atomic<uint64_t> published{0};  ///< chunks prepared and handed to the tiles
+    /// Per tile: the next chunk it casts. Only the holder of the tile's busy flag touches it.
+    std::vector<uint64_t> tileNext;
+    std::unique_ptr<std::atomic<bool>[]> tileBusy;
+    std::atomic<bool> failed{false};  ///< a tile threw; flush() rethrows it
+    std::atomic<uint64_t> culledAtRoot{0};
+    tbb::task_group group;
+    bool started = false;
+    std::chrono::steady_clock::time_point castStart;
+
+    Impl(const LightSamples& s, const CastOptions& o) : samples(s), options(o) {}
+    void buildTiles(const ReceiverSet& receivers, std::span<const uint32_t> sampleSetOf,
+                    std::span<const uint32_t> receiverIds, int tileCount);
+    /// Casts every published chunk that tile @p t has not cast yet, unless another thread holds
+    /// the tile (that thread then sees the new chunks before it lets go).
+    void drain(size_t t);
+    /// The tile's part of a chunk; the last tile to finish it counts the chunk's root culls.
+    void castOnTile(size_t t, BlockerBatch& batch);
+};
+
+std::vector<std::vector<uint32_t>> partitionReceivers(const ReceiverSet& receivers, std::span<const uint32_t> ids,
+                                                      int count) {
+    std::vector<uint32_t> order(ids.begin(), ids.end());
+    std::vector<std::vector<uint32_t>> parts;
+    auto split = [&](auto&& self, size_t begin, size_t end, int pieces) -> void {
+        if (pieces <= 1 || end - begin <= 1) {
+            parts.emplace_back(order.begin() + begin, order.begin() + end);
+            std::sort(parts.back().begin(), parts.back().end());
+            return;
+        }
+        glm::vec3 lo(INFINITY), hi(-INFINITY);
+        for (size_t i = begin; i < end; ++i)
+            lo = glm::min(lo, receivers.position[order[i]]), hi = glm::max(hi, receivers.position[order[i]]);
+        glm::vec3 e = hi - lo;
+        int axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
+        int left = pieces / 2;
+        size_t mid = begin + (end - begin) * left / pieces;
+        std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end, [&](uint32_t a, uint32_t b) {
+            float pa = receivers.position[a][axis], pb = receivers.position[b][axis];
+            return pa < pb || (pa == pb && a < b);
+        });
+        self(self, begin, mid, left);
+        self(self, mid, end, pieces - left);
+    };
+    split(split, 0, order.size(), std::max(1, count));
+    return parts;
+}
+
+void PenumbraCaster::Impl::buildTiles(const ReceiverSet& receivers, std::span<const uint32_t> sampleSetOf,
+                                      std::span<const uint32_t> receiverIds, int tileCount) {
+    const auto parts = partitionReceivers(receivers, receiverIds, std::max(1, tileCount));
+    tiles.resize(parts.size());
+    const ReceiverEpsilon epsilon = receiverEpsilonOf(options);
+    tbb::parallel_for(size_t(0), parts.size(), [&](size_t t) {
+        tiles[t] = std::make_unique<TileCaster>(samples, options, options.sampleTable ? &tables : nullptr);
+        std::vector<ReceiverInput> inputs;
+        inputs.reserve(parts[t].size());
+        for (uint32_t id : parts[t]) {
+            glm::dvec3 p(receivers.position[id]);
+            inputs.push_back({p, epsilon.at(p), id, sampleSetOf[id]});
+        }
+        tiles[t]->build(std::move(inputs));
+    });
+}
+
+PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& receivers,
+                               std::span<const uint32_t> sampleSetOf, const CastOptions& options, int tiles,
+                               std::span<const uint32_t> receiverIds)
+    : impl_(std::make_unique<Impl>(samples, options)) {
+    Impl& m = *impl_;
+    std::vector<uint32_t> all;
+    if (receiverIds.empty()) {
+        all.resize(receivers.size());
+        std::iota(all.begin(), all.end(), 0u);
+        receiverIds = all;
+    }
+    if (m.options.sampleTable)
+        for (uint32_t l = 0; l < uint32_t(samples.lightCount()); ++l)
+            m.tables.emplace_back(samples, l, m.options.sampleTableAngles, m.options.sampleTableOffsets);
+    m.buildTiles(receivers, sampleSetOf, receiverIds, tiles);
+    // Rebuilds only drop receivers, so boxes from the first build stay conservative.
+    Box receiversBox{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+    for (const auto& tile : m.tiles)
+        if (!tile->hierarchy().nodes.empty()) {
+            receiversBox.lo = glm::min(receiversBox.lo, tile->hierarchy().nodes[0].lo);
+            receiversBox.hi = glm::max(receiversBox.hi, tile->hierarchy().nodes[0].hi);
+        }
+    m.culls = std::make_unique<BlockerCulls>(samples, m.options, receiversBox);
+    // With several tiles, one can fall ringChunks() - 1 chunks behind the fastest before the
+    // caller stops preparing and helps.
+    m.ring.resize(ringChunks(m.tiles.size()));
+    for (auto& b : m.ring) b = std::make_unique<BlockerBatch>();
+    m.tileNext.assign(m.tiles.size(), 0);
+    m.tileBusy = std::make_unique<std::atomic<bool>[]>(m.tiles.size());
+    for (size_t t = 0; t < m.tiles.size(); ++t) m.tileBusy[t] = false;
+}
+
+PenumbraCaster::~PenumbraCaster() {
+    // Only after an exception can tasks still be pending; they must not outlive the tiles.
+    impl_->group.cancel();
+    try {
+        impl_->group.wait();
+    } catch (...) {
+    }
+}
+
+void PenumbraCaster::Impl::castOnTile(size_t t, BlockerBatch& batch) {
+    const size_t n = batch.n, lights = size_t(samples.lightCount());
+    TileCaster& tile = *tiles[t];
+    uint8_t* reached = &batch.reached[t * n];
+    for (size_t i = 0; i < n; ++i) {
+        reached[i] = 0;
+        if (!batch.prepared[i].valid) continue;
+        reached[i] = tile.castTriangle(batch.prepared[i], &batch.lightVolumes[i * lights], &batch.lightActive[i * lights]);
+    }
+    if (batch.remaining.fetch_sub(1) != 1) return;
+    uint64_t culled = 0;  // the last tile: every tile's flags are written
+    for (size_t i = 0; i < n; ++i) {
+        bool any = false;
+        for (size_t u = 0; u < tiles.size() && !any; ++u) any = batch.reached[u * n + i];
+        culled += !any;
+    }
+    culledAtRoot += culled;
+}
+
+void PenumbraCaster::Impl::drain(size_t t) {
+    for (;;) {
+        if (tileBusy[t].exchange(true)) return;
+        try {
+            while (tileNext[t] < published.load()) {
+                castOnTile(t, *ring[tileNext[t] % ring.size()]);
+                ++tileNext[t];
+            }
+        } catch (...) {
+            failed = true;  // the tile stays held: its state is unknown, nobody casts it again
+            throw;
+        }
+        const uint64_t next = tileNext[t];
+        tileBusy[t].store(false);
+        // A chunk published after the loop's last check but before the release found the tile
+        // busy; its task has returned, so this thread takes the chunk.
+        if (next >= published.load()) return;
+    }
+}
+
+void PenumbraCaster::cast(std::span<const Triangle> blockers) {
+    Impl& m = *impl_;
+    if (!m.started) m.castStart = std::chrono::steady_clock::now(), m.started = true;
+    const uint64_t c = m.published.load();
+    BlockerBatch& batch = *m.ring[c % m.ring.size()];
+    // The slot still holds chunk c - ring size until every tile has cast it. Rather than wait,
+    // this thread casts the tiles nobody holds; it yields only while the tiles that still need
+    // the slot run on other threads.
+    while (batch.remaining.load() > 0) {
+        for (size_t t = 0; t < m.tiles.size() && !m.failed; ++t) m.drain(t);
+        if (m.failed) m.group.wait();  // rethrows the tile's exception
+        if (batch.remaining.load() > 0) std::this_thread::yield();
+    }
+    m.stats.closedBackFaces += m.culls->prepare(batch, blockers);
+    batch.reached.resize(m.tiles.size() * batch.n);
+    batch.remaining.store(int(m.tiles.size()));
+    m.published.store(c + 1);
+    for (size_t t = 0; t < m.tiles.size(); ++t) m.group.run([&m, t] { m.drain(t); });
+    m.stats.trianglesProcessed += blockers.size();
+}
+
+void PenumbraCaster::flush() {
+    Impl& m = *impl_;
+    if (!m.started) return;
+    m.group.wait();  // every publish ran drain() for every tile, so every tile is caught up
+    m.started = false;
+    // Wall time from the first chunk to the last tile: includes whatever the caller did between
+    // chunks (reading the replay), which the tiles overlapped.
+    m.stats.castSeconds += secondsSince(m.castStart);
+    m.stats.trianglesCulledAtRoot = m.culledAtRoot.load();
+}
+
+void PenumbraCaster::finish(const MaskVisitor& visit) {
+    flush();
+    // Shading every receiver is a few percent of a bake; done on one thread it was most of the
+    // time outside the cast. Receivers are independent, so visits run in parallel.
+    tbb::parallel_for(size_t(0), impl_->tiles.size(), [&](size_t t) {
+        const TileCaster& tile = *impl_->tiles[t];
+        const ReceiverHierarchy& h = tile.hierarchy();
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, h.retired.size(), 1024), [&](const tbb::blocked_range<size_t>& range) {
+            for (size_t i = range.begin(); i != range.end(); ++i) visit(h.retired[i], nullptr, true);
+        });
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, h.liveCount(), 1024), [&](const tbb::blocked_range<size_t>& range) {
+            for (size_t r = range.begin(); r != range.end(); ++r) {
+                if (h.fullUmbra[r]) visit(h.id[r], nullptr, true);
+                else visit(h.id[r], h.mask[r] != MaskPool::kNone ? tile.pool().data(h.mask[r]) : nullptr, false);
+            }
+        });
+    });
+}
+
+size_t PenumbraCaster::preparedChunkBytes(size_t lights) { return BlockerBatch::bytes(kTriangleChunk, lights); }
+
+CastStats PenumbraCaster::stats() const {
+    CastStats s = impl_->stats;
+    for (const SampleMaskTable& table : impl_->tables) s.sampleTableBytes += table.bytes();
+    for (const auto& tile : impl_->tiles) {
+        const TileStats& t = tile->stats();
+        s.hierarchyBuildSeconds += t.buildSeconds;
+        s.rebuilds += t.rebuilds;
+        s.peakLiveMasks += tile->pool().peakLive();
+        s.peakMaskBytes += tile->pool().peakLive() * size_t(tile->pool().words()) * sizeof(uint64_t);
+        s.peakHierarchyBytes += t.peakHierarchyBytes;
+        s.receiverBytes += t.peakReceiverBytes;
+        s.hardShadowTests += t.hardTests;
+        s.tableDecidedRelations += t.tableDecided;
+    }
+    return s;
+}
+
+}  // namespace penumbra

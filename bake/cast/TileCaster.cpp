@@ -1,0 +1,244 @@
+#include "bake/cast/TileCaster.h"
+
+#include <algorithm>
+#include <chrono>
+
+namespace penumbra {
+namespace {
+
+double secondsSince(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+constexpr uint32_t kAllPlanes = ~0u;  // "ALL": masked by the volume's own plane count when used
+/// A split blocker's table look-up (four lines) costs about as much as this many exact tests
+/// (docs/performance.md, "Blockers whose plane cuts the light"); with fewer open samples in the
+/// groups whose V_Gk holds the receiver, the exact tests decide them.
+constexpr uint32_t kSplitTableMinimumBits = 48;
+
+}  // namespace
+
+TileCaster::TileCaster(const LightSamples& s, const CastOptions& o, const std::vector<SampleMaskTable>* t)
+    : samples(s), options(o), tables(t), hierarchy_(o.hierarchy, s.groupCount()), pool_(s.groupCount()),
+      groupCount(s.groupCount()), umbraWords((s.groupCount() + 63) / 64), kernels(hardShadowKernels(o.simd)) {
+    allGroupsBits.assign(umbraWords, 0);
+    for (int k = 0; k < groupCount; ++k) allGroupsBits[k >> 6] |= 1ull << (k & 63);
+    groupVolumes.resize(groupCount);
+    for (const LightSampleGroup& g : s.groups) {
+        blockFirst.push_back(uint32_t(blocksPerSet));
+        blocksPerSet += (g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes;
+    }
+    hardBlocks.resize(size_t(s.sets) * blocksPerSet);
+    hardReady.assign(size_t(s.sets) * groupCount, 0);
+}
+
+void TileCaster::build(std::vector<ReceiverInput> inputs) {
+    auto t0 = std::chrono::steady_clock::now();
+    hierarchy_.build(std::move(inputs));
+    stats_.buildSeconds += secondsSince(t0);
+    if (!options.lazyMasks)
+        for (auto& m : hierarchy_.mask) m = pool_.allocate();
+    notePeaks();
+}
+
+void TileCaster::notePeaks() {
+    stats_.peakHierarchyBytes = std::max(stats_.peakHierarchyBytes, hierarchy_.hierarchyBytes());
+    stats_.peakReceiverBytes = std::max(stats_.peakReceiverBytes, hierarchy_.receiverBytes());
+}
+
+void TileCaster::buildGroupVolumes() {
+    for (uint32_t k = samples.lightFirstGroup[currentLight]; k < samples.lightFirstGroup[currentLight + 1]; ++k)
+        buildPenumbraVolume(samples.groups[k].bound, *tri, groupVolumes[k]);
+    if (tables) {
+        tableBlocker = (*tables)[currentLight].prepare(*tri);
+        if (tableBlocker.split) sideCache.reset(samples.sets), tableBlocker.sideCache = &sideCache;
+    }
+    groupVolumesBuilt = true;
+}
+
+const HardShadowBlock* TileCaster::hardShadowBlocks(uint32_t set, uint32_t k, uint64_t needed, uint32_t& which) {
+    const size_t slot = size_t(set) * groupCount + k;
+    const LightSampleGroup& g = samples.groups[k];
+    HardShadowBlock* blocks = &hardBlocks[set * blocksPerSet + blockFirst[k]];
+    which = 0;
+    for (uint64_t rest = needed; rest;) {
+        const int b = __builtin_ctzll(rest) / HardShadowBlock::kLanes;
+        which |= 1u << b;
+        rest &= ~(0xFull << (HardShadowBlock::kLanes * b));
+    }
+    uint32_t missing = which & ~hardReady[slot];
+    if (missing) {
+        if (!hardReady[slot]) hardReadyList.push_back(uint32_t(slot));
+        hardReady[slot] |= missing;
+        const glm::vec3* first = &samples.position(int(set), int(g.first));
+        for (; missing; missing &= missing - 1) {
+            const int b = __builtin_ctz(missing), lane0 = b * HardShadowBlock::kLanes;
+            kernels.build(blocks[b], first + lane0, std::min<int>(HardShadowBlock::kLanes, int(g.count) - lane0),
+                          samples.w(g.light), *tri);
+        }
+    }
+    return blocks;
+}
+
+bool TileCaster::castTriangle(const BlockerTriangle& t, const PenumbraVolume* lightVolumes, const uint8_t* lightActive) {
+    reachedRoot = false;
+    ReceiverHierarchy& h = hierarchy_;
+    if (h.nodes.empty()) return false;
+    if (umbra() && options.rebuild && h.umbraCount > 0 &&
+        double(h.umbraCount) > options.rebuildThreshold * double(h.liveCount())) {  // line 29
+        auto t0 = std::chrono::steady_clock::now();
+        h.rebuild();
+        stats_.buildSeconds += secondsSince(t0);
+        ++stats_.rebuilds;
+        notePeaks();
+        if (h.nodes.empty()) return false;
+    }
+    if (umbra() && h.nodeFullUmbra[0]) return false;
+    tri = &t;
+    for (uint32_t slot : hardReadyList) hardReady[slot] = 0;
+    hardReadyList.clear();
+    for (currentLight = 0; currentLight < uint32_t(samples.lightCount()); ++currentLight) {
+        if (!lightActive[currentLight]) continue;
+        lightVolume = &lightVolumes[currentLight];
+        groupVolumesBuilt = false;
+        uint32_t g0 = samples.lightFirstGroup[currentLight], g1 = samples.lightFirstGroup[currentLight + 1];
+        if (!options.lazyVolumes) {  // optimization C off: build everything before traversal
+            buildGroupVolumes();
+            uint32_t which;
+            for (uint32_t set = 0; set < uint32_t(samples.sets); ++set)
+                for (uint32_t k = g0; k < g1; ++k) hardShadowBlocks(set, k, samples.groups[k].fullMask(), which);
+        }
+        stack.clear();
+        for (uint32_t k = g0; k < g1; ++k) stack.push_back({k, kAllPlanes});
+        visit(0, lightVolume->all(), 0, stack.size());
+    }
+    return reachedRoot;
+}
+
+void TileCaster::visit(uint32_t nodeIndex, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd) {
+    ReceiverHierarchy& h = hierarchy_;
+    const ReceiverHierarchy::Node node = h.nodes[nodeIndex];
+    if (umbra() && h.nodeFullUmbra[nodeIndex]) return;  // line 35
+    Box box{node.lo, node.hi};
+    uint32_t planes = options.activePlanes ? lightPlanes : lightVolume->all();
+    if (!intersects(*lightVolume, box, planes)) return;  // line 36
+    if (!options.activePlanes) planes = lightVolume->all();
+    if (nodeIndex == 0) reachedRoot = true;
+
+    const size_t begin = stack.size();
+    if (stack.capacity() < begin + (groupsEnd - groupsBegin)) stack.reserve(2 * (begin + groupCount));
+    const uint64_t* nodeBits = &h.nodeGroupUmbra[size_t(nodeIndex) * umbraWords];
+    for (size_t i = groupsBegin; i < groupsEnd; ++i) {  // lines 38-45
+        ActiveGroup g = stack[i];
+        if (umbra() && h.groupUmbraBit(nodeBits, g.group)) continue;
+        if (groupVolumesBuilt) {
+            const PenumbraVolume& v = groupVolumes[g.group];
+            uint32_t p = options.activePlanes ? (g.planes & v.all()) : v.all();
+            if (!intersects(v, box, p)) continue;
+            stack.push_back({g.group, options.activePlanes ? p : kAllPlanes});
+        } else {
+            stack.push_back({g.group, kAllPlanes});
+        }
+    }
+    const size_t end = stack.size();
+    if (begin == end) return;  // line 46
+
+    if (!node.leaf()) {
+        visit(node.first, planes, begin, end);
+        visit(node.first + 1, planes, begin, end);
+    } else {
+        for (uint32_t r = node.first; r < node.first + node.count; ++r) castReceiver(r, planes, begin, end);
+    }
+    if (umbra()) h.foldUmbra(nodeIndex);  // lines 50-54, 77-80
+    stack.resize(begin);
+}
+
+void TileCaster::castReceiver(uint32_t r, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd) {
+    ReceiverHierarchy& h = hierarchy_;
+    if (umbra() && h.fullUmbra[r]) return;  // line 57
+    const glm::dvec3& p = h.position[r];
+    if (!contains(*lightVolume, p, lightPlanes)) return;  // line 58
+    // Cheap exact early-out: a receiver not behind T's plane (beyond epsilon) on either side
+    // cannot be blocked by any sample (BlockingRule.h).
+    const double dist = distanceBehind(*tri, p), eps = h.epsilon[r];
+    if (!(dist > eps) && !(-dist > eps)) return;
+    if (!groupVolumesBuilt) buildGroupVolumes();  // lines 60-64
+
+    const uint32_t set = h.sampleSet[r];
+    const SampleMaskTable* table = tables ? &(*tables)[currentLight] : nullptr;
+    uint64_t* bits = &h.groupUmbra[size_t(r) * umbraWords];
+    uint64_t* mask = h.mask[r] != MaskPool::kNone ? pool_.data(h.mask[r]) : nullptr;
+    // A blocker whose plane cuts the light reaches far more receivers than it shadows, and its
+    // table look-up takes four lines: V_Gk's point test first rejects most receivers more
+    // cheaply, and the look-up is only worth it for enough open samples. Otherwise, with table
+    // rows, the point test would only repeat what the rows decide.
+    const bool pointTestFirst = !table || tableBlocker.split;
+    const uint32_t openBits = gatherCandidates(r, p, pointTestFirst, groupsBegin, groupsEnd);
+    if (candidates.empty()) return;
+    SampleMaskTable::Rows rows;
+    auto lookup = SampleMaskTable::Lookup::Exact;
+    if (table && (!tableBlocker.split || openBits >= kSplitTableMinimumBits)) {
+        lookup = table->lookup(tableBlocker, set, p, dist, eps, rows);
+        if (lookup == SampleMaskTable::Lookup::NoneBlocked) return;  // no bit has changed yet
+    }
+    bool haveOffsets = false;
+    EdgeOffsets offsets;  // r - v_e for the exact tests, once per receiver
+    for (const ActiveGroup& g : candidates) {
+        const LightSampleGroup& group = samples.groups[g.group];
+        const uint64_t before = mask ? mask[g.group] : 0;
+        uint64_t word = before, open = ~word & group.fullMask();
+        const PenumbraVolume& v = groupVolumes[g.group];
+        if (!pointTestFirst && lookup != SampleMaskTable::Lookup::Rows && !contains(v, p, g.planes & v.all())) continue;
+        if (lookup == SampleMaskTable::Lookup::Rows) {  // sure bits are blocked; bits outside maybe are not
+            const uint32_t k = g.group - table->firstGroup();
+            const uint64_t sure = rows.sureWord(k) & open, undecided = rows.maybeWord(k) & open & ~sure;
+            stats_.tableDecided += uint64_t(__builtin_popcountll(open & ~undecided));
+            word |= sure;
+            open = undecided;
+        }
+        if (open) {
+            uint32_t which;
+            const HardShadowBlock* hard = hardShadowBlocks(set, g.group, open, which);
+            stats_.hardTests += uint64_t(__builtin_popcountll(open));
+            if (!haveOffsets) offsets = EdgeOffsets(*tri, p), haveOffsets = true;
+            word |= kernels.test(hard, which, offsets, dist, eps) & open;
+        }
+        if (word != before) {
+            if (!mask) {  // line 59, deferred until a bit is really set
+                h.mask[r] = pool_.allocate();
+                mask = pool_.data(h.mask[r]);
+            }
+            mask[g.group] = word;
+        }
+        if (umbra() && word == group.fullMask()) bits[g.group >> 6] |= 1ull << (g.group & 63);
+    }
+    if (umbra() && std::equal(bits, bits + umbraWords, allGroupsBits.begin())) {  // lines 74-75
+        h.fullUmbra[r] = 1;
+        ++h.umbraCount;
+        if (options.lazyMasks && mask) {
+            pool_.release(h.mask[r]);
+            h.mask[r] = MaskPool::kNone;
+        }
+    }
+}
+uint32_t TileCaster::gatherCandidates(uint32_t r, const glm::dvec3& p, bool pointTest, size_t groupsBegin,
+                                      size_t groupsEnd) {
+    const ReceiverHierarchy& h = hierarchy_;
+    const uint64_t* bits = &h.groupUmbra[size_t(r) * umbraWords];
+    const uint64_t* mask = h.mask[r] != MaskPool::kNone ? pool_.data(h.mask[r]) : nullptr;
+    candidates.clear();
+    uint32_t openBits = 0;
+    for (size_t i = groupsBegin; i < groupsEnd; ++i) {  // lines 65-73
+        const ActiveGroup g = stack[i];
+        if (umbra() && h.groupUmbraBit(bits, g.group)) continue;
+        const uint64_t open = ~(mask ? mask[g.group] : 0) & samples.groups[g.group].fullMask();
+        if (!open) continue;
+        const PenumbraVolume& v = groupVolumes[g.group];
+        if (pointTest && !contains(v, p, g.planes & v.all())) continue;
+        candidates.push_back(g);
+        openBits += uint32_t(__builtin_popcountll(open));
+    }
+    return openBits;
+}
+
+}  // namespace penumbra

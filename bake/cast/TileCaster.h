@@ -1,0 +1,104 @@
+#pragma once
+/// @file TileCaster.h
+/// @brief Hierarchical penumbra casting over one tile of receivers: Laine & Aila 2005, Figure 3,
+/// line by line (the line numbers are in the comments of TileCaster.cpp).
+///
+/// A tile owns a receiver hierarchy, a mask pool and the per-triangle scratch of the traversal.
+/// Blockers arrive prepared (BlockerBatch.h: promoted to double, culled, with V_L per light);
+/// castTriangle() descends the hierarchy with V_L and the group volumes V_Gk, decides receivers
+/// with the sample mask table and the hard-shadow kernels, and keeps the umbra bits. A tile is
+/// not thread-safe; PenumbraCaster runs tiles in parallel, one thread per tile at a time.
+
+#include "bake/cast/CastOptions.h"
+#include "bake/cast/HardShadowBlock.h"
+#include "bake/light/Light.h"
+#include "bake/cast/PenumbraVolume.h"
+#include "bake/cast/SampleMaskTable.h"
+#include "bake/cast/MaskPool.h"
+#include "bake/cast/ReceiverHierarchy.h"
+
+#include <cstdint>
+#include <vector>
+
+namespace penumbra {
+
+/// @brief Counters of one tile (summed by PenumbraCaster::stats()).
+struct TileStats {
+    double buildSeconds = 0;  ///< hierarchy builds and rebuilds
+    uint64_t rebuilds = 0, hardTests = 0, tableDecided = 0;
+    size_t peakHierarchyBytes = 0, peakReceiverBytes = 0;
+};
+
+class TileCaster {
+public:
+    /// @param tables the sample mask table per light, or nullptr when the option is off
+    TileCaster(const LightSamples& s, const CastOptions& o, const std::vector<SampleMaskTable>* t);
+
+    /// @brief Builds the hierarchy over the tile's receivers (optimization D off: every mask now).
+    void build(std::vector<ReceiverInput> inputs);
+
+    /// @brief Casts one prepared, valid blocker. @p lightVolumes and @p lightActive hold V_L and
+    /// whether it is worth casting, per light.
+    /// @return whether some light's V_L met the root box (a blocker no tile reaches was culled at
+    /// the root).
+    bool castTriangle(const BlockerTriangle& t, const PenumbraVolume* lightVolumes, const uint8_t* lightActive);
+
+    const ReceiverHierarchy& hierarchy() const { return hierarchy_; }
+    const MaskPool& pool() const { return pool_; }
+    const TileStats& stats() const { return stats_; }
+
+private:
+    struct ActiveGroup {
+        uint32_t group;
+        uint32_t planes;
+    };
+
+    void notePeaks();
+    bool umbra() const { return options.umbraBits; }
+    /// The per-triangle state that only a reached receiver needs: V_Gk and the table's blocker
+    /// coefficients. Most blockers never reach a receiver of a given tile.
+    void buildGroupVolumes();
+    /// The hard-shadow blocks of group @p k in sample set @p set, with every block that holds a
+    /// sample of @p needed built. Per-block laziness matters for small blockers, which touch a
+    /// few receivers (so a few sets) and a few samples of each group.
+    /// @return the group's first block and, in @p which, the blocks holding samples of @p needed.
+    const HardShadowBlock* hardShadowBlocks(uint32_t set, uint32_t k, uint64_t needed, uint32_t& which);
+    /// Lines 34-54: one node and, recursively, its children.
+    void visit(uint32_t nodeIndex, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd);
+    /// Lines 56-75: one receiver against the active groups.
+    void castReceiver(uint32_t r, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd);
+    /// The active groups receiver @p r still needs; returns how many of their samples are open.
+    uint32_t gatherCandidates(uint32_t r, const glm::dvec3& p, bool pointTest, size_t groupsBegin, size_t groupsEnd);
+
+    const LightSamples& samples;
+    const CastOptions& options;
+    const std::vector<SampleMaskTable>* tables;  // per light, or nullptr when the option is off
+    ReceiverHierarchy hierarchy_;
+    MaskPool pool_;
+    int groupCount, umbraWords;
+    std::vector<uint64_t> allGroupsBits;  // umbra words with every group's bit set
+
+    // Per-triangle state (Figure 3's "volumes-computed", split per light and per (set, group)).
+    const BlockerTriangle* tri = nullptr;
+    const PenumbraVolume* lightVolume = nullptr;
+    bool groupVolumesBuilt = false;
+    uint32_t currentLight = 0;
+    std::vector<PenumbraVolume> groupVolumes;
+    // Hard-shadow volumes in blocks of four samples: group k's samples 4b..4b+3 are block
+    // blockFirst[k] + b of a set; a set holds blocksPerSet blocks.
+    HardShadowKernels kernels;
+    std::vector<uint32_t> blockFirst;
+    size_t blocksPerSet = 0;
+    std::vector<HardShadowBlock> hardBlocks;  // [set][block]
+    std::vector<uint32_t> hardReady;          // [set][group]: bit b set once block b is built
+    std::vector<uint32_t> hardReadyList;
+    std::vector<ActiveGroup> stack;
+    std::vector<ActiveGroup> candidates;  // castReceiver(): the groups a receiver still needs
+    SampleMaskTable::Blocker tableBlocker;  // the current triangle against the current light
+    SampleMaskTable::SideCache sideCache;   // its plane's rows, when its plane cuts the light
+    bool reachedRoot = false;  ///< the current triangle's V_L met the root box
+
+    TileStats stats_;
+};
+
+}  // namespace penumbra

@@ -1,0 +1,372 @@
+#include "bake/kinds/LightmapKind.h"
+
+#include "bake/ExrMetadata.h"
+#include "bake/output/ImageWriters.h"
+#include "bake/output/LightmapGltf.h"
+#include "bake/kinds/ReceiverKind.h"
+#include "bake/Scene.h"
+#include "receivers/CreaseNormals.h"
+#include "receivers/LightmapAtlas.h"
+#include "receivers/LightmapReceivers.h"
+#include "stream/AtomicFile.h"
+#include "stream/Error.h"
+#include "stream/IndexedMesh.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cctype>
+#include <filesystem>
+#include <set>
+
+namespace penumbra {
+namespace {
+
+constexpr int64_t kMaxSide = 16384;  // 1 GiB of float channels per map is already generous
+constexpr const char* kAtlasName = "atlas";  ///< the generated atlas's output suffix
+
+/// Where a mesh's lightmap UVs come from (the "uv" key).
+enum class UvSource { Auto, Mesh, Generate };
+
+/// The lightmap keys of the scene's "receivers" object.
+struct LightmapSettings {
+    UvSource uv = UvSource::Auto;
+    int width = 256, height = 256;  ///< "resolution": per mesh, or the atlas's size
+    double density = 0;             ///< "texels_per_unit" (instead of resolution)
+    int padding = 4;
+    double creaseDeg = kDefaultCreaseAngleDeg;
+    double chartDeg = kDefaultChartConeDeg;
+    bool powerOfTwo = false;
+    int maxSide = int(kMaxSide);
+    std::string where;              ///< the receivers object, for messages
+};
+
+/// One lightmap to bake: a mesh, its size, and after the scan its texel layout.
+struct Lightmap {
+    IndexedMesh mesh;
+    std::string source;  ///< the file, for messages and the EXR header
+    std::string label;   ///< for messages: the file, plus the mesh name when the file has several
+    std::string name;    ///< output suffix: out/lightmap-NAME.exr
+    int width = 0, height = 0;
+    size_t first = 0;    ///< index of its first receiver in the kind's ReceiverSet
+    LightmapLayout layout;
+};
+
+/// A name safe in a file name: letters, digits, '-', '_' and '.' are kept, the rest become '_'.
+std::string fileSafe(const std::string& name) {
+    std::string safe;
+    for (char c : name) safe += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.' ? c : '_';
+    return safe.empty() || safe[0] == '.' ? "_" + safe : safe;
+}
+
+/// out/lightmap.exr -> out/lightmap-NAME.exr (or .png).
+std::string derivedPath(const std::string& output, const std::string& name, const char* extension) {
+    std::filesystem::path path(output);
+    std::string stem = path.stem().string();
+    return (path.parent_path() / (stem + "-" + name + extension)).string();
+}
+
+/// All meshes in one mesh (the atlas's receivers come from one rasterization); attributes that
+/// some mesh lacks are dropped.
+IndexedMesh concatenate(std::span<const IndexedMesh> meshes) {
+    IndexedMesh all;
+    bool normals = true;
+    for (const IndexedMesh& mesh : meshes) normals &= mesh.normal.size() == mesh.position.size();
+    for (const IndexedMesh& mesh : meshes) {
+        const uint32_t base = uint32_t(all.position.size());
+        all.position.insert(all.position.end(), mesh.position.begin(), mesh.position.end());
+        if (normals) all.normal.insert(all.normal.end(), mesh.normal.begin(), mesh.normal.end());
+        all.uv1.insert(all.uv1.end(), mesh.uv1.begin(), mesh.uv1.end());
+        for (uint32_t i : mesh.indices) all.indices.push_back(base + i);
+    }
+    return all;
+}
+
+class LightmapKind final : public ReceiverKind {
+public:
+    LightmapKind(std::vector<Lightmap> maps, std::vector<Lightmap> atlasParts, LightmapSettings settings)
+        : maps_(std::move(maps)), parts_(std::move(atlasParts)), settings_(std::move(settings)), padding_(settings_.padding) {}
+
+    ReceiverSet receivers() override {
+        if (!parts_.empty()) maps_.push_back(makeAtlas());
+        ReceiverSet all;
+        for (Lightmap& map : maps_) {
+            map.layout = rasterizeLightmap(map.mesh, map.width, map.height);
+            map.mesh = IndexedMesh{};  // the layout is all the writer needs
+            if (map.layout.overlapping > 0)
+                fmt::print(stderr, "penumbra: warning: {}: {} texels covered by more than one triangle (overlapping UVs; \"uv\": \"generate\" makes new ones)\n",
+                           map.label, map.layout.overlapping);
+            map.first = all.size();
+            ReceiverSet& set = map.layout.receivers;
+            all.position.insert(all.position.end(), set.position.begin(), set.position.end());
+            all.normal.insert(all.normal.end(), set.normal.begin(), set.normal.end());
+            set = ReceiverSet{};
+        }
+        return all;
+    }
+
+    void write(const OutputContext& c) override {
+        outputs_.clear();
+        for (const Lightmap& map : maps_) writeMap(c, map);
+        if (!atlasMeshes_.empty()) {
+            const std::string gltf = derivedPath(c.output, "uv1", ".glb");
+            writeLightmapGltf(gltf, atlasMeshes_, std::filesystem::path(derivedPath(c.output, "atlas", ".exr")).filename().string());
+            outputs_.push_back(gltf);
+        }
+    }
+
+    nlohmann::json stats() const override {
+        nlohmann::json maps = nlohmann::json::array();
+        for (const Lightmap& map : maps_) {
+            const uint64_t texels = uint64_t(map.width) * uint64_t(map.height);
+            maps.push_back({{"name", map.name}, {"width", map.width}, {"height", map.height},
+                            {"covered_texels", map.layout.texel.size()},
+                            {"utilisation", texels ? double(map.layout.texel.size()) / double(texels) : 0.0},
+                            {"generated_uvs", map.name == kAtlasName && !atlasMeshes_.empty()}});
+        }
+        nlohmann::json lightmap = {{"maps", maps}};
+        if (!atlasMeshes_.empty()) lightmap["atlas"] = atlasStats_;
+        return {{"lightmap", lightmap}, {"outputs", outputs_}};
+    }
+
+private:
+    void writeMap(const OutputContext& c, const Lightmap& map) {
+        const LightmapLayout& layout = map.layout;
+        const size_t texels = size_t(map.width) * map.height;
+        std::vector<float> V(texels, 0.f), ER(texels, 0.f), EG(texels, 0.f), EB(texels, 0.f);
+        std::vector<uint8_t> filled(texels, 0);
+        for (size_t k = 0; k < layout.texel.size(); ++k) {
+            const size_t r = map.first + k, t = layout.texel[k];
+            const glm::vec3& e = c.results.irradiance[r];
+            V[t] = c.results.visibility[r], ER[t] = e.x, EG[t] = e.y, EB[t] = e.z;
+            filled[t] = 1;
+        }
+        // Dilation gives bilinear lookups across UV seams baked values instead of black; A keeps
+        // the true coverage, so an engine can still tell surface from padding.
+        std::vector<float>* dilated[] = {&V, &ER, &EG, &EB};
+        dilateLightmap(dilated, filled, map.width, map.height, padding_);
+
+        // R, G, B, A drop into an engine as a lightmap texture; V (and the irradiance, when RGB
+        // holds V) are the extra passes.
+        const bool grey = c.scene.exr.colour == ExrColour::Visibility;
+        std::vector<ExrChannel> channels = {{"R", (grey ? V : ER).data()}, {"G", (grey ? V : EG).data()},
+                                            {"B", (grey ? V : EB).data()}, {"A", layout.coverage.data()},
+                                            {"visibility.V", V.data()}};
+        if (grey) channels.insert(channels.end(), {{"irradiance.R", ER.data()}, {"irradiance.G", EG.data()}, {"irradiance.B", EB.data()}});
+        std::vector<ExrAttribute> attributes = bakeAttributes(c.scene, c.samples, c.scene.exr.colour);
+        attributes.insert(attributes.end(), {{"penumbra:receivers", std::string("lightmap")},
+                                             {"penumbra:mesh", map.source},
+                                             {"penumbra:meshName", map.name},
+                                             {"penumbra:padding", padding_},
+                                             {"penumbra:texels", int(layout.texel.size())}});
+        const std::string exr = derivedPath(c.output, map.name, ".exr");
+        ensureParentDirectory(exr);
+        writeExr(exr, map.width, map.height, channels, attributes, c.scene.exr.format);
+        writePreview(derivedPath(c.output, map.name, ".png"), map, ER, EG, EB, filled);
+        outputs_.push_back(exr);
+        outputs_.push_back(derivedPath(c.output, map.name, ".png"));
+    }
+
+    /// Cuts and packs the meshes without usable UVs into one atlas, which becomes one more map.
+    Lightmap makeAtlas() {
+        std::vector<IndexedMesh> meshes;
+        std::string sources, labels;
+        for (Lightmap& part : parts_) {
+            meshes.push_back(std::move(part.mesh));
+            sources += (sources.empty() ? "" : ", ") + part.source;
+            labels += (labels.empty() ? "" : ", ") + part.label;
+        }
+        AtlasOptions options;
+        options.coneDeg = settings_.chartDeg;
+        options.pack.padding = settings_.padding;
+        options.pack.texelsPerUnit = settings_.density;
+        options.pack.width = settings_.width, options.pack.height = settings_.height;
+        options.pack.maxSide = settings_.maxSide, options.pack.powerOfTwo = settings_.powerOfTwo;
+        const auto start = std::chrono::steady_clock::now();
+        LightmapAtlas atlas = buildLightmapAtlas(meshes, options);
+        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        if (atlas.width == 0)
+            fail(settings_.where, "the {} charts of {} do not fit a {}x{} atlas with padding {} (use a larger resolution or a smaller padding)",
+                 atlas.charts, labels, settings_.density > 0 ? settings_.maxSide : settings_.width,
+                 settings_.density > 0 ? settings_.maxSide : settings_.height, settings_.padding);
+        if (atlas.densityLowered)
+            fmt::print(stderr, "penumbra: warning: {}: texels_per_unit {} needs an atlas larger than {}x{}; baking at {:.4g} instead\n",
+                       settings_.where, settings_.density, settings_.maxSide, settings_.maxSide, atlas.texelsPerUnit);
+        atlasStats_ = {{"width", atlas.width}, {"height", atlas.height}, {"charts", atlas.charts},
+                       {"texels_per_unit", atlas.texelsPerUnit}, {"density_lowered", atlas.densityLowered},
+                       {"padding", settings_.padding}, {"meshes", parts_.size()}, {"build_time_s", seconds},
+                       {"mean_stretch", atlas.meanStretch}, {"max_stretch", atlas.maxStretch}};
+        Lightmap map;
+        map.source = sources, map.label = "lightmap atlas (" + labels + ")", map.name = kAtlasName;
+        map.width = atlas.width, map.height = atlas.height;
+        map.mesh = concatenate(atlas.meshes);
+        atlasMeshes_ = std::move(atlas.meshes);
+        for (size_t m = 0; m < atlasMeshes_.size(); ++m) atlasMeshes_[m].name = parts_[m].name;
+        parts_.clear();
+        return map;
+    }
+
+    /// The irradiance, exposed so that the 99th percentile of the baked texels' luminance sits
+    /// near white; texels with no value (beyond the padding) are a neutral dark grey.
+    void writePreview(const std::string& path, const Lightmap& map, const std::vector<float>& r,
+                      const std::vector<float>& g, const std::vector<float>& b, const std::vector<uint8_t>& filled) const {
+        std::vector<float> luminance;
+        for (uint32_t t : map.layout.texel) luminance.push_back(0.2126f * r[t] + 0.7152f * g[t] + 0.0722f * b[t]);
+        float white = 1.f;
+        if (!luminance.empty()) {
+            size_t q = std::min(luminance.size() - 1, size_t(0.99 * double(luminance.size())));
+            std::nth_element(luminance.begin(), luminance.begin() + q, luminance.end());
+            white = luminance[q] > 0 ? luminance[q] : 1.f;
+        }
+        const float exposure = 0.92f / white;
+        const size_t texels = filled.size();
+        std::vector<uint8_t> rgb(texels * 3);
+        for (size_t t = 0; t < texels; ++t) {
+            if (!filled[t]) {
+                rgb[3 * t] = rgb[3 * t + 1] = rgb[3 * t + 2] = encodeSrgb(0.02f);
+                continue;
+            }
+            rgb[3 * t] = encodeSrgb(exposure * r[t]);
+            rgb[3 * t + 1] = encodeSrgb(exposure * g[t]);
+            rgb[3 * t + 2] = encodeSrgb(exposure * b[t]);
+        }
+        writePng8(path, map.width, map.height, 3, rgb);
+    }
+
+    std::vector<Lightmap> maps_;
+    std::vector<Lightmap> parts_;  ///< meshes waiting for the atlas (until receivers())
+    LightmapSettings settings_;
+    int padding_;
+    std::vector<IndexedMesh> atlasMeshes_;  ///< the atlas's meshes with their generated uv1
+    nlohmann::json atlasStats_;
+    std::vector<std::string> outputs_;      ///< files written
+};
+
+/// The file behind geometry entry @p index, which must be an obj/gltf/glb file.
+std::string meshFile(const JsonParams& j, const SceneDesc& scene, size_t slot, int64_t index) {
+    const std::string key = fmt::format("meshes[{}]", slot);
+    if (index < 0 || size_t(index) >= scene.geometry.size())
+        fail(j.where(key), "geometry index {} out of range (the scene has {} geometry entries)", index,
+             scene.geometry.size());
+    const GeometryDesc& g = scene.geometry[size_t(index)];
+    const nlohmann::json* path = g.params.is_object() && g.params.contains("path") ? &g.params["path"] : nullptr;
+    if (!path || !path->is_string())
+        fail(j.where(key), "{} is a \"{}\" entry, not a mesh file (obj, gltf or glb)", g.path, g.type);
+    std::string file = resolveScenePath(scene.baseDir, path->get<std::string>());
+    std::string ext = std::filesystem::path(file).extension().string();
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (ext != ".obj" && ext != ".gltf" && ext != ".glb")
+        fail(j.where(key), "{} ({}) is not an obj, gltf or glb file", g.path, file);
+    return file;
+}
+
+/// The size, padding and UV keys.
+LightmapSettings parseSettings(const JsonParams& j) {
+    LightmapSettings settings;
+    settings.where = j.where();
+    const nlohmann::json* resolution = j.raw("resolution");
+    const nlohmann::json* perUnit = j.raw("texels_per_unit");
+    if (resolution && resolution->is_null()) resolution = nullptr;
+    if (perUnit && perUnit->is_null()) perUnit = nullptr;
+    if (resolution && perUnit) fail(j.where("texels_per_unit"), "give either resolution or texels_per_unit, not both");
+    if (resolution) {
+        auto side = [&](const nlohmann::json& x) {
+            if (!x.is_number_integer() || x.get<int64_t>() < 1 || x.get<int64_t>() > kMaxSide)
+                fail(j.where("resolution"), "expected an integer in [1, {}] or [width, height] of such, got {}",
+                     kMaxSide, resolution->dump());
+            return int(x.get<int64_t>());
+        };
+        if (resolution->is_array() && resolution->size() == 2)
+            settings.width = side((*resolution)[0]), settings.height = side((*resolution)[1]);
+        else
+            settings.width = settings.height = side(*resolution);
+    }
+    if (perUnit) {
+        settings.density = perUnit->is_number() ? perUnit->get<double>() : 0.0;
+        if (!(settings.density > 0) || !std::isfinite(settings.density))
+            fail(j.where("texels_per_unit"), "expected a positive number, got {}", perUnit->dump());
+    }
+    settings.padding = int(j.integer("padding", 4, 0, 1024));
+    const std::string uv = j.string("uv", "auto");
+    if (uv == "auto") settings.uv = UvSource::Auto;
+    else if (uv == "mesh") settings.uv = UvSource::Mesh;
+    else if (uv == "generate") settings.uv = UvSource::Generate;
+    else fail(j.where("uv"), "expected \"auto\", \"mesh\" or \"generate\", got \"{}\"", uv);
+    auto angle = [&](const char* key, double fallback, double lo, double hi) {
+        const double x = j.number(key, fallback);
+        if (!(x >= lo && x <= hi)) fail(j.where(key), "expected an angle in [{}, {}] degrees, got {}", lo, hi, x);
+        return x;
+    };
+    settings.creaseDeg = angle("crease_angle_deg", kDefaultCreaseAngleDeg, 0, 180);
+    settings.chartDeg = angle("chart_angle_deg", kDefaultChartConeDeg, 1, 80);
+    settings.powerOfTwo = j.boolean("power_of_two", false);
+    settings.maxSide = int(j.integer("max_resolution", kMaxSide, 1, kMaxSide));
+    return settings;
+}
+
+/// The per-mesh map's size from the density, for a mesh that keeps its own UVs.
+void sizeFromDensity(const JsonParams& j, const std::string& key, const LightmapSettings& settings, Lightmap& map) {
+    const int64_t side = lightmapSideForDensity(map.mesh, settings.density);
+    if (side == 0) fail(j.where(key), "{}: every UV triangle is degenerate", map.label);
+    if (side > kMaxSide)
+        fail(j.where("texels_per_unit"), "{} gives {} a {}x{} lightmap (at most {})", settings.density, map.label, side,
+             side, kMaxSide);
+    map.width = map.height = int(side);
+}
+
+std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneDesc& scene) {
+    const nlohmann::json* meshes = j.raw("meshes");
+    if (!meshes) fail(j.where("meshes"), "missing required field");
+    if (!meshes->is_array() || meshes->empty())
+        fail(j.where("meshes"), "expected a non-empty array of geometry indices");
+    const LightmapSettings settings = parseSettings(j);
+
+    std::vector<Lightmap> maps, atlasParts;
+    std::set<std::string> names{kAtlasName};
+    for (size_t slot = 0; slot < meshes->size(); ++slot) {
+        const std::string key = fmt::format("meshes[{}]", slot);
+        const nlohmann::json& entry = (*meshes)[slot];
+        if (!entry.is_number_integer()) fail(j.where(key), "expected a geometry index, got {}", entry.dump());
+        const int64_t index = entry.get<int64_t>();
+        const std::string file = meshFile(j, scene, slot, index);
+        const GeometryDesc& geometry = scene.geometry[size_t(index)];
+        // The entry's OBJ "parts" pick its o/g groups here too: one lightmap mesh per group.
+        const std::vector<std::string> parts = geometryParts(JsonParams(geometry.params, scene.file, geometry.path));
+        std::vector<IndexedMesh> loaded = loadIndexedMeshes(file, geometry.transform.matrix(), parts);
+        if (loaded.empty()) fail(j.where(key), "{} has no triangle meshes", file);
+        for (size_t m = 0; m < loaded.size(); ++m) {
+            Lightmap map;
+            map.source = file;
+            map.label = loaded.size() == 1 ? file : fmt::format("{} (mesh \"{}\")", file, loaded[m].name);
+            if (settings.uv == UvSource::Mesh && !lightmapUvs(loaded[m]))
+                fail(j.where(key), "{} has no texture coordinates (needs OBJ vt, or glTF TEXCOORD_0/TEXCOORD_1; \"uv\": \"auto\" generates them)",
+                     map.label);
+            // The mesh's own name when it has one, else its position in "meshes".
+            std::string base = loaded[m].name.empty() ? std::to_string(index) : fileSafe(loaded[m].name);
+            if (loaded[m].name.empty() && loaded.size() > 1) base += "-" + std::to_string(m);
+            std::string name = base;
+            for (int n = 2; names.count(name); ++n) name = base + "-" + std::to_string(n);
+            names.insert(name);
+            map.name = name;
+            const bool generate = settings.uv == UvSource::Generate || (settings.uv == UvSource::Auto && !usableLightmapUvs(loaded[m]));
+            map.mesh = loaded[m].normal.empty() ? withCreaseNormals(loaded[m], settings.creaseDeg) : std::move(loaded[m]);
+            map.width = settings.width, map.height = settings.height;
+            if (generate) {
+                atlasParts.push_back(std::move(map));
+                continue;
+            }
+            if (settings.density > 0) sizeFromDensity(j, key, settings, map);
+            maps.push_back(std::move(map));
+        }
+    }
+    return std::make_unique<LightmapKind>(std::move(maps), std::move(atlasParts), settings);
+}
+
+}  // namespace
+
+namespace {
+const ReceiverKindRegistration kLightmap{"lightmap", &makeLightmapKind};
+}  // namespace
+
+}  // namespace penumbra

@@ -1,0 +1,90 @@
+#include "bake/kinds/ReceiverKind.h"
+
+#include "bake/kinds/CameraKind.h"
+#include "bake/kinds/LightmapKind.h"
+#include "bake/Scene.h"
+#include "bake/kinds/VertexColorKind.h"
+#include "bake/kinds/VolumeKind.h"
+#include "receivers/CameraReceivers.h"
+#include "receivers/PointReceivers.h"
+#include "stream/AtomicFile.h"
+#include "stream/Error.h"
+#include "stream/Npy.h"
+#include "stream/SafePath.h"
+
+#include <fmt/ranges.h>
+
+#include <map>
+#include <optional>
+#include <mutex>
+
+namespace penumbra {
+namespace {
+
+std::mutex registryMutex;
+std::map<std::string, ReceiverKindFactory>& registry() {
+    static std::map<std::string, ReceiverKindFactory> kinds;
+    return kinds;
+}
+
+/// Point receivers from a file; a .npy of visible fractions.
+class PointsKind final : public ReceiverKind {
+public:
+    explicit PointsKind(std::string path) : path_(std::move(path)) {}
+    std::optional<uint64_t> receiverBound() const override {
+        if (std::filesystem::path(path_).extension() != ".npy") return std::nullopt;  // a CSV tells by its lines
+        try {
+            const NpyRowReader rows(path_);
+            return rows.header().shape.empty() ? 0 : rows.header().shape[0];
+        } catch (const InputError&) {
+            return std::nullopt;  // receivers() reports what is wrong with the file
+        }
+    }
+    ReceiverSet receivers() override { return loadPointReceivers(path_); }
+    void write(const OutputContext& c) override {
+        uint64_t shape[1] = {c.results.visibility.size()};
+        ensureParentDirectory(c.output);
+        writeNpy(c.output, "<f4", shape, c.results.visibility.data(), c.results.visibility.size() * sizeof(float));
+    }
+
+private:
+    std::string path_;
+};
+
+}  // namespace
+
+std::string resolveScenePath(const std::filesystem::path& base, const std::string& p, const std::string& where) {
+    return containedPath(base, p, where.empty() ? p : where);
+}
+
+void registerReceiverKind(const std::string& type, ReceiverKindFactory factory) {
+    std::lock_guard lock(registryMutex);
+    registry()[type] = std::move(factory);
+}
+
+namespace {
+const ReceiverKindRegistration kPoints{"points", [](const JsonParams& j, const SceneDesc& scene) {
+    return std::make_unique<PointsKind>(resolveScenePath(scene.baseDir, j.string("path"), j.where("path")));
+}};
+}  // namespace
+
+std::unique_ptr<ReceiverKind> makeReceiverKind(const nlohmann::json& receivers, const SceneDesc& scene) {
+    JsonParams j(receivers, scene.file, "receivers");
+    const std::string type = j.string("type");
+    ReceiverKindFactory factory;
+    {
+        std::lock_guard lock(registryMutex);
+        auto it = registry().find(type);
+        if (it == registry().end()) {
+            std::vector<std::string> known;
+            for (const auto& entry : registry()) known.push_back(entry.first);
+            fail(j.where("type"), "unknown receiver type \"{}\" (known: {})", type, fmt::join(known, ", "));
+        }
+        factory = it->second;
+    }
+    std::unique_ptr<ReceiverKind> kind = factory(j, scene);
+    j.finish();
+    return kind;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,343 @@
+#include "bake/kinds/VolumeKind.h"
+
+#include "bake/output/ImageWriters.h"
+#include "bake/kinds/ReceiverKind.h"
+#include "bake/Scene.h"
+#include "stream/AtomicFile.h"
+#include "stream/Error.h"
+
+#include <openvdb/io/File.h>
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/Prune.h>
+
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+#include <glm/vec3.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+
+namespace penumbra {
+namespace {
+
+/// Most voxels a volume bake has: receivers are indexed by 32 bits elsewhere.
+constexpr uint64_t kMaxVolumeVoxels = uint64_t(1) << 30;
+/// Most lattice points a narrow band's triangle boxes may hold together (each is a distance test).
+constexpr double kMaxBandVisits = double(uint64_t(1) << 34);
+/// Largest lattice index along an axis: OpenVDB's Coord is 32-bit and its trees add node offsets.
+constexpr double kMaxLatticeIndex = double(1 << 30);
+
+/// Voxel (i,j,k) has its centre, and its receiver, at origin + h * (i,j,k).
+struct Lattice {
+    double h = 0.1;
+    glm::dvec3 origin{0.0};
+    glm::dvec3 centre(const openvdb::Coord& c) const { return origin + h * glm::dvec3(c.x(), c.y(), c.z()); }
+};
+
+void initializeOpenVdb() {
+    static std::once_flag once;
+    std::call_once(once, [] { openvdb::initialize(); });
+}
+
+/// Closest point to @p p on triangle (a, b, c), by the Voronoi regions of its vertices and edges.
+glm::dvec3 closestOnTriangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
+    const glm::dvec3 ab = b - a, ac = c - a, ap = p - a;
+    const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
+    if (d1 <= 0 && d2 <= 0) return a;
+    const glm::dvec3 bp = p - b;
+    const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
+    if (d3 >= 0 && d4 <= d3) return b;
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + ab * (d1 / (d1 - d3));
+    const glm::dvec3 cp = p - c;
+    const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
+    if (d6 >= 0 && d5 <= d6) return c;
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + ac * (d2 / (d2 - d6));
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    const double denom = va + vb + vc;
+    if (!(std::abs(denom) > 0)) return a;  // degenerate: the vertex and edge tests above decide
+    return a + ab * (vb / denom) + ac * (vc / denom);
+}
+
+class VolumeKind final : public ReceiverKind {
+public:
+    VolumeKind(Lattice lattice, openvdb::CoordBBox box, SceneDesc band, double width, bool irradiance, std::string where)
+        : lattice_(lattice), box_(box), band_(std::move(band)), width_(width), irradiance_(irradiance), where_(std::move(where)) {}
+
+    std::optional<uint64_t> receiverBound() const override {
+        if (!band_.geometry.empty()) return std::nullopt;  // only the band's triangles tell
+        return uint64_t(box_.volume());
+    }
+
+    ReceiverSet receivers() override {
+        initializeOpenVdb();
+        coords_.clear();
+        if (band_.geometry.empty()) {
+            for (int i = box_.min().x(); i <= box_.max().x(); ++i)
+                for (int j = box_.min().y(); j <= box_.max().y(); ++j)
+                    for (int k = box_.min().z(); k <= box_.max().z(); ++k) coords_.emplace_back(i, j, k);
+        } else {
+            scanBand();
+        }
+        ReceiverSet set;
+        set.position.reserve(coords_.size());
+        for (const openvdb::Coord& c : coords_) set.position.push_back(glm::vec3(lattice_.centre(c)));
+        set.normal.assign(coords_.size(), glm::vec3(0.f));  // zero: no receiver cosine
+        return set;
+    }
+
+    void write(const OutputContext& c) override {
+        initializeOpenVdb();
+        auto transform = openvdb::math::Transform::createLinearTransform(lattice_.h);
+        transform->postTranslate(openvdb::Vec3d(lattice_.origin.x, lattice_.origin.y, lattice_.origin.z));
+        openvdb::CoordBBox bounds;
+        for (const openvdb::Coord& coord : coords_) bounds.expand(coord);
+
+        // Lit voxels stay inactive background, so lit and umbra regions both prune to tiles.
+        openvdb::FloatGrid::Ptr visibility = openvdb::FloatGrid::create(1.0f);
+        openvdb::Vec3SGrid::Ptr irradiance = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
+        {
+            auto v = visibility->getAccessor();
+            auto e = irradiance->getAccessor();
+            for (size_t r = 0; r < coords_.size(); ++r) {
+                if (c.results.visibility[r] < 1.0f) v.setValue(coords_[r], c.results.visibility[r]);
+                if (irradiance_) {
+                    const glm::vec3& x = c.results.irradiance[r];
+                    e.setValue(coords_[r], openvdb::Vec3s(x.x, x.y, x.z));
+                }
+            }
+        }
+        openvdb::GridPtrVec grids;
+        auto finish = [&](openvdb::GridBase::Ptr grid, const char* name) {
+            grid->setName(name);
+            grid->setTransform(transform->copy());
+            if (!coords_.empty()) {
+                grid->insertMeta("penumbra_min", openvdb::Vec3IMetadata(bounds.min().asVec3i()));
+                grid->insertMeta("penumbra_max", openvdb::Vec3IMetadata(bounds.max().asVec3i()));
+            }
+            grids.push_back(grid);
+        };
+        openvdb::tools::prune(visibility->tree(), 0.0f);  // tolerance 0: only exactly constant nodes
+        finish(visibility, "visibility");
+        if (irradiance_) {
+            openvdb::tools::prune(irradiance->tree(), openvdb::Vec3s(0.f));
+            finish(irradiance, "irradiance");
+        }
+
+        ensureParentDirectory(c.output);
+        AtomicFile out(c.output);
+        try {
+            openvdb::io::File file(out.tempPath());
+            file.write(grids);
+            file.close();
+        } catch (const openvdb::Exception& e) {
+            fail(c.output, "OpenVDB could not write the file: {}", e.what());
+        }
+        out.commit();
+    }
+
+private:
+    /// Marks every lattice point within width_ of a triangle, streaming the named entries: first to
+    /// count the lattice points the triangles' boxes hold (refused, with the numbers, when they
+    /// cannot be indexed or visited in reasonable time), then to mark them.
+    void scanBand() {
+        std::vector<Triangle> chunk(1 << 14);
+        double visits = 0;
+        {
+            TriangleSourcePtr source = openSceneGeometry(band_);
+            while (size_t n = source->read(chunk))
+                for (size_t t = 0; t < n; ++t) visits += boxLattice(chunk[t]).count;
+        }
+        if (visits > kMaxBandVisits)
+            fail(where_, "the band's triangles cover {:.3g} lattice points at voxel_size {} and width {}, more than the {:.3g} "
+                         "a bake visits; raise voxel_size or lower width",
+                 visits, lattice_.h, width_, kMaxBandVisits);
+        openvdb::MaskGrid::Ptr mask = openvdb::MaskGrid::create(false);
+        auto acc = mask->getAccessor();
+        TriangleSourcePtr source = openSceneGeometry(band_);
+        const double w2 = width_ * width_;
+        uint64_t marked = 0;
+        while (size_t n = source->read(chunk)) {
+            for (size_t t = 0; t < n; ++t) {
+                const glm::dvec3 a(chunk[t].v[0]), b(chunk[t].v[1]), cc(chunk[t].v[2]);
+                const BoxLattice box = boxLattice(chunk[t]);
+                for (int i = box.lo.x; i <= box.hi.x; ++i)
+                    for (int j = box.lo.y; j <= box.hi.y; ++j)
+                        for (int k = box.lo.z; k <= box.hi.z; ++k) {
+                            const openvdb::Coord coord(i, j, k);
+                            if (acc.isValueOn(coord)) continue;
+                            const glm::dvec3 p = lattice_.centre(coord);
+                            const glm::dvec3 d = p - closestOnTriangle(p, a, b, cc);
+                            if (glm::dot(d, d) > w2) continue;
+                            acc.setValueOn(coord);
+                            if (++marked > kMaxVolumeVoxels)
+                                fail(where_, "the band holds more than {} voxels (receivers are indexed by 32 bits); raise "
+                                             "voxel_size or lower width",
+                                     kMaxVolumeVoxels);
+                        }
+            }
+        }
+        // Leaf by leaf, voxel by voxel: a deterministic order for the receivers.
+        for (auto leaf = mask->tree().cbeginLeaf(); leaf; ++leaf)
+            for (auto v = leaf->cbeginValueOn(); v; ++v) coords_.push_back(v.getCoord());
+    }
+
+    /// The lattice points of a triangle's box grown by the band width, and how many they are.
+    struct BoxLattice {
+        glm::ivec3 lo{0}, hi{-1};
+        double count = 0;
+    };
+    BoxLattice boxLattice(const Triangle& t) const {
+        const glm::dvec3 a(t.v[0]), b(t.v[1]), c(t.v[2]);
+        const glm::dvec3 lo = glm::ceil((glm::min(a, glm::min(b, c)) - width_ - lattice_.origin) / lattice_.h);
+        const glm::dvec3 hi = glm::floor((glm::max(a, glm::max(b, c)) + width_ - lattice_.origin) / lattice_.h);
+        BoxLattice box;
+        for (int axis = 0; axis < 3; ++axis)
+            // OpenVDB coordinates are 32-bit, with room for its node arithmetic.
+            if (!(std::abs(lo[axis]) < kMaxLatticeIndex && std::abs(hi[axis]) < kMaxLatticeIndex))
+                fail(where_, "a triangle of the band lies {:.3g} voxels from the origin, beyond the {:.3g} a lattice "
+                             "index can reach; raise voxel_size",
+                     std::max(std::abs(lo[axis]), std::abs(hi[axis])), kMaxLatticeIndex);
+        if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) return box;
+        box.lo = glm::ivec3(lo), box.hi = glm::ivec3(hi);
+        box.count = (hi.x - lo.x + 1) * (hi.y - lo.y + 1) * (hi.z - lo.z + 1);
+        return box;
+    }
+
+    Lattice lattice_;
+    openvdb::CoordBBox box_;
+    SceneDesc band_;  ///< the scene reduced to the narrow band's geometry entries (empty for a box)
+    double width_ = 0;
+    bool irradiance_ = false;
+    std::string where_;  ///< "scene.json: receivers.narrow_band", for messages
+    std::vector<openvdb::Coord> coords_;
+};
+
+/// Parses [[x0,y0,z0],[x1,y1,z1]] with x0 <= x1 and so on.
+void parseBox(const JsonParams& j, glm::dvec3& lo, glm::dvec3& hi) {
+    const nlohmann::json* box = j.raw("box");
+    auto corner = [&](size_t i, glm::dvec3& out) {
+        const nlohmann::json& c = (*box)[i];
+        if (!c.is_array() || c.size() != 3) return false;
+        for (int a = 0; a < 3; ++a) {
+            if (!c[size_t(a)].is_number()) return false;
+            out[a] = c[size_t(a)].get<double>();
+            if (!std::isfinite(out[a])) return false;
+        }
+        return true;
+    };
+    if (!box->is_array() || box->size() != 2 || !corner(0, lo) || !corner(1, hi))
+        fail(j.where("box"), "expected [[x0,y0,z0],[x1,y1,z1]] (two corners of 3 finite numbers)");
+    if (lo.x > hi.x || lo.y > hi.y || lo.z > hi.z) fail(j.where("box"), "the first corner must be the low one");
+}
+
+}  // namespace
+
+namespace {
+
+const ReceiverKindRegistration kVolume{"volume", [](const JsonParams& j, const SceneDesc& scene) {
+        Lattice lattice;
+        lattice.h = j.number("voxel_size");
+        if (!(lattice.h > 0) || !std::isfinite(lattice.h)) fail(j.where("voxel_size"), "must be a positive number");
+        const bool irradiance = j.boolean("irradiance", false);
+        {
+            std::string ext = std::filesystem::path(scene.output).extension().string();
+            if (ext != ".vdb") fail(scene.file + ": output", "\"{}\" must end in .vdb for volume receivers", scene.output);
+        }
+        const bool hasBox = j.has("box"), hasBand = j.has("narrow_band");
+        if (hasBox == hasBand) fail(j.where("box"), "give exactly one of \"box\" and \"narrow_band\"");
+        constexpr double kMaxVoxels = double(kMaxVolumeVoxels);
+        if (hasBox) {
+            glm::dvec3 lo, hi;
+            parseBox(j, lo, hi);
+            glm::dvec3 n;
+            for (int a = 0; a < 3; ++a) n[a] = std::max(1.0, std::ceil((hi[a] - lo[a]) / lattice.h - 1e-9));
+            if (n.x * n.y * n.z > kMaxVoxels)
+                fail(j.where("voxel_size"), "the box would have {:.0f} voxels (at most {:.0f})", n.x * n.y * n.z, kMaxVoxels);
+            lattice.origin = lo + 0.5 * lattice.h;
+            openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(int(n.x) - 1, int(n.y) - 1, int(n.z) - 1));
+            return std::make_unique<VolumeKind>(lattice, box, SceneDesc{}, 0.0, irradiance, j.where("box"));
+        }
+        JsonParams band(*j.raw("narrow_band"), j.file(), j.path("narrow_band"));
+        const double width = band.number("width");
+        if (!(width >= 0) || !std::isfinite(width)) fail(band.where("width"), "must be a non-negative number");
+        // Around one triangle alone the band holds about (2 width / h)^3 voxels.
+        if (const double around = std::pow(2 * width / lattice.h + 1, 3); around > kMaxVoxels)
+            fail(band.where("width"), "a band {} wide holds about {:.3g} voxels of size {} around a single triangle, more "
+                                      "than the {:.0f} a bake can hold",
+                 width, around, lattice.h, kMaxVoxels);
+        const nlohmann::json* geometry = band.raw("geometry");
+        if (!geometry) fail(band.where("geometry"), "missing (a list of indices into \"geometry\")");
+        if (!geometry->is_array() || geometry->empty())
+            fail(band.where("geometry"), "expected a non-empty array of indices into \"geometry\"");
+        SceneDesc sub = scene;  // the same scene, reduced to the band's entries
+        sub.geometry.clear();
+        for (size_t i = 0; i < geometry->size(); ++i) {
+            const nlohmann::json& g = (*geometry)[i];
+            const std::string where = fmt::format("{}[{}]", band.where("geometry"), i);
+            if (!g.is_number_integer()) fail(where, "expected an index into \"geometry\"");
+            const int64_t index = g.get<int64_t>();
+            if (index < 0 || uint64_t(index) >= scene.geometry.size())
+                fail(where, "geometry index {} is out of range (the scene has {} entries)", index, scene.geometry.size());
+            sub.geometry.push_back(scene.geometry[size_t(index)]);
+        }
+        band.finish();
+        return std::make_unique<VolumeKind>(lattice, openvdb::CoordBBox(), std::move(sub), width, irradiance, band.where());
+    }};
+
+}  // namespace
+
+void writeVolumeSlicePng(const std::string& vdbPath, const std::string& pngPath, const std::string& gridName,
+                         char axis, double at, int minWidth) {
+    initializeOpenVdb();
+    if (axis != 'x' && axis != 'y' && axis != 'z') fail(vdbPath, "slice axis must be x, y or z (got '{}')", axis);
+    openvdb::FloatGrid::Ptr grid;
+    try {
+        openvdb::io::File file(vdbPath);
+        file.open();
+        if (!file.hasGrid(gridName)) fail(vdbPath, "no grid named \"{}\"", gridName);
+        grid = openvdb::gridPtrCast<openvdb::FloatGrid>(file.readGrid(gridName));
+        file.close();
+    } catch (const openvdb::Exception& e) {
+        fail(vdbPath, "OpenVDB could not read the file: {}", e.what());
+    }
+    if (!grid) fail(vdbPath, "grid \"{}\" is not a float grid", gridName);
+    openvdb::CoordBBox bounds = grid->evalActiveVoxelBoundingBox();
+    auto lo = grid->getMetadata<openvdb::Vec3IMetadata>("penumbra_min");
+    auto hi = grid->getMetadata<openvdb::Vec3IMetadata>("penumbra_max");
+    if (lo && hi) bounds = openvdb::CoordBBox(openvdb::Coord(lo->value()), openvdb::Coord(hi->value()));
+    if (bounds.empty()) fail(vdbPath, "grid \"{}\" is empty", gridName);
+
+    const int a = axis - 'x';
+    if (!std::isfinite(at)) fail("--at", "must be a finite number, got {}", at);
+    openvdb::Vec3d probe(0.0);
+    probe[a] = at;
+    // Compared in double: a far coordinate must not wrap into the grid's index range.
+    const double index = std::round(grid->transform().worldToIndex(probe)[a]);
+    if (!(index >= bounds.min()[a] && index <= bounds.max()[a]))
+        fail(vdbPath, "{} = {} lies outside the grid (index {:.0f}, grid {}..{})", axis, at, index, bounds.min()[a],
+             bounds.max()[a]);
+    const int slice = int(index);
+    // (right, down) axes of the image and whether rows run from the axis's high end.
+    const int u = axis == 'x' ? 2 : 0, v = axis == 'y' ? 2 : 1;
+    const bool flip = axis != 'y';  // y up for x and z slices; z down when seen from above
+    const int w = bounds.max()[u] - bounds.min()[u] + 1, h = bounds.max()[v] - bounds.min()[v] + 1;
+    const int scale = std::max(1, std::min((minWidth + w - 1) / w, 8192 / std::max(w, h)));
+    std::vector<uint8_t> pixels(size_t(w) * scale * h * scale);
+    auto acc = grid->getConstAccessor();
+    for (int row = 0; row < h * scale; ++row)
+        for (int col = 0; col < w * scale; ++col) {
+            openvdb::Coord c;
+            c[a] = slice;
+            c[u] = bounds.min()[u] + col / scale;
+            c[v] = flip ? bounds.max()[v] - row / scale : bounds.min()[v] + row / scale;
+            pixels[size_t(row) * w * scale + col] = encodeSrgb(acc.getValue(c));
+        }
+    ensureParentDirectory(pngPath);
+    writePng8(pngPath, w * scale, h * scale, 1, pixels);
+}
+
+}  // namespace penumbra

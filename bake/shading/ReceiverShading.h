@@ -1,0 +1,76 @@
+#pragma once
+/// @file ReceiverShading.h
+/// @brief Turns one receiver's mask into what the outputs need: the visible fraction of the light
+/// and the irradiance (Heckbert & Herf 1997, Eq. 2). Done as each receiver's result becomes final,
+/// so a bake never has to hold every receiver's mask at once.
+
+#include "bake/light/Light.h"
+#include "receivers/ReceiverSet.h"
+
+#include <glm/vec3.hpp>
+
+#include <span>
+#include <vector>
+
+namespace penumbra {
+
+/// @brief Per-receiver results of a bake.
+struct ReceiverResults {
+    std::vector<float> visibility;       ///< unblocked samples / K, all lights together
+    std::vector<glm::vec3> irradiance;   ///< RGB, W/m^2 for radiance in W/(m^2 sr), all lights summed
+    /// With more than one light: each light's own visible fraction and irradiance, receiver-major
+    /// (entry r * lights + l). Empty with a single light, where they equal the totals.
+    int lights = 1;
+    std::vector<float> lightVisibility;
+    std::vector<glm::vec3> lightIrradiance;
+
+    /// @brief Sizes the arrays for @p receivers receivers and @p lightCount lights.
+    void resize(size_t receivers, int lightCount) {
+        lights = lightCount;
+        visibility.assign(receivers, 0.f);
+        irradiance.assign(receivers, glm::vec3(0.f));
+        lightVisibility.assign(lightCount > 1 ? receivers * size_t(lightCount) : 0, 0.f);
+        lightIrradiance.assign(lightCount > 1 ? receivers * size_t(lightCount) : 0, glm::vec3(0.f));
+    }
+    /// @brief Grows the arrays to @p receivers receivers, keeping the results already there.
+    void extend(size_t receivers) {
+        visibility.resize(receivers, 0.f);
+        irradiance.resize(receivers, glm::vec3(0.f));
+        if (lights > 1) lightVisibility.resize(receivers * size_t(lights), 0.f), lightIrradiance.resize(receivers * size_t(lights), glm::vec3(0.f));
+    }
+    float visibilityOf(size_t r, int light) const { return lights > 1 ? lightVisibility[r * lights + light] : visibility[r]; }
+    glm::vec3 irradianceOf(size_t r, int light) const {
+        return lights > 1 ? lightIrradiance[r * lights + light] : irradiance[r];
+    }
+};
+
+/// @brief Radiance of a light given by its emitted power (W, RGB): P / (pi A) for one-sided
+/// planar emitters (rect, disk, polygon) and P / (4 pi^2 r^2) for a sphere (a Lambertian sphere
+/// surface). Throws InputError for a sun (suns take irradiance or radiance).
+glm::dvec3 radianceFromPower(const LightDesc& light, const glm::dvec3& power);
+
+class ReceiverShader {
+public:
+    /// @param lights the lights as sampled (suns placed); their order is the samples' light order.
+    ReceiverShader(const std::vector<LightDesc>& lights, const LightSamples& samples, const ReceiverSet& receivers,
+                   std::span<const uint32_t> sampleSets);
+
+    /// @brief Visible fraction and irradiance of receiver @p r, in total and per light.
+    /// @param groupWords one word per group (bit set = blocked), or nullptr when nothing is blocked
+    /// @param fullUmbra every sample blocked (groupWords is ignored)
+    void shade(uint32_t r, const uint64_t* groupWords, bool fullUmbra, ReceiverResults& out) const;
+
+private:
+    struct PerLight {
+        glm::dvec3 normal;  ///< emitting side; zero for volumetric lights (no emitter cosine)
+        glm::dvec3 weight;  ///< radiance x area per sample; for a sun, irradiance per sample
+        bool sun = false;   ///< directional: weight x cos(receiver) only, no 1/r^2
+        int samples = 1;
+    };
+    const LightSamples& samples_;
+    const ReceiverSet& receivers_;
+    std::span<const uint32_t> sets_;
+    std::vector<PerLight> lights_;
+};
+
+}  // namespace penumbra

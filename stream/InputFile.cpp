@@ -1,0 +1,103 @@
+#include "stream/InputFile.h"
+
+#include "stream/Error.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <map>
+#include <mutex>
+#include <system_error>
+#include <utility>
+
+namespace penumbra {
+namespace {
+
+std::string errnoText(int err) { return std::error_code(err, std::generic_category()).message(); }
+
+std::mutex inputsMutex;
+int g_scopes = 0;  // guarded by inputsMutex
+std::map<std::pair<dev_t, ino_t>, std::string>& inputs() {
+    static std::map<std::pair<dev_t, ino_t>, std::string> recorded;
+    return recorded;
+}
+
+void record(const struct stat& st, const std::string& path) {
+    std::lock_guard lock(inputsMutex);
+    if (g_scopes > 0) inputs().emplace(std::pair(st.st_dev, st.st_ino), path);
+}
+
+void requireRegular(const struct stat& st, const std::string& path) {
+    if (!S_ISREG(st.st_mode)) fail(path, "is {}, not a regular file", fileKindName(st.st_mode));
+}
+
+}  // namespace
+
+const char* fileKindName(mode_t mode) {
+    if (S_ISREG(mode)) return "a regular file";
+    if (S_ISDIR(mode)) return "a directory";
+    if (S_ISFIFO(mode)) return "a FIFO";
+    if (S_ISCHR(mode)) return "a character device";
+    if (S_ISBLK(mode)) return "a block device";
+    if (S_ISSOCK(mode)) return "a socket";
+    if (S_ISLNK(mode)) return "a symbolic link";
+    return "a special file";
+}
+
+int openInputFile(const std::string& path) {
+    if (path.empty()) throw InputError("cannot open an input: the path is empty");
+    // stat() first, so that a device is refused without being opened at all (opening some has
+    // side effects); the descriptor is checked again below, as the name may change in between.
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0) fail(path, "cannot open: {}", errnoText(errno));
+    requireRegular(st, path);
+    int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) fail(path, "cannot open: {}", errnoText(errno));
+    if (::fstat(fd, &st) != 0) {
+        int err = errno;
+        ::close(fd);
+        fail(path, "cannot stat: {}", errnoText(err));
+    }
+    if (!S_ISREG(st.st_mode)) {
+        ::close(fd);
+        requireRegular(st, path);
+    }
+    int flags = ::fcntl(fd, F_GETFL);
+    if (flags >= 0) ::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK);
+    record(st, path);
+    return fd;
+}
+
+std::FILE* openInputStream(const std::string& path) {
+    int fd = openInputFile(path);
+    std::FILE* file = ::fdopen(fd, "rb");
+    if (!file) {
+        int err = errno;
+        ::close(fd);
+        fail(path, "cannot open: {}", errnoText(err));
+    }
+    return file;
+}
+
+void checkInputFile(const std::string& path) { ::close(openInputFile(path)); }
+
+std::optional<std::string> recordedInput(dev_t device, ino_t inode) {
+    std::lock_guard lock(inputsMutex);
+    auto it = inputs().find(std::pair(device, inode));
+    if (it == inputs().end()) return std::nullopt;
+    return it->second;
+}
+
+InputScope::InputScope() {
+    std::lock_guard lock(inputsMutex);
+    ++g_scopes;
+}
+
+InputScope::~InputScope() {
+    std::lock_guard lock(inputsMutex);
+    if (--g_scopes == 0) inputs().clear();
+}
+
+}  // namespace penumbra

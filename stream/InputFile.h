@@ -1,0 +1,50 @@
+#pragma once
+/// @file InputFile.h
+/// @brief Inputs are regular files. Opening one refuses FIFOs, devices, sockets and directories,
+/// which would hang a reader or be read until memory runs out (`/dev/zero` as an OBJ), and
+/// records the file's identity (device and inode), so that an output is never written over an
+/// input, whatever name it is given (AtomicFile.h asks recordedInput()).
+
+#include <sys/types.h>
+
+#include <cstdio>
+#include <optional>
+#include <string>
+
+namespace penumbra {
+
+/// @brief Opens @p path for reading if it is a regular file (symbolic links are followed) and
+/// records it as an input of the current InputScope. The file is opened without blocking, so a
+/// FIFO without a writer is refused at once instead of waited for.
+/// @return a blocking descriptor (O_CLOEXEC), owned by the caller.
+/// @throw InputError "PATH: cannot open: REASON" or "PATH: is a FIFO, not a regular file" (a
+///        directory, a character or block device, a socket likewise).
+int openInputFile(const std::string& path);
+
+/// @brief openInputFile() as a stdio stream opened "rb", owned by the caller (fclose).
+/// @throw InputError as openInputFile().
+std::FILE* openInputStream(const std::string& path);
+
+/// @brief Checks that @p path is a regular file and records it, without keeping it open: for
+/// readers that open the file themselves (tinygltf, the OBJ reader).
+/// @throw InputError as openInputFile().
+void checkInputFile(const std::string& path);
+
+/// @brief What kind of file a stat mode is, for messages: "a directory", "a FIFO", ...
+const char* fileKindName(mode_t mode);
+
+/// @brief The inputs of one job (a bake, a conversion): inputs are recorded only while a scope
+/// is alive, and forgotten when the outermost one ends, so that a process running several jobs
+/// (the tests, a benchmark) may write in one job what it read in an earlier one.
+class InputScope {
+public:
+    InputScope();
+    ~InputScope();
+    InputScope(const InputScope&) = delete;
+    InputScope& operator=(const InputScope&) = delete;
+};
+
+/// @brief The path of the input recorded with this device and inode in the current scope, if any.
+std::optional<std::string> recordedInput(dev_t device, ino_t inode);
+
+}  // namespace penumbra
