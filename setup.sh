@@ -10,7 +10,7 @@ packages=(build-essential cmake ninja-build ccache pkg-config
   libopenvdb-dev libboost-iostreams-dev libopenexr-dev libimath-dev libtinygltf-dev
   libglm-dev libtbb-dev catch2 libembree-dev nlohmann-json3-dev libcli11-dev
   libfmt-dev libstb-dev libdraco-dev libmeshoptimizer-dev gltfpack draco
-  zlib1g-dev clang libfuzzer-14-dev)
+  zlib1g-dev clang libfuzzer-14-dev python3-openvdb openimageio-tools)
 
 missing=()
 for p in "${packages[@]}"; do

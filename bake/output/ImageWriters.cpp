@@ -16,6 +16,7 @@
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfTiledOutputFile.h>
 #include <OpenEXR/ImfVecAttribute.h>
+#include <Imath/half.h>
 #include <stb/stb_image_write.h>
 #include <zlib.h>
 
@@ -112,6 +113,10 @@ struct ExrStripWriter::State {
     std::string path;
     int width = 0, height = 0, written = 0, tile = 0;
     std::vector<std::string> names;
+    /// Channels stored as HALF: OpenEXR's tiled writer converts no pixel types, so the strip's
+    /// floats are rounded here (the same round-to-nearest-even as its scanline writer).
+    std::vector<bool> half;
+    mutable std::vector<Imath::half> halves;
     AtomicFile file;
     std::unique_ptr<Imf::OutputFile> scanlines;
     std::unique_ptr<Imf::TiledOutputFile> tiles;
@@ -125,10 +130,21 @@ struct ExrStripWriter::State {
         const size_t rowStride = sizeof(float) * size_t(width);
         const Imath::Box2i strip(Imath::V2i(0, y0), Imath::V2i(width - 1, y0 + rows - 1));
         Imf::FrameBuffer frame;
-        for (size_t c = 0; c < names.size(); ++c)
+        const size_t pixels = size_t(rows) * size_t(width);
+        halves.resize(size_t(std::count(half.begin(), half.end(), true)) * pixels);
+        size_t next = 0;
+        for (size_t c = 0; c < names.size(); ++c) {
+            if (half[c]) {
+                Imath::half* h = &halves[next * pixels];
+                std::copy(data[c], data[c] + pixels, h);
+                ++next;
+                frame.insert(names[c], Imf::Slice::Make(Imf::HALF, h, strip, sizeof(Imath::half), sizeof(Imath::half) * size_t(width)));
+                continue;
+            }
             // OpenEXR only reads through the slice; the cast is forced by its API. Slice::Make
             // places the strip's first row at y = y0.
             frame.insert(names[c], Imf::Slice::Make(Imf::FLOAT, const_cast<float*>(data[c]), strip, sizeof(float), rowStride));
+        }
         return frame;
     }
     /// Writes the gathered row of tiles.
@@ -147,7 +163,7 @@ ExrStripWriter::ExrStripWriter(const std::string& path, int width, int height, s
     Imf::Header header = makeHeader(path, width, height, channels, attributes, format);
     state_ = std::make_unique<State>(path, width, height);
     State& s = *state_;
-    for (const ExrChannelSpec& c : channels) s.names.push_back(c.name);
+    for (const ExrChannelSpec& c : channels) s.names.push_back(c.name), s.half.push_back(format.half && !c.keepFloat);
     s.tile = format.tileSize;
     try {
         if (s.tile > 0) {
@@ -167,7 +183,9 @@ uint64_t ExrStripWriter::bytes(int width, size_t channels, const ExrFormat& form
     // OpenEXR keeps a block (16 lines for ZIP, or one row of tiles) uncompressed and compressed.
     const uint64_t rows = format.tileSize > 0 ? uint64_t(format.tileSize) : 16;
     const uint64_t block = 2 * rows * channels * uint64_t(width) * 4;
-    return block + (format.tileSize > 0 ? rows * channels * uint64_t(width) * 4 : 0);
+    // HALF channels: the strip's rounded copy (at most 64 rows or one row of tiles, 2 bytes each).
+    const uint64_t halves = format.half ? std::max<uint64_t>(rows, 64) * channels * uint64_t(width) * 2 : 0;
+    return block + halves + (format.tileSize > 0 ? rows * channels * uint64_t(width) * 4 : 0);
 }
 
 void ExrStripWriter::write(int rows, std::span<const float* const> channels) {
