@@ -316,6 +316,7 @@ void sizeFromDensity(const JsonParams& j, const std::string& key, const Lightmap
 }
 
 std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneDesc& scene) {
+    requireOutputExtension(scene, ".exr", "lightmap");
     const nlohmann::json* meshes = j.raw("meshes");
     if (!meshes) fail(j.where("meshes"), "missing required field");
     if (!meshes->is_array() || meshes->empty())
