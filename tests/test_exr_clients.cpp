@@ -108,7 +108,7 @@ TEST_CASE("exr: half and tiled output as oiiotool sees it, depth kept float", "[
     CHECK(img.tileWidth == 16);
 }
 
-TEST_CASE("exr: rgb visibility puts V in R, G, B and the irradiance in its own layer; bad settings name the key", "[exr][cli]") {
+TEST_CASE("exr: rgb visibility puts V in R, G, B and the irradiance in its own layer, bad settings name the key", "[exr][cli]") {
     ScratchDir dir("exr-rgb");
     std::ofstream(dir / "scene.json") << smallScene(R"("exr": {"rgb": "visibility"},)");
     RunResult bake = runPenumbra("bake " + (dir / "scene.json") + " -q");
