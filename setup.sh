@@ -11,7 +11,8 @@ packages=(build-essential cmake ninja-build ccache pkg-config
   libglm-dev libtbb-dev catch2 libembree-dev nlohmann-json3-dev libcli11-dev
   libfmt-dev libstb-dev libdraco-dev libmeshoptimizer-dev gltfpack draco
   zlib1g-dev clang libfuzzer-14-dev slurm-wlm munge
-  pybind11-dev python3-dev python3-pytest python3-numpy python3-matplotlib)
+  pybind11-dev python3-dev python3-pytest python3-numpy python3-matplotlib
+  python3-openvdb openimageio-tools)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -205,6 +205,7 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
         scene.bakeOptions = *bake;
         parseOptions(JsonParams(*bake, file, "bake"), scene);
     }
+    if (const nlohmann::json* exr = j.raw("exr")) scene.exr = parseExrSettings(JsonParams(*exr, file, "exr"));
     j.finish();
     makeReceiverKind(scene.receivers, scene);  // validates the receivers now; the bake makes its own
     return scene;

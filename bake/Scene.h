@@ -4,6 +4,7 @@
 /// docs/scene-format.md is the reference for every key.
 
 #include "bake/cast/CastOptions.h"
+#include "bake/output/ExrSettings.h"
 #include "bake/light/Light.h"
 #include "stream/util/JsonParams.h"
 #include "stream/Transform.h"
@@ -48,6 +49,7 @@ struct SceneDesc {
     std::string output = "out/shadows.exr";
     /// True while `output` is the scene's own (not -o), which must stay in the scene's directory.
     bool outputFromScene = true;
+    ExrSettings exr;  ///< "exr": pixel type, tiles and what R, G, B hold (camera and lightmap EXRs)
     CastOptions options;
     /// The scene's "bake" object as written, for the keys a method reads itself (Caster.h).
     nlohmann::json bakeOptions = nlohmann::json::object();

@@ -10,15 +10,9 @@
 #include <limits>
 
 namespace penumbra {
-namespace {
 
-struct Basis {
-    glm::dvec3 right, up, forward;
-    double tanHalf, aspect;
-};
-
-Basis basisOf(const CameraDesc& c) {
-    Basis b;
+CameraBasis cameraBasis(const CameraDesc& c) {
+    CameraBasis b;
     b.forward = glm::normalize(c.target - c.eye);
     b.right = glm::normalize(glm::cross(b.forward, c.up));
     b.up = glm::cross(b.right, b.forward);
@@ -27,8 +21,10 @@ Basis basisOf(const CameraDesc& c) {
     return b;
 }
 
+namespace {
+
 /// Unit direction of the ray through the centre of pixel (x, y) of a w x h image.
-glm::dvec3 directionThrough(const Basis& b, int w, int h, int x, int y) {
+glm::dvec3 directionThrough(const CameraBasis& b, int w, int h, int x, int y) {
     double sx = (2.0 * (x + 0.5) / w - 1.0) * b.tanHalf * b.aspect;
     double sy = (1.0 - 2.0 * (y + 0.5) / h) * b.tanHalf;
     return glm::normalize(b.forward + sx * b.right + sy * b.up);
@@ -36,7 +32,7 @@ glm::dvec3 directionThrough(const Basis& b, int w, int h, int x, int y) {
 
 }  // namespace
 
-glm::dvec3 CameraDesc::pixelDirection(int x, int y) const { return directionThrough(basisOf(*this), width, height, x, y); }
+glm::dvec3 CameraDesc::pixelDirection(int x, int y) const { return directionThrough(cameraBasis(*this), width, height, x, y); }
 
 void validateCamera(const CameraDesc& c) {
     if (c.width < 1 || c.height < 1 || c.width > 65536 || c.height > 65536)
@@ -53,7 +49,7 @@ void validateCamera(const CameraDesc& c) {
 
 CameraRasterizer::CameraRasterizer(const CameraDesc& camera) : camera_(camera) {
     validateCamera(camera);
-    Basis b = basisOf(camera);
+    CameraBasis b = cameraBasis(camera);
     right_ = b.right, up_ = b.up, forward_ = b.forward, tanHalf_ = b.tanHalf, aspect_ = b.aspect;
     const size_t pixels = size_t(camera.width) * camera.height * camera.layers;
     depth_.assign(pixels, std::numeric_limits<float>::infinity());
@@ -65,7 +61,7 @@ CameraRasterizer::CameraRasterizer(const CameraDesc& camera, int subdivision, st
     validateCamera(camera);
     if (subdivision < 1 || camera.layers != 1) fail(camera.where, "refinement needs a subdivision >= 1 and one layer");
     camera_.width *= subdivision, camera_.height *= subdivision;
-    Basis b = basisOf(camera_);
+    CameraBasis b = cameraBasis(camera_);
     right_ = b.right, up_ = b.up, forward_ = b.forward, tanHalf_ = b.tanHalf, aspect_ = b.aspect;
     lookup_.assign(size_t(camera.width) * camera.height, ~0u);
     for (size_t i = 0; i < refined_.size(); ++i) lookup_[refined_[i]] = uint32_t(i);
@@ -82,7 +78,7 @@ size_t CameraRasterizer::slotOf(int x, int y) const {
 }
 
 glm::dvec3 CameraRasterizer::direction(int x, int y) const {
-    return directionThrough(Basis{right_, up_, forward_, tanHalf_, aspect_}, camera_.width, camera_.height, x, y);
+    return directionThrough(CameraBasis{right_, up_, forward_, tanHalf_, aspect_}, camera_.width, camera_.height, x, y);
 }
 
 void CameraRasterizer::add(std::span<const Triangle> chunk) {

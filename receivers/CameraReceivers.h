@@ -29,6 +29,14 @@ struct CameraDesc {
     glm::dvec3 pixelDirection(int x, int y) const;
 };
 
+/// @brief The camera's frame: unit right, up and forward (right = forward x up, up = right x
+/// forward), tan(fov_deg / 2) and the aspect ratio width / height.
+struct CameraBasis {
+    glm::dvec3 right, up, forward;
+    double tanHalf, aspect;
+};
+CameraBasis cameraBasis(const CameraDesc& camera);
+
 /// @brief Checks the camera; throws InputError naming `where` and the bad value.
 void validateCamera(const CameraDesc& camera);
 

@@ -26,12 +26,14 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <exception>
 #include <utility>
+#include <vector>
 #include <sstream>
 
 using namespace penumbra;
@@ -98,6 +100,22 @@ int reportError(std::exception_ptr error, const std::string& context) {
     return 1;
 }
 
+/// A command-line usage error exits 2 (README, "Exit codes"); --help and --version exit 0. An
+/// unknown first word is named as an unknown command, with the commands there are.
+int reportUsageError(CLI::App& app, const CLI::ParseError& e, int argc, char** argv) {
+    if (e.get_exit_code() == 0) return app.exit(e);
+    std::vector<std::string> commands;
+    for (const CLI::App* command : app.get_subcommands([](CLI::App*) { return true; })) commands.push_back(command->get_name());
+    const std::string first = argc > 1 ? argv[1] : "";
+    if (!first.empty() && first[0] != '-' && std::find(commands.begin(), commands.end(), first) == commands.end()) {
+        printDiagnostic(fmt::format("penumbra: error: unknown command '{}' (commands: {}; see penumbra --help)\n", first,
+                                    fmt::join(commands, ", ")));
+        return 2;
+    }
+    app.exit(e);
+    return 2;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -113,6 +131,7 @@ int main(int argc, char** argv) {
 
     CLI::App app{"penumbra: out-of-core soft-shadow baker (hierarchical penumbra casting)"};
     app.require_subcommand(1);
+    app.set_version_flag("--version", "penumbra " PENUMBRA_VERSION);
 
     std::string scenePath, output, method = "hpc", statsPath, dumpDir;
     int threads = 0;
@@ -214,7 +233,7 @@ int main(int argc, char** argv) {
     try {
         app.parse(int(arguments.size()), arguments.data());
     } catch (const CLI::ParseError& e) {
-        return app.exit(e);
+        return reportUsageError(app, e, argc, argv);
     }
 
     // Inputs of the command are recorded, so that no output replaces one (InputFile.h).

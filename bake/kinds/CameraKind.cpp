@@ -41,7 +41,7 @@ class CameraKind final : public ReceiverKind {
 public:
     CameraKind(const CameraDesc& camera, const CameraAntialias& aa, const SceneDesc& scene)
         : camera_(camera), aa_(aa), smooth_(scene.smoothShading), lights_(lightDirections(scene.lights)),
-          lightCount_(scene.lights.size()) {
+          lightCount_(scene.lights.size()), exr_(scene.exr) {
         validateCamera(camera);
     }
     uint64_t scanBytes() const override {
@@ -53,7 +53,7 @@ public:
     }
     uint64_t outputBytes(uint64_t receivers) const override {
         // Strips of rows, never the full frame (CameraOutput.h).
-        return cameraOutputBytes(camera_.width, camera_.layers, int(lightCount_), receivers);
+        return cameraOutputBytes(camera_.width, camera_.layers, int(lightCount_), receivers, exr_);
     }
     uint64_t maxResidentBytes(uint64_t receivers, std::optional<uint64_t> triangles) const override {
         if (!smooth_) return 0;
@@ -117,7 +117,7 @@ public:
     }
     void write(const OutputContext& c) override {
         CameraRefinement refinement{c.firstPass, aa_.samples > 0 ? aa_.samples : 1};
-        writeCameraOutputs(c.scene, c.receivers, c.samples, c.results, c.output, bend_ ? &*bend_ : nullptr, refinement);
+        writeCameraOutputs(c.scene, camera_, c.receivers, c.samples, c.results, c.output, bend_ ? &*bend_ : nullptr, refinement);
     }
 
 private:
@@ -134,6 +134,7 @@ private:
     bool smooth_;
     std::vector<LightDirection> lights_;
     size_t lightCount_;
+    ExrSettings exr_;
     std::optional<CameraRasterizer> raster_;
     std::optional<VertexBend> bend_;
     uint64_t refinedPixels_ = 0, addedReceivers_ = 0;
@@ -142,6 +143,7 @@ private:
 }  // namespace
 
 std::unique_ptr<ReceiverKind> makeCameraKind(const JsonParams& j, const SceneDesc& scene) {
+    requireOutputExtension(scene, ".exr", "camera");
     CameraDesc c;
     c.where = j.where();
     c.eye = j.vec3("eye"), c.target = j.vec3("target"), c.up = j.vec3("up", c.up);

@@ -1,42 +1,22 @@
 #include "bake/kinds/CameraOutput.h"
 
+#include "bake/ExrMetadata.h"
 #include "bake/output/ImageWriters.h"
 #include "stream/util/AtomicFile.h"
+
+#include <glm/geometric.hpp>
 
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <filesystem>
 #include <cmath>
+#include <filesystem>
+#include <limits>
 #include <numeric>
 
 namespace penumbra {
 std::string previewPath(const std::string& output) {
     return std::filesystem::path(output).replace_extension(".png").string();
-}
-
-std::vector<ExrAttribute> cameraAttributes(const SceneDesc& scene, const LightSamples& samples) {
-    std::vector<ExrAttribute> a = {
-        {"penumbra:lights", std::to_string(scene.lights.size())},
-        {"penumbra:samples", std::to_string(samples.sampleCount)},
-        {"penumbra:sampleSets", std::to_string(samples.sets)},
-        {"penumbra:seed", std::to_string(scene.seed)},
-        {"penumbra:groupSize", std::to_string(scene.options.groupSize)},
-    };
-    static const char* typeNames[] = {"rect", "disk", "sphere", "polygon", "sun"};
-    for (size_t i = 0; i < scene.lights.size(); ++i) {
-        const LightDesc& l = scene.lights[i];
-        std::string text = fmt::format("type={} samples={} sample_sets={}", typeNames[int(l.type)], l.samples, l.sampleSets);
-        if (l.type == LightType::Sun)
-            text += fmt::format(" direction=[{},{},{}] angular_diameter_deg={} irradiance=[{},{},{}]", l.direction.x,
-                                l.direction.y, l.direction.z, l.angularDiameterDeg, l.irradiance.x, l.irradiance.y,
-                                l.irradiance.z);
-        else
-            text += fmt::format(" center=[{},{},{}] area={} radiance=[{},{},{}]", l.center.x, l.center.y, l.center.z,
-                                l.area(), l.radiance.x, l.radiance.y, l.radiance.z);
-        a.push_back({fmt::format("penumbra:light{}", i), text});
-    }
-    return a;
 }
 
 glm::vec3 shadedIrradiance(const ReceiverSet& receivers, const ReceiverResults& results, size_t r,
@@ -65,15 +45,21 @@ struct RefinedPixel {
 struct CameraLayout {
     size_t pixels = 0, layers = 1, firstPass = 0, front = 0;
     int lightLayers = 0;  // per-light channel groups (0 with one light)
+    ExrColour colour = ExrColour::Irradiance;
+    size_t perLayer = 9;  // channels per depth layer (cameraChannels())
     std::vector<uint32_t> order;
     std::vector<RefinedPixel> refined;
     float exposure = 1.f;
 };
 
+/// Channels per depth layer: R, G, B, A, V, Z, N.XYZ, and the irradiance when RGB holds V.
+size_t channelsPerLayer(ExrColour colour) { return colour == ExrColour::Visibility ? 12 : 9; }
+
 CameraLayout layoutOf(const ReceiverSet& receivers, const ReceiverResults& results, const VertexBend* smooth,
-                      const CameraRefinement& refinement) {
+                      const CameraRefinement& refinement, ExrColour colour) {
     CameraLayout c;
     c.pixels = size_t(receivers.width) * receivers.height;
+    c.colour = colour, c.perLayer = channelsPerLayer(colour);
     // Deep cameras: receivers of layer k >= 1 (pixel >= k * W * H) go to "layer<k>.*" channels.
     for (uint32_t px : receivers.pixel) c.layers = std::max(c.layers, size_t(px / c.pixels) + 1);
     c.firstPass = std::min(refinement.firstPass, receivers.size());
@@ -107,26 +93,22 @@ CameraLayout layoutOf(const ReceiverSet& receivers, const ReceiverResults& resul
     return c;
 }
 
-std::vector<std::string> channelNames(const CameraLayout& c) {
-    std::vector<std::string> names = {"V", "A", "Z", "E.R", "E.G", "E.B", "N.X", "N.Y", "N.Z"};
-    for (size_t layer = 1; layer < c.layers; ++layer)
-        for (const char* n : {"V", "A", "Z", "E.R", "E.G", "E.B", "N.X", "N.Y", "N.Z"}) names.push_back(fmt::format("layer{}.{}", layer, n));
-    for (int l = 0; l < c.lightLayers; ++l)
-        for (const char* n : {"V", "E.R", "E.G", "E.B"}) names.push_back(fmt::format("light{}.{}", l, n));
-    return names;
-}
+/// Offsets of the channels within one depth layer's block (cameraChannels() order).
+enum LayerChannel : size_t { kR, kG, kB, kA, kV, kZ, kNX, kNY, kNZ, kER, kEG, kEB };
 
 /// Fills rows [y0, y0 + rows) of every channel and of the preview, walking the receivers of those
 /// pixels (cursors advance strip by strip).
 class StripFiller {
 public:
-    StripFiller(const CameraLayout& c, const ReceiverSet& r, const ReceiverResults& res, const VertexBend* smooth,
-                const CameraRefinement& refinement)
-        : c_(c), r_(r), res_(res), smooth_(smooth), refinement_(refinement), width_(size_t(r.width)),
-          channels_(9 * c.layers + 4 * size_t(c.lightLayers)), data_(channels_ * kStripRows * width_), rgb_(kStripRows * width_ * 3) {}
+    StripFiller(const CameraLayout& c, const CameraDesc& camera, const ReceiverSet& r, const ReceiverResults& res,
+                const VertexBend* smooth, const CameraRefinement& refinement)
+        : c_(c), eye_(camera.eye), forward_(cameraBasis(camera).forward), r_(r), res_(res), smooth_(smooth),
+          refinement_(refinement), width_(size_t(r.width)), channels_(channelCount(c)), data_(channels_ * kStripRows * width_),
+          rgb_(kStripRows * width_ * 3) {}
 
+    static size_t channelCount(const CameraLayout& c) { return c.perLayer * c.layers + 4 * size_t(c.lightLayers); }
     static uint64_t bytes(const CameraLayout& c, int width) {
-        return (9 * c.layers + 4 * uint64_t(c.lightLayers)) * kStripRows * uint64_t(width) * 4 + kStripRows * uint64_t(width) * 3;
+        return channelCount(c) * kStripRows * uint64_t(width) * 4 + kStripRows * uint64_t(width) * 3;
     }
     std::vector<const float*> channels(int rows) const {
         std::vector<const float*> out;
@@ -137,6 +119,8 @@ public:
 
     void fill(int y0, int rows) {
         std::fill(data_.begin(), data_.end(), 0.f);
+        for (size_t layer = 0; layer < c_.layers; ++layer)  // no surface: infinitely far
+            std::fill_n(&at(c_.perLayer * layer + kZ, 0), kStripRows * width_, std::numeric_limits<float>::infinity());
         const size_t first = size_t(y0) * width_, end = first + size_t(rows) * width_;
         for (size_t px = 0; px < end - first; ++px) setColour(px, glm::vec3(0.02f));  // background: a neutral dark grey
         for (; next_ < c_.order.size() && r_.pixel[c_.order[next_]] % c_.pixels < end; ++next_) firstPass(c_.order[next_], first);
@@ -149,17 +133,32 @@ private:
     void setColour(size_t local, const glm::vec3& c) {
         for (int k = 0; k < 3; ++k) rgb_[3 * local + size_t(k)] = encodeSrgb(c[k]);
     }
+    /// Camera-space depth of receiver @p i along the view axis.
+    float viewDepth(size_t i) const { return float(glm::dot(glm::dvec3(r_.position[i]) - eye_, forward_)); }
+    /// R, G, B (and the irradiance pass when they hold V) of layer block @p base.
+    void setRgb(size_t base, size_t local, float v, const glm::dvec3& e) {
+        const bool grey = c_.colour == ExrColour::Visibility;
+        for (size_t k = 0; k < 3; ++k) {
+            at(base + kR + k, local) = grey ? v : float(e[int(k)]);
+            if (grey) at(base + kER + k, local) = float(e[int(k)]);
+        }
+        at(base + kV, local) = v;
+    }
+    void setSurface(size_t base, size_t local, size_t i) {
+        at(base + kZ, local) = viewDepth(i);
+        for (size_t k = 0; k < 3; ++k) at(base + kNX + k, local) = r_.normal[i][int(k)];
+    }
 
     void firstPass(uint32_t i, size_t first) {
-        const size_t layer = r_.pixel[i] / c_.pixels, local = r_.pixel[i] % c_.pixels - first;
-        const glm::vec3& e = res_.irradiance[i];
-        const float values[9] = {res_.visibility[i], 1.f, r_.depth[i], e.x, e.y, e.z, r_.normal[i].x, r_.normal[i].y, r_.normal[i].z};
-        for (size_t ch = 0; ch < 9; ++ch) at(9 * layer + ch, local) = values[ch];
+        const size_t base = c_.perLayer * (r_.pixel[i] / c_.pixels), local = r_.pixel[i] % c_.pixels - first;
+        setRgb(base, local, res_.visibility[i], glm::dvec3(res_.irradiance[i]));
+        at(base + kA, local) = 1.f;
+        setSurface(base, local, i);
         if (i >= c_.front) return;
         for (int l = 0; l < c_.lightLayers; ++l) {
             const glm::vec3 el = res_.irradianceOf(i, l);
             const float v[4] = {res_.visibilityOf(i, l), el.x, el.y, el.z};
-            for (size_t k = 0; k < 4; ++k) at(9 * c_.layers + 4 * size_t(l) + k, local) = v[k];
+            for (size_t k = 0; k < 4; ++k) at(c_.perLayer * c_.layers + 4 * size_t(l) + k, local) = v[k];
         }
         setColour(local, glm::vec3(kAmbient) + c_.exposure * shadedIrradiance(r_, res_, i, smooth_));
     }
@@ -180,21 +179,18 @@ private:
                 lightSums[4 * size_t(l) + 1] += el.x, lightSums[4 * size_t(l) + 2] += el.y, lightSums[4 * size_t(l) + 3] += el.z;
             }
         }
-        at(0, local) = float(v / count);
-        for (int k = 0; k < 3; ++k) at(3 + size_t(k), local) = float(sumE[k] / count);
-        for (size_t k = 0; k < lightSums.size(); ++k) at(9 * c_.layers + k, local) = float(lightSums[k] / count);
-        if (at(1, local) == 0.f) {  // the centre saw nothing: depth and normal of the first covered sub-pixel
-            at(2, local) = r_.depth[g.begin];
-            for (int k = 0; k < 3; ++k) at(6 + size_t(k), local) = r_.normal[g.begin][k];
-        }
+        setRgb(0, local, float(v / count), glm::dvec3(glm::vec3(sumE / count)));
+        for (size_t k = 0; k < lightSums.size(); ++k) at(c_.perLayer * c_.layers + k, local) = float(lightSums[k] / count);
+        if (at(kA, local) == 0.f) setSurface(0, local, g.begin);  // the centre saw nothing: the first covered sub-pixel's
         const float a = float(count / refinement_.subPixels);
-        at(1, local) = a;
+        at(kA, local) = a;
         // Coverage blends with the background.
         setColour(local, a * (glm::vec3(kAmbient) + c_.exposure * glm::vec3(shade / count)) + (1.f - a) * glm::vec3(0.02f));
     }
 
     static constexpr float kAmbient = 0.06f;  // white Lambert surfaces, a little ambient
     const CameraLayout& c_;
+    glm::dvec3 eye_, forward_;
     const ReceiverSet& r_;
     const ReceiverResults& res_;
     const VertexBend* smooth_;
@@ -207,26 +203,47 @@ private:
 
 }  // namespace
 
-uint64_t cameraOutputBytes(int width, int layers, int lights, uint64_t receivers) {
-    CameraLayout c;
-    c.layers = size_t(layers), c.lightLayers = lights > 1 ? lights : 0;
-    // Per receiver: its place in the pixel order (4), its preview luminance (4) and, for refined
-    // receivers, a share of their pixel's group (24). Per strip: the channels and the preview rows,
-    // OpenEXR's line buffers (two copies of a 16-line block, compressed and not) and the PNG's zlib.
-    const uint64_t channels = 9 * uint64_t(layers) + 4 * uint64_t(c.lightLayers);
-    return receivers * (4 + 4 + 24) + StripFiller::bytes(c, width) + 2 * 16 * channels * uint64_t(width) * 4 +
-           PngStripWriter::bytes(width, 3) + (1u << 20);
+std::vector<ExrChannelSpec> cameraChannels(int layers, int lights, ExrColour colour) {
+    std::vector<ExrChannelSpec> out;
+    for (int layer = 0; layer < layers; ++layer) {
+        const std::string prefix = layer == 0 ? "" : fmt::format("layer{}.", layer);
+        const std::string combined = layer == 0 ? "" : prefix + "Combined.";
+        for (const char* n : {"R", "G", "B", "A"}) out.push_back({combined + n});
+        out.push_back({prefix + "visibility.V"});
+        out.push_back({prefix + "depth.Z", true});
+        for (const char* n : {"X", "Y", "Z"}) out.push_back({prefix + "normal." + n});
+        if (colour == ExrColour::Visibility)
+            for (const char* n : {"R", "G", "B"}) out.push_back({prefix + "irradiance." + n});
+    }
+    for (int l = 0; lights > 1 && l < lights; ++l) {
+        out.push_back({fmt::format("light{}.visibility.V", l)});
+        for (const char* n : {"R", "G", "B"}) out.push_back({fmt::format("light{}.irradiance.{}", l, n)});
+    }
+    return out;
 }
 
-void writeCameraOutputs(const SceneDesc& scene, const ReceiverSet& receivers, const LightSamples& samples,
-                        const ReceiverResults& results, const std::string& output, const VertexBend* smooth,
-                        const CameraRefinement& refinement) {
+uint64_t cameraOutputBytes(int width, int layers, int lights, uint64_t receivers, const ExrSettings& exr) {
+    CameraLayout c;
+    c.layers = size_t(layers), c.lightLayers = lights > 1 ? lights : 0, c.perLayer = channelsPerLayer(exr.colour);
+    // Per receiver: its place in the pixel order (4), its preview luminance (4) and, for refined
+    // receivers, a share of their pixel's group (24). Per strip: the channels and the preview rows,
+    // OpenEXR's buffers (ExrStripWriter::bytes) and the PNG's zlib.
+    return receivers * (4 + 4 + 24) + StripFiller::bytes(c, width) +
+           ExrStripWriter::bytes(width, StripFiller::channelCount(c), exr.format) + PngStripWriter::bytes(width, 3) + (1u << 20);
+}
+
+void writeCameraOutputs(const SceneDesc& scene, const CameraDesc& camera, const ReceiverSet& receivers,
+                        const LightSamples& samples, const ReceiverResults& results, const std::string& output,
+                        const VertexBend* smooth, const CameraRefinement& refinement) {
     const int W = receivers.width, H = receivers.height;
-    const CameraLayout layout = layoutOf(receivers, results, smooth, refinement);
+    const CameraLayout layout = layoutOf(receivers, results, smooth, refinement, scene.exr.colour);
+    std::vector<ExrAttribute> attributes = bakeAttributes(scene, samples, scene.exr.colour);
+    for (ExrAttribute& a : cameraAttributes(camera)) attributes.push_back(std::move(a));
     ensureParentDirectory(output);
-    ExrStripWriter exr(output, W, H, channelNames(layout), cameraAttributes(scene, samples));
+    ExrStripWriter exr(output, W, H, cameraChannels(int(layout.layers), results.lights, scene.exr.colour), attributes,
+                       scene.exr.format);
     PngStripWriter png(previewPath(output), W, H, 3);
-    StripFiller strips(layout, receivers, results, smooth, refinement);
+    StripFiller strips(layout, camera, receivers, results, smooth, refinement);
     for (int y = 0; y < H; y += kStripRows) {
         const int rows = std::min(kStripRows, H - y);
         strips.fill(y, rows);

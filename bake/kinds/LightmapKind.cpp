@@ -1,11 +1,11 @@
 #include "bake/kinds/LightmapKind.h"
-#include "stream/util/PathText.h"
 
-#include "stream/util/Timer.h"
-
+#include "bake/ExrMetadata.h"
 #include "bake/output/ImageWriters.h"
 #include "bake/output/LightmapGltf.h"
 #include "bake/kinds/ReceiverKind.h"
+#include "stream/util/PathText.h"
+#include "stream/util/Timer.h"
 #include "bake/Scene.h"
 #include "receivers/CreaseNormals.h"
 #include "receivers/LightmapAtlas.h"
@@ -172,22 +172,22 @@ private:
         std::vector<float>* dilated[] = {&V, &ER, &EG, &EB};
         dilateLightmap(dilated, filled, map.width, map.height, padding_);
 
-        ExrChannel channels[] = {{"V", V.data()}, {"E.R", ER.data()}, {"E.G", EG.data()}, {"E.B", EB.data()},
-                                 {"A", layout.coverage.data()}};
-        ExrAttribute attributes[] = {
-            {"penumbra:receivers", "lightmap"},
-            {"penumbra:mesh", map.source},
-            {"penumbra:meshName", map.name},
-            {"penumbra:padding", std::to_string(padding_)},
-            {"penumbra:texels", std::to_string(layout.texel.size())},
-            {"penumbra:lights", std::to_string(c.scene.lights.size())},
-            {"penumbra:samples", std::to_string(c.samples.sampleCount)},
-            {"penumbra:sampleSets", std::to_string(c.samples.sets)},
-            {"penumbra:seed", std::to_string(c.scene.seed)},
-        };
+        // R, G, B, A drop into an engine as a lightmap texture; V (and the irradiance, when RGB
+        // holds V) are the extra passes.
+        const bool grey = c.scene.exr.colour == ExrColour::Visibility;
+        std::vector<ExrChannel> channels = {{"R", (grey ? V : ER).data()}, {"G", (grey ? V : EG).data()},
+                                            {"B", (grey ? V : EB).data()}, {"A", layout.coverage.data()},
+                                            {"visibility.V", V.data()}};
+        if (grey) channels.insert(channels.end(), {{"irradiance.R", ER.data()}, {"irradiance.G", EG.data()}, {"irradiance.B", EB.data()}});
+        std::vector<ExrAttribute> attributes = bakeAttributes(c.scene, c.samples, c.scene.exr.colour);
+        attributes.insert(attributes.end(), {{"penumbra:receivers", std::string("lightmap")},
+                                             {"penumbra:mesh", map.source},
+                                             {"penumbra:meshName", map.name},
+                                             {"penumbra:padding", padding_},
+                                             {"penumbra:texels", int(layout.texel.size())}});
         const std::string exr = derivedPath(c.output, map.name, ".exr");
         ensureParentDirectory(exr);
-        writeExr(exr, map.width, map.height, channels, attributes);
+        writeExr(exr, map.width, map.height, channels, attributes, c.scene.exr.format);
         writePreview(derivedPath(c.output, map.name, ".png"), map, ER, EG, EB, filled);
         outputs_.push_back(exr);
         outputs_.push_back(derivedPath(c.output, map.name, ".png"));
@@ -338,6 +338,7 @@ void sizeFromDensity(const JsonParams& j, const std::string& key, const Lightmap
 }
 
 std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneDesc& scene) {
+    requireOutputExtension(scene, ".exr", "lightmap");
     const std::vector<size_t> meshes = geometryIndices(j, "meshes", scene);
     const LightmapSettings settings = parseSettings(j);
 

@@ -11,7 +11,7 @@
 /// and UV areas, or the atlas's density. `uv` ("auto", "mesh", "generate") says which meshes get
 /// generated UVs (receivers/LightmapAtlas.h); meshes without normals get crease-angle normals
 /// (`crease_angle_deg`). Output: for the scene output `out/lightmap.exr`, `out/lightmap-NAME.exr`
-/// with channels V, E.R, E.G, E.B and A (UV coverage), dilated `padding` texels beyond the
+/// with channels R, G, B (irradiance), A (UV coverage) and visibility.V, dilated `padding` texels beyond the
 /// coverage, and `out/lightmap-NAME.png`, the tone-mapped irradiance; NAME is "atlas" for the
 /// atlas, whose meshes go to `out/lightmap-uv1.glb` with the atlas as TEXCOORD_1. See
 /// docs/scene-format.md.

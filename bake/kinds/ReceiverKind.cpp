@@ -58,6 +58,14 @@ std::string resolveScenePath(const std::filesystem::path& base, const std::strin
     return containedPath(base, p, where.empty() ? p : where);
 }
 
+void requireOutputExtension(const SceneDesc& scene, const std::string& extension, const std::string& kind) {
+    std::string ext = std::filesystem::path(scene.output).extension().string();
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (ext == extension) return;
+    const std::string where = scene.outputFromScene ? scene.file + ": output" : "--output";
+    fail(where, "\"{}\": {} receivers write {} files; name the output with that extension", scene.output, kind, extension);
+}
+
 void registerReceiverKind(const std::string& type, ReceiverKindFactory factory) {
     std::lock_guard lock(registryMutex);
     registry()[type] = std::move(factory);

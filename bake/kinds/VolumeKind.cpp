@@ -97,14 +97,16 @@ public:
         openvdb::CoordBBox bounds;
         for (const openvdb::Coord& coord : coords_) bounds.expand(coord);
 
-        // Lit voxels stay inactive background, so lit and umbra regions both prune to tiles.
-        openvdb::FloatGrid::Ptr visibility = openvdb::FloatGrid::create(1.0f);
+        // docs/scene-format.md#volume: every baked voxel is active (lit ones too, so the grid's
+        // bounds are the baked region in Blender and Houdini), the background 0 is "not baked".
+        // Constant regions, lit or umbra, still prune to active tiles.
+        openvdb::FloatGrid::Ptr visibility = openvdb::FloatGrid::create(0.0f);
         openvdb::Vec3SGrid::Ptr irradiance = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
         {
             auto v = visibility->getAccessor();
             auto e = irradiance->getAccessor();
             for (size_t r = 0; r < coords_.size(); ++r) {
-                if (c.results.visibility[r] < 1.0f) v.setValue(coords_[r], c.results.visibility[r]);
+                v.setValue(coords_[r], c.results.visibility[r]);
                 if (irradiance_) {
                     const glm::vec3& x = c.results.irradiance[r];
                     e.setValue(coords_[r], openvdb::Vec3s(x.x, x.y, x.z));
@@ -112,9 +114,13 @@ public:
             }
         }
         openvdb::GridPtrVec grids;
-        auto finish = [&](openvdb::GridBase::Ptr grid, const char* name) {
+        auto finish = [&](openvdb::GridBase::Ptr grid, const char* name, openvdb::GridClass gridClass) {
             grid->setName(name);
-            grid->setTransform(transform->copy());
+            grid->setGridClass(gridClass);
+            // The copy constructor shares the scale-and-translate map; Transform::copy() would
+            // "simplify" it through an affine matrix, which recomputes the voxel size as
+            // (origin + h) - origin: 0.0499...98 for 0.05, not the voxel_size given.
+            grid->setTransform(std::make_shared<openvdb::math::Transform>(*transform));
             if (!coords_.empty()) {
                 grid->insertMeta("penumbra_min", openvdb::Vec3IMetadata(bounds.min().asVec3i()));
                 grid->insertMeta("penumbra_max", openvdb::Vec3IMetadata(bounds.max().asVec3i()));
@@ -122,10 +128,12 @@ public:
             grids.push_back(grid);
         };
         openvdb::tools::prune(visibility->tree(), 0.0f);  // tolerance 0: only exactly constant nodes
-        finish(visibility, "visibility");
+        // V in [0, 1] is a density a renderer shows as it is: lit air glows, umbra is empty.
+        finish(visibility, "visibility", openvdb::GRID_FOG_VOLUME);
         if (irradiance_) {
             openvdb::tools::prune(irradiance->tree(), openvdb::Vec3s(0.f));
-            finish(irradiance, "irradiance");
+            // W/m^2 per channel is neither a density nor a distance: no class fits.
+            finish(irradiance, "irradiance", openvdb::GRID_UNKNOWN);
         }
 
         ensureParentDirectory(c.output);

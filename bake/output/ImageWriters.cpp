@@ -9,15 +9,25 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfFloatAttribute.h>
+#include <OpenEXR/ImfFloatVectorAttribute.h>
+#include <OpenEXR/ImfIntAttribute.h>
+#include <OpenEXR/ImfMatrixAttribute.h>
 #include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfTiledOutputFile.h>
+#include <OpenEXR/ImfVecAttribute.h>
+#include <Imath/half.h>
 #include <stb/stb_image_write.h>
 #include <zlib.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <exception>
 #include <limits>
+#include <optional>
 #include <set>
+#include <type_traits>
 
 namespace penumbra {
 
@@ -50,78 +60,169 @@ void checkSize(const std::string& path, int width, int height) {
 
 }  // namespace
 
-struct ExrStripWriter::State {
-    std::string path;
-    int width = 0, height = 0, written = 0;
-    std::vector<std::string> names;
-    Imf::Header header;
-    AtomicFile file;
-    std::unique_ptr<Imf::OutputFile> out;
-    State(const std::string& p, int w, int h) : path(p), width(w), height(h), header(w, h), file(p) {}
-};
+namespace {
 
-ExrStripWriter::ExrStripWriter(const std::string& path, int width, int height, std::span<const std::string> channelNames,
-                               std::span<const ExrAttribute> stringAttributes) {
+/// Inserts one typed attribute; the type is the one OpenEXR readers look for.
+void insertAttribute(Imf::Header& header, const ExrAttribute& a) {
+    std::visit(
+        [&](const auto& v) {
+            using T = std::decay_t<decltype(v)>;
+            if constexpr (std::is_same_v<T, std::string>) header.insert(a.name, Imf::StringAttribute(v));
+            else if constexpr (std::is_same_v<T, int>) header.insert(a.name, Imf::IntAttribute(v));
+            else if constexpr (std::is_same_v<T, float>) header.insert(a.name, Imf::FloatAttribute(v));
+            else if constexpr (std::is_same_v<T, glm::vec3>) header.insert(a.name, Imf::V3fAttribute(Imath::V3f(v.x, v.y, v.z)));
+            else if constexpr (std::is_same_v<T, std::vector<float>>) header.insert(a.name, Imf::FloatVectorAttribute(v));
+            else {
+                Imath::M44f m;
+                for (int r = 0; r < 4; ++r)
+                    for (int c = 0; c < 4; ++c) m[r][c] = v.m[size_t(r)][size_t(c)];
+                header.insert(a.name, Imf::M44fAttribute(m));
+            }
+        },
+        a.value);
+}
+
+Imf::Header makeHeader(const std::string& path, int width, int height, std::span<const ExrChannelSpec> channels,
+                       std::span<const ExrAttribute> attributes, const ExrFormat& format) {
     checkSize(path, width, height);
-    if (channelNames.empty()) fail(path, "cannot write an EXR without channels");
+    if (channels.empty()) fail(path, "cannot write an EXR without channels");
+    if (format.tileSize < 0 || format.tileSize > (1 << 16)) fail(path, "EXR tile size {} is out of range", format.tileSize);
     Imf::Header header(width, height);
     header.compression() = Imf::ZIP_COMPRESSION;  // lossless, and 16-line blocks read fast
     header.lineOrder() = Imf::INCREASING_Y;
-    for (const std::string& name : channelNames) {
-        if (name.empty()) fail(path, "EXR channel names must not be empty");
+    if (format.tileSize > 0) header.setTileDescription(Imf::TileDescription(unsigned(format.tileSize), unsigned(format.tileSize), Imf::ONE_LEVEL));
+    for (const ExrChannelSpec& c : channels) {
+        if (c.name.empty()) fail(path, "EXR channel names must not be empty");
         // ChannelList is a sorted map, which is the order OpenEXR requires on disk; all we
         // must prevent is one name silently replacing another.
-        if (header.channels().findChannel(name)) fail(path, "EXR channel '{}' is given twice", name);
-        header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+        if (header.channels().findChannel(c.name)) fail(path, "EXR channel '{}' is given twice", c.name);
+        header.channels().insert(c.name, Imf::Channel(format.half && !c.keepFloat ? Imf::HALF : Imf::FLOAT));
     }
-    for (const ExrAttribute& a : stringAttributes) {
+    for (const ExrAttribute& a : attributes) {
         if (a.name.empty()) fail(path, "EXR attribute names must not be empty");
         if (isReservedAttribute(a.name) || header.find(a.name) != header.end())
             fail(path, "EXR attribute '{}' clashes with a standard or earlier attribute", a.name);
-        header.insert(a.name, Imf::StringAttribute(a.value));
+        insertAttribute(header, a);
     }
+    return header;
+}
+
+}  // namespace
+
+struct ExrStripWriter::State {
+    std::string path;
+    int width = 0, height = 0, written = 0, tile = 0;
+    std::vector<std::string> names;
+    /// Channels stored as HALF: OpenEXR's tiled writer converts no pixel types, so the strip's
+    /// floats are rounded here (the same round-to-nearest-even as its scanline writer).
+    std::vector<bool> half;
+    mutable std::vector<Imath::half> halves;
+    AtomicFile file;
+    std::unique_ptr<Imf::OutputFile> scanlines;
+    std::unique_ptr<Imf::TiledOutputFile> tiles;
+    /// Tiled files: the rows of the current row of tiles gathered so far, channel after channel.
+    std::vector<float> pending;
+    int pendingRows = 0;
+    State(const std::string& p, int w, int h) : path(p), width(w), height(h), file(p) {}
+
+    /// Points a frame buffer at rows [y0, y0 + rows) of every channel in @p data.
+    Imf::FrameBuffer frame(int y0, int rows, std::span<const float* const> data) const {
+        const size_t rowStride = sizeof(float) * size_t(width);
+        const Imath::Box2i strip(Imath::V2i(0, y0), Imath::V2i(width - 1, y0 + rows - 1));
+        Imf::FrameBuffer frame;
+        const size_t pixels = size_t(rows) * size_t(width);
+        halves.resize(size_t(std::count(half.begin(), half.end(), true)) * pixels);
+        size_t next = 0;
+        for (size_t c = 0; c < names.size(); ++c) {
+            if (half[c]) {
+                Imath::half* h = &halves[next * pixels];
+                std::copy(data[c], data[c] + pixels, h);
+                ++next;
+                frame.insert(names[c], Imf::Slice::Make(Imf::HALF, h, strip, sizeof(Imath::half), sizeof(Imath::half) * size_t(width)));
+                continue;
+            }
+            // OpenEXR only reads through the slice; the cast is forced by its API. Slice::Make
+            // places the strip's first row at y = y0.
+            frame.insert(names[c], Imf::Slice::Make(Imf::FLOAT, const_cast<float*>(data[c]), strip, sizeof(float), rowStride));
+        }
+        return frame;
+    }
+    /// Writes the gathered row of tiles.
+    void flushTiles() {
+        const int y0 = written - pendingRows;
+        std::vector<const float*> data;
+        for (size_t c = 0; c < names.size(); ++c) data.push_back(&pending[c * size_t(tile) * size_t(width)]);
+        tiles->setFrameBuffer(frame(y0, pendingRows, data));
+        tiles->writeTiles(0, tiles->numXTiles() - 1, y0 / tile, y0 / tile);
+        pendingRows = 0;
+    }
+};
+
+ExrStripWriter::ExrStripWriter(const std::string& path, int width, int height, std::span<const ExrChannelSpec> channels,
+                               std::span<const ExrAttribute> attributes, const ExrFormat& format) {
+    Imf::Header header = makeHeader(path, width, height, channels, attributes, format);
     state_ = std::make_unique<State>(path, width, height);
-    state_->names.assign(channelNames.begin(), channelNames.end());
-    state_->header = header;
+    State& s = *state_;
+    for (const ExrChannelSpec& c : channels) s.names.push_back(c.name), s.half.push_back(format.half && !c.keepFloat);
+    s.tile = format.tileSize;
     try {
-        state_->out = std::make_unique<Imf::OutputFile>(state_->file.tempPath().c_str(), state_->header);
+        if (s.tile > 0) {
+            s.tiles = std::make_unique<Imf::TiledOutputFile>(s.file.tempPath().c_str(), header);
+            s.pending.assign(s.names.size() * size_t(s.tile) * size_t(width), 0.f);
+        } else {
+            s.scanlines = std::make_unique<Imf::OutputFile>(s.file.tempPath().c_str(), header);
+        }
     } catch (const std::exception& e) {
-        fail(path, "cannot write EXR: {}", withFinalPath(e.what(), state_->file));
+        fail(path, "cannot write EXR: {}", withFinalPath(e.what(), s.file));
     }
 }
 
 ExrStripWriter::~ExrStripWriter() = default;
+
+uint64_t ExrStripWriter::bytes(int width, size_t channels, const ExrFormat& format) {
+    // OpenEXR keeps a block (16 lines for ZIP, or one row of tiles) uncompressed and compressed.
+    const uint64_t rows = format.tileSize > 0 ? uint64_t(format.tileSize) : 16;
+    const uint64_t block = 2 * rows * channels * uint64_t(width) * 4;
+    // HALF channels: the strip's rounded copy (at most 64 rows or one row of tiles, 2 bytes each).
+    const uint64_t halves = format.half ? std::max<uint64_t>(rows, 64) * channels * uint64_t(width) * 2 : 0;
+    return block + halves + (format.tileSize > 0 ? rows * channels * uint64_t(width) * 4 : 0);
+}
 
 void ExrStripWriter::write(int rows, std::span<const float* const> channels) {
     State& s = *state_;
     if (channels.size() != s.names.size())
         fail(s.path, "EXR strip has {} channels, the file {}", channels.size(), s.names.size());
     if (rows <= 0 || s.written + rows > s.height) fail(s.path, "EXR strip of {} rows does not fit the image", rows);
-    const size_t rowStride = sizeof(float) * size_t(s.width);
-    const Imath::Box2i strip(Imath::V2i(0, s.written), Imath::V2i(s.width - 1, s.written + rows - 1));
-    Imf::FrameBuffer frame;
-    for (size_t c = 0; c < channels.size(); ++c) {
+    for (size_t c = 0; c < channels.size(); ++c)
         if (!channels[c]) fail(s.path, "EXR channel '{}' has no data", s.names[c]);
-        // OpenEXR only reads through the slice; the cast is forced by its API. Slice::Make places
-        // the strip's first row at y = written.
-        frame.insert(s.names[c], Imf::Slice::Make(Imf::FLOAT, const_cast<float*>(channels[c]), strip, sizeof(float), rowStride));
-    }
     try {
-        s.out->setFrameBuffer(frame);
-        s.out->writePixels(rows);
+        if (s.scanlines) {
+            s.scanlines->setFrameBuffer(s.frame(s.written, rows, channels));
+            s.scanlines->writePixels(rows);
+            s.written += rows;
+            return;
+        }
+        const size_t W = size_t(s.width);
+        for (int y = 0; y < rows; ++y) {
+            for (size_t c = 0; c < channels.size(); ++c)
+                std::memcpy(&s.pending[(c * size_t(s.tile) + size_t(s.pendingRows)) * W], channels[c] + size_t(y) * W, W * sizeof(float));
+            ++s.pendingRows, ++s.written;
+            if (s.pendingRows == s.tile || s.written == s.height) s.flushTiles();
+        }
     } catch (const InputError&) {
         throw;
     } catch (const std::exception& e) {
         fail(s.path, "cannot write EXR: {}", withFinalPath(e.what(), s.file));
     }
-    s.written += rows;
 }
 
 void ExrStripWriter::commit() {
     State& s = *state_;
     if (s.written != s.height) fail(s.path, "EXR has {} of its {} rows", s.written, s.height);
     try {
-        s.out.reset();  // the OutputFile must be destroyed (flushing its line offset table) before commit()
+        // The file object must be destroyed (flushing its offset table) before commit().
+        s.scanlines.reset();
+        s.tiles.reset();
     } catch (const std::exception& e) {
         fail(s.path, "cannot write EXR: {}", withFinalPath(e.what(), s.file));
     }
@@ -129,12 +230,12 @@ void ExrStripWriter::commit() {
 }
 
 void writeExr(const std::string& path, int width, int height, std::span<const ExrChannel> channels,
-              std::span<const ExrAttribute> stringAttributes) {
+              std::span<const ExrAttribute> attributes, const ExrFormat& format) {
     checkSize(path, width, height);
-    std::vector<std::string> names;
+    std::vector<ExrChannelSpec> specs;
     std::vector<const float*> data;
-    for (const ExrChannel& c : channels) names.push_back(c.name), data.push_back(c.data);
-    ExrStripWriter writer(path, width, height, names, stringAttributes);
+    for (const ExrChannel& c : channels) specs.push_back({c.name, c.keepFloat}), data.push_back(c.data);
+    ExrStripWriter writer(path, width, height, specs, attributes, format);
     writer.write(height, data);
     writer.commit();
 }
@@ -285,6 +386,26 @@ uint8_t encodeSrgb(float linear) {
     return static_cast<uint8_t>(s * 255.0f + 0.5f);
 }
 
+namespace {
+
+/// An attribute as an ExrValue, when it is of one of the kinds ExrValue holds.
+std::optional<ExrValue> valueOf(const Imf::Attribute& a) {
+    if (const auto* s = dynamic_cast<const Imf::StringAttribute*>(&a)) return s->value();
+    if (const auto* i = dynamic_cast<const Imf::IntAttribute*>(&a)) return i->value();
+    if (const auto* f = dynamic_cast<const Imf::FloatAttribute*>(&a)) return f->value();
+    if (const auto* v = dynamic_cast<const Imf::V3fAttribute*>(&a)) return glm::vec3(v->value().x, v->value().y, v->value().z);
+    if (const auto* fv = dynamic_cast<const Imf::FloatVectorAttribute*>(&a)) return fv->value();
+    if (const auto* m = dynamic_cast<const Imf::M44fAttribute*>(&a)) {
+        ExrMatrix out;
+        for (int r = 0; r < 4; ++r)
+            for (int c = 0; c < 4; ++c) out.m[size_t(r)][size_t(c)] = m->value()[r][c];
+        return out;
+    }
+    return std::nullopt;
+}
+
+}  // namespace
+
 ExrImage readExr(const std::string& path) {
     try {
         Imf::InputFile in(path.c_str());
@@ -300,6 +421,8 @@ ExrImage readExr(const std::string& path) {
         for (auto it = header.channels().begin(); it != header.channels().end(); ++it) {
             if (it.channel().xSampling != 1 || it.channel().ySampling != 1)
                 fail(path, "EXR channel '{}' is subsampled, which is not supported", it.name());
+            static const char* kTypes[] = {"uint", "half", "float"};
+            image.channelTypes[it.name()] = kTypes[std::clamp(int(it.channel().type), 0, 2)];
             std::vector<float>& dst = image.channels[it.name()];
             dst.assign(pixels, 0.0f);
             // Slice::Make offsets the base pointer for a data window not starting at (0, 0)
@@ -311,8 +434,9 @@ ExrImage readExr(const std::string& path) {
         in.readPixels(dw.min.y, dw.max.y);
 
         for (auto it = header.begin(); it != header.end(); ++it)
-            if (const auto* s = dynamic_cast<const Imf::StringAttribute*>(&it.attribute()))
-                image.attributes[it.name()] = s->value();
+            if (std::optional<ExrValue> value = valueOf(it.attribute())) image.attributes[it.name()] = *value;
+        if (header.hasTileDescription())
+            image.tileWidth = int(header.tileDescription().xSize), image.tileHeight = int(header.tileDescription().ySize);
         return image;
     } catch (const InputError&) {
         throw;

@@ -69,7 +69,7 @@ TEST_CASE("antialiasing refines exactly the high-contrast pixels with the sub-pi
     Baked coarse = bake(dir, edgeScene(W, H, false));
     Baked fine = bake(dir, edgeScene(2 * W, 2 * H, false));
     Baked aa = bake(dir, edgeScene(W, H, true));
-    const std::vector<float>& v0 = coarse.image.channels["V"];
+    const std::vector<float>& v0 = coarse.image.channels["visibility.V"];
 
     // The pixels the rule picks, worked out here from the plain bake: |V - V_neighbour| > 0.1.
     std::vector<bool> expected(size_t(W) * H, false);
@@ -99,15 +99,15 @@ TEST_CASE("antialiasing refines exactly the high-contrast pixels with the sub-pi
 
     // A refined pixel is the mean of the 2 x 2 finer pixels it covers (same surface points, same
     // light samples), summed in double in scanline order; the others are the plain bake's.
-    const std::vector<float>& v2 = fine.image.channels["V"];
-    const std::vector<float>& e2 = fine.image.channels["E.R"];
+    const std::vector<float>& v2 = fine.image.channels["visibility.V"];
+    const std::vector<float>& e2 = fine.image.channels["R"];
     int differs = 0;
     for (int y = 0; y < H; ++y)
         for (int x = 0; x < W; ++x) {
             const size_t px = size_t(y) * W + x;
             if (!expected[px]) {
-                CHECK(aa.image.channels["V"][px] == v0[px]);
-                CHECK(aa.image.channels["E.R"][px] == coarse.image.channels["E.R"][px]);
+                CHECK(aa.image.channels["visibility.V"][px] == v0[px]);
+                CHECK(aa.image.channels["R"][px] == coarse.image.channels["R"][px]);
                 continue;
             }
             double v = 0, e = 0;
@@ -116,11 +116,11 @@ TEST_CASE("antialiasing refines exactly the high-contrast pixels with the sub-pi
                     const size_t fpx = size_t(2 * y + sy) * (2 * W) + 2 * x + sx;
                     v += v2[fpx], e += e2[fpx];
                 }
-            CHECK(aa.image.channels["V"][px] == float(v / 4));
-            CHECK(aa.image.channels["E.R"][px] == float(e / 4));
+            CHECK(aa.image.channels["visibility.V"][px] == float(v / 4));
+            CHECK(aa.image.channels["R"][px] == float(e / 4));
             CHECK(aa.image.channels["A"][px] == 1.f);
-            CHECK(aa.image.channels["Z"][px] == coarse.image.channels["Z"][px]);  // the centre's depth
-            differs += aa.image.channels["V"][px] != v0[px];
+            CHECK(aa.image.channels["depth.Z"][px] == coarse.image.channels["depth.Z"][px]);  // the centre's depth
+            differs += aa.image.channels["visibility.V"][px] != v0[px];
         }
     CHECK(differs > 0);  // antialiasing changed the edge pixels
 }

@@ -119,21 +119,27 @@ TEST_CASE("a camera bake with two lights writes per-light layers and light attri
     settings.quiet = true;
     runBake(desc, settings);
     ExrImage img = readExr(dir / "out/cam.exr");
-    for (const char* c : {"V", "A", "Z", "E.R", "E.G", "E.B", "N.X", "N.Y", "N.Z", "light0.V", "light0.E.R", "light0.E.G",
-                          "light0.E.B", "light1.V", "light1.E.R", "light1.E.G", "light1.E.B"})
+    for (const char* c : {"visibility.V", "A", "depth.Z", "R", "G", "B", "normal.X", "normal.Y", "normal.Z",
+                          "light0.visibility.V", "light0.irradiance.R", "light0.irradiance.G", "light0.irradiance.B",
+                          "light1.visibility.V", "light1.irradiance.R", "light1.irradiance.G", "light1.irradiance.B"})
         CHECK(img.channels.count(c) == 1);
-    CHECK(img.attributes["penumbra:lights"] == "2");
-    CHECK(img.attributes["penumbra:light1"].find("type=sun") != std::string::npos);
-    CHECK(img.attributes["penumbra:light0"].find("radiance=") != std::string::npos);
+    CHECK(img.attribute<int>("penumbra:lights") == 2);
+    CHECK(img.attribute<std::string>("penumbra:light1.type") == "sun");
+    CHECK(img.attribute<glm::vec3>("penumbra:light1.irradiance") == glm::vec3(100, 90, 80));
+    CHECK(img.attribute<glm::vec3>("penumbra:light0.center") == glm::vec3(0, 3, 0));
+    CHECK(img.attribute<float>("penumbra:light0.area") == 1.f);
+    // 10 W from 1 m^2, one-sided Lambertian: L = P / (pi A).
+    CHECK(img.attribute<glm::vec3>("penumbra:light0.radiance").x == Approx(10 / M_PI));
     CHECK(std::filesystem::exists(dir / "out/cam.png"));
     int shadowed = 0;
-    for (size_t px = 0; px < img.channels["V"].size(); ++px) {
+    for (size_t px = 0; px < img.channels["visibility.V"].size(); ++px) {
         if (img.channels["A"][px] == 0) continue;
-        float sumE = img.channels["light0.E.R"][px] + img.channels["light1.E.R"][px];
-        CHECK(sumE == Approx(img.channels["E.R"][px]).epsilon(1e-4).margin(1e-4));
+        float sumE = img.channels["light0.irradiance.R"][px] + img.channels["light1.irradiance.R"][px];
+        CHECK(sumE == Approx(img.channels["R"][px]).epsilon(1e-4).margin(1e-4));
         // V counts all samples: equal counts per light, so it is the mean of the two.
-        CHECK(0.5f * (img.channels["light0.V"][px] + img.channels["light1.V"][px]) == Approx(img.channels["V"][px]));
-        shadowed += img.channels["light1.V"][px] < 1;
+        CHECK(0.5f * (img.channels["light0.visibility.V"][px] + img.channels["light1.visibility.V"][px]) ==
+              Approx(img.channels["visibility.V"][px]));
+        shadowed += img.channels["light1.visibility.V"][px] < 1;
     }
     CHECK(shadowed > 0);
 }
@@ -160,14 +166,19 @@ TEST_CASE("a deep camera keeps the nearest distinct surfaces per pixel as extra 
     ReceiverResults results;
     results.resize(r.size(), 1);
     for (size_t i = 0; i < r.size(); ++i) results.visibility[i] = i < 48 ? 1.f : 0.25f;
-    writeCameraOutputs(scene, r, samples, results, dir / "deep.exr");
+    writeCameraOutputs(scene, cam, r, samples, results, dir / "deep.exr");
     ExrImage img = readExr(dir / "deep.exr");
-    REQUIRE(img.channels.count("layer1.V") == 1);
-    REQUIRE(img.channels.count("layer1.Z") == 1);
-    CHECK(img.channels.count("layer2.V") == 0);
-    CHECK(img.channels["V"][10] == 1.f);
-    CHECK(img.channels["layer1.V"][10] == 0.25f);
-    CHECK(img.channels["layer1.Z"][10] > img.channels["Z"][10]);
+    for (const char* c : {"layer1.Combined.R", "layer1.Combined.G", "layer1.Combined.B", "layer1.Combined.A",
+                          "layer1.visibility.V", "layer1.depth.Z", "layer1.normal.X", "layer1.normal.Y", "layer1.normal.Z"})
+        REQUIRE(img.channels.count(c) == 1);
+    CHECK(img.channels.size() == 18);
+    CHECK(img.channels.count("layer2.visibility.V") == 0);
+    CHECK(img.channels["visibility.V"][10] == 1.f);
+    CHECK(img.channels["layer1.visibility.V"][10] == 0.25f);
+    CHECK(img.channels["layer1.Combined.A"][10] == 1.f);
+    // Head-on quads at z = 0 and -1 from an eye at z = 5: view depths 5 and 6 at every pixel.
+    CHECK(img.channels["depth.Z"][10] == Approx(5.f));
+    CHECK(img.channels["layer1.depth.Z"][10] == Approx(6.f));
     CameraDesc bad = cam;
     bad.layers = 17;
     CHECK_THROWS_WITH(validateCamera(bad), Catch::Contains("layers"));

@@ -55,7 +55,8 @@ TEST_CASE("writeExr round-trips channels bit-exactly with ZIP compression and at
 
     // Deliberately unsorted; OpenEXR stores channels sorted by name.
     const ExrChannel channels[] = {{"Y", y.data()}, {"A", a.data()}, {"B.shadow", shadow.data()}};
-    const ExrAttribute attributes[] = {{"penumbra:version", "0.1.0"}, {"penumbra:scene", "examples/default.json"}};
+    const ExrAttribute attributes[] = {{"penumbra:version", std::string("0.1.0")},
+                                       {"penumbra:scene", std::string("examples/default.json")}};
     const std::string path = dir.file("out.exr");
     penumbra::writeExr(path, w, h, channels, attributes);
     CHECK(dir.count() == 1);
@@ -69,8 +70,8 @@ TEST_CASE("writeExr round-trips channels bit-exactly with ZIP compression and at
     CHECK(sameBits(image.channels["Y"], y));
     CHECK(sameBits(image.channels["A"], a));
     CHECK(sameBits(image.channels["B.shadow"], shadow));
-    CHECK(image.attributes["penumbra:version"] == "0.1.0");
-    CHECK(image.attributes["penumbra:scene"] == "examples/default.json");
+    CHECK(image.attribute<std::string>("penumbra:version") == "0.1.0");
+    CHECK(image.attribute<std::string>("penumbra:scene") == "examples/default.json");
 
     Imf::InputFile in(path.c_str());
     CHECK(in.header().compression() == Imf::ZIP_COMPRESSION);

@@ -92,11 +92,11 @@ TEST_CASE("lightmap atlas: meshes without UVs bake into one atlas, meshes with U
     // The box's top is lit, its bottom faces the floor, away from the light.
     float lo = 1, hi = 0;
     for (size_t t = 0; t < atlas.channels["A"].size(); ++t)
-        if (atlas.channels["A"][t] > 0) lo = std::min(lo, atlas.channels["V"][t]), hi = std::max(hi, atlas.channels["V"][t]);
+        if (atlas.channels["A"][t] > 0) lo = std::min(lo, atlas.channels["visibility.V"][t]), hi = std::max(hi, atlas.channels["visibility.V"][t]);
     CHECK(hi == 1.0f);
     ExrImage quad = readExr(dir / "out/lightmap-quad.exr");
     float shadow = 1;
-    for (float v : quad.channels["V"]) shadow = std::min(shadow, v);
+    for (float v : quad.channels["visibility.V"]) shadow = std::min(shadow, v);
     CHECK(shadow < 0.5f);  // the box shadows the floor
 
     // The glTF lays the box out as the atlas: read back, its UVs give a sound atlas.
@@ -136,7 +136,7 @@ TEST_CASE("lightmap atlas: the atlas bakes the reference's visibility, the same 
     for (const char* file : {"lightmap-atlas.exr", "lightmap-uv1.glb", "lightmap-atlas.png"})
         CHECK(slurp(dir / (std::string("one/") + file)) == slurp(dir / (std::string("two/") + file)));
     ExrImage hpc = readExr(dir / "one/lightmap-atlas.exr"), reference = readExr(dir / "ref/lightmap-atlas.exr");
-    CHECK(hpc.channels["V"] == reference.channels["V"]);
+    CHECK(hpc.channels["visibility.V"] == reference.channels["visibility.V"]);
     CHECK(hpc.channels["A"] == reference.channels["A"]);
     CHECK(!std::filesystem::exists(dir / "one/lightmap-quad.exr"));  // "generate": the quad is in the atlas too
 }

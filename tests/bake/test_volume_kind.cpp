@@ -52,7 +52,7 @@ openvdb::GridBase::Ptr readGrid(const std::string& path, const std::string& name
 
 }  // namespace
 
-TEST_CASE("volume: box voxels match a points bake exactly, and lit regions are tiles", "[volume]") {
+TEST_CASE("volume: box voxels match a points bake exactly, every baked voxel is active, lit regions are tiles", "[volume]") {
     ScratchDir dir("volume");
     bake(dir, sceneJson({{"type", "volume"}, {"box", {{-6, 0.05, -6}, {6, 1.15, 6}}}, {"voxel_size", 0.1}, {"irradiance", true}},
                         dir / "out/v.vdb"));
@@ -60,7 +60,10 @@ TEST_CASE("volume: box voxels match a points bake exactly, and lit regions are t
     REQUIRE(grid);
     auto irradiance = openvdb::gridPtrCast<openvdb::Vec3SGrid>(readGrid(dir / "out/v.vdb", "irradiance"));
     REQUIRE(irradiance);
-    CHECK(grid->background() == 1.0f);
+    CHECK(grid->background() == 0.0f);  // outside the box: not baked
+    CHECK(grid->getGridClass() == openvdb::GRID_FOG_VOLUME);
+    CHECK(irradiance->getGridClass() == openvdb::GRID_UNKNOWN);
+    CHECK(grid->voxelSize() == openvdb::Vec3d(0.1));  // exactly as given
 
     // 120 x 11 x 120 voxels; their centres, in the kind's receiver order, become point receivers.
     const int nx = 120, ny = 11, nz = 120;
@@ -84,21 +87,29 @@ TEST_CASE("volume: box voxels match a points bake exactly, and lit regions are t
 
     auto acc = grid->getConstAccessor();
     auto eacc = irradiance->getConstAccessor();
-    size_t mismatches = 0, shadowed = 0;
+    size_t mismatches = 0, shadowed = 0, inactive = 0;
     for (size_t r = 0; r < coords.size(); ++r) {
         mismatches += acc.getValue(coords[r]) != ev[r];
         shadowed += ev[r] < 1.0f;
-        if (ev[r] == 1.0f) CHECK(!acc.isValueOn(coords[r]));  // lit: background, no voxel
+        if (!acc.isValueOn(coords[r])) ++inactive;  // lit voxels too are part of the grid
     }
     CHECK(mismatches == 0);
+    CHECK(inactive == 0);
     CHECK(shadowed > 100);
     CHECK(acc.getValue(openvdb::Coord(60, 5, 60)) == 0.0f);  // (0.05, 0.6, 0.05): umbra under the blocker
     CHECK(eacc.getValue(openvdb::Coord(0, 5, 0)).x() > 0.0f);  // zero normal: lit voxels still get irradiance
 
-    // Mostly lit: voxels stored densely in leaves are a small part of the box.
+    // Mostly lit: voxels stored densely in leaves are a small part of the box; the active
+    // bounds are the box, what Blender's volume object spans.
     const uint64_t total = uint64_t(nx) * ny * nz;
-    CHECK(grid->tree().activeVoxelCount() == shadowed);
-    CHECK(grid->tree().leafCount() * 512 < total / 4);
+    CHECK(grid->tree().activeVoxelCount() == total);
+    CHECK(grid->evalActiveVoxelBoundingBox() == openvdb::CoordBBox(openvdb::Coord(0), openvdb::Coord(nx - 1, ny - 1, nz - 1)));
+    // The lower 8 rows of leaves lie inside the box (the upper ones straddle its top, y = 11,
+    // and stay leaves): there, only leaves with shadow are stored densely.
+    uint64_t lowerLeaves = 0;
+    for (auto leaf = grid->tree().cbeginLeaf(); leaf; ++leaf) lowerLeaves += leaf->origin().y() == 0;
+    CHECK(lowerLeaves * 512 < uint64_t(nx) * 8 * nz / 4);
+    CHECK(grid->tree().activeTileCount() > 0);
 
     // The slice tool renders it.
     RunResult slice = runPenumbra("vdb-slice " + (dir / "out/v.vdb") + " " + (dir / "slice.png") + " --axis y --at 0.5");
@@ -132,7 +143,9 @@ TEST_CASE("volume: a narrow band holds the voxels near the geometry", "[volume]"
     CHECK(grid->indexToWorld(openvdb::Coord(3, 1, -2)).eq(openvdb::Vec3d(0.3, 0.1, -0.2), 1e-12));
     auto acc = grid->getConstAccessor();
     CHECK(acc.getValue(openvdb::Coord(0, 1, 0)) < 1.0f);  // in the band, under the blocker
-    CHECK(acc.getValue(openvdb::Coord(0, 5, 0)) == 1.0f);  // between floor and blocker: not in the band
+    // Between floor and blocker: not in the band, the background 0 and inactive.
+    CHECK(acc.getValue(openvdb::Coord(0, 5, 0)) == 0.0f);
+    CHECK(!acc.isValueOn(openvdb::Coord(0, 5, 0)));
     auto lo = grid->getMetadata<openvdb::Vec3IMetadata>("penumbra_min");
     auto hi = grid->getMetadata<openvdb::Vec3IMetadata>("penumbra_max");
     REQUIRE(lo);
@@ -173,3 +186,28 @@ TEST_CASE("volume: the example bakes with one command", "[volume]") {
     REQUIRE(grid);
     CHECK(grid->tree().activeVoxelCount() > 0);
 }
+
+TEST_CASE("volume: pyopenvdb reads the grid class, the exact voxel size and the baked box as bounds", "[volume]") {
+    // Debian's python3-openvdb is a module of the system Python (setup.sh installs it).
+    if (runShell("/usr/bin/python3 -c 'import pyopenvdb' >/dev/null 2>&1") != 0) {
+        WARN("skipped: /usr/bin/python3 cannot import pyopenvdb (Debian package python3-openvdb)");
+        return;
+    }
+    ScratchDir dir("volume-pyopenvdb");
+    bake(dir, sceneJson({{"type", "volume"}, {"box", {{-1, 0.05, -1}, {1, 1.15, 1}}}, {"voxel_size", 0.05}, {"irradiance", true}},
+                        dir / "v.vdb"));
+    const std::string script = dir / "read.py";
+    std::ofstream(script) << "import pyopenvdb as vdb, sys\n"
+                             "grids, meta = vdb.readAll(sys.argv[1])\n"
+                             "for g in sorted(grids, key=lambda g: g.name):\n"
+                             "    lo, hi = g.evalActiveVoxelBoundingBox()\n"
+                             "    print(g.name, g.gridClass, repr(g.transform.voxelSize()[0]), g.background, lo, hi, g.activeVoxelCount())\n";
+    const int code = runShell("/usr/bin/python3 " + script + " " + (dir / "v.vdb") + " >" + (dir / "out.txt") + " 2>&1");
+    const std::string out = slurp(dir / "out.txt");
+    INFO(out);
+    REQUIRE(code == 0);
+    // 40 x 22 x 40 voxels of 0.05 in the box, every one active: the bounds are the box.
+    CHECK_THAT(out, Catch::Contains("irradiance unknown 0.05 (0.0, 0.0, 0.0) (0, 0, 0) (39, 21, 39) 35200"));
+    CHECK_THAT(out, Catch::Contains("visibility fog volume 0.05 0.0 (0, 0, 0) (39, 21, 39) 35200"));
+}
+

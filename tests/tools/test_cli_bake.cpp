@@ -35,9 +35,9 @@ TEST_CASE("bake writes the EXR, PNG, dump and stats, and hpc matches reference v
     ExrImage img = readExr(dir / "out/small.exr");
     CHECK(img.width == 40);
     CHECK(img.height == 30);
-    REQUIRE(img.channels.count("V"));
+    REQUIRE(img.channels.count("visibility.V"));
     float lo = 1, hi = 0;
-    for (float v : img.channels["V"]) lo = std::min(lo, v), hi = std::max(hi, v);
+    for (float v : img.channels["visibility.V"]) lo = std::min(lo, v), hi = std::max(hi, v);
     CHECK(lo < 0.2f);   // something is in shadow
     CHECK(hi == 1.0f);  // something is fully lit
     CHECK(std::filesystem::file_size(dir / "out/small.png") > 100);
@@ -71,7 +71,7 @@ TEST_CASE("bake writes the EXR, PNG, dump and stats, and hpc matches reference v
     RunResult one = runPenumbra("bake " + (dir / "scene.json") + " -q --threads 1 --disable all -o " + (dir / "one.exr") + " --dump " + (dir / "one"));
     REQUIRE(one.exitCode == 0);
     CHECK(readNpy(dir / "one/masks.npy").data == msk.data);
-    CHECK(readExr(dir / "one.exr").channels["V"] == img.channels["V"]);
+    CHECK(readExr(dir / "one.exr").channels["visibility.V"] == img.channels["visibility.V"]);
     RunResult noTable = runPenumbra("bake " + (dir / "scene.json") + " -q --sample-table off -o " + (dir / "nt.exr") + " --dump " + (dir / "nt"));
     REQUIRE(noTable.exitCode == 0);
     CHECK(readNpy(dir / "nt/masks.npy").data == msk.data);
