@@ -1,0 +1,136 @@
+#include "BakeCommand.h"
+
+#include "bake/Pipeline.h"
+#include "bake/Scene.h"
+#include "bake/cast/Caster.h"
+#include "bake/shard/ShardRun.h"
+#include "stream/util/Error.h"
+#include "stream/util/Memory.h"
+
+#include <fmt/format.h>
+
+#include <utility>
+
+namespace penumbra {
+namespace {
+
+constexpr const char* kOptimizations =
+    "umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, closed-casters, cull-before-spill, all";
+
+/// Applies `--disable a,b,c` to the scene's cast options.
+void disableOptimizations(CastOptions& o, const std::vector<std::string>& names) {
+    for (const std::string& name : names) {
+        if (name == "umbra") o.umbraBits = false;
+        else if (name == "active-planes") o.activePlanes = false;
+        else if (name == "lazy-volumes") o.lazyVolumes = false;
+        else if (name == "lazy-masks") o.lazyMasks = false;
+        else if (name == "rebuild") o.rebuild = false;
+        else if (name == "sort") o.sortBlockers = false;
+        else if (name == "sample-table") o.sampleTable = false;
+        else if (name == "closed-casters") o.closedCasters = false;
+        else if (name == "cull-before-spill") o.cullBeforeSpill = false;
+        else if (name == "all")
+            o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = o.sampleTable =
+                o.closedCasters = o.cullBeforeSpill = false;
+        else
+            throw InputError(fmt::format("--disable: unknown optimization \"{}\" (known: {})", name, kOptimizations));
+    }
+}
+
+/// An option given with an empty value ("-o ''") is a mistake, never "not given".
+void requireNonEmpty(const CLI::Option* option, const std::string& value) {
+    if (option->count() > 0 && value.empty()) throw InputError(option->get_name() + ": must not be empty");
+}
+
+void addCastOptions(CLI::App& bake, BakeCommand& c) {
+    bake.add_option("--disable", c.disabled, std::string("switch optimizations off: ") + kOptimizations)->delimiter(',');
+    bake.add_option("--simd", c.simd, "hard-shadow test kernels: auto (default), avx2, sse2 or scalar; same bits for all");
+    bake.add_option("--sample-table", c.sampleTable, "on or off: sample mask tables (overrides bake.sample_table)")
+        ->check(CLI::IsMember({"on", "off"}));
+    bake.add_option("--embree-filter", c.embreeFilter,
+                    "--method embree: apply the blocking rule to every hit (on, default) or take Embree's native answer (off)")
+        ->check(CLI::IsMember({"on", "off"}));
+    bake.add_option("--closed-casters", c.closedCasters,
+                    "on or off: skip closed surfaces' triangles that face away from the light (overrides bake.closed_casters)")
+        ->check(CLI::IsMember({"on", "off"}));
+    bake.add_option("--penumbra-map-resolution", c.mapResolution,
+                    "penumbra-map: texels per side of a shadow map (overrides bake.penumbra_map_resolution)")
+        ->check(CLI::Range(16, 16384));
+    bake.add_option("--penumbra-map-bias", c.mapBias, "penumbra-map: depth bias in texels (overrides bake.penumbra_map_bias)")
+        ->check(CLI::Range(0.0, 1e6));
+}
+
+/// The scene with the command line's overrides applied.
+SceneDesc sceneOf(const BakeCommand& c) {
+    SceneDesc scene = loadScene(c.scenePath);
+    if (c.outputOption->count()) scene.output = c.output, scene.outputFromScene = false;
+    disableOptimizations(scene.options, c.disabled);
+    if (!c.simd.empty()) scene.options.simd = parseSimdLevel(c.simd, "--simd");
+    if (!c.sampleTable.empty()) scene.options.sampleTable = c.sampleTable == "on";
+    if (!c.closedCasters.empty()) scene.options.closedCasters = c.closedCasters == "on";
+    if (!c.embreeFilter.empty()) scene.options.embreeRuleFilter = c.embreeFilter == "on";
+    if (c.mapResolution > 0) scene.bakeOptions["penumbra_map_resolution"] = c.mapResolution;
+    if (c.mapBias >= 0) scene.bakeOptions["penumbra_map_bias"] = c.mapBias;
+    return scene;
+}
+
+BakeSettings settingsOf(const BakeCommand& c) {
+    BakeSettings settings;
+    settings.method = casterEntry(c.method).name;
+    if (c.threads < 0 || c.threads > kMaxThreads)
+        throw InputError(fmt::format("--threads: must be in 0..{} (0: all cores), got {}", kMaxThreads, c.threads));
+    settings.threads = c.threads;
+    settings.statsPath = c.statsPath;
+    settings.dumpDir = c.dumpDir;
+    settings.visibilityPath = c.visibilityPath;
+    settings.quiet = c.quiet;
+    if (c.budgetOption->count()) {
+        settings.memoryBudget = parseByteSize(c.memoryBudget, "--memory-budget");
+        if (settings.memoryBudget == 0) throw InputError("--memory-budget: must be more than 0 (leave it out for no budget)");
+    }
+    settings.tmpDir = c.tmpDir;
+    settings.keepBuckets = c.keepBuckets;
+    settings.shard = shardSettings(c.shard);
+    return settings;
+}
+
+}  // namespace
+
+CLI::App* addBakeCommand(CLI::App& app, BakeCommand& c) {
+    CLI::App* bake = app.add_subcommand("bake", "bake soft shadows for a scene file");
+    bake->add_option("scene", c.scenePath, "scene file (JSON)")->required();
+    c.outputOption = bake->add_option("-o,--output", c.output, "output file (overrides the scene's \"output\")");
+    std::string methods;
+    for (const std::string& name : casterNames()) methods += (methods.empty() ? "" : ", ") + name;
+    bake->add_option("--method", c.method, "shadow method: " + methods + " (default hpc)");
+    bake->add_option("--threads", c.threads, "worker threads (default: all cores)");
+    c.statsOption = bake->add_option("--stats", c.statsPath, "write JSON stats to this file");
+    c.dumpOption =
+        bake->add_option("--dump", c.dumpDir, "write receivers.npy, samples.npy, masks.npy and rule.json to this directory");
+    bake->add_option("--visibility", c.visibilityPath, "write every receiver's visible fraction as a float32 .npy");
+    bake->add_flag("-q,--quiet", c.quiet, "no progress on stderr");
+    addCastOptions(*bake, c);
+    c.budgetOption =
+        bake->add_option("--memory-budget", c.memoryBudget, "bound on bake memory, e.g. 256M or 2G; receivers are tiled to fit");
+    c.tmpOption = bake->add_option("--tmp", c.tmpDir, "directory for temporary bucket files (default: the system temp dir)");
+    bake->add_flag("--keep-buckets", c.keepBuckets, "keep the bucket files (for debugging)");
+    addShardOptions(*bake, c.shard);
+    return bake;
+}
+
+void runBakeCommand(const BakeCommand& c) {
+    for (auto [option, value] : {std::pair{c.outputOption, &c.output}, {c.statsOption, &c.statsPath},
+                                 {c.dumpOption, &c.dumpDir}, {c.tmpOption, &c.tmpDir}, {c.budgetOption, &c.memoryBudget}})
+        requireNonEmpty(option, *value);
+    const SceneDesc scene = sceneOf(c);
+    const BakeSettings settings = settingsOf(c);
+    nlohmann::json stats = runBake(scene, settings);
+    if (c.quiet) return;
+    fmt::print(stderr, "penumbra: {} receivers, {} samples, {} triangles, {:.2f} s -> {}\n", stats["receivers"].get<uint64_t>(),
+               stats["light_samples"].get<int>(), stats["counters"]["triangles_read"].get<uint64_t>(),
+               stats["table2"]["total_time_s"].get<double>(),
+               settings.shard.casting() ? shardFilePath(settings.shard.dir, settings.shard.index, settings.shard.count)
+                                        : scene.output);
+}
+
+}  // namespace penumbra

@@ -1,0 +1,56 @@
+#include "CliErrors.h"
+
+#include "bake/LibraryErrors.h"
+#include "stream/util/Diagnostics.h"
+#include "stream/util/Error.h"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <new>
+#include <optional>
+#include <stdexcept>
+#include <vector>
+
+namespace penumbra {
+
+int reportError(std::exception_ptr error, const std::string& context) {
+    const std::string prefix = context.empty() ? "penumbra: error: " : "penumbra: error: " + context + ": ";
+    try {
+        std::rethrow_exception(error);
+    } catch (const InputError& e) {
+        printDiagnostic(fmt::format("penumbra: error: {}\n", e.what()));
+    } catch (const std::bad_alloc&) {
+        printDiagnostic("penumbra: error: out of memory (try --memory-budget or fewer receivers)\n");
+    } catch (const std::length_error& e) {  // a size from the input beyond what a container can hold
+        printDiagnostic(fmt::format("{}too large to hold in memory ({})\n", prefix, e.what()));
+    } catch (const std::exception& e) {
+        if (std::optional<std::string> message = libraryErrorMessage(e)) {
+            printDiagnostic(prefix + *message + "\n");
+            return 1;
+        }
+        printDiagnostic(fmt::format("penumbra: internal error: {}\n", e.what()));
+        return 70;
+    } catch (...) {
+        printDiagnostic("penumbra: internal error: an unknown exception\n");
+        return 70;
+    }
+    return 1;
+}
+
+int reportUsageError(CLI::App& app, const CLI::ParseError& e, int argc, char** argv) {
+    if (e.get_exit_code() == 0) return app.exit(e);
+    std::vector<std::string> commands;
+    for (const CLI::App* command : app.get_subcommands([](CLI::App*) { return true; })) commands.push_back(command->get_name());
+    const std::string first = argc > 1 ? argv[1] : "";
+    if (!first.empty() && first[0] != '-' && std::find(commands.begin(), commands.end(), first) == commands.end()) {
+        printDiagnostic(fmt::format("penumbra: error: unknown command '{}' (commands: {}; see penumbra --help)\n", first,
+                                    fmt::join(commands, ", ")));
+        return 2;
+    }
+    app.exit(e);
+    return 2;
+}
+
+}  // namespace penumbra
