@@ -27,7 +27,7 @@ fi
 
 build=${PENUMBRA_BUILD_DIR:-build}
 # The tests CI runs under the sanitizers: every reader, output and command-line error test.
-sanitize_spec=${PENUMBRA_SANITIZE_SPEC:-"[stream],[io],[cli]~[memory],[obj],[gltf],[ptri],[scene],[geometry],[inputs],[paths],[output-safety],[full-disk]"}
+sanitize_spec=${PENUMBRA_SANITIZE_SPEC:-"[stream]~[memory],[io]~[memory],[cli]~[memory],[obj]~[memory],[gltf]~[memory],[ptri]~[memory],[scene]~[memory],[geometry]~[memory],[inputs]~[memory],[paths]~[memory],[output-safety]~[memory],[full-disk]~[memory]"}
 # Clones in other directories share the compiler cache: ccache hashes paths relative to here.
 export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$PWD}"
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null

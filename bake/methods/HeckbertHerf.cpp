@@ -1,4 +1,5 @@
 #include "bake/methods/HeckbertHerf.h"
+#include "bake/methods/TexelIndex.h"
 
 #include "bake/methods/StreamedCaster.h"
 #include "stream/util/Error.h"
@@ -80,8 +81,8 @@ struct Context {
 uint64_t cover(const Polygon& p, const glm::dvec2* v, int count, uint32_t set, uint32_t k, Context& c) {
     glm::dvec2 lo(INFINITY), hi(-INFINITY);
     for (int i = 0; i < count; ++i) lo = glm::min(lo, v[i]), hi = glm::max(hi, v[i]);
-    const int xa = std::max(p.x0, int(std::ceil(lo.x - 0.5))), xb = std::min(p.x0 + p.width - 1, int(std::floor(hi.x - 0.5)));
-    const int ya = std::max(p.y0, int(std::ceil(lo.y - 0.5))), yb = std::min(p.y0 + p.height - 1, int(std::floor(hi.y - 0.5)));
+    const int xa = clampedTexel(std::ceil(lo.x - 0.5), p.x0, p.x0 + p.width), xb = clampedTexel(std::floor(hi.x - 0.5), p.x0 - 1, p.x0 + p.width - 1);
+    const int ya = clampedTexel(std::ceil(lo.y - 0.5), p.y0, p.y0 + p.height), yb = clampedTexel(std::floor(hi.y - 0.5), p.y0 - 1, p.y0 + p.height - 1);
     if (xa > xb || ya > yb) return 0;
     double area = 0;
     for (int i = 0; i < count; ++i) area += v[i].x * v[(i + 1) % count].y - v[(i + 1) % count].x * v[i].y;

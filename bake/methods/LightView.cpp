@@ -1,5 +1,7 @@
 #include "bake/methods/LightView.h"
 
+#include "bake/methods/TexelIndex.h"
+
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
 #include <tbb/parallel_for.h>
@@ -27,8 +29,8 @@ void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1
     for (int i = 0; i < 3; ++i) lin[i] = view.linearDepth(p[i].z);
     const double xmin = std::min({p[0].x, p[1].x, p[2].x}), xmax = std::max({p[0].x, p[1].x, p[2].x});
     const double ymin = std::min({p[0].y, p[1].y, p[2].y}), ymax = std::max({p[0].y, p[1].y, p[2].y});
-    const int ya = std::max(y0, int(std::ceil(ymin - 0.5))), yb = std::min(y1 - 1, int(std::floor(ymax - 0.5)));
-    const int xa = std::max(0, int(std::ceil(xmin - 0.5))), xb = std::min(map.res - 1, int(std::floor(xmax - 0.5)));
+    const int ya = clampedTexel(std::ceil(ymin - 0.5), y0, y1), yb = clampedTexel(std::floor(ymax - 0.5), y0 - 1, y1 - 1);
+    const int xa = clampedTexel(std::ceil(xmin - 0.5), 0, map.res), xb = clampedTexel(std::floor(xmax - 0.5), -1, map.res - 1);
     for (int y = ya; y <= yb; ++y)
         for (int x = xa; x <= xb; ++x) {
             const double cx = x + 0.5, cy = y + 0.5;

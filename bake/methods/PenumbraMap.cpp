@@ -1,6 +1,7 @@
 #include "bake/methods/PenumbraMap.h"
 
 #include "bake/methods/LightView.h"
+#include "bake/methods/TexelIndex.h"
 #include "bake/cast/SceneCaster.h"
 #include "bake/methods/StreamedCaster.h"
 #include "stream/util/Error.h"
@@ -32,8 +33,8 @@ struct ViewMaps {
 constexpr int kTile = 16;
 
 float ViewMaps::farthest(glm::dvec2 lo, glm::dvec2 hi) const {
-    const int x0 = std::clamp(int(std::floor(lo.x)) / kTile, 0, tiles - 1), x1 = std::clamp(int(std::floor(hi.x)) / kTile, 0, tiles - 1);
-    const int y0 = std::clamp(int(std::floor(lo.y)) / kTile, 0, tiles - 1), y1 = std::clamp(int(std::floor(hi.y)) / kTile, 0, tiles - 1);
+    const int x0 = clampedTexel(std::floor(lo.x / kTile), 0, tiles - 1), x1 = clampedTexel(std::floor(hi.x / kTile), 0, tiles - 1);
+    const int y0 = clampedTexel(std::floor(lo.y / kTile), 0, tiles - 1), y1 = clampedTexel(std::floor(hi.y / kTile), 0, tiles - 1);
     float z = 0;
     for (int y = y0; y <= y1; ++y)
         for (int x = x0; x <= x1; ++x) z = std::max(z, tileFar[size_t(y) * tiles + x]);
@@ -178,7 +179,7 @@ void drawRun(ViewMaps& v, const Run& run, double bias, int y0, int y1) {
     const LightView& view = v.view;
     const int res = view.res;
     const glm::dvec2 lo = glm::min(run.a, run.b) - run.reach, hi = glm::max(run.a, run.b) + run.reach;
-    const int ya = std::max(y0, int(std::floor(lo.y))), yb = std::min(y1 - 1, int(std::ceil(hi.y)));
+    const int ya = clampedTexel(std::floor(lo.y), y0, y1), yb = clampedTexel(std::ceil(hi.y), y0 - 1, y1 - 1);
     const glm::dvec2 ab = run.b - run.a;
     const double length = glm::length(ab), texel = view.texel();
     const glm::dvec2 u = length > 0 ? ab / length : glm::dvec2(0.0);
@@ -186,7 +187,7 @@ void drawRun(ViewMaps& v, const Run& run, double bias, int y0, int y1) {
     for (int y = ya; y <= yb; ++y) {
         double x0, x1;
         rowSpan(run, y + 0.5, x0, x1);
-        const int xa = std::max(0, int(std::ceil(x0 - 0.5))), xb = std::min(res - 1, int(std::floor(x1 - 0.5)));
+        const int xa = clampedTexel(std::ceil(x0 - 0.5), 0, res), xb = clampedTexel(std::floor(x1 - 0.5), -1, res - 1);
         float* row = &v.penumbra[size_t(y) * res];
         const float* depth = &v.shadow.depth[size_t(y) * res];
         for (int x = xa; x <= xb; ++x) {

@@ -199,7 +199,7 @@ TEST_CASE("node instancing and EXT_mesh_gpu_instancing give the masks of the fla
     CHECK(flat.second["blocked_relations"].get<uint64_t>() > 0);
 }
 
-TEST_CASE("peak RSS does not grow with the instance count", "[gltf][instancing][outofcore]") {
+TEST_CASE("peak RSS does not grow with the instance count", "[gltf][instancing][outofcore][memory]") {
     ScratchDir dir("instance-rss");
     const std::string base = baseMesh(dir, 4000);  // 20K triangles
     writeInstanced(dir, base, 10, "10", false);
