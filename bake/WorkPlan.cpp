@@ -58,12 +58,6 @@ void checkMemoryFits(const std::string& scene, const char* what, uint64_t needed
          what, formatBytes(neededBytes), formatBytes(machine));
 }
 
-void checkReceiverBoundFits(const std::string& scene, MemoryDemand demand, std::optional<uint64_t> bound) {
-    if (!bound) return;
-    demand.receivers = *bound;
-    checkMemoryFits(scene, fmt::format("casting {} receivers", *bound).c_str(), planMemory(demand, 0).minimumBudget);
-}
-
 void checkBucketDisk(const std::string& tmpDir, std::optional<uint64_t> triangles, bool sort) {
     if (!sort || !triangles) return;
     std::string dir = tmpDir;

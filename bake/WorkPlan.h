@@ -30,11 +30,6 @@ uint64_t freeDiskBytes(const std::string& dir);
 ///        23.4 GiB (physical memory and swap) ...".
 void checkMemoryFits(const std::string& scene, const char* what, uint64_t neededBytes);
 
-/// @brief With the receivers a kind can bound before the scan (@p bound, ReceiverKind.h), refuses a
-/// bake whose memory plan for that many receivers cannot fit (checkMemoryFits()); @p demand is the
-/// rest of the plan's demand as known before the scan.
-void checkReceiverBoundFits(const std::string& scene, MemoryDemand demand, std::optional<uint64_t> bound);
-
 /// @brief Refuses a bake whose bucket files (40 bytes per triangle of @p triangles, when @p sort)
 /// cannot fit in the free space of @p tmpDir ("" = the system temp directory).
 /// @throw InputError "--tmp /tmp: the bucket files of 8590007494 triangles need 320 GiB, but it
