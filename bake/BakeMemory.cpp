@@ -51,7 +51,7 @@ void addSampleDemand(MemoryDemand& demand, const LightSamples& samples, const Sc
 MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const TriangleSource& geometry, bool dump) {
     MemoryDemand d;
     d.dumpMasks = dump;
-    d.scanBytes = kind.scanBytes();
+    d.scanBytes = kind.passBytes(StreamPass::Scan);
     d.receivers = kind.receiverBound().value_or(0);
     d.kindBytes = kind.maxResidentBytes(d.receivers, geometry.knownSize());
     d.outputBytes = kind.outputBytes(d.receivers);

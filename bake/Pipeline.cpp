@@ -94,6 +94,14 @@ void reportOpenedSolids(const OpenedSolids& opened, const std::vector<LightDesc>
                       lights[l].where, opened.perLight[l]);
 }
 
+/// Every chunk of @p source to the kind's @p pass, with the chunk's geometry entry when the
+/// source is in stream order (@p streamOrder).
+void feedPass(ReceiverKind& kind, StreamPass pass, TriangleSource& source, bool streamOrder) {
+    std::vector<Triangle> chunk(kTriangleChunk);
+    while (size_t n = source.read(chunk))
+        kind.consume(pass, StreamChunk{std::span<const Triangle>(chunk.data(), n), streamOrder ? source.part() : kAnyGeometryEntry});
+}
+
 /// Pass 1 over the stream: camera receivers are rasterized (or points loaded) while the area
 /// histogram is built and every vertex is checked. Pass 2 streams the blockers into area buckets
 /// on disk; casting then replays the buckets, largest first, once per memory tile. So the source
@@ -118,12 +126,13 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
         ProgressReporter progress("scan", source->sizeHint().value_or(0), settings.quiet);
         FiniteCheck check(scene);
         ClosedSolidScan solids(p.samples);
+        const bool scanPass = kind.wantsPass(StreamPass::Scan);
         std::vector<Triangle> chunk(kTriangleChunk);
         while (size_t n = source->read(chunk)) {
             std::span<const Triangle> part(chunk.data(), n);
             check(part);
             histogram.add(part);
-            kind.scan(part);
+            if (scanPass) kind.consume(StreamPass::Scan, StreamChunk{part, source->part()});
             if (scene.options.closedCasters) solids.scan(part);
             progress.update(n);
         }
@@ -146,11 +155,11 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     // order) skips the bucket pass.
     // A merge casts nothing but a refinement's receivers: it replays the source as it is, unless
     // the kind must see the culled replay a cast would have seen (its cast pass, a refinement).
-    const bool replaySource = settings.shard.merge && !kind.mayRefine() && !kind.wantsCastChunks();
+    const bool rescan = kind.wantsPass(StreamPass::Rescan);
+    const bool replaySource = settings.shard.merge && !kind.mayRefine() && !kind.wantsPass(StreamPass::Cast);
     if (replaySource || !scene.options.sortBlockers || !casterEntry(settings.method).traits.sortedBlockers) {  // replay the source itself
-        if (kind.wantsRescan()) {  // no bucket pass to ride along with: a read of its own
-            std::vector<Triangle> chunk(kTriangleChunk);
-            while (size_t n = source->read(chunk)) kind.rescan(std::span<const Triangle>(chunk.data(), n));
+        if (rescan) {  // no bucket pass to ride along with: a read of its own
+            feedPass(kind, StreamPass::Rescan, *source, true);
             source->rewind();
         }
         p.blockers = std::move(source);  // already read ahead
@@ -162,14 +171,13 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     ProgressReporter progress("bucket", p.triangleCount, settings.quiet);
     // A receiver kind that wants a second look at the geometry (smooth shading) gets it during
     // the bucket pass, so the source is still read only twice.
-    const bool rescan = kind.wantsRescan();
     // What cannot block is never written: the reach culls, against every receiver, once the scan
     // has found them (refinement receivers are not known yet, so a kind that refines keeps all).
     BlockerFilter keep;
     if (scene.options.cullBeforeSpill && !kind.mayRefine()) keep = makeReachCull(p.samples.lightBounds, p.receivers);
     auto set = std::make_shared<BucketSet>(writeBuckets(*source, planBucketRanges(options, &histogram), options, &buckets,
                                                         [&](std::span<const Triangle> c) {
-                                                            if (rescan) kind.rescan(c);
+                                                            if (rescan) kind.consume(StreamPass::Rescan, StreamChunk{c, source->part()});
                                                             progress.update(c.size());
                                                         },
                                                         keep));
@@ -275,8 +283,8 @@ void makeCaster(Bake& b) {
     CastContext context{p.samples, p.receivers,       p.sampleSets,      p.options, b.scene.bakeOptions,
                         b.threads, b.plan.tiles,      b.settings.quiet, {},        nullptr};
     // A merge gives the kind its pass over the faces itself (mergeShards), once.
-    if (b.kind->wantsCastChunks() && !b.settings.shard.merge)
-        context.observeChunk = [&b](std::span<const Triangle> c) { b.kind->castChunk(c); };
+    if (b.kind->wantsPass(StreamPass::Cast) && !b.settings.shard.merge)
+        context.observeChunk = [&b](std::span<const Triangle> c) { b.kind->consume(StreamPass::Cast, StreamChunk{c}); };
     if (b.sharded) context.tileHooks = &b.tileHooks;
     if (b.method.traits.needsPolygons) context.polygons = b.kind->receiverPolygons();
     b.caster = b.method.make(context);
@@ -312,10 +320,9 @@ void mergeShards(Bake& b) {
     const uint32_t shards = b.sharded->merge(b.masks);
     const ReceiverShader shader(p.lights, p.samples, p.receivers, p.sampleSets);
     tbb::parallel_for(size_t(0), b.firstPass, [&](size_t r) { shader.shade(uint32_t(r), b.masks.row(r), false, b.results); });
-    if (b.kind->wantsCastChunks()) {  // the kind's pass over the faces that the cast would have carried
+    if (b.kind->wantsPass(StreamPass::Cast)) {  // the kind's pass over the faces that the cast would have carried
         p.blockers->rewind();
-        std::vector<Triangle> chunk(kTriangleChunk);
-        while (size_t n = p.blockers->read(chunk)) b.kind->castChunk(std::span<const Triangle>(chunk.data(), n));
+        feedPass(*b.kind, StreamPass::Cast, *p.blockers, false);
     }
     if (!b.settings.quiet) printNote("merged {} shard(s) of {}", shards, b.settings.shard.dir);
 }
@@ -325,13 +332,12 @@ void mergeShards(Bake& b) {
 bool refineReceivers(Bake& b) {
     Prepared& p = b.p;
     if (!b.kind->refine(p.receivers, b.results)) return false;
-    b.demand.kindBytes = b.kind->residentBytes() + b.kind->refineBytes();
+    b.demand.kindBytes = b.kind->residentBytes() + b.kind->passBytes(StreamPass::Refine);
     b.replan();  // the refinement's rasterizer fits, or a clear error
     {
         ScopedTimer timer(b.refineSeconds);
         p.blockers->rewind();
-        std::vector<Triangle> chunk(kTriangleChunk);
-        while (size_t n = p.blockers->read(chunk)) b.kind->refineScan(std::span<const Triangle>(chunk.data(), n));
+        if (b.kind->wantsPass(StreamPass::Refine)) feedPass(*b.kind, StreamPass::Refine, *p.blockers, false);
         append(p.receivers, b.kind->refinedReceivers());
     }
     returnFreedMemory();

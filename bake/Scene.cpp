@@ -11,6 +11,7 @@
 #include "stream/SourceRegistry.h"
 
 #include <algorithm>
+#include <utility>
 #include <cmath>
 
 namespace penumbra {
@@ -76,16 +77,15 @@ LightDesc parseLight(const JsonParams& j) {
 
 void parseOptions(const JsonParams& j, SceneDesc& scene) {
     CastOptions& o = scene.options;
-    o.umbraBits = j.boolean("umbra_bits", o.umbraBits);
-    o.activePlanes = j.boolean("active_planes", o.activePlanes);
-    o.lazyVolumes = j.boolean("lazy_volumes", o.lazyVolumes);
-    o.lazyMasks = j.boolean("lazy_masks", o.lazyMasks);
-    o.rebuild = j.boolean("rebuild", o.rebuild);
-    o.sortBlockers = j.boolean("sort_blockers", o.sortBlockers);
-    o.sampleTable = j.boolean("sample_table", o.sampleTable);
-    o.closedCasters = j.boolean("closed_casters", o.closedCasters);
-    o.embreeRuleFilter = j.boolean("embree_rule_filter", o.embreeRuleFilter);
-    o.cullBeforeSpill = j.boolean("cull_before_spill", o.cullBeforeSpill);
+    // The switches: each key a boolean member of CastOptions (docs/scene-format.md, "bake").
+    static constexpr std::pair<const char*, bool CastOptions::*> kSwitches[] = {
+        {"umbra_bits", &CastOptions::umbraBits},       {"active_planes", &CastOptions::activePlanes},
+        {"lazy_volumes", &CastOptions::lazyVolumes},   {"lazy_masks", &CastOptions::lazyMasks},
+        {"rebuild", &CastOptions::rebuild},            {"sort_blockers", &CastOptions::sortBlockers},
+        {"sample_table", &CastOptions::sampleTable},   {"closed_casters", &CastOptions::closedCasters},
+        {"embree_rule_filter", &CastOptions::embreeRuleFilter}, {"cull_before_spill", &CastOptions::cullBeforeSpill},
+    };
+    for (const auto& [key, member] : kSwitches) o.*member = j.boolean(key, o.*member);
     o.sampleTableAngles = int(j.integer("sample_table_angles", o.sampleTableAngles, 4, 4096));
     o.sampleTableOffsets = int(j.integer("sample_table_offsets", o.sampleTableOffsets, 1, 4096));
     o.rebuildThreshold = j.number("rebuild_threshold", o.rebuildThreshold);
@@ -207,7 +207,7 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
     }
     if (const nlohmann::json* exr = j.raw("exr")) scene.exr = parseExrSettings(JsonParams(*exr, file, "exr"));
     j.finish();
-    makeReceiverKind(scene.receivers, scene);  // validates the receivers now; the bake makes its own
+    validateReceiverKind(scene.receivers, scene);  // errors now; the bake makes the kind
     return scene;
 }
 

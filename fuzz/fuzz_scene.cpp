@@ -14,7 +14,7 @@ PENUMBRA_FUZZ_FILE("scene.json") {
     SceneDesc scene = loadScene(path);
     checkBakeOutputs(scene, "", "");
     std::unique_ptr<ReceiverKind> kind = makeReceiverKind(scene.receivers, scene);
-    (void)kind->scanBytes();
+    (void)kind->passBytes(StreamPass::Scan);
     fuzz::drain(*openSceneGeometry(scene));
     uint64_t positions = 0;
     for (const LightDesc& l : scene.lights) positions += uint64_t(l.samples) * uint64_t(l.sampleSets);

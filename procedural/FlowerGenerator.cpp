@@ -72,8 +72,8 @@ protected:
             const glm::dvec3 out(ca * ct, st, sa * ct), across(-sa, 0, ca);
             const glm::dvec3 tip = head + length * out, middle = head + 0.45 * length * out;
             // head, side, tip, other side: the canonical quad (0,0) (1,0) (1,1) (0,1).
-            emit(head, middle + halfWidth * across, tip, p_.petalCutout ? kAlphaPetalLower : 0);
-            emit(head, tip, middle - halfWidth * across, p_.petalCutout ? kAlphaPetalUpper : 0);
+            emit(head, middle + halfWidth * across, tip, p_.petalCutout ? uint32_t(kAlphaPetalLower) : 0u);
+            emit(head, tip, middle - halfWidth * across, p_.petalCutout ? uint32_t(kAlphaPetalUpper) : 0u);
         }
 
         // Leaves: 3-triangle strips that leave the stem low down, rise, then droop.

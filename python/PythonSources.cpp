@@ -249,8 +249,10 @@ void registerPythonSources() {
             j.finish();
             return std::make_unique<PythonSource>(lookup(sourceTable(), id, j.where("source")));
         });
-        registerReceiverKind("python-points", [](const JsonParams& j, const SceneDesc&) {
-            return std::make_unique<PythonPointsKind>(lookup(pointsTable(), j.integer("source", 1, INT64_MAX), j.where("source")));
+        registerReceiverKind("python-points", [](const JsonParams& j, const SceneDesc&, KindUse use) -> std::unique_ptr<ReceiverKind> {
+            auto points = lookup(pointsTable(), j.integer("source", 1, INT64_MAX), j.where("source"));
+            if (use == KindUse::Validate) return nullptr;
+            return std::make_unique<PythonPointsKind>(std::move(points));
         });
     });
 }

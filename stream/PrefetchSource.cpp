@@ -14,8 +14,8 @@ PrefetchSource::~PrefetchSource() { stop(); }
 
 void PrefetchSource::start() {
     ready_.clear();
-    current_.clear();
-    currentPos_ = 0;
+    current_ = {};
+    currentPos_ = 0, currentPart_ = 0;
     finished_ = stopping_ = false;
     error_ = nullptr;
     try {
@@ -40,9 +40,10 @@ void PrefetchSource::stop() {
 void PrefetchSource::run() {
     try {
         for (;;) {
-            std::vector<Triangle> chunk(chunkTriangles_);
-            size_t n = inner_->read(chunk);
-            chunk.resize(n);
+            Chunk chunk{std::vector<Triangle>(chunkTriangles_), 0};
+            size_t n = inner_->read(chunk.triangles);
+            chunk.triangles.resize(n);
+            chunk.part = inner_->part();
             std::unique_lock lock(mutex_);
             changed_.wait(lock, [&] { return stopping_ || ready_.size() < depth_; });
             if (stopping_) return;
@@ -66,20 +67,22 @@ size_t PrefetchSource::read(std::span<Triangle> out) {
     if (inline_) return inner_->read(out);
     size_t written = 0;
     while (written < out.size()) {
-        if (currentPos_ == current_.size()) {
+        if (currentPos_ == current_.triangles.size()) {
             std::unique_lock lock(mutex_);
             changed_.wait(lock, [&] { return !ready_.empty() || finished_; });
             if (ready_.empty()) {
                 if (error_ && written == 0) std::rethrow_exception(error_);
                 break;  // end (or an error, reported on the next call, after the good triangles)
             }
+            if (written > 0 && ready_.front().part != currentPart_) break;  // one part per read
             current_ = std::move(ready_.front());
             ready_.pop_front();
             currentPos_ = 0;
             changed_.notify_all();
         }
-        size_t n = std::min(out.size() - written, current_.size() - currentPos_);
-        std::copy_n(current_.begin() + std::ptrdiff_t(currentPos_), n, out.begin() + std::ptrdiff_t(written));
+        currentPart_ = current_.part;
+        size_t n = std::min(out.size() - written, current_.triangles.size() - currentPos_);
+        std::copy_n(current_.triangles.begin() + std::ptrdiff_t(currentPos_), n, out.begin() + std::ptrdiff_t(written));
         currentPos_ += n, written += n;
     }
     return written;

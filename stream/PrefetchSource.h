@@ -35,8 +35,15 @@ public:
         return inner_->residentBytes() + (depth_ + 2) * chunkTriangles_ * sizeof(Triangle);
     }
     std::string residentDetail() const override { return inner_->residentDetail(); }
+    /// The inner source's part of the triangles last read: a read stops where the part changes.
+    uint32_t part() const override { return inline_ ? inner_->part() : currentPart_; }
 
 private:
+    /// One read of the inner source, and the part it came from.
+    struct Chunk {
+        std::vector<Triangle> triangles;
+        uint32_t part = 0;
+    };
     void start();
     void stop();
     void run();
@@ -45,9 +52,10 @@ private:
     const size_t chunkTriangles_, depth_;
     std::mutex mutex_;
     std::condition_variable changed_;
-    std::deque<std::vector<Triangle>> ready_;
-    std::vector<Triangle> current_;
+    std::deque<Chunk> ready_;
+    Chunk current_;
     size_t currentPos_ = 0;
+    uint32_t currentPart_ = 0;  ///< the part of the last read's triangles
     bool finished_ = false, stopping_ = false;
     std::exception_ptr error_;
     std::thread thread_;

@@ -45,6 +45,10 @@ public:
     /// @brief What dominates residentBytes() when one item does (a compressed primitive that
     /// must be decoded whole), for messages; empty otherwise.
     virtual std::string residentDetail() const { return {}; }
+    /// @brief Which part the triangles of the last read() came from, for a source that plays
+    /// parts back to back (ConcatSource: a scene's geometry entries, in order): one read never
+    /// mixes parts. 0 for a source of one part.
+    virtual uint32_t part() const { return 0; }
 };
 
 using TriangleSourcePtr = std::unique_ptr<TriangleSource>;
@@ -77,6 +81,7 @@ public:
     /// Parts are read one after another, but all stay open: their resident bytes add up.
     uint64_t residentBytes() const override;
     std::string residentDetail() const override;
+    uint32_t part() const override { return uint32_t(current_); }
 
 private:
     std::vector<TriangleSourcePtr> parts_;

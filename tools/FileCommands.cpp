@@ -1,6 +1,6 @@
 #include "FileCommands.h"
 
-#include "bake/kinds/VolumeKind.h"
+#include "bake/output/OpenVdb.h"
 #include "stream/GeometryFile.h"
 #include "stream/util/Error.h"
 

@@ -224,131 +224,166 @@ CLI::App* addBenchTableCommand(CLI::App& bench, BenchTableOptions& o) {
     return cmd;
 }
 
-void runBenchTable(const BenchTableOptions& o, const std::string& commandLine) {
+namespace {
+
+/// The rows --rows names (all when it is empty), once every option is checked.
+/// @throw InputError naming the option with a bad value.
+std::vector<RowSpec> checkedRows(const BenchTableOptions& o) {
     if (!(o.scale > 0.0 && o.scale <= 4.0)) throw InputError(fmt::format("--scale: must be in (0, 4], got {}", o.scale));
     if (o.repeat < 1 || o.repeat > 100) throw InputError(fmt::format("--repeat: must be in 1..100, got {}", o.repeat));
     for (int t : o.threads)
         if (t < 1 || t > 1024) throw InputError(fmt::format("--threads: each count must be in 1..1024, got {}", t));
     if (o.cullTriangles == 0) throw InputError("--cull-triangles: must be positive");
-    std::vector<RowSpec> rows;
-    for (const RowSpec& r : rowSpecs())
-        if (o.rows.empty() || std::find(o.rows.begin(), o.rows.end(), r.name) != o.rows.end()) rows.push_back(r);
     const std::vector<std::string> known = tableRowNames();
     for (const std::string& name : o.rows)
         if (std::find(known.begin(), known.end(), name) == known.end())
             throw InputError(fmt::format("--rows: unknown row \"{}\" (known: {})", name, fmt::join(known, ", ")));
+    std::vector<RowSpec> rows;
+    for (const RowSpec& r : rowSpecs())
+        if (o.rows.empty() || std::find(o.rows.begin(), o.rows.end(), r.name) != o.rows.end()) rows.push_back(r);
+    return rows;
+}
+
+/// One run of the table: its options, thread counts, scratch folder and the result so far.
+struct TableRun {
+    const BenchTableOptions& o;
+    std::vector<int> threadList;  ///< ours runs at each; the last is the table's
+    int tableThreads;
+    fs::path tmp;
+    json result;
+    Stopwatch watch;
+
+    void save() const {
+        if (!o.jsonPath.empty()) writeText(o.jsonPath, result.dump(2) + "\n");
+    }
+    void progress(const std::string& line) const {
+        if (!o.quiet) fmt::print(stderr, "[table2] {}\n", line);
+    }
+};
+
+/// Ours at every thread count, fastest of `repeat` each: the last count's run, and the scaling
+/// entry (times per count and the speed-ups) in @p scaling.
+json oursAtEveryThreadCount(const TableRun& run, const fs::path& file, const fs::path& work, json& scaling) {
+    json ours;
+    scaling["threads"] = scaling["seconds"] = scaling["cast_seconds"] = json::array();
+    for (int threads : run.threadList) {
+        ours = bestOf(run.o.repeat, oursSeconds, [&] { return bakeChild(file, "hpc", threads, work); });
+        scaling["threads"].push_back(threads > 0 ? threads : int(tbb::info::default_concurrency()));
+        scaling["seconds"].push_back(ours.contains("error") ? json() : json(oursSeconds(ours)));
+        scaling["cast_seconds"].push_back(ours.contains("error") ? json() : ours["table2"]["penumbra_cast_time_s"]);
+    }
+    const json& s = scaling["seconds"];
+    const json& c = scaling["cast_seconds"];
+    if (run.threadList.size() > 1 && !s.front().is_null() && !s.back().is_null()) {
+        scaling["speedup"] = s.front().get<double>() / s.back().get<double>();
+        scaling["cast_speedup"] = c.front().get<double>() / c.back().get<double>();
+    }
+    return ours;
+}
+
+/// Embree on the same scene, and the mismatches against ours, into @p row; @return the
+/// progress line's part.
+std::string embreeColumnsOf(const TableRun& run, const fs::path& file, const fs::path& work, double ours, json& row) {
+    // Embree does not need our sorted buckets: it reads the stream directly.
+    json e = bestOf(run.o.repeat, embreeSeconds,
+                    [&] { return bakeChild(file, "embree", run.tableThreads, work, {"--disable", "sort"}); });
+    std::string line;
+    if (e.contains("error")) {
+        row["embree"] = {{"error", e["error"]}};
+    } else {
+        row["embree"] = embreeColumns(e);
+        row["ratio"] = embreeSeconds(e) / ours;
+        line += fmt::format("; Embree {:.2f} s, peak {} MiB; Embree/ours {:.2f}", embreeSeconds(e),
+                            formatMiB(row["embree"]["peak_rss_bytes"]), row["ratio"].get<double>());
+    }
+    if (!run.o.noCompare) {
+        row["mismatches"] = mismatches(file, run.tableThreads, work);
+        if (!row["mismatches"].contains("error"))
+            line += fmt::format("; mismatches {} ({} ties)", row["mismatches"]["mismatches"].get<uint64_t>(),
+                                row["mismatches"]["ties"].get<uint64_t>());
+    }
+    return line;
+}
+
+/// One row of the table for scene @p name (its JSON @p base), appended to the result.
+void runTableRow(TableRun& run, const std::string& name, const json& base, const RowSpec& spec) {
+    const fs::path work = run.tmp / (name + "-" + spec.name);
+    fs::create_directories(work);
+    const json scene = rowScene(base, spec, run.o.scale, work);
+    const fs::path file = work / "scene.json";
+    writeText(file.string(), scene.dump(2));
+    json row = {{"scene", name},
+                {"row", spec.name},
+                {"width", scene["receivers"]["width"]},
+                {"height", scene["receivers"]["height"]},
+                {"nominal_width", spec.width},
+                {"samples", spec.samples},
+                {"light_scale", spec.lightScale * spec.lightScale}};
+    run.progress(fmt::format("{} {} ({}×{}): running", name, spec.name, row["width"].get<int>(), row["height"].get<int>()));
+    json scaling = {{"scene", name}, {"row", spec.name}};
+    const json ours = oursAtEveryThreadCount(run, file, work, scaling);
+    if (ours.contains("error")) {
+        row["error"] = ours["error"];
+        run.result["rows"].push_back(row);
+        run.save();
+        run.progress(fmt::format("{} {}: {}", name, spec.name, row["error"].get<std::string>()));
+        return;
+    }
+    row["receivers"] = ours["receivers"];
+    row["light_samples"] = ours["light_samples"];
+    row["ours"] = oursColumns(ours);
+    if (run.threadList.size() > 1) run.result["thread_scaling"].push_back(scaling);
+    std::string line = fmt::format("{} {}: ours {:.2f} s, peak {} MiB", name, spec.name, oursSeconds(ours),
+                                   formatMiB(row["ours"]["peak_rss_bytes"]));
+    if (!run.o.noEmbree) line += embreeColumnsOf(run, file, work, oursSeconds(ours), row);
+    std::error_code ec;
+    fs::remove_all(work, ec);
+    run.result["rows"].push_back(row);
+    run.result["elapsed_s"] = run.watch.seconds();
+    run.save();
+    run.progress(line + fmt::format(" [{:.0f} s elapsed]", run.watch.seconds()));
+}
+
+/// The root-cull throughput cases, into the result.
+void runRootCull(TableRun& run) {
+    run.progress(fmt::format("root cull: {} triangles per case", run.o.cullTriangles));
+    const fs::path work = run.tmp / "cull";
+    fs::create_directories(work);
+    run.result["root_cull"] = cullThroughput(run.o, work);
+    for (const json& c : run.result["root_cull"].value("cases", json::array()))
+        if (c.contains("triangles_per_second_per_core"))
+            run.progress(fmt::format("root cull, {}: {:.1f}M triangles/s/core", c["case"].get<std::string>(),
+                                     c["triangles_per_second_per_core"].get<double>() / 1e6));
+}
+
+}  // namespace
+
+void runBenchTable(const BenchTableOptions& o, const std::string& commandLine) {
+    const std::vector<RowSpec> rows = checkedRows(o);
     std::vector<std::pair<std::string, json>> scenes;
     for (const std::string& name : o.scenes) scenes.emplace_back(sceneName(name), readJsonFile(sceneFile(o, name).string()));
 
     const std::vector<int> threadList = o.threads.empty() ? std::vector<int>{0} : o.threads;
     const int tableThreads = threadList.back() > 0 ? threadList.back() : int(tbb::info::default_concurrency());
     TempDir tmp(o.tmpDir);
-    json result = {{"command", commandLine},
-                   {"date", utcNow()},
-                   {"machine", machineInfo()},
-                   {"scale", o.scale},
-                   {"repeat", o.repeat},
-                   {"threads_table", tableThreads},
-                   {"threads", threadList},
-                   {"load_average_start", loadAverage()},
-                   {"rows", json::array()}};
-    auto save = [&] {
-        if (!o.jsonPath.empty()) writeText(o.jsonPath, result.dump(2) + "\n");
-    };
-    auto progress = [&](const std::string& line) {
-        if (!o.quiet) fmt::print(stderr, "[table2] {}\n", line);
-    };
-    const Stopwatch benchWatch;
-    auto elapsed = [&] { return benchWatch.seconds(); };
-
+    TableRun run{o, threadList, tableThreads, tmp.path, json::object(), Stopwatch()};
+    run.result = {{"command", commandLine},
+                  {"date", utcNow()},
+                  {"machine", machineInfo()},
+                  {"scale", o.scale},
+                  {"repeat", o.repeat},
+                  {"threads_table", tableThreads},
+                  {"threads", threadList},
+                  {"load_average_start", loadAverage()},
+                  {"rows", json::array()}};
     for (const auto& [name, base] : scenes)
-        for (const RowSpec& spec : rows) {
-            const fs::path work = tmp.path / (name + "-" + spec.name);
-            fs::create_directories(work);
-            const json scene = rowScene(base, spec, o.scale, work);
-            const fs::path file = work / "scene.json";
-            writeText(file.string(), scene.dump(2));
-            json row = {{"scene", name},
-                        {"row", spec.name},
-                        {"width", scene["receivers"]["width"]},
-                        {"height", scene["receivers"]["height"]},
-                        {"nominal_width", spec.width},
-                        {"samples", spec.samples},
-                        {"light_scale", spec.lightScale * spec.lightScale}};
-            progress(fmt::format("{} {} ({}×{}): running", name, spec.name, row["width"].get<int>(), row["height"].get<int>()));
-            // Ours at every thread count, fastest of `repeat`; the last count is the table's.
-            json ours;
-            json scaling = {{"scene", name}, {"row", spec.name}, {"threads", json::array()}, {"seconds", json::array()},
-                            {"cast_seconds", json::array()}};
-            for (int threads : threadList) {
-                ours = bestOf(o.repeat, oursSeconds, [&] { return bakeChild(file, "hpc", threads, work); });
-                scaling["threads"].push_back(threads > 0 ? threads : int(tbb::info::default_concurrency()));
-                scaling["seconds"].push_back(ours.contains("error") ? json() : json(oursSeconds(ours)));
-                scaling["cast_seconds"].push_back(ours.contains("error") ? json() : ours["table2"]["penumbra_cast_time_s"]);
-            }
-            if (ours.contains("error")) {
-                row["error"] = ours["error"];
-                result["rows"].push_back(row);
-                save();
-                progress(fmt::format("{} {}: {}", name, spec.name, row["error"].get<std::string>()));
-                continue;
-            }
-            row["receivers"] = ours["receivers"];
-            row["light_samples"] = ours["light_samples"];
-            row["ours"] = oursColumns(ours);
-            if (threadList.size() > 1) {
-                const json& s = scaling["seconds"];
-                const json& c = scaling["cast_seconds"];
-                if (!s.front().is_null() && !s.back().is_null()) {
-                    scaling["speedup"] = s.front().get<double>() / s.back().get<double>();
-                    scaling["cast_speedup"] = c.front().get<double>() / c.back().get<double>();
-                }
-                result["thread_scaling"].push_back(scaling);
-            }
-            std::string line = fmt::format("{} {}: ours {:.2f} s, peak {} MiB", name, spec.name, oursSeconds(ours),
-                                           formatMiB(row["ours"]["peak_rss_bytes"]));
-            if (!o.noEmbree) {
-                // Embree does not need our sorted buckets: it reads the stream directly.
-                json e = bestOf(o.repeat, embreeSeconds,
-                                [&] { return bakeChild(file, "embree", tableThreads, work, {"--disable", "sort"}); });
-                if (e.contains("error")) {
-                    row["embree"] = {{"error", e["error"]}};
-                } else {
-                    row["embree"] = embreeColumns(e);
-                    row["ratio"] = embreeSeconds(e) / oursSeconds(ours);
-                    line += fmt::format("; Embree {:.2f} s, peak {} MiB; Embree/ours {:.2f}", embreeSeconds(e),
-                                        formatMiB(row["embree"]["peak_rss_bytes"]), row["ratio"].get<double>());
-                }
-                if (!o.noCompare) {
-                    row["mismatches"] = mismatches(file, tableThreads, work);
-                    if (!row["mismatches"].contains("error"))
-                        line += fmt::format("; mismatches {} ({} ties)", row["mismatches"]["mismatches"].get<uint64_t>(),
-                                            row["mismatches"]["ties"].get<uint64_t>());
-                }
-            }
-            std::error_code ec;
-            fs::remove_all(work, ec);
-            result["rows"].push_back(row);
-            result["elapsed_s"] = elapsed();
-            save();
-            progress(line + fmt::format(" [{:.0f} s elapsed]", elapsed()));
-        }
-
-    if (!o.noCull) {
-        progress(fmt::format("root cull: {} triangles per case", o.cullTriangles));
-        const fs::path work = tmp.path / "cull";
-        fs::create_directories(work);
-        result["root_cull"] = cullThroughput(o, work);
-        for (const json& c : result["root_cull"].value("cases", json::array()))
-            if (c.contains("triangles_per_second_per_core"))
-                progress(fmt::format("root cull, {}: {:.1f}M triangles/s/core", c["case"].get<std::string>(),
-                                     c["triangles_per_second_per_core"].get<double>() / 1e6));
-    }
-    result["elapsed_s"] = elapsed();
-    result["load_average_end"] = loadAverage();
-    result["bench_process_peak_rss_bytes"] = peakRssBytes();
-    save();
-    const std::string md = table2Markdown(result);
+        for (const RowSpec& spec : rows) runTableRow(run, name, base, spec);
+    if (!o.noCull) runRootCull(run);
+    run.result["elapsed_s"] = run.watch.seconds();
+    run.result["load_average_end"] = loadAverage();
+    run.result["bench_process_peak_rss_bytes"] = peakRssBytes();
+    run.save();
+    const std::string md = table2Markdown(run.result);
     // Read only now: the file may have been edited during a run that takes half an hour.
     if (!o.markdownPath.empty())
         writeText(o.markdownPath, replaceTable2Section(fs::exists(o.markdownPath) ? slurpFile(o.markdownPath) : "", md));

@@ -82,6 +82,7 @@ public:
     void rewind() override { inner_->rewind(), segmenter_.reset(), nextOpened_ = 0; }
     std::string name() const override { return inner_->name(); }
     std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
+    uint32_t part() const override { return inner_->part(); }
 
 private:
     TriangleSourcePtr inner_;

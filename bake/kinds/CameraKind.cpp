@@ -44,13 +44,6 @@ public:
           lightCount_(scene.lights.size()), exr_(scene.exr) {
         validateCamera(camera);
     }
-    uint64_t scanBytes() const override {
-        // The z-buffer (plus the triangle id per pixel for smooth shading) and, at the end of the
-        // pass, the receiver set made from it (32 bytes per covered pixel) and the ids moved to
-        // the receivers' order (8).
-        uint64_t perPixel = CameraRasterizer::kBytesPerPixel + (smooth_ ? 2 * sizeof(uint64_t) : 0) + 32;
-        return uint64_t(camera_.width) * camera_.height * camera_.layers * perPixel;
-    }
     uint64_t outputBytes(uint64_t receivers) const override {
         // Strips of rows, never the full frame (CameraOutput.h).
         return cameraOutputBytes(camera_.width, camera_.layers, int(lightCount_), receivers, exr_);
@@ -63,25 +56,42 @@ public:
     std::optional<uint64_t> receiverBound() const override {
         return uint64_t(camera_.width) * camera_.height * camera_.layers;
     }
-    void scan(std::span<const Triangle> chunk) override { raster().add(chunk); }
+    // The scan rasterizes the receivers. Smooth shading finds its receivers' triangles in the
+    // stream-order rescan, then the faces around their vertices in the cast pass; a refinement
+    // rasterizes its pixels again.
+    bool wantsPass(StreamPass pass) const override { return pass == StreamPass::Scan || pass == StreamPass::Refine || smooth_; }
+    void consume(StreamPass pass, const StreamChunk& chunk) override {
+        switch (pass) {
+        case StreamPass::Scan: raster().add(chunk.triangles); break;
+        case StreamPass::Rescan:
+            if (bend_) bend_->recover(chunk.triangles);
+            break;
+        case StreamPass::Cast:
+            if (bend_) bend_->add(chunk.triangles);
+            break;
+        case StreamPass::Refine: raster_->add(chunk.triangles); break;
+        }
+    }
+    uint64_t passBytes(StreamPass pass) const override {
+        if (pass == StreamPass::Scan) {
+            // The z-buffer (plus the triangle id per pixel for smooth shading) and, at the end of
+            // the pass, the receiver set made from it (32 bytes per covered pixel) and the ids
+            // moved to the receivers' order (8).
+            uint64_t perPixel = CameraRasterizer::kBytesPerPixel + (smooth_ ? 2 * sizeof(uint64_t) : 0) + 32;
+            return uint64_t(camera_.width) * camera_.height * camera_.layers * perPixel;
+        }
+        if (pass == StreamPass::Refine)
+            return refinedPixels_ * uint64_t(aa_.samples) * (CameraRasterizer::kBytesPerPixel + (smooth_ ? 36 : 0) + 32) +
+                   uint64_t(camera_.width) * camera_.height * 4;
+        return 0;
+    }
     ReceiverSet receivers() override {
         ReceiverSet set = raster().finish();
         if (smooth_) bend_.emplace(lights_), bend_->expectTriangleIds(raster_->takeTriangleIds());
         raster_.reset();
         return set;
     }
-    // Smooth shading finds its receivers' triangles in the stream-order rescan, then the faces
-    // around their vertices in the cast passes.
-    bool wantsRescan() const override { return smooth_; }
-    void rescan(std::span<const Triangle> chunk) override {
-        if (bend_) bend_->recover(chunk);
-    }
     uint64_t residentBytes() const override { return bend_ ? bend_->bytes() : 0; }
-    bool wantsCastChunks() const override { return smooth_; }
-    void castChunk(std::span<const Triangle> chunk) override {
-        if (bend_) bend_->add(chunk);
-    }
-
     bool refine(const ReceiverSet& receivers, const ReceiverResults& results) override {
         if (aa_.samples == 0) return false;
         std::vector<uint32_t> pixels = highContrastPixels(receivers, results.visibility, receivers.size(), aa_.threshold);
@@ -93,11 +103,6 @@ public:
         return true;
     }
     bool mayRefine() const override { return aa_.samples > 0; }
-    uint64_t refineBytes() const override {
-        return refinedPixels_ * uint64_t(aa_.samples) * (CameraRasterizer::kBytesPerPixel + (smooth_ ? 36 : 0) + 32) +
-               uint64_t(camera_.width) * camera_.height * 4;
-    }
-    void refineScan(std::span<const Triangle> chunk) override { raster_->add(chunk); }
     ReceiverSet refinedReceivers() override {
         ReceiverSet set = raster_->finish();
         if (bend_) bend_->addTriangles(raster_->takeTriangles(), set.normal);
@@ -142,7 +147,7 @@ private:
 
 }  // namespace
 
-std::unique_ptr<ReceiverKind> makeCameraKind(const JsonParams& j, const SceneDesc& scene) {
+std::unique_ptr<ReceiverKind> makeCameraKind(const JsonParams& j, const SceneDesc& scene, KindUse use) {
     requireOutputExtension(scene, ".exr", "camera");
     CameraDesc c;
     c.where = j.where();
@@ -164,6 +169,10 @@ std::unique_ptr<ReceiverKind> makeCameraKind(const JsonParams& j, const SceneDes
         if (int64_t(c.width) * n > 65536 || int64_t(c.height) * n > 65536)
             fail(a.where("samples"), "width and height times sqrt(samples) must be at most 65536");
         a.finish();
+    }
+    if (use == KindUse::Validate) {
+        validateCamera(c);
+        return nullptr;
     }
     return std::make_unique<CameraKind>(c, aa, scene);
 }

@@ -24,8 +24,9 @@ std::vector<uint32_t> highContrastPixels(const ReceiverSet& receivers, std::span
                                          double threshold);
 
 /// @brief Makes the camera kind from its "receivers" object (eye, target, up, fov_deg, width,
-/// height) and the scene (lights and bake.smooth_shading, for the preview).
+/// height) and the scene (lights and bake.smooth_shading, for the preview); null for
+/// KindUse::Validate.
 /// @throw InputError naming the key for a bad camera.
-std::unique_ptr<ReceiverKind> makeCameraKind(const JsonParams& params, const SceneDesc& scene);
+std::unique_ptr<ReceiverKind> makeCameraKind(const JsonParams& params, const SceneDesc& scene, KindUse use);
 
 }  // namespace penumbra

@@ -20,6 +20,8 @@
 #include <chrono>
 #include <cctype>
 #include <filesystem>
+#include <mutex>
+#include <optional>
 #include <set>
 
 namespace penumbra {
@@ -87,8 +89,10 @@ IndexedMesh concatenate(std::span<const IndexedMesh> meshes) {
 
 class LightmapKind final : public ReceiverKind {
 public:
-    LightmapKind(std::vector<Lightmap> maps, std::vector<Lightmap> atlasParts, LightmapSettings settings)
-        : maps_(std::move(maps)), parts_(std::move(atlasParts)), settings_(std::move(settings)), padding_(settings_.padding) {}
+    /// @param checked true when the meshes came from parseScene's check (loaded once per bake).
+    LightmapKind(std::vector<Lightmap> maps, std::vector<Lightmap> atlasParts, LightmapSettings settings, bool checked)
+        : maps_(std::move(maps)), parts_(std::move(atlasParts)), settings_(std::move(settings)), padding_(settings_.padding),
+          meshesFromCheck_(checked) {}
 
     ReceiverSet receivers() override {
         if (!parts_.empty()) maps_.push_back(makeAtlas());
@@ -132,6 +136,7 @@ public:
         }
         nlohmann::json lightmap = {{"maps", maps}};
         if (!atlasMeshes_.empty()) lightmap["atlas"] = atlasStats_;
+        lightmap["meshes_loaded_by"] = meshesFromCheck_ ? "scene check" : "bake";
         return {{"lightmap", lightmap}, {"outputs", outputs_}};
     }
 
@@ -267,6 +272,7 @@ private:
     nlohmann::json atlasStats_;
     std::vector<std::string> outputs_;      ///< files written
     ReceiverPolygons polygons_;             ///< --method hh: the maps' triangles and texels
+    bool meshesFromCheck_ = false;          ///< the meshes were parseScene's (ValidatedMaps)
 };
 
 /// The file behind geometry entry @p index, which must be an obj/gltf/glb file.
@@ -337,12 +343,62 @@ void sizeFromDensity(const JsonParams& j, const std::string& key, const Lightmap
     map.width = map.height = int(side);
 }
 
-std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneDesc& scene) {
-    requireOutputExtension(scene, ".exr", "lightmap");
-    const std::vector<size_t> meshes = geometryIndices(j, "meshes", scene);
-    const LightmapSettings settings = parseSettings(j);
-
+/// The maps the factory made from "receivers": per-mesh ones, and meshes waiting for the atlas.
+struct LightmapMaps {
     std::vector<Lightmap> maps, atlasParts;
+};
+
+/// What the maps depend on: the "receivers" object, each named entry as written, and the
+/// identity (size and modification time) of each entry's file.
+std::string mapsKey(const JsonParams& j, const SceneDesc& scene, const std::vector<size_t>& meshes) {
+    std::string key = scene.baseDir.string() + '\n' + scene.receivers.dump();
+    for (size_t slot = 0; slot < meshes.size(); ++slot) {
+        const GeometryDesc& g = scene.geometry[meshes[slot]];
+        key += '\n' + g.params.dump();
+        const glm::mat4 m = g.transform.matrix();
+        for (int c = 0; c < 4; ++c)
+            for (int r = 0; r < 4; ++r) key += fmt::format(" {}", m[c][r]);
+        std::error_code ec;
+        const std::string file = meshFile(j, scene, slot, meshes[slot]);
+        key += fmt::format(" {} {}", std::filesystem::file_size(file, ec),
+                           std::filesystem::last_write_time(file, ec).time_since_epoch().count());
+    }
+    return key;
+}
+
+/// @brief The maps parseScene made to check the meshes, handed to the bake of the same scene
+/// so that every mesh is loaded once: parseScene's check needs the meshes (their UVs, their
+/// size at texels_per_unit), and the bake follows it. One entry, replaced by the next check and
+/// taken (moved out) by the bake whose key matches.
+class ValidatedMaps {
+public:
+    void put(std::string key, LightmapMaps maps) {
+        std::lock_guard lock(mutex_);
+        key_ = std::move(key), maps_ = std::move(maps), full_ = true;
+    }
+    std::optional<LightmapMaps> take(const std::string& key) {
+        std::lock_guard lock(mutex_);
+        if (!full_ || key != key_) return std::nullopt;
+        full_ = false, key_.clear();
+        return std::move(maps_);
+    }
+
+private:
+    std::mutex mutex_;
+    std::string key_;
+    LightmapMaps maps_;
+    bool full_ = false;
+};
+
+ValidatedMaps& validatedMaps() {
+    static ValidatedMaps maps;
+    return maps;
+}
+
+/// Loads the meshes of "meshes" and makes their maps, checking every one.
+LightmapMaps makeMaps(const JsonParams& j, const SceneDesc& scene, const std::vector<size_t>& meshes,
+                      const LightmapSettings& settings) {
+    LightmapMaps out;
     std::set<std::string> names{kAtlasName};
     for (size_t slot = 0; slot < meshes.size(); ++slot) {
         const std::string key = fmt::format("meshes[{}]", slot);
@@ -371,14 +427,29 @@ std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneD
             map.mesh = loaded[m].normal.empty() ? withCreaseNormals(loaded[m], settings.creaseDeg) : std::move(loaded[m]);
             map.width = settings.width, map.height = settings.height;
             if (generate) {
-                atlasParts.push_back(std::move(map));
+                out.atlasParts.push_back(std::move(map));
                 continue;
             }
             if (settings.density > 0) sizeFromDensity(j, key, settings, map);
-            maps.push_back(std::move(map));
+            out.maps.push_back(std::move(map));
         }
     }
-    return std::make_unique<LightmapKind>(std::move(maps), std::move(atlasParts), settings);
+    return out;
+}
+
+std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneDesc& scene, KindUse use) {
+    requireOutputExtension(scene, ".exr", "lightmap");
+    const std::vector<size_t> meshes = geometryIndices(j, "meshes", scene);
+    const LightmapSettings settings = parseSettings(j);
+    const std::string key = mapsKey(j, scene, meshes);
+    if (use == KindUse::Validate) {
+        validatedMaps().put(key, makeMaps(j, scene, meshes, settings));
+        return nullptr;
+    }
+    std::optional<LightmapMaps> made = validatedMaps().take(key);
+    const bool checked = made.has_value();
+    if (!made) made = makeMaps(j, scene, meshes, settings);
+    return std::make_unique<LightmapKind>(std::move(made->maps), std::move(made->atlasParts), settings, checked);
 }
 
 }  // namespace

@@ -1,12 +1,7 @@
 #include "bake/kinds/ReceiverKind.h"
 #include "stream/util/PathText.h"
 
-#include "bake/kinds/CameraKind.h"
-#include "bake/kinds/LightmapKind.h"
 #include "bake/Scene.h"
-#include "bake/kinds/VertexColorKind.h"
-#include "bake/kinds/VolumeKind.h"
-#include "receivers/CameraReceivers.h"
 #include "receivers/PointReceivers.h"
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
@@ -59,9 +54,7 @@ std::string resolveScenePath(const std::filesystem::path& base, const std::strin
 }
 
 void requireOutputExtension(const SceneDesc& scene, const std::string& extension, const std::string& kind) {
-    std::string ext = std::filesystem::path(scene.output).extension().string();
-    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-    if (ext == extension) return;
+    if (lowercaseExtension(scene.output) == extension) return;
     const std::string where = scene.outputFromScene ? scene.file + ": output" : "--output";
     fail(where, "\"{}\": {} receivers write {} files; name the output with that extension", scene.output, kind, extension);
 }
@@ -72,12 +65,12 @@ void registerReceiverKind(const std::string& type, ReceiverKindFactory factory) 
 }
 
 namespace {
-const ReceiverKindRegistration kPoints{"points", [](const JsonParams& j, const SceneDesc& scene) {
-    return std::make_unique<PointsKind>(resolveScenePath(scene.baseDir, j.string("path"), j.where("path")));
+const ReceiverKindRegistration kPoints{"points", [](const JsonParams& j, const SceneDesc& scene, KindUse use) {
+    std::string path = resolveScenePath(scene.baseDir, j.string("path"), j.where("path"));
+    return use == KindUse::Validate ? nullptr : std::make_unique<PointsKind>(std::move(path));
 }};
-}  // namespace
 
-std::unique_ptr<ReceiverKind> makeReceiverKind(const nlohmann::json& receivers, const SceneDesc& scene) {
+std::unique_ptr<ReceiverKind> makeKind(const nlohmann::json& receivers, const SceneDesc& scene, KindUse use) {
     JsonParams j(receivers, scene.file, "receivers");
     const std::string type = j.string("type");
     ReceiverKindFactory factory;
@@ -91,9 +84,19 @@ std::unique_ptr<ReceiverKind> makeReceiverKind(const nlohmann::json& receivers, 
         }
         factory = it->second;
     }
-    std::unique_ptr<ReceiverKind> kind = factory(j, scene);
+    std::unique_ptr<ReceiverKind> kind = factory(j, scene, use);
     j.finish();
     return kind;
+}
+
+}  // namespace
+
+std::unique_ptr<ReceiverKind> makeReceiverKind(const nlohmann::json& receivers, const SceneDesc& scene) {
+    return makeKind(receivers, scene, KindUse::Bake);
+}
+
+void validateReceiverKind(const nlohmann::json& receivers, const SceneDesc& scene) {
+    makeKind(receivers, scene, KindUse::Validate);
 }
 
 }  // namespace penumbra

@@ -3,11 +3,11 @@
 /// @brief The extension point for receiver types (camera, points, lightmap, vertices, volume):
 /// where a bake's receivers come from and what it writes for them.
 ///
-/// A kind is made from the scene's "receivers" object by a registered factory. The pipeline then
-/// (1) feeds it every chunk of the scene stream during the scan pass (camera receivers rasterize
-/// there; kinds that do not need the stream ignore it), (2) asks it for the receivers, (3) casts
-/// them, (4) lets it refine: ask for more receivers after seeing the first results (camera
-/// antialiasing), casting only those, and (5) hands it the per-receiver results to write.
+/// A kind is made once per bake from the scene's "receivers" object by a registered factory. The
+/// pipeline then (1) hands it the chunks of the passes over the stream it wants (StreamPass: the
+/// scan, where camera receivers rasterize), (2) asks it for the receivers, (3) casts them, (4)
+/// lets it refine: ask for more receivers after seeing the first results (camera antialiasing),
+/// casting only those, and (5) hands it the per-receiver results to write.
 
 #include "bake/light/Light.h"
 #include "bake/shading/ReceiverShading.h"
@@ -41,13 +41,33 @@ struct OutputContext {
     size_t firstPass = receivers.size();
 };
 
+/// @brief The walks over the blocker stream a kind can ride along with, in bake order. The
+/// pipeline owns every read of the source (at most two: the scan and the bucket pass) and hands
+/// each pass's chunks to the kinds that want them (ReceiverKind::wantsPass).
+enum class StreamPass : uint8_t {
+    Scan,    ///< stream order, before receivers(): a camera rasterizes, a volume marks its band
+    Rescan,  ///< stream order, after receivers() and before casting (rides the bucket pass)
+    Cast,    ///< replay order: the chunks the first memory tile casts
+    Refine,  ///< replay order, after refine() returned true: the refinement's receivers
+};
+
+/// The geometry entry of a chunk whose triangles come from more than one (replay order).
+inline constexpr uint32_t kAnyGeometryEntry = UINT32_MAX;
+
+/// @brief One chunk of a pass: the triangles, and the scene "geometry" entry (its index) they
+/// all came from, or kAnyGeometryEntry in replay order (the buckets mix entries).
+struct StreamChunk {
+    std::span<const Triangle> triangles;
+    uint32_t entry = kAnyGeometryEntry;
+};
+
 class ReceiverKind {
 public:
     virtual ~ReceiverKind() = default;
-    /// Bytes held during the scan pass (a z-buffer, say, and the receiver set being made), for the
-    /// memory plan.
-    virtual uint64_t scanBytes() const { return 0; }
-    /// Bytes held while writing outputs for @p receivers receivers, for the memory plan.
+
+    /// @name Memory, for the plan (MemoryPlan.h)
+    /// @{
+    /// Bytes held while writing outputs for @p receivers receivers.
     virtual uint64_t outputBytes(uint64_t receivers) const { return 0; }
     /// At most this many receivers, known before the scan pass (a camera's pixels, a lightmap's
     /// texels, a box's voxels, a point file's rows), so that the plan refuses a request that
@@ -57,36 +77,37 @@ public:
     /// triangles (unknown: nullopt), for plans made before the rescan. After receivers() it may
     /// use what the scan found.
     virtual uint64_t maxResidentBytes(uint64_t receivers, std::optional<uint64_t> triangles) const { return 0; }
-    /// Every chunk of the scene stream, in stream order, during the scan pass.
-    virtual void scan(std::span<const Triangle> chunk) {}
+    /// Bytes the kind holds from after the rescan until its outputs are written (smooth shading's
+    /// vertex table). Asked after the rescan.
+    virtual uint64_t residentBytes() const { return 0; }
+    /// @}
+
+    /// @name Passes over the stream
+    /// @{
+    /// True when the kind takes part in @p pass. Scan, Rescan and Cast are asked before the scan
+    /// pass; Refine only after refine() returned true.
+    virtual bool wantsPass(StreamPass pass) const { return false; }
+    /// Every chunk of @p pass, in the pass's order, when wantsPass(pass).
+    virtual void consume(StreamPass pass, const StreamChunk& chunk) {}
+    /// Bytes held during @p pass on top of residentBytes() (a z-buffer and the receiver set made
+    /// from it during the scan; the refinement's rasterizer, asked after refine()).
+    virtual uint64_t passBytes(StreamPass pass) const { return 0; }
+    /// @}
+
     /// The receivers, after the scan pass. Called once.
     virtual ReceiverSet receivers() = 0;
-    /// True when the kind needs one more pass over the scene stream after receivers() (camera
-    /// smooth shading gathers the faces around its visible vertices); the pipeline then calls
-    /// rescan() with every chunk, in stream order, before casting.
-    virtual bool wantsRescan() const { return false; }
-    virtual void rescan(std::span<const Triangle> chunk) {}
-    /// Bytes the kind holds from after the rescan until its outputs are written (smooth shading's
-    /// vertex table), for the memory plan. Asked after the rescan.
-    virtual uint64_t residentBytes() const { return 0; }
-    /// True when the kind wants every blocker once per cast pass; the pipeline then calls
-    /// castChunk() with each chunk the first memory tile casts (replay order, not stream order).
-    virtual bool wantsCastChunks() const { return false; }
-    virtual void castChunk(std::span<const Triangle> chunk) {}
 
     /// Adaptive refinement in a second pass (camera antialiasing): after the first cast, refine()
     /// sees the receivers and their results and returns true when it wants more receivers. The
-    /// pipeline then feeds every blocker (replay order) to refineScan(), appends the receivers
+    /// pipeline then runs the Refine pass over every blocker, appends the receivers
     /// refinedReceivers() returns (once) to the set and casts only those, with the same light
     /// samples and method; write() then gets both passes (OutputContext::firstPass).
     virtual bool refine(const ReceiverSet& receivers, const ReceiverResults& results) { return false; }
     /// True when refine() may add receivers (which can lie outside the first pass's receivers, so
     /// the bucket pass must not cull blockers by the first pass's reach).
     virtual bool mayRefine() const { return false; }
-    virtual void refineScan(std::span<const Triangle> chunk) {}
     virtual ReceiverSet refinedReceivers() { return {}; }
-    /// Bytes held during refineScan(), for the memory plan (asked after refine()).
-    virtual uint64_t refineBytes() const { return 0; }
+
     /// The receivers' polygons and texels, for kinds whose receivers are texels of receiver
     /// polygons (lightmaps); null for the others. Filled by receivers(), so it is complete after it;
     /// the pointer itself may be asked for before, to see whether the kind has polygons.
@@ -97,16 +118,29 @@ public:
     virtual void write(const OutputContext& context) = 0;
 };
 
+/// @brief What a factory is asked for: the kind a bake runs, or only the check that parseScene
+/// makes of "receivers" (every key and value, the geometry entries it names, the output's
+/// extension), for which it loads nothing and returns null.
+enum class KindUse : uint8_t { Bake, Validate };
+
 /// @brief Everything a factory gets: the "receivers" object (strict: finish() is called by the
-/// registry after the factory returns) and the scene (its folder, geometry list, lights).
-using ReceiverKindFactory = std::function<std::unique_ptr<ReceiverKind>(const JsonParams& params, const SceneDesc& scene)>;
+/// registry after the factory returns, so a factory reads every key before it returns, in either
+/// use), the scene (its folder, geometry list, lights) and the use. It returns null for
+/// KindUse::Validate.
+using ReceiverKindFactory =
+    std::function<std::unique_ptr<ReceiverKind>(const JsonParams& params, const SceneDesc& scene, KindUse use)>;
 
 /// @brief Registers (or replaces) receiver type @p type.
 void registerReceiverKind(const std::string& type, ReceiverKindFactory factory);
 
-/// @brief Makes the kind named by the object's "type" key.
+/// @brief Makes the kind named by the object's "type" key, once per bake.
 /// @throw InputError naming the key for an unknown type or bad parameters.
 std::unique_ptr<ReceiverKind> makeReceiverKind(const nlohmann::json& receivers, const SceneDesc& scene);
+
+/// @brief Checks "receivers" as makeReceiverKind() would, without making the kind or loading
+/// what it names (parseScene).
+/// @throw InputError as makeReceiverKind().
+void validateReceiverKind(const nlohmann::json& receivers, const SceneDesc& scene);
 
 /// @brief Registers a receiver type from the kind's own file, as a namespace-scope constant
 /// (`const ReceiverKindRegistration kCamera{"camera", &makeCameraKind};`), so that no central

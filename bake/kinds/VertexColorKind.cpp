@@ -189,7 +189,7 @@ private:
 
 namespace {
 
-const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, const SceneDesc& scene) {
+const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, const SceneDesc& scene, KindUse use) {
         const std::vector<size_t> meshes = geometryIndices(j, "meshes", scene);
         const std::string ext = lowercaseExtension(scene.output);
         if (ext != ".glb" && ext != ".gltf")
@@ -216,7 +216,7 @@ const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, con
             }
             files.push_back(std::move(file));
         }
-        return std::make_unique<VertexColorKind>(std::move(files));
+        return use == KindUse::Validate ? nullptr : std::make_unique<VertexColorKind>(std::move(files));
     }};
 
 }  // namespace

@@ -1,7 +1,7 @@
 #include "bake/kinds/VolumeKind.h"
 #include "stream/util/PathText.h"
 
-#include "bake/output/ImageWriters.h"
+#include "bake/output/OpenVdb.h"
 #include "bake/kinds/ReceiverKind.h"
 #include "bake/Scene.h"
 #include "stream/util/AtomicFile.h"
@@ -17,7 +17,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <mutex>
 
 namespace penumbra {
 namespace {
@@ -35,11 +34,6 @@ struct Lattice {
     glm::dvec3 origin{0.0};
     glm::dvec3 centre(const openvdb::Coord& c) const { return origin + h * glm::dvec3(c.x(), c.y(), c.z()); }
 };
-
-void initializeOpenVdb() {
-    static std::once_flag once;
-    std::call_once(once, [] { openvdb::initialize(); });
-}
 
 /// Closest point to @p p on triangle (a, b, c), by the Voronoi regions of its vertices and edges.
 glm::dvec3 closestOnTriangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
@@ -65,23 +59,40 @@ glm::dvec3 closestOnTriangle(const glm::dvec3& p, const glm::dvec3& a, const glm
 
 class VolumeKind final : public ReceiverKind {
 public:
-    VolumeKind(Lattice lattice, openvdb::CoordBBox box, SceneDesc band, double width, bool irradiance, std::string where)
-        : lattice_(lattice), box_(box), band_(std::move(band)), width_(width), irradiance_(irradiance), where_(std::move(where)) {}
+    /// @param band the geometry entries (indices into the scene's list) whose triangles the narrow
+    /// band surrounds; empty for a box.
+    VolumeKind(Lattice lattice, openvdb::CoordBBox box, std::vector<size_t> band, double width, bool irradiance, std::string where)
+        : lattice_(lattice), box_(box), width_(width), irradiance_(irradiance), where_(std::move(where)) {
+        for (size_t entry : band) {
+            if (entry >= inBand_.size()) inBand_.resize(entry + 1, false);
+            inBand_[entry] = true;
+        }
+    }
 
     std::optional<uint64_t> receiverBound() const override {
-        if (!band_.geometry.empty()) return std::nullopt;  // only the band's triangles tell
+        if (!inBand_.empty()) return std::nullopt;  // only the band's triangles tell
         return uint64_t(box_.volume());
+    }
+
+    // The band is marked in the scan pass, from the chunks of its entries: the source is read
+    // no more often for a volume than for any other kind.
+    bool wantsPass(StreamPass pass) const override { return pass == StreamPass::Scan && !inBand_.empty(); }
+    void consume(StreamPass pass, const StreamChunk& chunk) override {
+        if (chunk.entry < inBand_.size() && inBand_[chunk.entry]) markBand(chunk.triangles);
     }
 
     ReceiverSet receivers() override {
         initializeOpenVdb();
         coords_.clear();
-        if (band_.geometry.empty()) {
+        if (inBand_.empty()) {
             for (int i = box_.min().x(); i <= box_.max().x(); ++i)
                 for (int j = box_.min().y(); j <= box_.max().y(); ++j)
                     for (int k = box_.min().z(); k <= box_.max().z(); ++k) coords_.emplace_back(i, j, k);
-        } else {
-            scanBand();
+        } else if (band_) {
+            // Leaf by leaf, voxel by voxel: a deterministic order for the receivers.
+            for (auto leaf = band_->tree().cbeginLeaf(); leaf; ++leaf)
+                for (auto v = leaf->cbeginValueOn(); v; ++v) coords_.push_back(v.getCoord());
+            band_.reset();
         }
         ReceiverSet set;
         set.position.reserve(coords_.size());
@@ -149,49 +160,37 @@ public:
     }
 
 private:
-    /// Marks every lattice point within width_ of a triangle, streaming the named entries: first to
-    /// count the lattice points the triangles' boxes hold (refused, with the numbers, when they
-    /// cannot be indexed or visited in reasonable time), then to mark them.
-    void scanBand() {
-        std::vector<Triangle> chunk(1 << 14);
-        double visits = 0;
-        {
-            TriangleSourcePtr source = openSceneGeometry(band_);
-            while (size_t n = source->read(chunk))
-                for (size_t t = 0; t < n; ++t) visits += boxLattice(chunk[t]).count;
-        }
-        if (visits > kMaxBandVisits)
-            fail(where_, "the band's triangles cover {:.3g} lattice points at voxel_size {} and width {}, more than the {:.3g} "
-                         "a bake visits; raise voxel_size or lower width",
-                 visits, lattice_.h, width_, kMaxBandVisits);
-        openvdb::MaskGrid::Ptr mask = openvdb::MaskGrid::create(false);
-        auto acc = mask->getAccessor();
-        TriangleSourcePtr source = openSceneGeometry(band_);
+    /// Marks every lattice point within width_ of a triangle of the band. The lattice points the
+    /// triangles' boxes hold are counted as they come, and refused, with the numbers, before one
+    /// more box would take more visits than a bake makes in reasonable time.
+    void markBand(std::span<const Triangle> triangles) {
+        initializeOpenVdb();
+        if (!band_) band_ = openvdb::MaskGrid::create(false);
+        auto acc = band_->getAccessor();
         const double w2 = width_ * width_;
-        uint64_t marked = 0;
-        while (size_t n = source->read(chunk)) {
-            for (size_t t = 0; t < n; ++t) {
-                const glm::dvec3 a(chunk[t].v[0]), b(chunk[t].v[1]), cc(chunk[t].v[2]);
-                const BoxLattice box = boxLattice(chunk[t]);
-                for (int i = box.lo.x; i <= box.hi.x; ++i)
-                    for (int j = box.lo.y; j <= box.hi.y; ++j)
-                        for (int k = box.lo.z; k <= box.hi.z; ++k) {
-                            const openvdb::Coord coord(i, j, k);
-                            if (acc.isValueOn(coord)) continue;
-                            const glm::dvec3 p = lattice_.centre(coord);
-                            const glm::dvec3 d = p - closestOnTriangle(p, a, b, cc);
-                            if (glm::dot(d, d) > w2) continue;
-                            acc.setValueOn(coord);
-                            if (++marked > kMaxVolumeVoxels)
-                                fail(where_, "the band holds more than {} voxels (receivers are indexed by 32 bits); raise "
-                                             "voxel_size or lower width",
-                                     kMaxVolumeVoxels);
-                        }
-            }
+        for (const Triangle& t : triangles) {
+            const glm::dvec3 a(t.v[0]), b(t.v[1]), cc(t.v[2]);
+            const BoxLattice box = boxLattice(t);
+            visits_ += box.count;
+            if (visits_ > kMaxBandVisits)
+                fail(where_, "the band's triangles cover more than {:.3g} lattice points at voxel_size {} and width {}, "
+                             "more than a bake visits; raise voxel_size or lower width",
+                     kMaxBandVisits, lattice_.h, width_);
+            for (int i = box.lo.x; i <= box.hi.x; ++i)
+                for (int j = box.lo.y; j <= box.hi.y; ++j)
+                    for (int k = box.lo.z; k <= box.hi.z; ++k) {
+                        const openvdb::Coord coord(i, j, k);
+                        if (acc.isValueOn(coord)) continue;
+                        const glm::dvec3 p = lattice_.centre(coord);
+                        const glm::dvec3 d = p - closestOnTriangle(p, a, b, cc);
+                        if (glm::dot(d, d) > w2) continue;
+                        acc.setValueOn(coord);
+                        if (++marked_ > kMaxVolumeVoxels)
+                            fail(where_, "the band holds more than {} voxels (receivers are indexed by 32 bits); raise "
+                                         "voxel_size or lower width",
+                                 kMaxVolumeVoxels);
+                    }
         }
-        // Leaf by leaf, voxel by voxel: a deterministic order for the receivers.
-        for (auto leaf = mask->tree().cbeginLeaf(); leaf; ++leaf)
-            for (auto v = leaf->cbeginValueOn(); v; ++v) coords_.push_back(v.getCoord());
     }
 
     /// The lattice points of a triangle's box grown by the band width, and how many they are.
@@ -218,7 +217,10 @@ private:
 
     Lattice lattice_;
     openvdb::CoordBBox box_;
-    SceneDesc band_;  ///< the scene reduced to the narrow band's geometry entries (empty for a box)
+    std::vector<bool> inBand_;  ///< per geometry entry: in the narrow band (empty for a box)
+    openvdb::MaskGrid::Ptr band_;  ///< the band's lattice points, during the scan pass
+    double visits_ = 0;            ///< lattice points the band's triangle boxes held so far
+    uint64_t marked_ = 0;
     double width_ = 0;
     bool irradiance_ = false;
     std::string where_;  ///< "scene.json: receivers.narrow_band", for messages
@@ -247,7 +249,7 @@ void parseBox(const JsonParams& j, glm::dvec3& lo, glm::dvec3& hi) {
 
 namespace {
 
-const ReceiverKindRegistration kVolume{"volume", [](const JsonParams& j, const SceneDesc& scene) {
+const ReceiverKindRegistration kVolume{"volume", [](const JsonParams& j, const SceneDesc& scene, KindUse use) -> std::unique_ptr<ReceiverKind> {
         Lattice lattice;
         lattice.h = j.number("voxel_size");
         if (!(lattice.h > 0) || !std::isfinite(lattice.h)) fail(j.where("voxel_size"), "must be a positive number");
@@ -268,7 +270,8 @@ const ReceiverKindRegistration kVolume{"volume", [](const JsonParams& j, const S
                 fail(j.where("voxel_size"), "the box would have {:.0f} voxels (at most {:.0f})", n.x * n.y * n.z, kMaxVoxels);
             lattice.origin = lo + 0.5 * lattice.h;
             openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(int(n.x) - 1, int(n.y) - 1, int(n.z) - 1));
-            return std::make_unique<VolumeKind>(lattice, box, SceneDesc{}, 0.0, irradiance, j.where("box"));
+            if (use == KindUse::Validate) return nullptr;
+            return std::make_unique<VolumeKind>(lattice, box, std::vector<size_t>{}, 0.0, irradiance, j.where("box"));
         }
         JsonParams band(*j.raw("narrow_band"), j.file(), j.path("narrow_band"));
         const double width = band.number("width");
@@ -278,63 +281,12 @@ const ReceiverKindRegistration kVolume{"volume", [](const JsonParams& j, const S
             fail(band.where("width"), "a band {} wide holds about {:.3g} voxels of size {} around a single triangle, more "
                                       "than the {:.0f} a bake can hold",
                  width, around, lattice.h, kMaxVoxels);
-        SceneDesc sub = scene;  // the same scene, reduced to the band's entries
-        sub.geometry.clear();
-        for (size_t index : geometryIndices(band, "geometry", scene)) sub.geometry.push_back(scene.geometry[index]);
+        std::vector<size_t> entries = geometryIndices(band, "geometry", scene);
         band.finish();
-        return std::make_unique<VolumeKind>(lattice, openvdb::CoordBBox(), std::move(sub), width, irradiance, band.where());
+        if (use == KindUse::Validate) return nullptr;
+        return std::make_unique<VolumeKind>(lattice, openvdb::CoordBBox(), std::move(entries), width, irradiance, band.where());
     }};
 
 }  // namespace
-
-void writeVolumeSlicePng(const std::string& vdbPath, const std::string& pngPath, const std::string& gridName,
-                         char axis, double at, int minWidth) {
-    initializeOpenVdb();
-    if (axis != 'x' && axis != 'y' && axis != 'z') fail(vdbPath, "slice axis must be x, y or z (got '{}')", axis);
-    openvdb::FloatGrid::Ptr grid;
-    try {
-        openvdb::io::File file(vdbPath);
-        file.open();
-        if (!file.hasGrid(gridName)) fail(vdbPath, "no grid named \"{}\"", gridName);
-        grid = openvdb::gridPtrCast<openvdb::FloatGrid>(file.readGrid(gridName));
-        file.close();
-    } catch (const openvdb::Exception& e) {
-        fail(vdbPath, "OpenVDB could not read the file: {}", e.what());
-    }
-    if (!grid) fail(vdbPath, "grid \"{}\" is not a float grid", gridName);
-    openvdb::CoordBBox bounds = grid->evalActiveVoxelBoundingBox();
-    auto lo = grid->getMetadata<openvdb::Vec3IMetadata>("penumbra_min");
-    auto hi = grid->getMetadata<openvdb::Vec3IMetadata>("penumbra_max");
-    if (lo && hi) bounds = openvdb::CoordBBox(openvdb::Coord(lo->value()), openvdb::Coord(hi->value()));
-    if (bounds.empty()) fail(vdbPath, "grid \"{}\" is empty", gridName);
-
-    const int a = axis - 'x';
-    if (!std::isfinite(at)) fail("--at", "must be a finite number, got {}", at);
-    openvdb::Vec3d probe(0.0);
-    probe[a] = at;
-    // Compared in double: a far coordinate must not wrap into the grid's index range.
-    const double index = std::round(grid->transform().worldToIndex(probe)[a]);
-    if (!(index >= bounds.min()[a] && index <= bounds.max()[a]))
-        fail(vdbPath, "{} = {} lies outside the grid (index {:.0f}, grid {}..{})", axis, at, index, bounds.min()[a],
-             bounds.max()[a]);
-    const int slice = int(index);
-    // (right, down) axes of the image and whether rows run from the axis's high end.
-    const int u = axis == 'x' ? 2 : 0, v = axis == 'y' ? 2 : 1;
-    const bool flip = axis != 'y';  // y up for x and z slices; z down when seen from above
-    const int w = bounds.max()[u] - bounds.min()[u] + 1, h = bounds.max()[v] - bounds.min()[v] + 1;
-    const int scale = std::max(1, std::min((minWidth + w - 1) / w, 8192 / std::max(w, h)));
-    std::vector<uint8_t> pixels(size_t(w) * scale * h * scale);
-    auto acc = grid->getConstAccessor();
-    for (int row = 0; row < h * scale; ++row)
-        for (int col = 0; col < w * scale; ++col) {
-            openvdb::Coord c;
-            c[a] = slice;
-            c[u] = bounds.min()[u] + col / scale;
-            c[v] = flip ? bounds.max()[v] - row / scale : bounds.min()[v] + row / scale;
-            pixels[size_t(row) * w * scale + col] = encodeSrgb(acc.getValue(c));
-        }
-    ensureParentDirectory(pngPath);
-    writePng8(pngPath, w * scale, h * scale, 1, pixels);
-}
 
 }  // namespace penumbra

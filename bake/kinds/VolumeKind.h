@@ -10,26 +10,11 @@
 /// cosine (fluence-like; see ReceiverShading.h).
 ///
 /// Output (the scene output, `.vdb`): a FloatGrid `visibility` whose index-to-world transform
-/// maps voxel (i,j,k) to its receiver's centre. Its background is 1 (lit): fully lit voxels are
-/// stored inactive, so together with fully shadowed (V == 0) regions they collapse into constant
-/// tiles (pruned with tolerance 0, only exactly constant regions), and a mostly lit volume stays
-/// small. With `"irradiance": true` a Vec3SGrid `irradiance` (W/m^2, background 0) is written too.
+/// maps voxel (i,j,k) to its receiver's centre, a fog volume: every baked voxel is active and the
+/// background 0 means "not baked" (docs/scene-format.md#volume). Exactly constant regions, lit or
+/// umbra, prune to active tiles (tolerance 0). With `"irradiance": true` a Vec3SGrid
+/// `irradiance` (W/m^2, background 0) is written too.
 /// The receiver region's index bounds are stored as grid metadata `penumbra_min`/`penumbra_max`.
 ///
-/// This file and VolumeKind.cpp are the only ones that include OpenVDB (it compiles slowly).
-
-#include <string>
-
-namespace penumbra {
-
-
-/// @brief Renders an axis-aligned slice of a float grid of a .vdb file as an 8-bit grey PNG
-/// (sRGB-encoded value, clamped to [0,1]), nearest-neighbour upscaled to at least @p minWidth px.
-/// @param axis 'x', 'y' or 'z': the slice is the plane axis = @p at (world units), at the
-///        nearest voxel centre. Image right/up: (z, y) for x, (x, y) for z; for y, x right and z down
-///        (seen from above).
-/// @throw InputError naming the file for a missing grid, a bad axis or a slice outside the grid.
-void writeVolumeSlicePng(const std::string& vdbPath, const std::string& pngPath, const std::string& gridName,
-                         char axis, double at, int minWidth = 512);
-
-}  // namespace penumbra
+/// VolumeKind.cpp and bake/output/OpenVdb.cpp are the only files that include OpenVDB (it
+/// compiles slowly). The kind registers itself (ReceiverKind.h); nothing includes this header.

@@ -265,6 +265,111 @@ void ruleFilter(const RTCFilterFunctionNArguments* args) {
 
 }  // namespace
 
+namespace {
+
+/// Embree's device, scene and what the filter reads, built over the valid triangles.
+/// Member order matters: the error state outlives the device, the device outlives the scene
+/// (members are destroyed in reverse order, on every path, including throws). Not movable: the
+/// device's error callback holds the error state's address.
+struct EmbreeBvh {
+    ErrorState errors;
+    DeviceHandle device;
+    SceneHandle scene;
+    const float* vertices = nullptr;  ///< owned by the geometry, which the scene keeps alive
+    std::vector<uint32_t> alphaIds;   ///< per primitive, for the filter
+    uint64_t sceneBytes = 0;
+};
+
+/// Builds @p bvh (device, scene and BVH) over the valid triangles of @p triangles.
+/// @throw InputError "embree: ..." when Embree reports an error or culls back faces.
+void buildBvh(EmbreeBvh& bvh, std::span<const Triangle> triangles, bool ruleFilter) {
+    bvh.device.device = rtcNewDevice(nullptr);
+    if (!bvh.device.device) fail("embree", "{} creating the device", errorName(rtcGetDeviceError(nullptr)));
+    RTCDevice device = bvh.device.device;
+    rtcSetDeviceErrorFunction(device, &ErrorState::callback, &bvh.errors);
+    bvh.errors.check(device, "device creation");
+    // A shadow ray must be blocked from both sides of a triangle.
+    if (rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_BACKFACE_CULLING_ENABLED))
+        fail("embree", "this Embree library was built with backface culling, which shadow rays cannot use");
+
+    bvh.scene.scene = rtcNewScene(device);
+    bvh.errors.check(device, "scene creation");
+    rtcSetSceneFlags(bvh.scene.scene, RTC_SCENE_FLAG_NONE);
+    rtcSetSceneBuildQuality(bvh.scene.scene, RTC_BUILD_QUALITY_HIGH);
+    bool anyAlpha = false;
+    {
+        const std::vector<const Triangle*> kept = validTriangles(triangles);  // freed before tracing
+        bvh.alphaIds.reserve(kept.size());
+        for (const Triangle* t : kept) bvh.alphaIds.push_back(alphaIdOf(t->flags)), anyAlpha = anyAlpha || bvh.alphaIds.back();
+        bvh.sceneBytes = uint64_t(kept.size()) * (9 * sizeof(float) + 4 * sizeof(uint32_t));
+        if (!kept.empty()) {  // an empty scene needs no geometry (and Embree gets no zero-sized buffers)
+            GeometryHandle geometry;
+            geometry.geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+            bvh.errors.check(device, "geometry creation");
+            rtcSetGeometryBuildQuality(geometry.geometry, RTC_BUILD_QUALITY_HIGH);
+            fillBuffers(geometry.geometry, kept);
+            bvh.errors.check(device, "buffer allocation");
+            bvh.vertices = static_cast<const float*>(rtcGetGeometryBufferData(geometry.geometry, RTC_BUFFER_TYPE_VERTEX, 0));
+            if (ruleFilter || anyAlpha) rtcSetGeometryOccludedFilterFunction(geometry.geometry, ::penumbra::ruleFilter);
+            rtcCommitGeometry(geometry.geometry);
+            rtcAttachGeometry(bvh.scene.scene, geometry.geometry);  // the scene holds its own reference
+            bvh.errors.check(device, "geometry commit");
+        }
+    }
+    rtcCommitScene(bvh.scene.scene);
+    bvh.errors.check(device, "BVH build");
+}
+
+/// One receiver's shadow rays, 16 at a time (packets never span receivers: the row being
+/// written is @p row's), into its mask words. @return the rays traced.
+uint64_t traceReceiver(RTCScene scene, FilterContext& fc, Packet& packet, const LightSamples& samples, int set,
+                       const glm::vec3& p, double eps, bool ruleFilter, uint64_t* row) {
+    const glm::dvec3 pd(p);
+    packet.receiver = pd, packet.eps = eps;
+    auto flush = [&] {
+        if (packet.lanes == 0) return;
+        rtcOccluded16(packet.valid, scene, &fc.context, &packet.ray);
+        for (int i = 0; i < packet.lanes; ++i)
+            if (packet.valid[i] && packet.ray.tfar[i] == -std::numeric_limits<float>::infinity())
+                row[packet.laneWord[i]] |= 1ull << packet.laneBit[i];
+        packet.reset();
+    };
+    uint64_t traced = 0;
+    for (int k = 0; k < samples.groupCount(); ++k) {
+        const LightSampleGroup& g = samples.groups[k];
+        const double w = samples.w(g.light);
+        for (uint32_t j = 0; j < g.count; ++j) {
+            const glm::dvec3 l(samples.position(set, int(g.first + j)));
+            const glm::dvec3 d = l - w * pd;  // towards the point, or the direction itself
+            const double len = glm::length(d);
+            if (!(len > 0.0) || !std::isfinite(len)) continue;
+            const float tnear = float((ruleFilter ? 0.5 : 1.0) * eps / len);
+            const float tfar = w == 0.0 ? std::numeric_limits<float>::infinity() : (ruleFilter ? kTfarPoint : kTfarNative);
+            if (!(tnear < tfar)) continue;
+            const int i = packet.lanes++;
+            packet.valid[i] = -1;
+            packet.laneWord[i] = k;
+            packet.laneBit[i] = int(j);
+            packet.sample[i] = l;
+            packet.w[i] = w;
+            packet.ray.org_x[i] = p.x;
+            packet.ray.org_y[i] = p.y;
+            packet.ray.org_z[i] = p.z;
+            packet.ray.dir_x[i] = float(d.x);
+            packet.ray.dir_y[i] = float(d.y);
+            packet.ray.dir_z[i] = float(d.z);
+            packet.ray.tnear[i] = tnear;
+            packet.ray.tfar[i] = tfar;
+            ++traced;
+            if (packet.lanes == kPacket) flush();
+        }
+    }
+    flush();
+    return traced;
+}
+
+}  // namespace
+
 VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& receivers,
                            std::span<const uint32_t> sampleSetOf, std::span<const Triangle> triangles,
                            const ReceiverEpsilon& epsilon, EmbreeStats* stats,
@@ -273,58 +378,14 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
     if (!alpha) alpha = AlphaTable::builtin().get();
     const Stopwatch buildWatch;
     DenormalsOff denormals;  // the calling thread takes part in the build and in parallel_for
-
-    // Declaration order matters: the error state outlives the device, the device outlives the
-    // scene and geometry (destructors run in reverse order on every path, including throws).
-    ErrorState errors;
-    DeviceHandle device;
-    device.device = rtcNewDevice(nullptr);
-    if (!device.device) {
-        RTCError code = rtcGetDeviceError(nullptr);
-        fail("embree", "{} creating the device", errorName(code));
-    }
-    rtcSetDeviceErrorFunction(device.device, &ErrorState::callback, &errors);
-    errors.check(device.device, "device creation");
-    // A shadow ray must be blocked from both sides of a triangle.
-    if (rtcGetDeviceProperty(device.device, RTC_DEVICE_PROPERTY_BACKFACE_CULLING_ENABLED))
-        fail("embree", "this Embree library was built with backface culling, which shadow rays cannot use");
-
-    SceneHandle scene;
-    scene.scene = rtcNewScene(device.device);
-    errors.check(device.device, "scene creation");
-    rtcSetSceneFlags(scene.scene, RTC_SCENE_FLAG_NONE);
-    rtcSetSceneBuildQuality(scene.scene, RTC_BUILD_QUALITY_HIGH);
-
-    const float* vertices = nullptr;  // owned by the geometry, which the scene keeps alive
-    std::vector<uint32_t> alphaIds;   // per primitive, for the filter
-    bool anyAlpha = false;
-    {
-        const std::vector<const Triangle*> kept = validTriangles(triangles);  // freed before tracing
-        alphaIds.reserve(kept.size());
-        for (const Triangle* t : kept) alphaIds.push_back(alphaIdOf(t->flags)), anyAlpha = anyAlpha || alphaIds.back();
-        local.sceneBytes = uint64_t(kept.size()) * (9 * sizeof(float) + 4 * sizeof(uint32_t));
-        if (!kept.empty()) {  // an empty scene needs no geometry (and Embree gets no zero-sized buffers)
-            GeometryHandle geometry;
-            geometry.geometry = rtcNewGeometry(device.device, RTC_GEOMETRY_TYPE_TRIANGLE);
-            errors.check(device.device, "geometry creation");
-            rtcSetGeometryBuildQuality(geometry.geometry, RTC_BUILD_QUALITY_HIGH);
-            fillBuffers(geometry.geometry, kept);
-            errors.check(device.device, "buffer allocation");
-            vertices = static_cast<const float*>(rtcGetGeometryBufferData(geometry.geometry, RTC_BUFFER_TYPE_VERTEX, 0));
-            if (ruleFilter || anyAlpha) rtcSetGeometryOccludedFilterFunction(geometry.geometry, ::penumbra::ruleFilter);
-            rtcCommitGeometry(geometry.geometry);
-            rtcAttachGeometry(scene.scene, geometry.geometry);  // the scene holds its own reference
-            errors.check(device.device, "geometry commit");
-        }
-    }
-    rtcCommitScene(scene.scene);
-    errors.check(device.device, "BVH build");
+    EmbreeBvh bvh;
+    buildBvh(bvh, triangles, ruleFilter);
+    local.sceneBytes = bvh.sceneBytes;
     local.buildSeconds = buildWatch.seconds();
 
     const Stopwatch traceWatch;
     VisibilityMasks masks(receivers.size(), samples.groupCount());
     std::atomic<uint64_t> rays{0}, filterCalls{0}, filterExact{0}, filterRejected{0};
-    RTCScene rtcScene = scene.scene;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, receivers.size(), 16), [&](const tbb::blocked_range<size_t>& range) {
         DenormalsOff threadDenormals;
         Packet packet;
@@ -332,61 +393,17 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
         rtcInitIntersectContext(&fc.context);
         fc.context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // one receiver's rays share their origin
         fc.packet = &packet;
-        fc.vertices = vertices;
-        fc.alphaIds = alphaIds.data();
+        fc.vertices = bvh.vertices;
+        fc.alphaIds = bvh.alphaIds.data();
         fc.alpha = alpha;
         fc.ruleFilter = ruleFilter;
         uint64_t traced = 0;
-
         for (size_t r = range.begin(); r != range.end(); ++r) {
-            uint64_t* row = masks.row(r);
             const glm::vec3 p = receivers.position[r];
             const glm::dvec3 pd(p);
             if (!std::isfinite(pd.x) || !std::isfinite(pd.y) || !std::isfinite(pd.z)) continue;
-            const double eps = epsilon.at(pd);
-            const int set = int(sampleSetOf[r]);
-            packet.receiver = pd, packet.eps = eps;
-
-            auto flush = [&] {
-                if (packet.lanes == 0) return;
-                rtcOccluded16(packet.valid, rtcScene, &fc.context, &packet.ray);
-                for (int i = 0; i < packet.lanes; ++i)
-                    if (packet.valid[i] && packet.ray.tfar[i] == -std::numeric_limits<float>::infinity())
-                        row[packet.laneWord[i]] |= 1ull << packet.laneBit[i];
-                packet.reset();
-            };
-
-            for (int k = 0; k < samples.groupCount(); ++k) {
-                const LightSampleGroup& g = samples.groups[k];
-                const double w = samples.w(g.light);
-                for (uint32_t j = 0; j < g.count; ++j) {
-                    const glm::dvec3 l(samples.position(set, int(g.first + j)));
-                    const glm::dvec3 d = l - w * pd;  // towards the point, or the direction itself
-                    const double len = glm::length(d);
-                    if (!(len > 0.0) || !std::isfinite(len)) continue;
-                    const float tnear = float((ruleFilter ? 0.5 : 1.0) * eps / len);
-                    const float tfar = w == 0.0 ? std::numeric_limits<float>::infinity()
-                                                : (ruleFilter ? kTfarPoint : kTfarNative);
-                    if (!(tnear < tfar)) continue;
-                    const int i = packet.lanes++;
-                    packet.valid[i] = -1;
-                    packet.laneWord[i] = k;
-                    packet.laneBit[i] = int(j);
-                    packet.sample[i] = l;
-                    packet.w[i] = w;
-                    packet.ray.org_x[i] = p.x;
-                    packet.ray.org_y[i] = p.y;
-                    packet.ray.org_z[i] = p.z;
-                    packet.ray.dir_x[i] = float(d.x);
-                    packet.ray.dir_y[i] = float(d.y);
-                    packet.ray.dir_z[i] = float(d.z);
-                    packet.ray.tnear[i] = tnear;
-                    packet.ray.tfar[i] = tfar;
-                    ++traced;
-                    if (packet.lanes == kPacket) flush();
-                }
-            }
-            flush();  // packets never span receivers: the row being written belongs to r
+            traced += traceReceiver(bvh.scene.scene, fc, packet, samples, int(sampleSetOf[r]), p, epsilon.at(pd), ruleFilter,
+                                    masks.row(r));
         }
         rays.fetch_add(traced, std::memory_order_relaxed);
         filterCalls.fetch_add(fc.calls, std::memory_order_relaxed);
@@ -394,7 +411,7 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
         filterRejected.fetch_add(fc.rejected, std::memory_order_relaxed);
         if (progress) progress(range.size());
     });
-    errors.check(device.device, "tracing");
+    bvh.errors.check(bvh.device.device, "tracing");
     local.traceSeconds = traceWatch.seconds();
     local.rays = rays.load();
     local.filterCalls = filterCalls.load();

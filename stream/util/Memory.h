@@ -38,6 +38,11 @@ void returnFreedMemory();
 /// bytes. Fractions are allowed with a unit and rounded down to whole bytes; a plain byte count
 /// must be an integer.
 ///
+/// Why not CLI11's `AsSizeValue`: it takes integers only ("1.5GiB" fails), accepts "Gi" and
+/// "P"/"E", gives CLI11's own messages, and serves only the command line, while the same
+/// budget text comes from Python (`memory_budget`) and shard plans too. One parser here keeps one
+/// rule and one message for every way in.
+///
 /// @param text the user's text.
 /// @param what names the setting in error messages, e.g. "--memory" or "scene.json: memory".
 /// @throw InputError "WHAT: 'TEXT' is not a byte size ..." on empty, negative, malformed,

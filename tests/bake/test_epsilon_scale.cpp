@@ -83,7 +83,7 @@ TEST_CASE("a uniformly scaled scene has the same masks at every scale", "[epsilo
 
     for (int k : {-13, -7, 7, 13}) {  // 1.2e-4, 7.8e-3, 128, 8192: scaling by a power of two is exact
         INFO("scale 2^" << k);
-        const std::string scaled = scene.bake(dir, std::ldexp(1.0, k), "p" + std::to_string(k + 20));
+        const std::string scaled = scene.bake(dir, std::ldexp(1.0, k), fmt::format("p{}", k + 20));
         CHECK(readNpy(scaled + "/masks.npy").data == masks.data);
     }
     for (double s : {1e-4, 1e4}) {  // rounding differs from scale 1: mismatches must be ties there

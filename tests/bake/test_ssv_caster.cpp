@@ -20,26 +20,22 @@ void requireSceneMatches(const ExactScene& s) {
 
 }  // namespace
 
-TEST_CASE("ssv: random triangle soups match the reference", "[ssv][exact]") {
-    for (uint64_t seed : {1, 2, 3}) requireSceneMatches(soupScene(seed));
-}
-
-TEST_CASE("ssv: stacked perforated grids match the reference", "[ssv][exact]") { requireSceneMatches(stackedGridsScene()); }
-
-TEST_CASE("ssv: a closed mesh (spot.obj) shadowing itself and a floor matches the reference", "[ssv][exact]") {
-    requireSceneMatches(spotScene());
-}
-
-TEST_CASE("ssv: closed solids lit from above, the side and a sphere match the reference", "[ssv][exact]") {
-    requireSceneMatches(closedSolidsScene());
-}
-
-TEST_CASE("ssv: slivers, near-degenerate triangles and receivers on edges match the reference", "[ssv][exact]") {
-    requireSceneMatches(sliversScene());
-}
-
-TEST_CASE("ssv: blockers straddling and touching the light's plane match the reference", "[ssv][exact]") {
-    requireSceneMatches(straddlingScene());
+TEST_CASE("ssv: the exactness scenes match the reference", "[ssv][exact]") {
+    // The scenes of test_hpc_exactness.cpp: soups, stacked perforated grids, a closed mesh
+    // (spot.obj) shadowing itself and a floor, closed solids lit from above, the side and a
+    // sphere, slivers and receivers on edges, blockers straddling the light's plane.
+    for (uint64_t seed : {1, 2, 3}) {
+        INFO("soup " << seed);
+        requireSceneMatches(soupScene(seed));
+    }
+    const std::pair<const char*, ExactScene (*)()> scenes[] = {
+        {"stacked grids", &stackedGridsScene}, {"spot.obj", &spotScene},   {"closed solids", &closedSolidsScene},
+        {"slivers", &sliversScene},            {"straddling", &straddlingScene},
+    };
+    for (const auto& [name, make] : scenes) {
+        INFO(name);
+        requireSceneMatches(make());
+    }
 }
 
 TEST_CASE("ssv: every light type, alone and together, matches the reference", "[ssv][exact]") {

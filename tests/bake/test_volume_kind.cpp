@@ -5,6 +5,7 @@
 
 #include "bake/Pipeline.h"
 #include "bake/Scene.h"
+#include "stream/SourceRegistry.h"
 #include "stream/util/Npy.h"
 
 #include <openvdb/io/File.h>
@@ -152,6 +153,33 @@ TEST_CASE("volume: a narrow band holds the voxels near the geometry", "[volume]"
     REQUIRE(hi);
     CHECK(lo->value() == openvdb::Vec3i(-31, -1, -31));
     CHECK(hi->value() == openvdb::Vec3i(31, 16, 31));
+}
+
+TEST_CASE("volume: the narrow band is found in the bake's scan pass: the geometry is opened once", "[volume]") {
+    // A geometry type that counts how often it is opened: the pipeline opens the scene once (and
+    // rewinds it for the bucket pass); the band no longer reads the source on its own.
+    static int opened = 0;
+    registerSourceType("counted-floor", [](const SourceRequest& r) {
+        ++opened;
+        const nlohmann::json params = {{"path", kFloor}};
+        return openSource("glb", SourceRequest{params, r.file, r.path, r.baseDir});
+    });
+    ScratchDir dir("volume-band-once");
+    nlohmann::json scene =
+        sceneJson({{"type", "volume"}, {"narrow_band", {{"geometry", {0}}, {"width", 0.15}}}, {"voxel_size", 0.1}}, dir / "c.vdb");
+    scene["geometry"][0] = {{"type", "counted-floor"}};
+    opened = 0;
+    bake(dir, scene);
+    CHECK(opened == 1);
+    // The same voxels as the band read from the file itself.
+    bake(dir, sceneJson({{"type", "volume"}, {"narrow_band", {{"geometry", {0}}, {"width", 0.15}}}, {"voxel_size", 0.1}},
+                        dir / "b.vdb"));
+    auto counted = openvdb::gridPtrCast<openvdb::FloatGrid>(readGrid(dir / "c.vdb", "visibility"));
+    auto direct = openvdb::gridPtrCast<openvdb::FloatGrid>(readGrid(dir / "b.vdb", "visibility"));
+    REQUIRE(counted);
+    REQUIRE(direct);
+    CHECK(counted->activeVoxelCount() == direct->activeVoxelCount());
+    CHECK(counted->tree().hasSameTopology(direct->tree()));
 }
 
 TEST_CASE("volume: bad parameters are one-line errors naming the key", "[volume]") {

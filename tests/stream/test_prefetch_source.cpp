@@ -74,3 +74,26 @@ TEST_CASE("destroying a prefetching source mid-stream stops its thread", "[strea
     }
     SUCCEED();
 }
+
+TEST_CASE("prefetching keeps the parts of a concatenation apart: one part per read, and its index", "[stream]") {
+    const size_t sizes[] = {5000, 3, 0, 7001};
+    for (size_t inner : {1, 7, 4096}) {
+        std::vector<TriangleSourcePtr> parts;
+        for (size_t n : sizes) parts.push_back(std::make_unique<VectorSource>(numbered(n)));
+        PrefetchSource source(std::make_unique<ConcatSource>(std::move(parts)), inner, 3);
+        for (int pass = 0; pass < 2; ++pass) {
+            std::vector<Triangle> chunk(4096);
+            std::vector<size_t> seen(std::size(sizes), 0);
+            uint32_t last = 0;
+            while (size_t n = source.read(chunk)) {
+                const uint32_t part = source.part();
+                REQUIRE(part < std::size(sizes));
+                REQUIRE(part >= last);  // in order
+                for (size_t i = 0; i < n; ++i) REQUIRE(chunk[i].flags == uint32_t(seen[part] + i));  // not mixed
+                seen[part] += n, last = part;
+            }
+            for (size_t p = 0; p < std::size(sizes); ++p) CHECK(seen[p] == sizes[p]);
+            source.rewind();
+        }
+    }
+}

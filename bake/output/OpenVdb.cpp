@@ -1,0 +1,73 @@
+#include "bake/output/OpenVdb.h"
+
+#include "bake/output/ImageWriters.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
+
+#include <openvdb/io/File.h>
+#include <openvdb/openvdb.h>
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+#include <vector>
+
+namespace penumbra {
+
+void initializeOpenVdb() {
+    static std::once_flag once;
+    std::call_once(once, [] { openvdb::initialize(); });
+}
+
+void writeVolumeSlicePng(const std::string& vdbPath, const std::string& pngPath, const std::string& gridName,
+                         char axis, double at, int minWidth) {
+    initializeOpenVdb();
+    if (axis != 'x' && axis != 'y' && axis != 'z') fail(vdbPath, "slice axis must be x, y or z (got '{}')", axis);
+    openvdb::FloatGrid::Ptr grid;
+    try {
+        openvdb::io::File file(vdbPath);
+        file.open();
+        if (!file.hasGrid(gridName)) fail(vdbPath, "no grid named \"{}\"", gridName);
+        grid = openvdb::gridPtrCast<openvdb::FloatGrid>(file.readGrid(gridName));
+        file.close();
+    } catch (const openvdb::Exception& e) {
+        fail(vdbPath, "OpenVDB could not read the file: {}", e.what());
+    }
+    if (!grid) fail(vdbPath, "grid \"{}\" is not a float grid", gridName);
+    openvdb::CoordBBox bounds = grid->evalActiveVoxelBoundingBox();
+    auto lo = grid->getMetadata<openvdb::Vec3IMetadata>("penumbra_min");
+    auto hi = grid->getMetadata<openvdb::Vec3IMetadata>("penumbra_max");
+    if (lo && hi) bounds = openvdb::CoordBBox(openvdb::Coord(lo->value()), openvdb::Coord(hi->value()));
+    if (bounds.empty()) fail(vdbPath, "grid \"{}\" is empty", gridName);
+
+    const int a = axis - 'x';
+    if (!std::isfinite(at)) fail("--at", "must be a finite number, got {}", at);
+    openvdb::Vec3d probe(0.0);
+    probe[a] = at;
+    // Compared in double: a far coordinate must not wrap into the grid's index range.
+    const double index = std::round(grid->transform().worldToIndex(probe)[a]);
+    if (!(index >= bounds.min()[a] && index <= bounds.max()[a]))
+        fail(vdbPath, "{} = {} lies outside the grid (index {:.0f}, grid {}..{})", axis, at, index, bounds.min()[a],
+             bounds.max()[a]);
+    const int slice = int(index);
+    // (right, down) axes of the image and whether rows run from the axis's high end.
+    const int u = axis == 'x' ? 2 : 0, v = axis == 'y' ? 2 : 1;
+    const bool flip = axis != 'y';  // y up for x and z slices; z down when seen from above
+    const int w = bounds.max()[u] - bounds.min()[u] + 1, h = bounds.max()[v] - bounds.min()[v] + 1;
+    const int scale = std::max(1, std::min((minWidth + w - 1) / w, 8192 / std::max(w, h)));
+    std::vector<uint8_t> pixels(size_t(w) * scale * h * scale);
+    auto acc = grid->getConstAccessor();
+    for (int row = 0; row < h * scale; ++row)
+        for (int col = 0; col < w * scale; ++col) {
+            openvdb::Coord c;
+            c[a] = slice;
+            c[u] = bounds.min()[u] + col / scale;
+            c[v] = flip ? bounds.max()[v] - row / scale : bounds.min()[v] + row / scale;
+            pixels[size_t(row) * w * scale + col] = encodeSrgb(acc.getValue(c));
+        }
+    ensureParentDirectory(pngPath);
+    writePng8(pngPath, w * scale, h * scale, 1, pixels);
+}
+
+
+}  // namespace penumbra
