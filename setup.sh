@@ -31,7 +31,12 @@ sanitize_spec=${PENUMBRA_SANITIZE_SPEC:-"[stream]~[memory],[io]~[memory],[cli]~[
 # Clones in other directories share the compiler cache: ccache hashes paths relative to here.
 export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$PWD}"
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build "$build" --parallel "$(nproc)"
+# A bake needs only the CLI; the tests need everything (the suite, the Python module, fuzz replays).
+if [ "$mode" = bake ]; then
+  cmake --build "$build" --parallel "$(nproc)" --target penumbra
+else
+  cmake --build "$build" --parallel "$(nproc)"
+fi
 
 # The Khronos glTF validator, for the vertex-colour tests (they skip when it is missing). Only
 # the tests need it, and it is never fatal: offline machines or ones without npm get a notice.

@@ -1,5 +1,7 @@
 #include "bake/Pipeline.h"
 
+#include "bake/BakeWarnings.h"
+
 #include "bake/output/BakeDump.h"
 #include "bake/BakeMemory.h"
 #include "bake/BakeOutputs.h"
@@ -44,6 +46,7 @@ struct Prepared {
     TriangleSourcePtr blockers;           ///< replayable, largest first when sorting is on
     BucketReplaySource* replay = nullptr; ///< inside `blockers` when bucketed, for I/O counters
     uint64_t triangleCount = 0;
+    std::vector<std::string> warnings;    ///< BakeWarnings.h, printed and in the stats
 };
 
 /// Rejects NaN/inf vertices as they stream by, naming the triangle's position in the stream, and
@@ -96,10 +99,12 @@ void reportOpenedSolids(const OpenedSolids& opened, const std::vector<LightDesc>
 
 /// Every chunk of @p source to the kind's @p pass, with the chunk's geometry entry when the
 /// source is in stream order (@p streamOrder).
-void feedPass(ReceiverKind& kind, StreamPass pass, TriangleSource& source, bool streamOrder) {
+void feedPass(ReceiverKind& kind, StreamPass pass, TriangleSource& source, bool streamOrder, ProgressReporter* progress = nullptr) {
     std::vector<Triangle> chunk(kTriangleChunk);
-    while (size_t n = source.read(chunk))
+    while (size_t n = source.read(chunk)) {
         kind.consume(pass, StreamChunk{std::span<const Triangle>(chunk.data(), n), streamOrder ? source.part() : kAnyGeometryEntry});
+        if (progress) progress->update(n);
+    }
 }
 
 /// Pass 1 over the stream: camera receivers are rasterized (or points loaded) while the area
@@ -142,6 +147,8 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
         p.options.epsilonLength = epsilonLength(p.receivers, check.box());
     }
     reportOpenedSolids(p.openedSolids, p.lights, settings.quiet);
+    p.warnings = bakeWarnings(scene.receivers, p.receivers, p.lights);
+    for (const std::string& warning : p.warnings) printWarning("{}", warning);
     returnFreedMemory();  // the z-buffer is gone; keep it from inflating the casting phase's RSS
     p.sampleSets.resize(p.receivers.size());
     for (size_t i = 0; i < p.receivers.size(); ++i) p.sampleSets[i] = uint32_t(sampleSetOf(i, p.samples.sets, scene.seed));
@@ -337,7 +344,8 @@ bool refineReceivers(Bake& b) {
     {
         ScopedTimer timer(b.refineSeconds);
         p.blockers->rewind();
-        if (b.kind->wantsPass(StreamPass::Refine)) feedPass(*b.kind, StreamPass::Refine, *p.blockers, false);
+        ProgressReporter progress("antialias", p.blockers->sizeHint().value_or(0), b.settings.quiet);
+        if (b.kind->wantsPass(StreamPass::Refine)) feedPass(*b.kind, StreamPass::Refine, *p.blockers, false, &progress);
         append(p.receivers, b.kind->refinedReceivers());
     }
     returnFreedMemory();
@@ -354,6 +362,7 @@ bool refineReceivers(Bake& b) {
 
 void writeOutputs(Bake& b) {
     const Prepared& p = b.p;
+    ProgressReporter progress("write", 0, b.settings.quiet);  // a phase of its own: large EXRs take seconds
     if (!b.settings.capture || b.settings.capture->writeOutputs) b.kind->write(OutputContext{b.scene, p.receivers, p.samples, b.results, b.scene.output, b.firstPass});
     if (b.dump()) writeBakeDump(b.settings.dumpDir, p.receivers, p.sampleSets, p.samples, b.masks, receiverEpsilonOf(p.options));
     if (!b.settings.visibilityPath.empty()) {
@@ -395,6 +404,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         for (auto& [key, value] : extra.items()) stats[key] = value;
     if (nlohmann::json extra = b.caster->methodStats(); !extra.is_null()) stats[settings.method] = extra;
     if (b.sharded) stats["shard"] = b.sharded->stats();
+    stats["outputs_written"] = outputs.paths();
+    if (!b.p.warnings.empty()) stats["warnings"] = b.p.warnings;  // every file of the bake but the stats themselves
     if (!settings.statsPath.empty()) writeStats(settings.statsPath, stats);
     outputs.commit();
     if (b.sharded) b.sharded->complete();  // the outputs are in place: no checkpoint is needed

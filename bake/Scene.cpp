@@ -44,7 +44,7 @@ LightDesc parseLight(const JsonParams& j) {
     } else if (type == "polygon") {
         l.type = LightType::Polygon;
         const nlohmann::json* pts = j.raw("vertices");
-        if (!pts) fail(j.where("vertices"), "missing required field");
+        if (!pts) j.missing("vertices");
         if (!pts->is_array()) fail(j.where("vertices"), "expected an array of [x, y, z] points");
         for (size_t i = 0; i < pts->size(); ++i) {
             nlohmann::json wrapper = {{"p", (*pts)[i]}};
@@ -165,7 +165,7 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
     JsonParams j(root, file, "");
 
     const nlohmann::json* geometry = j.raw("geometry");
-    if (!geometry) fail(j.where("geometry"), "missing required field");
+    if (!geometry) j.missing("geometry");
     if (!geometry->is_array()) fail(j.where("geometry"), "expected an array of geometry entries");
     for (size_t i = 0; i < geometry->size(); ++i) {
         JsonParams g((*geometry)[i], file, indexed("geometry", i));
@@ -182,7 +182,7 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
     }
 
     const nlohmann::json* lights = j.raw("lights");
-    if (!lights) fail(j.where("lights"), "missing required field");
+    if (!lights) j.missing("lights");
     if (!lights->is_array() || lights->empty()) fail(j.where("lights"), "expected a non-empty array of lights");
     uint64_t samples = 0, sets = 1;
     for (size_t i = 0; i < lights->size(); ++i) {
@@ -195,12 +195,14 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
     checkedProduct({samples, sets}, kMaxSamplePositions, j.where("lights"), "sample positions (samples x sets)");
 
     const nlohmann::json* receivers = j.raw("receivers");
-    if (!receivers) fail(j.where("receivers"), "missing required field");
+    if (!receivers) j.missing("receivers");
     scene.receivers = *receivers;
 
     // Resolved now, checked against the scene's directory only by a bake that writes it (-o
     // replaces it): checkSceneOutput().
-    scene.output = (scene.baseDir / j.string("output", scene.output)).lexically_normal().string();
+    // Without "output" the kind's own format: out/shadows.exr, .vdb for a volume, .npy for points.
+    const std::string fallback = std::filesystem::path(scene.output).replace_extension(receiverKindExtension(scene.receivers)).string();
+    scene.output = (scene.baseDir / j.string("output", fallback)).lexically_normal().string();
     if (const nlohmann::json* bake = j.raw("bake")) {
         scene.bakeOptions = *bake;
         parseOptions(JsonParams(*bake, file, "bake"), scene);

@@ -78,7 +78,7 @@ std::vector<BoxShape> parseBoxes(const SourceRequest& request) {
     JsonParams j(request.params, request.file, request.path);
     const nlohmann::json* list = j.raw("boxes");
     j.finish();
-    if (!list) fail(j.where("boxes"), "missing required field");
+    if (!list) j.missing("boxes");
     if (!list->is_array()) fail(j.where("boxes"), "expected an array of [[x0, y0, z0], [x1, y1, z1]] boxes");
     std::vector<BoxShape> boxes;
     for (size_t i = 0; i < list->size(); ++i) {

@@ -253,7 +253,7 @@ void registerPythonSources() {
             auto points = lookup(pointsTable(), j.integer("source", 1, INT64_MAX), j.where("source"));
             if (use == KindUse::Validate) return nullptr;
             return std::make_unique<PythonPointsKind>(std::move(points));
-        });
+        }, ".npy");
     });
 }
 

@@ -3,7 +3,10 @@
 
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
+#include "stream/GltfBuffers.h"
+#include "stream/GltfMeshWriter.h"
 #include "stream/GltfReader.h"
+#include "stream/IndexedMesh.h"
 #include "stream/util/InputFile.h"
 #include "stream/ObjReader.h"
 #include "stream/util/TextInput.h"
@@ -120,12 +123,7 @@ void writeGltf(TriangleSource& in, const std::string& outPath, bool binary) {
     // An empty source writes a model without scenes: tinygltf would serialize an empty scene
     // as null, which its own loader then rejects.
 
-    std::ostringstream encoded;
-    tinygltf::TinyGLTF writer;
-    if (!writer.WriteGltfSceneToStream(&model, encoded, /*prettyPrint=*/!binary, binary) || !encoded)
-        fail(outPath, "tinygltf could not encode the model");
-    std::string bytes = std::move(encoded).str();
-    writeFileAtomically(outPath, std::span(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()));
+    writeGltfModel(model, outPath, binary);
 }
 
 }  // namespace
@@ -184,6 +182,22 @@ void convertGeometry(TriangleSource& in, const std::string& outPath) {
     if (ext == ".obj") return writeObj(in, outPath);
     if (ext == ".glb" || ext == ".gltf") return writeGltf(in, outPath, ext == ".glb");
     fail(outPath, "unknown output extension '{}' (expected .obj, .gltf, .glb or .ptri)", ext);
+}
+
+void convertGeometryFile(const std::string& inPath, const std::string& outPath) {
+    const std::string out = lowercaseExtension(outPath);
+    const std::optional<GeometryFormat> in = geometryFormatOf(inPath);
+    if ((out == ".glb" || out == ".gltf") && in && *in != GeometryFormat::Ptri) {
+        // Meshes keep their normals, texture coordinates and names; corners are welded.
+        checkInputFile(inPath);
+        std::vector<IndexedMesh> meshes = loadIndexedMeshes(inPath, glm::mat4(1.0f));
+        for (IndexedMesh& m : meshes) m = weldVertices(m);
+        return writeIndexedGltf(meshes, outPath, out == ".glb");
+    }
+    TriangleSourcePtr source = openGeometryFile(inPath);
+    if (out == ".glb" || out == ".gltf")  // a triangle stream: corners shared by position
+        return writeIndexedGltf({meshOfTriangles(*source, std::filesystem::path(outPath).stem().string())}, outPath, out == ".glb");
+    convertGeometry(*source, outPath);
 }
 
 }  // namespace penumbra

@@ -49,12 +49,21 @@ GeometryInfo scanGeometry(TriangleSource& source);
 ///
 /// The format follows the extension: .ptri (PtriWriter, chunked and checksummed), .obj
 /// (streamed; three `v` lines and one `f` line per triangle, vertices not shared), or
-/// .glb / .gltf (one non-indexed FLOAT mesh with an identity node; buffered in memory because
-/// the JSON must state the buffer size; .gltf embeds the buffer as a base64 data URI). Floats
-/// are written so that they read back bit-identical. Triangle flags survive only in .ptri.
+/// .glb / .gltf (one non-indexed FLOAT mesh with an identity node, the layout `generate` promises;
+/// buffered in memory because the JSON must state the buffer size; .gltf embeds the buffer as a
+/// base64 data URI). Floats are written so that they read back bit-identical. Triangle flags
+/// survive only in .ptri.
 /// Output is atomic: a temporary in the same directory is renamed into place at the end.
 /// @throw InputError naming @p outPath for an unknown extension or a failed write, or when the
 ///        source throws; no partial output is left behind.
 void convertGeometry(TriangleSource& in, const std::string& outPath);
+
+/// @brief `penumbra convert`: the file @p inPath written as @p outPath. An OBJ or glTF written as
+/// glTF keeps its meshes (one per OBJ o/g group or glTF node), their normals and texture
+/// coordinates (in glTF's convention), with identical corners welded; a .ptri
+/// written as glTF is one indexed mesh whose corners with bit-identical positions are shared
+/// (GltfMeshWriter.h); every other pair goes through convertGeometry().
+/// @throw InputError naming the file that is malformed or cannot be written.
+void convertGeometryFile(const std::string& inPath, const std::string& outPath);
 
 }  // namespace penumbra

@@ -113,8 +113,10 @@ void loadTinyGltf(const std::string& path, tinygltf::Model& model) {
     checkGltfBeforeParsing(path, bytes);
     if (bytes.size() > std::numeric_limits<unsigned int>::max())  // grew while being read
         fail(path, "file is larger than 4 GiB, which tinygltf cannot address");
-    std::string baseDir = std::filesystem::path(path).parent_path().string();
-    if (baseDir.empty()) baseDir = ".";
+    // Built in one expression: assigning "." to a string here trips GCC 12's -Wrestrict false
+    // positive (GCC bug 105329).
+    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+    const std::string baseDir = parent.empty() ? std::string(".") : parent.string();
 
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(&ignoreImage, nullptr);

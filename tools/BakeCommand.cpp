@@ -9,6 +9,11 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <filesystem>
+#include <string>
+#include <vector>
+
 #include <utility>
 
 namespace penumbra {
@@ -60,10 +65,25 @@ void addCastOptions(CLI::App& bake, BakeCommand& c) {
         ->check(CLI::Range(0.0, 1e6));
 }
 
+/// The files a bake wrote, for its summary line: each one, up to a few, then how many more.
+std::string writtenFiles(const nlohmann::json& stats, const std::string& statsPath) {
+    std::vector<std::string> files = stats.value("outputs_written", std::vector<std::string>{});
+    if (!statsPath.empty()) files.push_back(statsPath);
+    if (files.empty()) return "no files written";
+    constexpr size_t kNamed = 4;
+    std::string text;
+    for (size_t i = 0; i < std::min(files.size(), kNamed); ++i) text += (i ? ", " : "") + files[i];
+    if (files.size() > kNamed) text += fmt::format(" and {} more", files.size() - kNamed);
+    return text;
+}
+
 /// The scene with the command line's overrides applied.
 SceneDesc sceneOf(const BakeCommand& c) {
     SceneDesc scene = loadScene(c.scenePath);
-    if (c.outputOption->count()) scene.output = c.output, scene.outputFromScene = false;
+    if (c.outputOption->count()) {
+        requireOutputFolder("--output", c.output);
+        scene.output = c.output, scene.outputFromScene = false;
+    }
     disableOptimizations(scene.options, c.disabled);
     if (!c.simd.empty()) scene.options.simd = parseSimdLevel(c.simd, "--simd");
     if (!c.sampleTable.empty()) scene.options.sampleTable = c.sampleTable == "on";
@@ -95,6 +115,13 @@ BakeSettings settingsOf(const BakeCommand& c) {
 }
 
 }  // namespace
+
+void requireOutputFolder(const std::string& option, const std::string& path) {
+    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+    std::error_code ec;
+    if (parent.empty() || std::filesystem::is_directory(parent, ec)) return;
+    throw InputError(fmt::format("{}: \"{}\": the folder {} does not exist (create it first)", option, path, parent.string()));
+}
 
 CLI::App* addBakeCommand(CLI::App& app, BakeCommand& c) {
     CLI::App* bake = app.add_subcommand("bake", "bake soft shadows for a scene file");
@@ -128,9 +155,7 @@ void runBakeCommand(const BakeCommand& c) {
     if (c.quiet) return;
     fmt::print(stderr, "penumbra: {} receivers, {} samples, {} triangles, {:.2f} s -> {}\n", stats["receivers"].get<uint64_t>(),
                stats["light_samples"].get<int>(), stats["counters"]["triangles_read"].get<uint64_t>(),
-               stats["table2"]["total_time_s"].get<double>(),
-               settings.shard.casting() ? shardFilePath(settings.shard.dir, settings.shard.index, settings.shard.count)
-                                        : scene.output);
+               stats["table2"]["total_time_s"].get<double>(), writtenFiles(stats, settings.statsPath));
 }
 
 }  // namespace penumbra

@@ -73,8 +73,7 @@ std::optional<int> runFileCommand(const FileCommands& c, std::string& context) {
     }
     if (*c.convertCommand) {
         context = c.convertIn;
-        TriangleSourcePtr source = openGeometryFile(c.convertIn);
-        convertGeometry(*source, c.convertOut);
+        convertGeometryFile(c.convertIn, c.convertOut);
         return 0;
     }
     if (*c.sliceCommand) {

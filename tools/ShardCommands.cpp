@@ -1,4 +1,5 @@
 #include "ShardCommands.h"
+#include "BakeCommand.h"
 
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
@@ -156,6 +157,7 @@ std::string submit(const std::string& args, const std::string& script) {
 
 void runSlurm(const SlurmOptions& o) {
     if (!fs::is_regular_file(o.scene)) fail(o.scene, "not a scene file");
+    if (!o.output.empty()) requireOutputFolder("--output", o.output);  // now, not when the merge job runs
     const fs::path scene = fs::absolute(o.scene);
     const std::string dir = absolute(o.dir.empty() ? (scene.parent_path() / (scene.stem().string() + ".slurm")).string() : o.dir);
     const SlurmScripts s = makeScripts(o, dir);

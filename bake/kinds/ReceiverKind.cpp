@@ -18,8 +18,14 @@ namespace penumbra {
 namespace {
 
 std::mutex registryMutex;
-std::map<std::string, ReceiverKindFactory>& registry() {
-    static std::map<std::string, ReceiverKindFactory> kinds;
+/// A registered kind: its factory and the extension of the file it writes.
+struct KindEntry {
+    ReceiverKindFactory factory;
+    std::string extension;
+};
+
+std::map<std::string, KindEntry>& registry() {
+    static std::map<std::string, KindEntry> kinds;
     return kinds;
 }
 
@@ -59,16 +65,23 @@ void requireOutputExtension(const SceneDesc& scene, const std::string& extension
     fail(where, "\"{}\": {} receivers write {} files; name the output with that extension", scene.output, kind, extension);
 }
 
-void registerReceiverKind(const std::string& type, ReceiverKindFactory factory) {
+void registerReceiverKind(const std::string& type, ReceiverKindFactory factory, std::string outputExtension) {
     std::lock_guard lock(registryMutex);
-    registry()[type] = std::move(factory);
+    registry()[type] = KindEntry{std::move(factory), std::move(outputExtension)};
+}
+
+std::string receiverKindExtension(const nlohmann::json& receivers) {
+    if (!receivers.is_object() || !receivers.contains("type") || !receivers["type"].is_string()) return ".exr";
+    std::lock_guard lock(registryMutex);
+    auto it = registry().find(receivers["type"].get<std::string>());
+    return it == registry().end() ? ".exr" : it->second.extension;
 }
 
 namespace {
 const ReceiverKindRegistration kPoints{"points", [](const JsonParams& j, const SceneDesc& scene, KindUse use) {
     std::string path = resolveScenePath(scene.baseDir, j.string("path"), j.where("path"));
     return use == KindUse::Validate ? nullptr : std::make_unique<PointsKind>(std::move(path));
-}};
+}, ".npy"};
 
 std::unique_ptr<ReceiverKind> makeKind(const nlohmann::json& receivers, const SceneDesc& scene, KindUse use) {
     JsonParams j(receivers, scene.file, "receivers");
@@ -82,7 +95,7 @@ std::unique_ptr<ReceiverKind> makeKind(const nlohmann::json& receivers, const Sc
             for (const auto& entry : registry()) known.push_back(entry.first);
             fail(j.where("type"), "unknown receiver type \"{}\" (known: {})", type, fmt::join(known, ", "));
         }
-        factory = it->second;
+        factory = it->second.factory;
     }
     std::unique_ptr<ReceiverKind> kind = factory(j, scene, use);
     j.finish();

@@ -130,8 +130,13 @@ enum class KindUse : uint8_t { Bake, Validate };
 using ReceiverKindFactory =
     std::function<std::unique_ptr<ReceiverKind>(const JsonParams& params, const SceneDesc& scene, KindUse use)>;
 
-/// @brief Registers (or replaces) receiver type @p type.
-void registerReceiverKind(const std::string& type, ReceiverKindFactory factory);
+/// @brief Registers (or replaces) receiver type @p type, whose outputs default to
+/// @p outputExtension when the scene names none (`out/shadows.vdb` for a volume).
+void registerReceiverKind(const std::string& type, ReceiverKindFactory factory, std::string outputExtension = ".exr");
+
+/// @brief The output extension of the kind the "receivers" object names (".exr" when the type is
+/// unknown or missing: makeReceiverKind() reports that).
+std::string receiverKindExtension(const nlohmann::json& receivers);
 
 /// @brief Makes the kind named by the object's "type" key, once per bake.
 /// @throw InputError naming the key for an unknown type or bad parameters.
@@ -146,8 +151,8 @@ void validateReceiverKind(const nlohmann::json& receivers, const SceneDesc& scen
 /// (`const ReceiverKindRegistration kCamera{"camera", &makeCameraKind};`), so that no central
 /// file lists the kinds. The library is linked whole (CMakeLists.txt) so that none is dropped.
 struct ReceiverKindRegistration {
-    ReceiverKindRegistration(const std::string& type, ReceiverKindFactory factory) {
-        registerReceiverKind(type, std::move(factory));
+    ReceiverKindRegistration(const std::string& type, ReceiverKindFactory factory, std::string outputExtension = ".exr") {
+        registerReceiverKind(type, std::move(factory), std::move(outputExtension));
     }
 };
 

@@ -1,7 +1,7 @@
 #include "bake/kinds/VertexColorKind.h"
 #include "stream/util/PathText.h"
 
-#include "bake/output/GltfBuffers.h"
+#include "stream/GltfBuffers.h"
 #include "bake/kinds/ReceiverKind.h"
 #include "bake/Scene.h"
 #include "stream/util/AtomicFile.h"
@@ -18,6 +18,8 @@
 #include <glm/matrix.hpp>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <map>
@@ -38,6 +40,7 @@ struct VertexFile {
     size_t entry = 0;  ///< index into the scene's geometry list
     std::string input, output, where;
     glm::dmat4 sceneMatrix{1.0};
+    bool colourUnorm16 = false;  ///< "color_format": "unorm16": COLOR_0 as normalized unsigned shorts
     uint64_t fileBytes = 0;
     std::vector<PrimitiveRange> primitives;
 };
@@ -94,23 +97,61 @@ bool keepImageUri(const std::string*, const std::string*, const tinygltf::Image*
     return false;  // never re-encode or move images: the copy keeps referring to the originals
 }
 
+/// @brief Places the copy where the bake placed the mesh: a root node with the scene entry's
+/// transform above each scene's roots, so the colours, baked at the transformed size, come back
+/// on geometry of that size (a bunny baked at x10 opens at x10 in Blender).
+void applySceneTransform(tinygltf::Model& model, const glm::dmat4& m) {
+    if (m == glm::dmat4(1.0)) return;
+    for (tinygltf::Scene& scene : model.scenes) {
+        tinygltf::Node root;
+        root.name = "penumbra_scene_transform";
+        for (int c = 0; c < 4; ++c)
+            for (int r = 0; r < 4; ++r) root.matrix.push_back(m[c][r]);  // column-major, as glTF
+        root.children = scene.nodes;
+        model.nodes.push_back(std::move(root));
+        scene.nodes = {int(model.nodes.size() - 1)};
+    }
+}
+
+/// Appends the grey visible fractions @p v as COLOR_0, as floats or normalized unsigned shorts.
+int appendColour(tinygltf::Model& model, const std::vector<float>& v, bool unorm16) {
+    if (!unorm16) {
+        std::vector<float> colour;
+        for (float x : v) colour.insert(colour.end(), {x, x, x});
+        return appendAccessor(model, colour, TINYGLTF_TYPE_VEC3, v.size());
+    }
+    std::vector<uint16_t> colour;
+    for (float x : v) {
+        const auto q = uint16_t(std::lround(std::clamp(double(x), 0.0, 1.0) * 65535.0));
+        colour.insert(colour.end(), {q, q, q});
+    }
+    // glTF aligns each vertex attribute element to 4 bytes: VEC3 of shorts is padded to 8.
+    std::vector<uint16_t> padded;
+    for (size_t i = 0; i < v.size(); ++i) padded.insert(padded.end(), {colour[3 * i], colour[3 * i + 1], colour[3 * i + 2], 0});
+    const int accessor = appendGltfAccessor(model, padded.data(), padded.size() * sizeof(uint16_t), TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
+                                            TINYGLTF_TYPE_VEC3, v.size(), TINYGLTF_TARGET_ARRAY_BUFFER);
+    model.bufferViews[size_t(model.accessors[size_t(accessor)].bufferView)].byteStride = 8;
+    model.accessors[size_t(accessor)].normalized = true;
+    return accessor;
+}
+
 /// Writes the copy with the results of receivers [0, n) of each primitive range.
 void writeCopy(VertexFile& file, const ReceiverResults& results) {
     tinygltf::Model model;
     loadTinyGltf(file.input, model);
     for (const PrimitiveRange& r : file.primitives) {
         std::vector<float> v(results.visibility.begin() + long(r.first), results.visibility.begin() + long(r.first + r.count));
-        std::vector<float> e, colour;
+        std::vector<float> e;
         for (size_t i = 0; i < r.count; ++i) {
             const glm::vec3& x = results.irradiance[r.first + i];
             e.insert(e.end(), {x.x, x.y, x.z});
-            colour.insert(colour.end(), {v[i], v[i], v[i]});
         }
         auto& attributes = model.meshes[size_t(r.mesh)].primitives[size_t(r.primitive)].attributes;
         attributes["_VISIBILITY"] = appendAccessor(model, v, TINYGLTF_TYPE_SCALAR, r.count);
         attributes["_IRRADIANCE"] = appendAccessor(model, e, TINYGLTF_TYPE_VEC3, r.count);
-        if (!attributes.count("COLOR_0")) attributes["COLOR_0"] = appendAccessor(model, colour, TINYGLTF_TYPE_VEC3, r.count);
+        if (!attributes.count("COLOR_0")) attributes["COLOR_0"] = appendColour(model, v, file.colourUnorm16);
     }
+    applySceneTransform(model, file.sceneMatrix);
     // Every buffer is already in memory: embed them all (buffer 0 as the GLB BIN chunk), so the
     // copy stands alone and is written in one atomic step.
     for (tinygltf::Buffer& b : model.buffers) b.uri.clear();
@@ -191,6 +232,9 @@ namespace {
 
 const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, const SceneDesc& scene, KindUse use) {
         const std::vector<size_t> meshes = geometryIndices(j, "meshes", scene);
+        const std::string colourFormat = j.string("color_format", "float");
+        if (colourFormat != "float" && colourFormat != "unorm16")
+            fail(j.where("color_format"), "expected \"float\" or \"unorm16\", got \"{}\"", colourFormat);
         const std::string ext = lowercaseExtension(scene.output);
         if (ext != ".glb" && ext != ".gltf")
             fail(scene.file + ": output", "\"{}\" must end in .glb or .gltf for vertices receivers", scene.output);
@@ -209,6 +253,7 @@ const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, con
             if (!gltfType || (inExt != ".gltf" && inExt != ".glb"))
                 fail(where, "{} is a \"{}\" entry; vertices receivers need a .gltf or .glb file", g.path, g.type);
             file.sceneMatrix = glm::dmat4(g.transform.matrix());
+            file.colourUnorm16 = colourFormat == "unorm16";
             file.output = scene.output;
             if (meshes.size() > 1) {
                 std::filesystem::path out(scene.output);
@@ -217,7 +262,7 @@ const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, con
             files.push_back(std::move(file));
         }
         return use == KindUse::Validate ? nullptr : std::make_unique<VertexColorKind>(std::move(files));
-    }};
+    }, ".glb"};
 
 }  // namespace
 

@@ -285,7 +285,7 @@ const ReceiverKindRegistration kVolume{"volume", [](const JsonParams& j, const S
         band.finish();
         if (use == KindUse::Validate) return nullptr;
         return std::make_unique<VolumeKind>(lattice, openvdb::CoordBBox(), std::move(entries), width, irradiance, band.where());
-    }};
+    }, ".vdb"};
 
 }  // namespace
 

@@ -1,7 +1,7 @@
 #include "bake/output/LightmapGltf.h"
 #include "stream/util/PathText.h"
 
-#include "bake/output/GltfBuffers.h"
+#include "stream/GltfBuffers.h"
 
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
@@ -46,14 +46,7 @@ void addMesh(tinygltf::Model& model, const IndexedMesh& mesh) {
     primitive.attributes["TEXCOORD_1"] = uv1;
     primitive.indices = appendGltfAccessor(model, mesh.indices.data(), mesh.indices.size() * 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
                                     TINYGLTF_TYPE_SCALAR, mesh.indices.size(), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
-    tinygltf::Mesh out;
-    out.name = mesh.name;
-    out.primitives.push_back(primitive);
-    model.meshes.push_back(out);
-    tinygltf::Node node;
-    node.name = mesh.name;
-    node.mesh = int(model.meshes.size() - 1);
-    model.nodes.push_back(node);
+    appendGltfMeshNode(model, mesh.name, std::move(primitive));
 }
 
 }  // namespace
@@ -75,12 +68,8 @@ void writeLightmapGltf(const std::string& path, std::span<const IndexedMesh> mes
     model.defaultScene = 0;
     std::string ext = lowercaseExtension(path);
     const bool binary = ext == ".glb";
-    tinygltf::TinyGLTF writer;
-    std::ostringstream stream;
-    if (!writer.WriteGltfSceneToStream(&model, stream, !binary, binary)) fail(path, "tinygltf could not serialize the meshes");
-    const std::string bytes = stream.str();
     ensureParentDirectory(path);
-    writeFileAtomically(path, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()));
+    writeGltfModel(model, path, binary);
 }
 
 }  // namespace penumbra

@@ -351,6 +351,12 @@ OutputSet::~OutputSet() {
     if (g_openSet == this) g_openSet = nullptr;
 }
 
+std::vector<std::string> OutputSet::paths() const {
+    std::vector<std::string> out;
+    for (const auto& f : files_) out.push_back(f->finalPath);
+    return out;
+}
+
 void OutputSet::commit() {
     {
         std::lock_guard lock(g_setMutex);

@@ -120,6 +120,9 @@ public:
 
     /// Files finished so far (for tests).
     size_t size() const { return files_.size(); }
+    /// The paths of the files finished so far, in the order they were finished (what commit()
+    /// puts in place; the summary and the stats name them).
+    std::vector<std::string> paths() const;
 
 private:
     friend class AtomicFile;

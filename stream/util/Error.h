@@ -35,6 +35,17 @@ void printNote(fmt::format_string<Args...> format, Args&&... args) noexcept {
     }
 }
 
+/// @brief Prints "penumbra: warning: MESSAGE" on stderr: something in the input that almost
+/// certainly is not what was meant (a light facing away from every receiver). Warnings print
+/// even under --quiet, which silences progress and notes only; a failing stderr is ignored.
+template <typename... Args>
+void printWarning(fmt::format_string<Args...> format, Args&&... args) noexcept {
+    try {
+        fmt::print(stderr, "penumbra: warning: {}\n", fmt::format(format, std::forward<Args>(args)...));
+    } catch (...) {
+    }
+}
+
 /// @brief The text of errno value @p err ("No space left on device"); thread-safe, unlike strerror.
 inline std::string errnoText(int err) { return std::error_code(err, std::generic_category()).message(); }
 

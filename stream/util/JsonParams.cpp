@@ -11,6 +11,9 @@
 #include <cstring>
 #include <cstdio>
 #include <memory>
+#include <vector>
+#include <algorithm>
+#include <cstdint>
 
 namespace penumbra {
 
@@ -25,7 +28,10 @@ JsonParams::JsonParams(const nlohmann::json& object, std::string file, std::stri
     if (!object_.is_object()) fail(where(), "expected an object, got {}", object_.type_name());
 }
 
-bool JsonParams::has(const std::string& key) const { return object_.contains(key); }
+bool JsonParams::has(const std::string& key) const {
+    asked_.insert(key);
+    return object_.contains(key);
+}
 
 std::string JsonParams::path(const std::string& key) const {
     if (key.empty()) return path_;
@@ -38,13 +44,15 @@ std::string JsonParams::where(const std::string& key) const {
 }
 
 const nlohmann::json& JsonParams::get(const std::string& key) const {
+    asked_.insert(key);
     auto it = object_.find(key);
-    if (it == object_.end()) fail(where(key), "missing required field");
+    if (it == object_.end()) missing(key);
     used_.insert(key);
     return *it;
 }
 
 const nlohmann::json* JsonParams::raw(const std::string& key) const {
+    asked_.insert(key);
     auto it = object_.find(key);
     if (it == object_.end()) return nullptr;
     used_.insert(key);
@@ -162,9 +170,65 @@ glm::dvec2 JsonParams::range(const std::string& key, const glm::dvec2& fallback)
     return r;
 }
 
+namespace {
+
+/// Edits (insertions, deletions, substitutions and swaps of neighbours) from @p a to @p b.
+size_t editDistance(const std::string& a, const std::string& b) {
+    std::vector<std::vector<size_t>> d(a.size() + 1, std::vector<size_t>(b.size() + 1));
+    for (size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+    for (size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+    for (size_t i = 1; i <= a.size(); ++i)
+        for (size_t j = 1; j <= b.size(); ++j) {
+            d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + (a[i - 1] != b[j - 1])});
+            if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1]) d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+        }
+    return d[a.size()][b.size()];
+}
+
+/// True when @p typed looks like a misspelling of @p known: a few edits for its length, or
+/// @p known with a unit or qualifier dropped or added at an underscore ("fov" for "fov_deg").
+bool looksLike(const std::string& typed, const std::string& known) {
+    const size_t shorter = std::min(typed.size(), known.size());
+    const size_t allowed = shorter <= 4 ? 1 : shorter <= 8 ? 2 : 3;
+    if (editDistance(typed, known) <= allowed) return true;
+    auto prefixAtUnderscore = [](const std::string& part, const std::string& whole) {
+        return part.size() >= 2 && whole.size() > part.size() && whole.compare(0, part.size(), part) == 0 &&
+               whole[part.size()] == '_';
+    };
+    return prefixAtUnderscore(typed, known) || prefixAtUnderscore(known, typed);
+}
+
+/// The candidate closest to @p typed that looks like it, or "" for none.
+std::string closest(const std::string& typed, const std::vector<std::string>& candidates) {
+    std::string best;
+    size_t bestDistance = SIZE_MAX;
+    for (const std::string& c : candidates)
+        if (c != typed && looksLike(typed, c))
+            if (size_t d = editDistance(typed, c); d < bestDistance) best = c, bestDistance = d;
+    return best;
+}
+
+}  // namespace
+
 void JsonParams::finish() const {
+    for (auto it = object_.begin(); it != object_.end(); ++it) {
+        if (used_.count(it.key())) continue;
+        std::vector<std::string> known;  // the keys asked for that the object does not give
+        for (const std::string& k : asked_)
+            if (!object_.contains(k)) known.push_back(k);
+        const std::string guess = closest(it.key(), known);
+        if (guess.empty()) fail(where(it.key()), "unknown key");
+        fail(where(it.key()), "unknown key; did you mean \"{}\"?", guess);
+    }
+}
+
+void JsonParams::missing(const std::string& key) const {
+    std::vector<std::string> given;  // the object's keys that nothing asked for
     for (auto it = object_.begin(); it != object_.end(); ++it)
-        if (!used_.count(it.key())) fail(where(it.key()), "unknown key");
+        if (!asked_.count(it.key())) given.push_back(it.key());
+    const std::string typo = closest(key, given);
+    if (typo.empty()) fail(where(key), "missing required field");
+    fail(where(key), "missing required field; is \"{}\" a misspelling of it?", typo);
 }
 
 nlohmann::json readJsonFile(const std::string& path) {

@@ -47,14 +47,20 @@ public:
     /// The raw value (marked as used), or nullptr when absent.
     const nlohmann::json* raw(const std::string& key) const;
 
-    /// @throw InputError naming the first key that was never read.
+    /// @throw InputError naming the first key that was never read, with the known key it is
+    /// closest to ("receivers.fov: unknown key; did you mean \"fov_deg\"?").
     void finish() const;
+    /// @brief Fails for a required @p key that is absent, naming a given key that looks like a
+    /// misspelling of it ("receivers: missing required field; is \"recievers\" a misspelling?").
+    /// @throw InputError always.
+    [[noreturn]] void missing(const std::string& key) const;
 
 private:
     const nlohmann::json& get(const std::string& key) const;
     const nlohmann::json& object_;
     std::string file_, path_;
     mutable std::set<std::string> used_;
+    mutable std::set<std::string> asked_;  ///< every key looked for, present or not: the known keys
 };
 
 /// @brief Reads and parses a JSON file (a scene, a benchmark's example).

@@ -50,8 +50,10 @@ std::string formatProgressLine(std::string_view phase, uint64_t done, uint64_t t
     if (total > 0) {
         double fraction = std::min(1.0, static_cast<double>(done) / static_cast<double>(total));
         line = fmt::format("[{}] {:.1f}% ({}/{})", phase, 100.0 * fraction, done, total);
-    } else {
+    } else if (done > 0) {
         line = fmt::format("[{}] {}", phase, done);
+    } else {
+        line = fmt::format("[{}]", phase);  // a phase that counts nothing (writing outputs)
     }
     if (final) return line + fmt::format(" done in {}", formatDuration(elapsedSeconds));
     line += fmt::format(" elapsed {}", formatDuration(elapsedSeconds));

@@ -130,6 +130,7 @@ TEST_CASE("lightmap atlas: the atlas bakes the reference's visibility, the same 
     writeText(dir / "quad.obj", kQuadObj);
     writeText(dir / "box.obj", kBoxObj);
     writeText(dir / "scene.json", sceneJson(R"({"type": "lightmap", "meshes": [0, 1], "uv": "generate", "texels_per_unit": 8, "padding": 1})"));
+    for (const char* folder : {"one", "two", "ref"}) std::filesystem::create_directories(dir / folder);  // -o names an existing folder
     bake(dir, "--threads 1 -o " + (dir / "one/lightmap.exr"));
     bake(dir, "--threads 2 -o " + (dir / "two/lightmap.exr"));
     bake(dir, "--method reference -o " + (dir / "ref/lightmap.exr"));

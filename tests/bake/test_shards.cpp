@@ -50,6 +50,7 @@ TiledScene tiledScene(const ScratchDir& dir) {
     scene.replace(scene.find(size), size.size(), "\"width\": 800, \"height\": 600");
     write(dir / "tiled.json", scene);
     TiledScene t{dir / "tiled.json", 0};
+    fs::create_directories(dir / "plan");  // -o names an existing folder
     bake(t.path + " --dump " + dir / "plan" + " -o " + dir / "plan/p.exr --stats " + dir / "plan.json");
     t.budget = nlohmann::json::parse(slurp(dir / "plan.json"))["memory_plan"]["minimum_budget_bytes"].get<uint64_t>();
     // Masks are kept for the dump, as for shards and checkpoints: the same plan.

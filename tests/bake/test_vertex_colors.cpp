@@ -13,6 +13,7 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -140,6 +141,64 @@ TEST_CASE("vertices: an existing COLOR_0 is kept and the result goes to _VISIBIL
         INFO(log);
         CHECK(code == 0);
     }
+}
+
+TEST_CASE("vertices: the copy keeps the scene entry's transform and the colours baked at that size", "[vertices]") {
+    ScratchDir dir("vertices-transform");
+    nlohmann::json scene = sceneJson(kFloor, dir / "out/big.glb");
+    scene["geometry"][0]["transform"] = {{"scale", 10}, {"translate", {1, -2, 3}}};
+    scene["lights"][0]["center"] = {0, 40, 0};
+    bake(dir, scene);
+    tinygltf::Model in = load(kFloor), out = load(dir / "out/big.glb");
+    // One root per scene above the original roots, holding the entry's matrix (column-major).
+    REQUIRE(out.scenes.size() == in.scenes.size());
+    const tinygltf::Node& root = out.nodes[size_t(out.scenes[0].nodes.at(0))];
+    CHECK(out.scenes[0].nodes.size() == 1);
+    CHECK(root.children == in.scenes[0].nodes);
+    REQUIRE(root.matrix.size() == 16);
+    CHECK(root.matrix[0] == 10.0);
+    CHECK(root.matrix[5] == 10.0);
+    CHECK(root.matrix[10] == 10.0);
+    CHECK(root.matrix[12] == 1.0);
+    CHECK(root.matrix[13] == -2.0);
+    CHECK(root.matrix[14] == 3.0);
+    // The same vertices as in an untransformed bake under a light scaled alike see the same sky.
+    std::vector<float> v = floats(out, out.meshes[0].primitives[0].attributes.at("_VISIBILITY"));
+    CHECK(v[0] == 1.0f);
+    CHECK(v[16 * 33 + 16] == 0.0f);
+    if (std::string validator, log; validatorAvailable(validator)) {
+        const int code = validateGltf(dir / "out/big.glb", validator, log);
+        INFO(log);
+        CHECK(code == 0);
+    }
+}
+
+TEST_CASE("vertices: \"color_format\": \"unorm16\" writes COLOR_0 as normalized unsigned shorts", "[vertices]") {
+    ScratchDir dir("vertices-unorm");
+    bake(dir, sceneJson(kFloor, dir / "out/f.glb", {{"type", "vertices"}, {"meshes", {0}}, {"color_format", "unorm16"}}));
+    tinygltf::Model out = load(dir / "out/f.glb");
+    const tinygltf::Primitive& floor = out.meshes[0].primitives[0];
+    const tinygltf::Accessor& a = out.accessors[size_t(floor.attributes.at("COLOR_0"))];
+    CHECK(a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT);
+    CHECK(a.normalized);
+    const tinygltf::BufferView& view = out.bufferViews[size_t(a.bufferView)];
+    REQUIRE(view.byteStride == 8);  // each element 4-byte aligned, as glTF requires
+    std::vector<float> v = floats(out, floor.attributes.at("_VISIBILITY"));
+    const unsigned char* base = out.buffers[size_t(view.buffer)].data.data() + view.byteOffset + a.byteOffset;
+    for (size_t i = 0; i < v.size(); ++i) {
+        uint16_t c[3];
+        std::memcpy(c, base + 8 * i, sizeof(c));
+        REQUIRE(c[0] == uint16_t(std::lround(double(v[i]) * 65535.0)));
+        REQUIRE(c[1] == c[0]);
+        REQUIRE(c[2] == c[0]);
+    }
+    if (std::string validator, log; validatorAvailable(validator)) {
+        const int code = validateGltf(dir / "out/f.glb", validator, log);
+        INFO(log);
+        CHECK(code == 0);
+    }
+    CHECK_THROWS_WITH(bake(dir, sceneJson(kFloor, dir / "out/g.glb", {{"type", "vertices"}, {"meshes", {0}}, {"color_format", "u8"}})),
+                      Catch::Contains("receivers.color_format"));
 }
 
 TEST_CASE("vertices: bad parameters are one-line errors naming the key", "[vertices]") {

@@ -89,8 +89,10 @@ cat > "$D/scene.json" <<'SCENE'
  "receivers": {"type": "camera", "eye": [0,4,5], "target": [0,0.5,0], "width": 128, "height": 96},
  "output": "out/scene.exr"}
 SCENE
+mkdir -p "$D/local"  # -o names an existing folder
 "$PENUMBRA" bake "$D/scene.json" -o "$D/local/scene.exr" --quiet || fail "the local bake failed"
 for CUT in $CUTS; do
+  mkdir -p "$D/merged-$CUT"
   "$PENUMBRA" slurm "$D/scene.json" --shards 4 --shard-by "$CUT" --threads 1 --dir "$D/job-$CUT" -o "$D/merged-$CUT/scene.exr" \
     --partition loopback > "$D/submitted-$CUT.txt" || fail "penumbra slurm failed: $(cat "$D/submitted-$CUT.txt")"
   cat "$D/submitted-$CUT.txt"

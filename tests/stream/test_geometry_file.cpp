@@ -3,6 +3,7 @@
 
 #include "stream/util/Error.h"
 #include "stream/GeometryFile.h"
+#include "stream/IndexedMesh.h"
 #include "stream/ObjReader.h"
 #include "stream/PtriFormat.h"
 #include "StreamTestFiles.h"
@@ -170,4 +171,41 @@ TEST_CASE("GeometryFile: a failed conversion leaves no output behind", "[stream]
     VectorSource one({tri({0, 0, 0}, {1, 0, 0}, {0, 1, 0})});
     CHECK_THROWS_AS(convertGeometry(one, dir.file("missing-dir/o.obj")), InputError);
     CHECK(dir.entries().empty());
+}
+
+TEST_CASE("convert to glTF welds shared corners and keeps normals and texture coordinates and groups", "[stream][gltf]") {
+    ScratchDir dir("convert-weld");
+    // Two groups; the quad's two triangles share two corners (same v/vt/vn), the triangle's
+    // corners are all its own.
+    writeText(dir.file("m.obj"), "v 0 0 0\nv 1 0 0\nv 1 0 -1\nv 0 0 -1\nv 3 0 0\nv 4 0 0\nv 3 1 0\n"
+                                 "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 1 0\nvn 0 0 1\n"
+                                 "o quad\nf 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/4/1\no tri\nf 5/1/2 6/2/2 7/3/2\n");
+    for (const char* name : {"m.glb", "m.gltf"}) {
+        INFO(name);
+        convertGeometryFile(dir.file("m.obj"), dir.file(name));
+        std::vector<IndexedMesh> meshes = loadIndexedMeshes(dir.file(name), glm::mat4(1.0f));
+        REQUIRE(meshes.size() == 2);
+        CHECK(meshes[0].name == "quad");
+        CHECK(meshes[0].position.size() == 4);  // welded: 6 corners, 4 vertices
+        CHECK(meshes[0].indices.size() == 6);
+        REQUIRE(meshes[0].normal.size() == 4);
+        CHECK(meshes[0].normal[0] == glm::vec3(0, 1, 0));
+        REQUIRE(meshes[0].uv0.size() == 4);
+        CHECK(meshes[0].uv0[2] == glm::vec2(1, 0));  // OBJ's (1, 1), v flipped to glTF's top-left origin
+        CHECK(meshes[1].position.size() == 3);
+        CHECK(meshes[1].normal[0] == glm::vec3(0, 0, 1));
+        // The same triangles, bit for bit and in order, as the blocker stream reads them.
+        CHECK(sameBits(readAll(*openGeometryFile(dir.file(name))), readAll(*openGeometryFile(dir.file("m.obj")))));
+    }
+}
+
+TEST_CASE("convert from a triangle stream to glTF shares corners with identical positions", "[stream][gltf]") {
+    ScratchDir dir("convert-stream");
+    writeText(dir.file("q.obj"), "v 0 0 0\nv 1 0 0\nv 1 0 -1\nv 0 0 -1\nf 1 2 3\nf 1 3 4\n");
+    convertGeometry(*openGeometryFile(dir.file("q.obj")), dir.file("q.ptri"));
+    convertGeometryFile(dir.file("q.ptri"), dir.file("q.glb"));
+    std::vector<IndexedMesh> meshes = loadIndexedMeshes(dir.file("q.glb"), glm::mat4(1.0f));
+    REQUIRE(meshes.size() == 1);
+    CHECK(meshes[0].position.size() == 4);
+    CHECK(sameBits(readAll(*openGeometryFile(dir.file("q.glb"))), readAll(*openGeometryFile(dir.file("q.obj")))));
 }

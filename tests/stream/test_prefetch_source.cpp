@@ -75,7 +75,7 @@ TEST_CASE("destroying a prefetching source mid-stream stops its thread", "[strea
     SUCCEED();
 }
 
-TEST_CASE("prefetching keeps the parts of a concatenation apart: one part per read, and its index", "[stream]") {
+TEST_CASE("prefetching keeps the parts of a concatenation apart: one part per read and its index", "[stream]") {
     const size_t sizes[] = {5000, 3, 0, 7001};
     for (size_t inner : {1, 7, 4096}) {
         std::vector<TriangleSourcePtr> parts;

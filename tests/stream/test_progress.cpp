@@ -22,6 +22,7 @@ TEST_CASE("formatProgressLine and formatDuration", "[io]") {
     CHECK(formatProgressLine("bake", 0, 10000, 0.31, false) == "[bake] 0.0% (0/10000) elapsed 0.3s");
     CHECK(formatProgressLine("bake", 10000, 10000, 7.44, true) == "[bake] 100.0% (10000/10000) done in 7.4s");
     CHECK(formatProgressLine("bucket", 12, 0, 1.0, false) == "[bucket] 12 elapsed 1.0s");
+    CHECK(formatProgressLine("write", 0, 0, 0.31, true) == "[write] done in 0.3s");  // a phase that counts nothing
     CHECK(formatProgressLine("x", 15, 10, 1.0, false) == "[x] 100.0% (15/10) elapsed 1.0s");
     CHECK(formatDuration(0.04) == "0.0s");
     CHECK(formatDuration(59.94) == "59.9s");

@@ -4,6 +4,10 @@
 #include "CliRunner.h"
 
 #include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
 
 using namespace penumbra::test;
 
@@ -52,4 +56,101 @@ TEST_CASE("cli: -o names the format by its extension and a bake refuses one its 
   "receivers": {"type": "camera", "eye": [0,4,5], "target": [0,0.5,0], "width": 8, "height": 6},
   "output": "out/small.tiff"})";
     requireCleanError(runPenumbra("bake " + (dir / "tiff.json") + " -q"), "tiff.json: output: \"");
+}
+
+namespace {
+
+/// A small camera scene in @p dir with @p light as its one light and @p extra keys merged in.
+std::string smallScene(const ScratchDir& dir, const std::string& light, const std::string& receivers = "") {
+    std::ofstream(dir / "scene.json") << R"({
+  "geometry": [{"type": "grid", "cells": 2, "levels": 1, "size": 2, "floor_size": 5}],
+  "lights": [)" + light + R"(],
+  "receivers": )" + (receivers.empty() ? R"({"type": "camera", "eye": [0,4,5], "target": [0,0.5,0], "width": 8, "height": 6})" : receivers) + R"(,
+  "output": "out/small.exr"})";
+    return dir / "scene.json";
+}
+
+const char* kDownLight = R"({"type": "rect", "center": [0,4,0], "u": [1,0,0], "v": [0,0,1], "samples": 16})";
+
+}  // namespace
+
+TEST_CASE("cli: the summary line names every file the bake wrote", "[cli]") {
+    ScratchDir dir("cli-summary");
+    const std::string scene = smallScene(dir, kDownLight);
+    RunResult r = runPenumbra("bake " + scene + " --stats " + (dir / "s.json"));
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.err, Catch::Contains("-> " + (dir / "out/small.exr") + ", " + (dir / "out/small.png") + ", " + (dir / "s.json")));
+    const nlohmann::json stats = nlohmann::json::parse(slurp(dir / "s.json"));
+    CHECK(stats["outputs_written"] == nlohmann::json::array({dir / "out/small.exr", dir / "out/small.png"}));
+}
+
+TEST_CASE("cli: -o into a missing folder is an error while the scene's own output folder is made", "[cli]") {
+    ScratchDir dir("cli-folder");
+    const std::string scene = smallScene(dir, kDownLight);
+    RunResult r = runPenumbra("bake " + scene + " -q -o " + (dir / "missing/deeper/x.exr"));
+    INFO(r.err);
+    CHECK(r.exitCode == 1);
+    CHECK(lineCount(r.err) == 1);
+    CHECK_THAT(r.err, Catch::StartsWith("penumbra: error: --output: ") && Catch::Contains((dir / "missing/deeper")) &&
+                          Catch::Contains("does not exist"));
+    CHECK(!std::filesystem::exists(dir / "missing"));
+    RunResult own = runPenumbra("bake " + scene + " -q");  // out/ beside the scene is created
+    CHECK(own.exitCode == 0);
+    CHECK(std::filesystem::exists(dir / "out/small.exr"));
+}
+
+TEST_CASE("cli: a light facing away from every receiver and a camera that sees nothing are warnings even with -q", "[cli]") {
+    ScratchDir dir("cli-warnings");
+    // u and v swapped: the light emits upwards, away from the floor and the grid.
+    std::string scene = smallScene(dir, R"({"type": "rect", "center": [0,4,0], "u": [0,0,1], "v": [1,0,0], "samples": 16})");
+    RunResult away = runPenumbra("bake " + scene + " -q --stats " + (dir / "s.json"));
+    INFO(away.err);
+    CHECK(away.exitCode == 0);
+    CHECK(lineCount(away.err) == 1);
+    CHECK_THAT(away.err, Catch::StartsWith("penumbra: warning: ") && Catch::Contains("lights[0]: faces away from every receiver") &&
+                             Catch::Contains("swap \"u\" and \"v\""));
+    CHECK(nlohmann::json::parse(slurp(dir / "s.json"))["warnings"].size() == 1);
+    // A light facing the receivers warns of nothing.
+    scene = smallScene(dir, kDownLight);
+    RunResult fine = runPenumbra("bake " + scene + " -q");
+    CHECK(fine.exitCode == 0);
+    CHECK(fine.err.empty());
+    // A camera looking away from everything.
+    scene = smallScene(dir, kDownLight, R"({"type": "camera", "eye": [0,4,5], "target": [0,8,20], "width": 8, "height": 6})");
+    RunResult nothing = runPenumbra("bake " + scene + " -q");
+    INFO(nothing.err);
+    CHECK(nothing.exitCode == 0);
+    CHECK_THAT(nothing.err, Catch::Contains("penumbra: warning: ") && Catch::Contains("the camera sees no geometry"));
+}
+
+TEST_CASE("cli: a misspelt key is named with the known key it is closest to", "[cli][scene]") {
+    ScratchDir dir("cli-typo");
+    std::string scene = smallScene(dir, kDownLight, R"({"type": "camera", "eye": [0,4,5], "target": [0,0.5,0], "fov": 30})");
+    RunResult fov = runPenumbra("bake " + scene + " -q");
+    CHECK(fov.exitCode == 1);
+    CHECK_THAT(fov.err, Catch::Contains("receivers.fov: unknown key; did you mean \"fov_deg\"?"));
+    std::ofstream(dir / "typo.json") << R"({"geometry": [{"type": "grid"}],
+      "lights": [{"type": "rect", "center": [0,4,0], "u": [1,0,0], "v": [0,0,1]}],
+      "recievers": {"type": "camera", "eye": [0,4,5], "target": [0,0,0]}})";
+    RunResult top = runPenumbra("bake " + (dir / "typo.json") + " -q");
+    CHECK(top.exitCode == 1);
+    CHECK(lineCount(top.err) == 1);
+    CHECK_THAT(top.err, Catch::Contains("receivers: missing required field; is \"recievers\" a misspelling of it?"));
+    std::ofstream(dir / "far.json") << R"({"geometry": [{"type": "grid", "heigth": 2}],
+      "lights": [{"type": "rect", "center": [0,4,0], "u": [1,0,0], "v": [0,0,1]}],
+      "receivers": {"type": "camera", "eye": [0,4,5], "target": [0,0,0]}})";
+    CHECK_THAT(runPenumbra("bake " + (dir / "far.json") + " -q").err,
+               Catch::Contains("geometry[0].heigth: unknown key; did you mean \"height\"?"));
+}
+
+TEST_CASE("cli: without an \"output\" the scene's receivers pick the format", "[cli]") {
+    ScratchDir dir("cli-default-output");
+    std::ofstream(dir / "v.json") << R"({"geometry": [{"type": "grid", "cells": 2, "levels": 1, "size": 2, "floor_size": 5}],
+      "lights": [{"type": "rect", "center": [0,4,0], "u": [1,0,0], "v": [0,0,1], "samples": 16}],
+      "receivers": {"type": "volume", "voxel_size": 0.5, "box": [[-1, 0.1, -1], [1, 1, 1]]}})";
+    RunResult r = runPenumbra("bake " + (dir / "v.json") + " -q");
+    INFO(r.err);
+    CHECK(r.exitCode == 0);
+    CHECK(std::filesystem::exists(dir / "out/shadows.vdb"));
 }

@@ -38,6 +38,7 @@ void requireThreadIndependent(const ScratchDir& dir, const std::string& scene, c
                               const std::vector<std::string>& outputs) {
     for (int threads : {1, 2}) {
         const std::string out = dir / ("t" + std::to_string(threads) + "-" + method);
+        std::filesystem::create_directories(out);  // -o names an existing folder
         RunResult r = runPenumbra("bake " + scene + " -q --method " + method + " --threads " + std::to_string(threads) +
                                   " -o " + out + "/out.exr --visibility " + out + "/v.npy");
         INFO(method << ", " << threads << " threads: " << r.err);

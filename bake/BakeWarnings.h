@@ -1,0 +1,23 @@
+#pragma once
+/// @file BakeWarnings.h
+/// @brief Warnings that save a bake: inputs that bake without an error but almost certainly not
+/// as meant, found once the scan has made the receivers, before hours of casting.
+
+#include "bake/light/Light.h"
+#include "receivers/ReceiverSet.h"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <vector>
+
+namespace penumbra {
+
+/// @brief The warnings for a bake's receivers and lights, one line each:
+/// - a planar light (rect, disk, polygon) that faces away from every receiver: it emits on one
+///   side only, so every receiver's irradiance from it is 0 (a swapped `u`/`v`);
+/// - no receivers at all: a camera that sees no geometry, receiver meshes that are empty.
+/// @param receivers the "receivers" object (its type names the kind in messages).
+std::vector<std::string> bakeWarnings(const nlohmann::json& receivers, const ReceiverSet& set, const std::vector<LightDesc>& lights);
+
+}  // namespace penumbra

@@ -1,0 +1,30 @@
+#pragma once
+/// @file GltfBuffers.h
+/// @brief Building a glTF model to write (a converted mesh, a baked copy, the lightmap atlas's
+/// meshes): each array becomes a bufferView in buffer 0, 4-byte aligned as float and index
+/// accessors require, and an accessor over it; a primitive becomes a mesh and a node; the model
+/// is written in one atomic step.
+
+#include <tiny_gltf.h>
+
+#include <cstddef>
+#include <string>
+
+namespace penumbra {
+
+/// @brief Appends @p size bytes to buffer 0 (made if the model has none) as a new bufferView
+/// with @p target, and an accessor of @p count elements over it.
+/// @return the accessor's index.
+int appendGltfAccessor(tinygltf::Model& model, const void* bytes, size_t size, int componentType, int type, size_t count,
+                       int target);
+
+/// @brief Adds @p primitive as a mesh named @p name and a node drawing it.
+/// @return the node's index.
+int appendGltfMeshNode(tinygltf::Model& model, const std::string& name, tinygltf::Primitive primitive);
+
+/// @brief Encodes @p model (binary .glb when @p binary, else .gltf with buffers as data URIs) and
+/// writes it to @p path atomically.
+/// @throw InputError naming @p path when tinygltf cannot encode the model or the write fails.
+void writeGltfModel(tinygltf::Model& model, const std::string& path, bool binary);
+
+}  // namespace penumbra
