@@ -90,25 +90,6 @@ void ReceiverHierarchy::buildNodes() {
     for (size_t i = nodes.size(); i-- > 0;) foldUmbra(uint32_t(i));  // children always follow their parent
 }
 
-void ReceiverHierarchy::foldUmbra(uint32_t i) {
-    const Node& node = nodes[i];
-    uint64_t* bits = &nodeGroupUmbra[size_t(i) * words_];
-    if (node.leaf()) {
-        uint8_t full = 1;
-        std::fill_n(bits, words_, ~0ull);
-        for (uint32_t r = node.first; r < node.first + node.count; ++r) {
-            full &= fullUmbra[r];
-            for (int w = 0; w < words_; ++w) bits[w] &= groupUmbra[size_t(r) * words_ + w];
-        }
-        nodeFullUmbra[i] = full;
-        return;
-    }
-    nodeFullUmbra[i] = nodeFullUmbra[node.first] & nodeFullUmbra[node.first + 1];
-    const uint64_t* left = &nodeGroupUmbra[size_t(node.first) * words_];
-    const uint64_t* right = &nodeGroupUmbra[size_t(node.first + 1) * words_];
-    for (int w = 0; w < words_; ++w) bits[w] = left[w] & right[w];
-}
-
 uint32_t ReceiverHierarchy::buildRange(uint32_t node, uint32_t begin, uint32_t end, std::vector<uint32_t>& order) {
     glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
     for (uint32_t i = begin; i < end; ++i) lo = glm::min(lo, position[order[i]]), hi = glm::max(hi, position[order[i]]);

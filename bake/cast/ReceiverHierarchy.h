@@ -7,6 +7,7 @@
 
 #include <glm/vec3.hpp>
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -70,7 +71,8 @@ public:
     bool groupUmbraBit(const uint64_t* bits, uint32_t k) const { return (bits[k >> 6] >> (k & 63)) & 1u; }
     /// @brief Recomputes node @p i's umbra bits from its receivers (a leaf) or its two children:
     /// a group is in umbra at a node when it is at every receiver below it (lines 50-54 and
-    /// 77-80 of Laine & Aila's Figure 3).
+    /// 77-80 of Laine & Aila's Figure 3). Inline: the traversal calls it for every node it
+    /// leaves, and out of line it cost 3-5 % of the cast on grids under the 4x light.
     void foldUmbra(uint32_t i);
     /// Bytes of the hierarchy proper (nodes and node bits), the "hierarchy mem" column.
     size_t hierarchyBytes() const { return nodes.capacity() * sizeof(Node) + nodeFullUmbra.capacity() + nodeGroupUmbra.capacity() * 8; }
@@ -84,5 +86,24 @@ private:
     HierarchyParams params_;
     int groups_, words_;
 };
+
+inline void ReceiverHierarchy::foldUmbra(uint32_t i) {
+    const Node& node = nodes[i];
+    uint64_t* bits = &nodeGroupUmbra[size_t(i) * words_];
+    if (node.leaf()) {
+        uint8_t full = 1;
+        std::fill_n(bits, words_, ~0ull);
+        for (uint32_t r = node.first; r < node.first + node.count; ++r) {
+            full &= fullUmbra[r];
+            for (int w = 0; w < words_; ++w) bits[w] &= groupUmbra[size_t(r) * words_ + w];
+        }
+        nodeFullUmbra[i] = full;
+        return;
+    }
+    nodeFullUmbra[i] = nodeFullUmbra[node.first] & nodeFullUmbra[node.first + 1];
+    const uint64_t* left = &nodeGroupUmbra[size_t(node.first) * words_];
+    const uint64_t* right = &nodeGroupUmbra[size_t(node.first + 1) * words_];
+    for (int w = 0; w < words_; ++w) bits[w] = left[w] & right[w];
+}
 
 }  // namespace penumbra
