@@ -404,8 +404,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         for (auto& [key, value] : extra.items()) stats[key] = value;
     if (nlohmann::json extra = b.caster->methodStats(); !extra.is_null()) stats[settings.method] = extra;
     if (b.sharded) stats["shard"] = b.sharded->stats();
-    stats["outputs_written"] = outputs.paths();
-    if (!b.p.warnings.empty()) stats["warnings"] = b.p.warnings;  // every file of the bake but the stats themselves
+    stats["outputs_written"] = outputs.paths();  // every file of the bake but the stats themselves
+    if (!b.p.warnings.empty()) stats["warnings"] = b.p.warnings;
     if (!settings.statsPath.empty()) writeStats(settings.statsPath, stats);
     outputs.commit();
     if (b.sharded) b.sharded->complete();  // the outputs are in place: no checkpoint is needed

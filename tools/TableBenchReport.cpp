@@ -150,7 +150,7 @@ std::string table2Markdown(const json& result) {
         md += " speed-up | cast-only speed-up |\n" + rule + "---:|---:|\n";
         for (const json& s : result["thread_scaling"]) {
             md += fmt::format("| {} | {} |", s["scene"].get<std::string>(), s["row"].get<std::string>());
-            for (const json& t : s["seconds"]) md += " " + (t.is_null() ? std::string("error") : secs(t)) + " |";
+            for (const json& t : s["seconds"]) md += fmt::format(" {} |", t.is_null() ? std::string("error") : secs(t));
             md += s.contains("speedup") ? fmt::format(" {:.2f}× | {:.2f}× |\n", s["speedup"].get<double>(), s["cast_speedup"].get<double>())
                                         : " – | – |\n";
         }

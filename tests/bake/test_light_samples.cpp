@@ -101,7 +101,7 @@ TEST_CASE("zero-area and invalid lights are rejected with the light named", "[li
     d.type = LightType::Disk, d.radius = 0, d.where = "L";
     CHECK_THROWS_WITH(validateLight(d), Catch::Contains("radius"));
     LightDesc p;
-    p.type = LightType::Polygon, p.polygon = {{0, 0, 0}, {1, 0, 0}, {1, 0, 1}, {0.8, 0, 0.2}}, p.where = "L";
+    p.type = LightType::Polygon, p.polygon = {{0, 0, 0}, {1, 0, 0}, {1, 0, 1}, {0.8, 0, 0.2}}, p.where = std::string("L");
     CHECK_THROWS_WITH(validateLight(p), Catch::Contains("not convex"));
     LightDesc nan = rectLight({0, NAN, 0}, {1, 0, 0}, {0, 0, 1});
     CHECK_THROWS_AS(validateLight(nan), InputError);

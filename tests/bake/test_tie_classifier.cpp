@@ -131,7 +131,7 @@ TEST_CASE("compare reports every planted flip in a real dump as a real mismatch,
     int index = 0;
     for (const nlohmann::json& receivers : {camera, points})
         for (const nlohmann::json& light : {rect, sun}) {
-            const std::string name = "s" + std::to_string(index++);
+            const std::string name = fmt::format("s{}", index++);
             nlohmann::json s = {{"geometry", geometry}, {"lights", {light}}, {"receivers", receivers}, {"output", name + ".exr"}};
             if (receivers["type"] == "points") s["output"] = name + ".npy";
             std::ofstream(dir / (name + ".json")) << s.dump();

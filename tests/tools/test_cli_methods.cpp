@@ -37,7 +37,7 @@ void write(const std::string& path, const std::string& text) { std::ofstream(pat
 void requireThreadIndependent(const ScratchDir& dir, const std::string& scene, const std::string& method,
                               const std::vector<std::string>& outputs) {
     for (int threads : {1, 2}) {
-        const std::string out = dir / ("t" + std::to_string(threads) + "-" + method);
+        const std::string out = dir / fmt::format("t{}-{}", threads, method);
         std::filesystem::create_directories(out);  // -o names an existing folder
         RunResult r = runPenumbra("bake " + scene + " -q --method " + method + " --threads " + std::to_string(threads) +
                                   " -o " + out + "/out.exr --visibility " + out + "/v.npy");
