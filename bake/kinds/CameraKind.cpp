@@ -148,7 +148,7 @@ private:
 }  // namespace
 
 std::unique_ptr<ReceiverKind> makeCameraKind(const JsonParams& j, const SceneDesc& scene, KindUse use) {
-    requireOutputExtension(scene, ".exr", "camera");
+    requireOutputExtension(scene, {".exr"}, "camera");
     CameraDesc c;
     c.where = j.where();
     c.eye = j.vec3("eye"), c.target = j.vec3("target"), c.up = j.vec3("up", c.up);

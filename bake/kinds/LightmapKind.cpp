@@ -350,7 +350,7 @@ struct LightmapMaps {
 
 /// What the maps depend on: the "receivers" object, each named entry as written, and the
 /// identity (size and modification time) of each entry's file.
-std::string mapsKey(const JsonParams& j, const SceneDesc& scene, const std::vector<size_t>& meshes) {
+std::string mapsKey(const SceneDesc& scene, const std::vector<size_t>& meshes, const std::vector<std::string>& files) {
     std::string key = scene.baseDir.string() + '\n' + scene.receivers.dump();
     for (size_t slot = 0; slot < meshes.size(); ++slot) {
         const GeometryDesc& g = scene.geometry[meshes[slot]];
@@ -359,9 +359,8 @@ std::string mapsKey(const JsonParams& j, const SceneDesc& scene, const std::vect
         for (int c = 0; c < 4; ++c)
             for (int r = 0; r < 4; ++r) key += fmt::format(" {}", m[c][r]);
         std::error_code ec;
-        const std::string file = meshFile(j, scene, slot, meshes[slot]);
-        key += fmt::format(" {} {}", std::filesystem::file_size(file, ec),
-                           std::filesystem::last_write_time(file, ec).time_since_epoch().count());
+        key += fmt::format(" {} {}", std::filesystem::file_size(files[slot], ec),
+                           std::filesystem::last_write_time(files[slot], ec).time_since_epoch().count());
     }
     return key;
 }
@@ -397,13 +396,13 @@ ValidatedMaps& validatedMaps() {
 
 /// Loads the meshes of "meshes" and makes their maps, checking every one.
 LightmapMaps makeMaps(const JsonParams& j, const SceneDesc& scene, const std::vector<size_t>& meshes,
-                      const LightmapSettings& settings) {
+                      const std::vector<std::string>& files, const LightmapSettings& settings) {
     LightmapMaps out;
     std::set<std::string> names{kAtlasName};
     for (size_t slot = 0; slot < meshes.size(); ++slot) {
         const std::string key = fmt::format("meshes[{}]", slot);
         const size_t index = meshes[slot];
-        const std::string file = meshFile(j, scene, slot, index);
+        const std::string& file = files[slot];
         const GeometryDesc& geometry = scene.geometry[index];
         // The entry's OBJ "parts" pick its o/g groups here too: one lightmap mesh per group.
         const std::vector<std::string> parts = geometryParts(JsonParams(geometry.params, scene.file, geometry.path));
@@ -438,17 +437,19 @@ LightmapMaps makeMaps(const JsonParams& j, const SceneDesc& scene, const std::ve
 }
 
 std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneDesc& scene, KindUse use) {
-    requireOutputExtension(scene, ".exr", "lightmap");
+    requireOutputExtension(scene, {".exr"}, "lightmap");
     const std::vector<size_t> meshes = geometryIndices(j, "meshes", scene);
     const LightmapSettings settings = parseSettings(j);
-    const std::string key = mapsKey(j, scene, meshes);
+    std::vector<std::string> files;  // each entry's mesh file, checked once
+    for (size_t slot = 0; slot < meshes.size(); ++slot) files.push_back(meshFile(j, scene, slot, meshes[slot]));
+    const std::string key = mapsKey(scene, meshes, files);
     if (use == KindUse::Validate) {
-        validatedMaps().put(key, makeMaps(j, scene, meshes, settings));
+        validatedMaps().put(key, makeMaps(j, scene, meshes, files, settings));
         return nullptr;
     }
     std::optional<LightmapMaps> made = validatedMaps().take(key);
     const bool checked = made.has_value();
-    if (!made) made = makeMaps(j, scene, meshes, settings);
+    if (!made) made = makeMaps(j, scene, meshes, files, settings);
     return std::make_unique<LightmapKind>(std::move(made->maps), std::move(made->atlasParts), settings, checked);
 }
 

@@ -59,10 +59,13 @@ std::string resolveScenePath(const std::filesystem::path& base, const std::strin
     return containedPath(base, p, where.empty() ? p : where);
 }
 
-void requireOutputExtension(const SceneDesc& scene, const std::string& extension, const std::string& kind) {
-    if (lowercaseExtension(scene.output) == extension) return;
+void requireOutputExtension(const SceneDesc& scene, const std::vector<std::string>& extensions, const std::string& kind) {
+    const std::string ext = lowercaseExtension(scene.output);
+    for (const std::string& e : extensions)
+        if (ext == e) return;
     const std::string where = scene.outputFromScene ? scene.file + ": output" : "--output";
-    fail(where, "\"{}\": {} receivers write {} files; name the output with that extension", scene.output, kind, extension);
+    fail(where, "\"{}\": {} receivers write {} files; name the output with that extension", scene.output, kind,
+         fmt::format("{}", fmt::join(extensions, " or ")));
 }
 
 void registerReceiverKind(const std::string& type, ReceiverKindFactory factory, std::string outputExtension) {

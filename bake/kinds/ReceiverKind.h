@@ -156,10 +156,10 @@ struct ReceiverKindRegistration {
     }
 };
 
-/// @brief Refuses an output whose extension (any case) is not @p extension: the extension names
-/// the format, and a kind writes only its own (`-o x.tiff` or `-o x.png` of a camera bake).
-/// @throw InputError naming the output ("--output" when -o gave it) and the format the kind writes.
-void requireOutputExtension(const SceneDesc& scene, const std::string& extension, const std::string& kind);
+/// @brief Refuses an output whose extension (any case) is none of @p extensions: the extension
+/// names the format, and a kind writes only its own (`-o x.tiff` or `-o x.png` of a camera bake).
+/// @throw InputError naming the output ("--output" when -o gave it) and the formats the kind writes.
+void requireOutputExtension(const SceneDesc& scene, const std::vector<std::string>& extensions, const std::string& kind);
 
 /// @brief A path from a scene file resolved against the scene's folder, which it must not leave
 /// (SafePath.h; `--allow-outside-uris` lifts the rule). @p where names the key in messages.

@@ -120,14 +120,12 @@ int appendColour(tinygltf::Model& model, const std::vector<float>& v, bool unorm
         for (float x : v) colour.insert(colour.end(), {x, x, x});
         return appendAccessor(model, colour, TINYGLTF_TYPE_VEC3, v.size());
     }
-    std::vector<uint16_t> colour;
+    // glTF aligns each vertex attribute element to 4 bytes: a VEC3 of shorts is padded to 8.
+    std::vector<uint16_t> padded;
     for (float x : v) {
         const auto q = uint16_t(std::lround(std::clamp(double(x), 0.0, 1.0) * 65535.0));
-        colour.insert(colour.end(), {q, q, q});
+        padded.insert(padded.end(), {q, q, q, 0});
     }
-    // glTF aligns each vertex attribute element to 4 bytes: VEC3 of shorts is padded to 8.
-    std::vector<uint16_t> padded;
-    for (size_t i = 0; i < v.size(); ++i) padded.insert(padded.end(), {colour[3 * i], colour[3 * i + 1], colour[3 * i + 2], 0});
     const int accessor = appendGltfAccessor(model, padded.data(), padded.size() * sizeof(uint16_t), TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
                                             TINYGLTF_TYPE_VEC3, v.size(), TINYGLTF_TARGET_ARRAY_BUFFER);
     model.bufferViews[size_t(model.accessors[size_t(accessor)].bufferView)].byteStride = 8;
@@ -235,9 +233,7 @@ const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, con
         const std::string colourFormat = j.string("color_format", "float");
         if (colourFormat != "float" && colourFormat != "unorm16")
             fail(j.where("color_format"), "expected \"float\" or \"unorm16\", got \"{}\"", colourFormat);
-        const std::string ext = lowercaseExtension(scene.output);
-        if (ext != ".glb" && ext != ".gltf")
-            fail(scene.file + ": output", "\"{}\" must end in .glb or .gltf for vertices receivers", scene.output);
+        requireOutputExtension(scene, {".glb", ".gltf"}, "vertices");
         std::vector<VertexFile> files;
         for (size_t i = 0; i < meshes.size(); ++i) {
             const size_t index = meshes[i];

@@ -1,5 +1,4 @@
 #include "bake/kinds/VolumeKind.h"
-#include "stream/util/PathText.h"
 
 #include "bake/output/OpenVdb.h"
 #include "bake/kinds/ReceiverKind.h"
@@ -164,8 +163,7 @@ private:
     /// triangles' boxes hold are counted as they come, and refused, with the numbers, before one
     /// more box would take more visits than a bake makes in reasonable time.
     void markBand(std::span<const Triangle> triangles) {
-        initializeOpenVdb();
-        if (!band_) band_ = openvdb::MaskGrid::create(false);
+        if (!band_) initializeOpenVdb(), band_ = openvdb::MaskGrid::create(false);
         auto acc = band_->getAccessor();
         const double w2 = width_ * width_;
         for (const Triangle& t : triangles) {
@@ -254,10 +252,7 @@ const ReceiverKindRegistration kVolume{"volume", [](const JsonParams& j, const S
         lattice.h = j.number("voxel_size");
         if (!(lattice.h > 0) || !std::isfinite(lattice.h)) fail(j.where("voxel_size"), "must be a positive number");
         const bool irradiance = j.boolean("irradiance", false);
-        {
-            std::string ext = lowercaseExtension(scene.output);
-            if (ext != ".vdb") fail(scene.file + ": output", "\"{}\" must end in .vdb for volume receivers", scene.output);
-        }
+        requireOutputExtension(scene, {".vdb"}, "volume");
         const bool hasBox = j.has("box"), hasBand = j.has("narrow_band");
         if (hasBox == hasBand) fail(j.where("box"), "give exactly one of \"box\" and \"narrow_band\"");
         constexpr double kMaxVoxels = double(kMaxVolumeVoxels);
