@@ -23,6 +23,7 @@
 #include "stream/util/InputFile.h"
 #include "stream/util/Memory.h"
 #include "stream/util/Npy.h"
+#include "stream/BlockCyclicSource.h"
 #include "stream/PrefetchSource.h"
 #include "stream/util/Progress.h"
 
@@ -46,6 +47,7 @@ struct Prepared {
     TriangleSourcePtr blockers;           ///< replayable, largest first when sorting is on
     BucketReplaySource* replay = nullptr; ///< inside `blockers` when bucketed, for I/O counters
     uint64_t triangleCount = 0;
+    uint64_t blockersCast = 0;            ///< triangleCount, or a by-blockers shard's share of it
     std::vector<std::string> warnings;    ///< BakeWarnings.h, printed and in the stats
 };
 
@@ -120,7 +122,9 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     p.options = scene.options;
     // Read ahead on a thread of its own, so parsing or generation overlaps with rasterizing
     // receivers (scan pass) and writing bucket files (bucket pass).
-    TriangleSourcePtr source = std::make_unique<PrefetchSource>(std::move(geometry));
+    auto prefetch = std::make_unique<PrefetchSource>(std::move(geometry));
+    PrefetchSource& readAhead = *prefetch;
+    TriangleSourcePtr source = std::move(prefetch);
     // Before any triangle is read: the bucket files must fit on disk, and hours of work are announced.
     checkBucketDisk(settings.tmpDir, source->sizeHint(), scene.options.sortBlockers);
     noteLongBake(source->sizeHint().value_or(0), 1,
@@ -155,14 +159,24 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     p.triangleCount = histogram.count();
     afterScan(p, p.triangleCount);  // the exact memory check, before the bucket pass writes anything
 
-    source->rewind();
-    if (!p.openedSolids.ordinals.empty())
-        source = std::make_unique<OpenSolidsSource>(std::move(source), p.openedSolids.ordinals);
+    // A by-blockers shard casts its share of the stream, and makes or reads only that share
+    // where the source can skip; closed solids are counted over the whole stream, so with solids
+    // to open the share is taken above them.
+    const std::optional<BlockShare> share = blockerShareOf(settings.shard, p.receivers.size(), p.triangleCount);
+    const bool solids = !p.openedSolids.ordinals.empty();
+    auto takeShare = [&](TriangleSourcePtr all) -> TriangleSourcePtr { return std::make_unique<BlockCyclicSource>(std::move(all), *share); };
+    if (share && !solids) readAhead.rewindWrapped(takeShare);
+    else source->rewind();
+    if (solids) source = std::make_unique<OpenSolidsSource>(std::move(source), p.openedSolids.ordinals);
+    if (share && solids) source = takeShare(std::move(source));
+    p.blockersCast = share ? share->triangles(p.triangleCount) : p.triangleCount;
     // A method that gains nothing from largest-first order (it holds or streams the scene in any
     // order) skips the bucket pass.
     // A merge casts nothing but a refinement's receivers: it replays the source as it is, unless
     // the kind must see the culled replay a cast would have seen (its cast pass, a refinement).
-    const bool rescan = kind.wantsPass(StreamPass::Rescan);
+    // A shard writes masks only: the kind's passes for its outputs are the merge's to make.
+    const bool shard = settings.shard.casting();
+    const bool rescan = kind.wantsPass(StreamPass::Rescan) && !shard;
     const bool replaySource = settings.shard.merge && !kind.mayRefine() && !kind.wantsPass(StreamPass::Cast);
     if (replaySource || !scene.options.sortBlockers || !casterEntry(settings.method).traits.sortedBlockers) {  // replay the source itself
         if (rescan) {  // no bucket pass to ride along with: a read of its own
@@ -175,13 +189,14 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     BucketOptions options;
     options.tmpDir = settings.tmpDir;
     options.keep = settings.keepBuckets;
-    ProgressReporter progress("bucket", p.triangleCount, settings.quiet);
+    ProgressReporter progress("bucket", p.blockersCast, settings.quiet);
     // A receiver kind that wants a second look at the geometry (smooth shading) gets it during
     // the bucket pass, so the source is still read only twice.
     // What cannot block is never written: the reach culls, against every receiver, once the scan
-    // has found them (refinement receivers are not known yet, so a kind that refines keeps all).
+    // has found them (refinement receivers are not known yet, so a kind that refines keeps all;
+    // a shard never refines: the merge casts the refinement).
     BlockerFilter keep;
-    if (scene.options.cullBeforeSpill && !kind.mayRefine()) keep = makeReachCull(p.samples.lightBounds, p.receivers);
+    if (scene.options.cullBeforeSpill && (!kind.mayRefine() || shard)) keep = makeReachCull(p.samples.lightBounds, p.receivers);
     auto set = std::make_shared<BucketSet>(writeBuckets(*source, planBucketRanges(options, &histogram), options, &buckets,
                                                         [&](std::span<const Triangle> c) {
                                                             if (rescan) kind.consume(StreamPass::Rescan, StreamChunk{c, source->part()});
@@ -290,7 +305,7 @@ void makeCaster(Bake& b) {
     CastContext context{p.samples, p.receivers,       p.sampleSets,      p.options, b.scene.bakeOptions,
                         b.threads, b.plan.tiles,      b.settings.quiet, {},        nullptr};
     // A merge gives the kind its pass over the faces itself (mergeShards), once.
-    if (b.kind->wantsPass(StreamPass::Cast) && !b.settings.shard.merge)
+    if (b.kind->wantsPass(StreamPass::Cast) && !b.settings.shard.merge && !b.settings.shard.casting())
         context.observeChunk = [&b](std::span<const Triangle> c) { b.kind->consume(StreamPass::Cast, StreamChunk{c}); };
     if (b.sharded) context.tileHooks = &b.tileHooks;
     if (b.method.traits.needsPolygons) context.polygons = b.kind->receiverPolygons();
@@ -316,7 +331,7 @@ void castReceivers(Bake& b, uint32_t first) {
                 b.masks.row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
     };
     sink.visibility = [&](uint32_t r, const float* lightVisibility) { shader.shadeVisibleFraction(r, lightVisibility, b.results); };
-    b.caster->cast(first == 0 && b.sharded ? b.sharded->blockers(*p.blockers) : *p.blockers, first, sink);
+    b.caster->cast(*p.blockers, first, sink);
 }
 
 /// `penumbra merge`: the first pass's masks come from the shard files, shaded as a cast would.
@@ -403,7 +418,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     if (nlohmann::json extra = b.kind->stats(); extra.is_object())
         for (auto& [key, value] : extra.items()) stats[key] = value;
     if (nlohmann::json extra = b.caster->methodStats(); !extra.is_null()) stats[settings.method] = extra;
-    if (b.sharded) stats["shard"] = b.sharded->stats();
+    if (b.sharded) stats["shard"] = b.sharded->stats(), stats["shard"]["blockers_cast"] = b.p.blockersCast;
     stats["outputs_written"] = outputs.paths();  // every file of the bake but the stats themselves
     if (!b.p.warnings.empty()) stats["warnings"] = b.p.warnings;
     if (!settings.statsPath.empty()) writeStats(settings.statsPath, stats);

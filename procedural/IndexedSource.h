@@ -5,6 +5,7 @@
 
 #include "stream/TriangleSource.h"
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -18,6 +19,12 @@ public:
     /// in parallel (fill()), so the result never depends on the number of threads.
     size_t read(std::span<Triangle> out) override;
     void rewind() override { next_ = 0; }
+    /// Jumps: nothing is generated for the skipped indices.
+    uint64_t skip(uint64_t count) override {
+        const uint64_t n = std::min(count, count_ - next_);
+        next_ += n;
+        return n;
+    }
     std::string name() const override { return name_; }
     std::optional<uint64_t> sizeHint() const override { return count_; }
 

@@ -97,6 +97,22 @@ public:
         inner_->rewind();
         instance_ = done_ = 0;
     }
+    /// Whole instances are passed over without touching the source; within one, the source skips.
+    uint64_t skip(uint64_t count) override {
+        uint64_t skipped = 0;
+        while (skipped < count && instance_ < placer_.p.placement.count) {
+            if (done_ == 0 && count - skipped >= per_) {  // the source stays rewound
+                ++instance_, skipped += per_;
+                continue;
+            }
+            if (done_ == 0) current_ = placer_.instance(instance_);
+            const uint64_t want = std::min(count - skipped, per_ - done_);
+            if (inner_->skip(want) != want) fail(inner_->name(), "source ended early on a later pass (instance {})", instance_);
+            skipped += want, done_ += want;
+            if (done_ == per_) ++instance_, done_ = 0, inner_->rewind();
+        }
+        return skipped;
+    }
     std::string name() const override { return "scatter"; }
     std::optional<uint64_t> sizeHint() const override { return placer_.p.placement.count * per_; }
 

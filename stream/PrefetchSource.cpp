@@ -94,4 +94,11 @@ void PrefetchSource::rewind() {
     start();
 }
 
+void PrefetchSource::rewindWrapped(const std::function<TriangleSourcePtr(TriangleSourcePtr)>& wrap) {
+    stop();
+    inner_->rewind();
+    inner_ = wrap(std::move(inner_));
+    start();
+}
+
 }  // namespace penumbra

@@ -10,6 +10,7 @@
 #include <condition_variable>
 #include <deque>
 #include <exception>
+#include <functional>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -27,6 +28,10 @@ public:
     /// @throw whatever the inner source threw, at the position in the stream where it threw.
     size_t read(std::span<Triangle> out) override;
     void rewind() override;
+    /// @brief rewind(), then read ahead from @p wrap(the inner source) from now on: a wrapper that
+    /// skips (a shard's share, stream/BlockCyclicSource.h) skips on the read-ahead thread, in the
+    /// inner source itself, instead of reading what it drops.
+    void rewindWrapped(const std::function<TriangleSourcePtr(TriangleSourcePtr)>& wrap);
     std::string name() const override { return inner_->name(); }
     std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
     std::optional<uint64_t> knownSize() const override { return inner_->knownSize(); }

@@ -145,6 +145,7 @@ public:
 
     size_t read(std::span<Triangle> out) override;
     void rewind() override;
+    uint64_t skip(uint64_t count) override;
     std::string name() const override { return path_; }
     std::optional<uint64_t> sizeHint() const override { return info_.triangles; }
 
@@ -202,6 +203,26 @@ void PtriSource::loadChunk() {
     ++nextChunk_;
     used_ = 0;
     if (nextChunk_ == info_.chunkCount()) closeFile();
+}
+
+uint64_t PtriSource::skip(uint64_t count) {
+    // The rest of the loaded chunk, then whole chunks by seeking (their checksums are not read:
+    // whoever reads them checks them), then into the chunk where the skip ends.
+    uint64_t skipped = std::min<uint64_t>(count, chunk_.size() - used_);
+    used_ += size_t(skipped);
+    if (skipped < count && nextChunk_ < info_.chunkCount()) {
+        const uint64_t whole = std::min((count - skipped) / info_.chunkSize, info_.chunkCount() - nextChunk_);
+        // Every chunk but the last is full, so the jump over whole ones is exact.
+        const uint64_t jump = nextChunk_ + whole == info_.chunkCount() ? whole - 1 : whole;
+        if (jump > 0) {
+            closeFile();  // reopened at nextChunk_'s offset by loadChunk()
+            nextChunk_ += jump;
+            skipped += jump * info_.chunkSize;
+            chunk_.clear(), used_ = 0;
+        }
+    }
+    if (skipped < count) skipped += TriangleSource::skip(count - skipped);
+    return skipped;
 }
 
 size_t PtriSource::read(std::span<Triangle> out) {

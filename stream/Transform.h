@@ -49,6 +49,7 @@ public:
     /// @throw InputError when the inner source does, or when a transformed vertex is not finite.
     size_t read(std::span<Triangle> out) override;
     void rewind() override { inner_->rewind(); }
+    uint64_t skip(uint64_t count) override { return inner_->skip(count); }
     std::string name() const override { return inner_->name(); }
     std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
     std::optional<uint64_t> knownSize() const override { return inner_->knownSize(); }

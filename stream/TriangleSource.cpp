@@ -11,6 +11,33 @@ size_t VectorSource::read(std::span<Triangle> out) {
     return n;
 }
 
+uint64_t TriangleSource::skip(uint64_t count) {
+    std::vector<Triangle> scratch(size_t(std::min<uint64_t>(count, kTriangleChunk)));
+    uint64_t skipped = 0;
+    while (skipped < count) {
+        const size_t n = read(std::span<Triangle>(scratch).first(size_t(std::min<uint64_t>(count - skipped, scratch.size()))));
+        if (n == 0) break;
+        skipped += n;
+    }
+    return skipped;
+}
+
+uint64_t VectorSource::skip(uint64_t count) {
+    const uint64_t n = std::min<uint64_t>(count, triangles_.size() - next_);
+    next_ += size_t(n);
+    return n;
+}
+
+uint64_t ConcatSource::skip(uint64_t count) {
+    uint64_t skipped = 0;
+    while (skipped < count && current_ < parts_.size()) {
+        const uint64_t n = parts_[current_]->skip(count - skipped);
+        skipped += n;
+        if (skipped < count) ++current_;  // this part is at its end
+    }
+    return skipped;
+}
+
 size_t ConcatSource::read(std::span<Triangle> out) {
     while (current_ < parts_.size()) {
         if (size_t n = parts_[current_]->read(out)) return n;

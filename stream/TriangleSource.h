@@ -29,6 +29,15 @@ public:
     /// @brief Start again from the first triangle (sources are replayed by multi-pass bakes).
     virtual void rewind() = 0;
 
+    /// @brief Pass over the next @p count triangles without handing them out, as if they had been
+    /// read: the next read() starts after them. A by-blockers shard skips the blocks of other
+    /// shards this way (bake/shard), so a source that can jump (a generator whose i-th triangle
+    /// is a function of i, a file of fixed-size records) makes nothing it does not hand out.
+    /// The default reads the triangles and drops them, which is right for every source.
+    /// @return how many were skipped: fewer than @p count only at the end of the stream.
+    /// @throw InputError as read() would, for the triangles the default reads.
+    virtual uint64_t skip(uint64_t count);
+
     /// A name for messages: the file path or the generator type.
     virtual std::string name() const = 0;
 
@@ -60,6 +69,7 @@ public:
         : triangles_(std::move(triangles)), name_(std::move(name)) {}
     size_t read(std::span<Triangle> out) override;
     void rewind() override { next_ = 0; }
+    uint64_t skip(uint64_t count) override;
     std::string name() const override { return name_; }
     std::optional<uint64_t> sizeHint() const override { return triangles_.size(); }
 
@@ -75,6 +85,8 @@ public:
     explicit ConcatSource(std::vector<TriangleSourcePtr> parts) : parts_(std::move(parts)) {}
     size_t read(std::span<Triangle> out) override;
     void rewind() override;
+    /// Skips within the current part, then on into the next ones.
+    uint64_t skip(uint64_t count) override;
     std::string name() const override { return "scene"; }
     std::optional<uint64_t> sizeHint() const override;
     std::optional<uint64_t> knownSize() const override;
@@ -103,6 +115,12 @@ public:
         return n;
     }
     void rewind() override { inner_->rewind(), first_ = true; }
+    /// A skipped first triangle would have carried the solid start: the next read is no longer first.
+    uint64_t skip(uint64_t count) override {
+        const uint64_t n = inner_->skip(count);
+        if (n) first_ = false;
+        return n;
+    }
     std::string name() const override { return inner_->name(); }
     std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
     std::optional<uint64_t> knownSize() const override { return inner_->knownSize(); }

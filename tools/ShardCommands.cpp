@@ -1,6 +1,7 @@
 #include "ShardCommands.h"
 #include "BakeCommand.h"
 
+#include "bake/shard/ShardFiles.h"
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
 #include "stream/util/Memory.h"
@@ -74,6 +75,23 @@ std::vector<char*> rewriteMergeCommand(int argc, char** argv, std::vector<std::s
     return out;
 }
 
+CLI::App* addCombineCommand(CLI::App& app, CombineOptions& o) {
+    CLI::App* c = app.add_subcommand("combine", "OR shard files of one bake into one (a tree merge's inner node): "
+                                                "penumbra combine INPUT... --shard-dir OUT [--range A-B]");
+    c->add_option("inputs", o.inputs, "shard files, or directories of them")->required();
+    c->add_option("--range", o.range, "combine shards A to B (inclusive) of the inputs; default: all of them");
+    c->add_option("--shard-dir", o.shardDir, "directory for the combined file shards-A-B-of-N.pnpart")->required();
+    c->add_flag("-q,--quiet", o.quiet, "print nothing");
+    return c;
+}
+
+void runCombine(const CombineOptions& o) {
+    std::optional<ShardRange> range;
+    if (!o.range.empty()) range = parseShardRange(o.range, "--range");
+    const std::string out = combineShardFiles(o.inputs, range, o.shardDir);
+    if (!o.quiet) fmt::print("{}\n", out);
+}
+
 CLI::App* addSlurmCommand(CLI::App& app, SlurmOptions& o) {
     CLI::App* c = app.add_subcommand("slurm", "bake a scene as a Slurm job array of shards and a dependent merge job");
     c->add_option("scene", o.scene, "scene file (JSON), on a file system every node shares")->required();
@@ -86,6 +104,8 @@ CLI::App* addSlurmCommand(CLI::App& app, SlurmOptions& o) {
     c->add_option("--time", o.time, "sbatch --time of each task");
     c->add_option("--tmp", o.tmp, "each shard's --tmp: node-local scratch for bucket files");
     c->add_option("--threads", o.threads, "threads per task (and --cpus-per-task)")->check(CLI::Range(1, kMaxThreads));
+    c->add_option("--fan-in", o.fanIn, "most shard files one job reads: more are combined in a tree of jobs first (0: never)")
+        ->check(CLI::Range(0, 65536));
     c->add_flag("--dry-run", o.dryRun, "print the scripts instead of submitting them");
     return c;
 }
@@ -93,7 +113,7 @@ CLI::App* addSlurmCommand(CLI::App& app, SlurmOptions& o) {
 namespace {
 
 /// @p s in single quotes for the shell.
-std::string quoted(const std::string& s) {
+std::string shellQuoted(const std::string& s) {
     std::string out = "'";
     for (char ch : s) out += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
     return out + "'";
@@ -107,40 +127,83 @@ std::string selfPath() {
     return ec ? std::string("penumbra") : self.string();
 }
 
-struct SlurmScripts {
-    std::string shards, merge;
+/// One sbatch script of a run, and the job it waits for (the one before it in the list).
+struct SlurmScript {
+    std::string name;    ///< file name in the job directory
+    std::string text;
+    std::string about;   ///< what it is, for the summary
 };
 
-SlurmScripts makeScripts(const SlurmOptions& o, const std::string& dir) {
-    const std::string exe = quoted(selfPath()), scene = quoted(absolute(o.scene)), shardDir = quoted(dir + "/shards");
+/// The head every script shares: partition, time, CPUs and memory.
+std::string scriptHead(const SlurmOptions& o) {
     std::string head = "#!/bin/bash\n";
     if (!o.partition.empty()) head += "#SBATCH --partition=" + o.partition + "\n";
     if (!o.time.empty()) head += "#SBATCH --time=" + o.time + "\n";
     head += fmt::format("#SBATCH --cpus-per-task={}\n", o.threads);
-    std::string budget;
     if (!o.memoryBudget.empty()) {
         // The budget bounds the bake; the process itself (code, stacks, TBB) needs a little more.
         const uint64_t bytes = parseByteSize(o.memoryBudget, "--memory-budget");
         head += fmt::format("#SBATCH --mem={}M\n", (bytes + bytes / 8) / (1 << 20) + 256);
-        budget = " --memory-budget " + quoted(o.memoryBudget);
     }
-    const std::string tmp = o.tmp.empty() ? " --tmp \"${TMPDIR:-/tmp}\"" : " --tmp " + quoted(o.tmp);
-    SlurmScripts s;
-    s.shards = head + fmt::format("#SBATCH --job-name=penumbra-shards\n#SBATCH --array=0-{}\n#SBATCH --output={}/logs/shard-%a.log\n"
-                                  "set -eu\n"
-                                  "exec {} bake {} --shard slurm --shard-by {} --shard-dir {} --threads {}{}{} --quiet\n",
-                                  o.shards - 1, dir, exe, scene, o.shardBy, shardDir, o.threads, budget, tmp);
-    const std::string output = o.output.empty() ? "" : " -o " + quoted(absolute(o.output));
-    s.merge = head + fmt::format("#SBATCH --job-name=penumbra-merge\n#SBATCH --output={}/logs/merge.log\n"
-                                 "set -eu\n"
-                                 "exec {} merge {} --shard-dir {}{} --stats {} --threads {}{} --quiet\n",
-                                 dir, exe, scene, shardDir, output, quoted(dir + "/merge-stats.json"), o.threads, tmp);
-    return s;
+    return head;
+}
+
+/// The levels of combine jobs between the shards and the merge: level L (from 1) has
+/// ceil(N / fanIn^L) tasks, task t combining shards [t fanIn^L, (t+1) fanIn^L), until the merge
+/// has at most fanIn files to read. @return the shard span of each level's files.
+std::vector<uint64_t> combineLevels(const SlurmOptions& o) {
+    std::vector<uint64_t> spans;
+    uint64_t files = uint64_t(o.shards), span = 1;
+    while (o.fanIn >= 2 && files > uint64_t(o.fanIn)) {
+        span *= uint64_t(o.fanIn);
+        files = (uint64_t(o.shards) + span - 1) / span;
+        spans.push_back(span);
+    }
+    return spans;
+}
+
+std::vector<SlurmScript> makeScripts(const SlurmOptions& o, const std::string& dir) {
+    const std::string exe = shellQuoted(selfPath()), scene = shellQuoted(absolute(o.scene));
+    const std::string head = scriptHead(o);
+    const std::string budget = o.memoryBudget.empty() ? "" : " --memory-budget " + shellQuoted(o.memoryBudget);
+    const std::string tmp = o.tmp.empty() ? " --tmp \"${TMPDIR:-/tmp}\"" : " --tmp " + shellQuoted(o.tmp);
+    std::vector<SlurmScript> scripts;
+    scripts.push_back({"shards.sbatch",
+                       head + fmt::format("#SBATCH --job-name=penumbra-shards\n#SBATCH --array=0-{}\n#SBATCH --output={}/logs/shard-%a.log\n"
+                                          "set -eu\n"
+                                          "exec {} bake {} --shard slurm --shard-by {} --shard-dir {} --threads {}{}{} --quiet\n",
+                                          o.shards - 1, dir, exe, scene, o.shardBy, shellQuoted(dir + "/shards"), o.threads, budget, tmp),
+                       fmt::format("shards job {{}} ({} tasks)", o.shards)});
+    std::string from = dir + "/shards";
+    const std::vector<uint64_t> spans = combineLevels(o);
+    for (size_t level = 1; level <= spans.size(); ++level) {
+        const uint64_t span = spans[level - 1], tasks = (uint64_t(o.shards) + span - 1) / span;
+        const std::string to = fmt::format("{}/level-{}", dir, level);
+        scripts.push_back({fmt::format("combine-{}.sbatch", level),
+                           head + fmt::format("#SBATCH --job-name=penumbra-combine-{}\n#SBATCH --array=0-{}\n"
+                                              "#SBATCH --output={}/logs/combine-{}-%a.log\n"
+                                              "set -eu\n"
+                                              "first=$((SLURM_ARRAY_TASK_ID * {})); last=$((first + {}))\n"
+                                              "if [ \"$last\" -ge {} ]; then last={}; fi\n"
+                                              "exec {} combine {} --range \"$first-$last\" --shard-dir {} --quiet\n",
+                                              level, tasks - 1, dir, level, span, span - 1, o.shards, o.shards - 1, exe,
+                                              shellQuoted(from), shellQuoted(to)),
+                           fmt::format("combine job {{}} (level {}: {} tasks of {} shards)", level, tasks, span)});
+        from = to;
+    }
+    const std::string output = o.output.empty() ? "" : " -o " + shellQuoted(absolute(o.output));
+    scripts.push_back({"merge.sbatch",
+                       head + fmt::format("#SBATCH --job-name=penumbra-merge\n#SBATCH --output={}/logs/merge.log\n"
+                                          "set -eu\n"
+                                          "exec {} merge {} --shard-dir {}{} --stats {} --threads {}{} --quiet\n",
+                                          dir, exe, scene, shellQuoted(from), output, shellQuoted(dir + "/merge-stats.json"), o.threads, tmp),
+                       "merge job {}"});
+    return scripts;
 }
 
 /// Runs `sbatch --parsable ARGS SCRIPT` and returns the job id it prints.
 std::string submit(const std::string& args, const std::string& script) {
-    const std::string command = "sbatch --parsable " + args + quoted(script) + " 2>&1";
+    const std::string command = "sbatch --parsable " + args + shellQuoted(script) + " 2>&1";
     FILE* pipe = popen(command.c_str(), "r");
     if (!pipe) fail("sbatch", "cannot run: {}", std::strerror(errno));
     std::string out;
@@ -160,9 +223,11 @@ void runSlurm(const SlurmOptions& o) {
     if (!o.output.empty()) requireOutputFolder("--output", o.output);  // now, not when the merge job runs
     const fs::path scene = fs::absolute(o.scene);
     const std::string dir = absolute(o.dir.empty() ? (scene.parent_path() / (scene.stem().string() + ".slurm")).string() : o.dir);
-    const SlurmScripts s = makeScripts(o, dir);
+    const std::vector<SlurmScript> scripts = makeScripts(o, dir);
     if (o.dryRun) {
-        fmt::print("# {}/shards.sbatch\n{}\n# {}/merge.sbatch (sbatch --dependency=afterok:SHARDS_JOB)\n{}", dir, s.shards, dir, s.merge);
+        for (size_t i = 0; i < scripts.size(); ++i)
+            fmt::print("# {}/{}{}\n{}{}", dir, scripts[i].name, i ? " (sbatch --dependency=afterok:PREVIOUS_JOB)" : "",
+                       scripts[i].text, i + 1 < scripts.size() ? "\n" : "");
         return;
     }
     std::error_code ec;
@@ -170,11 +235,13 @@ void runSlurm(const SlurmOptions& o) {
     fs::create_directories(dir + "/shards", ec);
     if (ec) fail(dir, "cannot create the job directory: {}", ec.message());
     const auto bytes = [](const std::string& t) { return std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(t.data()), t.size()); };
-    writeFileAtomically(dir + "/shards.sbatch", bytes(s.shards));
-    writeFileAtomically(dir + "/merge.sbatch", bytes(s.merge));
-    const std::string shards = submit("", dir + "/shards.sbatch");
-    const std::string merge = submit("--dependency=afterok:" + shards + " ", dir + "/merge.sbatch");
-    fmt::print("shards job {} ({} tasks)\nmerge job {}\n", shards, o.shards, merge);
+    for (const SlurmScript& s : scripts) writeFileAtomically(dir + "/" + s.name, bytes(s.text));
+    // Each job waits for the whole array before it: a level combines what the one before wrote.
+    std::string previous;
+    for (const SlurmScript& s : scripts) {
+        previous = submit(previous.empty() ? "" : "--dependency=afterok:" + previous + " ", dir + "/" + s.name);
+        fmt::print(fmt::runtime(s.about + "\n"), previous);
+    }
     std::fflush(stdout);
 }
 

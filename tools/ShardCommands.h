@@ -47,8 +47,26 @@ struct SlurmOptions {
     std::string time;          ///< sbatch --time, optional
     std::string tmp;           ///< --tmp of every shard (node-local scratch)
     int threads = 1;           ///< --threads, and --cpus-per-task
+    /// Most shard files one job reads: more shards than this are combined in a tree of jobs
+    /// first (`penumbra combine`), so no merge node reads them all. 0: never.
+    int fanIn = 32;
     bool dryRun = false;
 };
+
+/// @brief `penumbra combine`'s options: an inner node of a tree merge.
+struct CombineOptions {
+    std::vector<std::string> inputs;  ///< shard files, or directories of them
+    std::string range;                ///< "A-B": the shards to combine (optional)
+    std::string shardDir;             ///< where the combined file goes
+    bool quiet = false;
+};
+
+/// @brief Adds the `combine` subcommand. @return it, to test whether it was chosen.
+CLI::App* addCombineCommand(CLI::App& app, CombineOptions& options);
+
+/// @brief ORs shard files into one (bake/shard/ShardFiles.h) and names it on stdout.
+/// @throw InputError for files of different bakes, overlaps, gaps, damaged files.
+void runCombine(const CombineOptions& options);
 
 /// @brief Adds the `slurm` subcommand. @return it, to test whether it was chosen.
 CLI::App* addSlurmCommand(CLI::App& app, SlurmOptions& options);

@@ -35,6 +35,8 @@ struct Commands {
     CLI::App* bakeCommand = nullptr;
     SlurmOptions slurm;
     CLI::App* slurmCommand = nullptr;
+    CombineOptions combine;
+    CLI::App* combineCommand = nullptr;
     FileCommands files;
     GenerateOptions generate;
     CLI::App* generateCommand = nullptr;
@@ -48,6 +50,7 @@ struct Commands {
 void addCommands(CLI::App& app, Commands& c) {
     c.bakeCommand = addBakeCommand(app, c.bake);
     c.slurmCommand = addSlurmCommand(app, c.slurm);
+    c.combineCommand = addCombineCommand(app, c.combine);
     app.add_subcommand("merge", "merge shard files into a bake's outputs: penumbra merge SCENE --shard-dir DIR [bake options]")
         ->allow_extras();
     addFileCommands(app, c.files);
@@ -65,6 +68,7 @@ void addCommands(CLI::App& app, Commands& c) {
 int runCommand(const Commands& c, int argc, char** argv, std::string& context) {
     if (*c.bakeCommand) return context = c.bake.scenePath, runBakeCommand(c.bake), 0;
     if (*c.slurmCommand) return context = c.slurm.scene, runSlurm(c.slurm), 0;
+    if (*c.combineCommand) return context = c.combine.shardDir, runCombine(c.combine), 0;
     if (*c.generateCommand) return context = c.generate.scene, runGenerate(c.generate), 0;
     if (*c.benchGeneratorsCommand) return runBenchGenerators(c.benchGenerators), 0;
     if (*c.benchTableCommand || *c.benchMethodsCommand) {

@@ -58,7 +58,7 @@ ReceiverState stateOf(const uint64_t* row, const LightSamples& samples) {
 void putHeader(Writer& w, const PartialHeader& h) {
     w.bytes(kMagic, sizeof kMagic);
     w.put(h.version), w.put(h.role), w.put(h.sceneHash), w.put(h.settingsHash), w.put(h.contentHash);
-    w.put(h.cut), w.put(h.part), w.put(h.parts), w.put(h.receivers), w.put(h.groups);
+    w.put(h.cut), w.put(h.part), w.put(h.parts), w.put(h.partEnd ? h.partEnd : h.part + 1), w.put(h.receivers), w.put(h.groups);
     w.put(uint32_t(h.lightFirstGroup.size()));
     for (uint32_t f : h.lightFirstGroup) w.put(f);
 }
@@ -73,11 +73,12 @@ PartialHeader getHeader(Reader& r, const std::string& path) {
         fail(path, "partial file format version {}, this penumbra reads version {}", h.version, kPartialFormatVersion);
     h.role = r.get<uint32_t>(), h.sceneHash = r.get<uint64_t>(), h.settingsHash = r.get<uint64_t>();
     h.contentHash = r.get<uint64_t>(), h.cut = r.get<uint32_t>(), h.part = r.get<uint32_t>();
-    h.parts = r.get<uint32_t>(), h.receivers = r.get<uint64_t>(), h.groups = r.get<uint32_t>();
+    h.parts = r.get<uint32_t>(), h.partEnd = r.get<uint32_t>(), h.receivers = r.get<uint64_t>(), h.groups = r.get<uint32_t>();
     const uint32_t lights = r.get<uint32_t>();
-    if (lights > 1u << 20 || h.groups > 1u << 24 || h.receivers > (uint64_t(1) << 40) || h.part >= h.parts)
-        fail(path, "corrupt partial file header (part {} of {}, {} receivers, {} groups, {} lights)", h.part, h.parts,
-             h.receivers, h.groups, lights);
+    if (lights > 1u << 20 || h.groups > 1u << 24 || h.receivers > (uint64_t(1) << 40) || h.part >= h.partEnd ||
+        h.partEnd > h.parts)
+        fail(path, "corrupt partial file header (parts {}..{} of {}, {} receivers, {} groups, {} lights)", h.part,
+             h.partEnd, h.parts, h.receivers, h.groups, lights);
     h.lightFirstGroup.resize(lights);
     for (uint32_t& f : h.lightFirstGroup) f = r.get<uint32_t>();
     return h;
@@ -100,18 +101,22 @@ void Fnv64::add(const void* data, size_t bytes) {
 
 void writePartialFile(const std::string& path, const PartialHeader& header, const LightSamples& samples,
                       const VisibilityMasks& masks, std::span<const uint8_t> present) {
+    std::vector<uint8_t> states(present.size(), uint8_t(ReceiverState::Absent));
+    for (size_t r = 0; r < present.size(); ++r)
+        if (present[r]) states[r] = uint8_t(stateOf(masks.row(r), samples));
+    writePartialStates(path, header, states, masks);
+}
+
+void writePartialStates(const std::string& path, const PartialHeader& header, std::span<const uint8_t> states,
+                        const VisibilityMasks& masks) {
     Writer w;
     putHeader(w, header);
-    const size_t n = present.size();
+    const size_t n = states.size();
     std::vector<uint8_t> packed((n + 3) / 4, 0);
-    std::vector<ReceiverState> states(n, ReceiverState::Absent);
-    for (size_t r = 0; r < n; ++r) {
-        if (present[r]) states[r] = stateOf(masks.row(r), samples);
-        packed[r / 4] |= uint8_t(uint8_t(states[r]) << (2 * (r % 4)));
-    }
+    for (size_t r = 0; r < n; ++r) packed[r / 4] |= uint8_t((states[r] & 3u) << (2 * (r % 4)));
     w.bytes(packed.data(), packed.size());
     for (size_t r = 0; r < n; ++r)
-        if (states[r] == ReceiverState::Partial) w.bytes(masks.row(r), sizeof(uint64_t) * size_t(masks.groups));
+        if (ReceiverState(states[r]) == ReceiverState::Partial) w.bytes(masks.row(r), sizeof(uint64_t) * size_t(masks.groups));
     Fnv64 sum;
     sum.add(w.out.data(), w.out.size());
     w.put(sum.value);
@@ -144,6 +149,24 @@ PartialFile readPartialFile(const std::string& path) {
     sum.add(data.data(), body);
     if (sum.value != stored) fail(path, "checksum mismatch: the partial file is damaged");
     return f;
+}
+
+PartialHeader readPartialHeader(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) fail(path, "cannot open partial file: {}", std::strerror(errno));
+    constexpr size_t kFixedBytes = 72;  // up to and with the light count
+    std::vector<uint8_t> head(kFixedBytes);
+    in.read(reinterpret_cast<char*>(head.data()), std::streamsize(head.size()));
+    head.resize(size_t(in.gcount()));
+    if (head.size() == kFixedBytes) {
+        uint32_t lights = 0;
+        std::memcpy(&lights, head.data() + kFixedBytes - sizeof lights, sizeof lights);
+        head.resize(kFixedBytes + 4 * size_t(std::min(lights, 1u << 20)));
+        in.read(reinterpret_cast<char*>(head.data() + kFixedBytes), std::streamsize(head.size() - kFixedBytes));
+        head.resize(kFixedBytes + size_t(in.gcount()));
+    }
+    Reader r(path, head);
+    return getHeader(r, path);
 }
 
 void addPartialMasks(const PartialFile& file, const LightSamples& samples, VisibilityMasks& masks,

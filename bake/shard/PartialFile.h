@@ -21,7 +21,8 @@
 
 namespace penumbra {
 
-inline constexpr uint32_t kPartialFormatVersion = 1;
+/// 2: the header names a range of shards (a combined file of a tree merge covers several).
+inline constexpr uint32_t kPartialFormatVersion = 2;
 
 /// @brief What a partial file is a part of.
 struct PartialHeader {
@@ -32,6 +33,9 @@ struct PartialHeader {
     uint64_t contentHash = 0;   ///< receivers, sample sets and light samples, after the scan
     uint32_t cut = 0;           ///< ShardCut
     uint32_t part = 0, parts = 0;  ///< shard I of N, or tile T of M
+    /// The end (exclusive) of the shards the file covers, [part, partEnd): more than part + 1 for
+    /// a combined file (`penumbra combine`); 0 when writing means part + 1. Read back, always set.
+    uint32_t partEnd = 0;
     uint64_t receivers = 0;
     uint32_t groups = 0;        ///< mask words per receiver
     std::vector<uint32_t> lightFirstGroup;  ///< per-light data: groups of light i are [f[i], f[i+1])
@@ -49,6 +53,13 @@ enum class ReceiverState : uint8_t { Absent = 0, Clear = 1, Partial = 2, Full = 
 void writePartialFile(const std::string& path, const PartialHeader& header, const LightSamples& samples,
                       const VisibilityMasks& masks, std::span<const uint8_t> present);
 
+/// @brief Writes receivers with explicit @p states (ReceiverState, one per receiver) and, for the
+/// partial ones, their rows of @p masks: what a combined file holds, whose states come from the
+/// files it combines.
+/// @throw InputError naming @p path.
+void writePartialStates(const std::string& path, const PartialHeader& header, std::span<const uint8_t> states,
+                        const VisibilityMasks& masks);
+
 /// @brief A partial file read back and checked against its own checksum.
 struct PartialFile {
     std::string path;
@@ -61,6 +72,10 @@ struct PartialFile {
 /// @throw InputError "PATH: truncated ..." / "not a penumbra partial file" / "format version ..." /
 /// "checksum mismatch" for every file that is not exactly what writePartialFile() wrote.
 PartialFile readPartialFile(const std::string& path);
+
+/// @brief Reads the header of @p path only (its states and masks are not read, nor checked).
+/// @throw InputError as readPartialFile() does for a header that is not one.
+PartialHeader readPartialHeader(const std::string& path);
 
 /// @brief ORs @p file's masks into @p masks (full umbra as the groups' full masks) and marks
 /// the receivers it holds in @p covered (a count per receiver).

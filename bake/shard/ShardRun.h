@@ -6,8 +6,10 @@
 /// Masks are an OR over blockers and receivers are independent, so:
 ///  - by receivers, shard I casts the I-th of N spatial parts of the receivers (the same median
 ///    splits as memory tiles, PenumbraCaster.h); its masks are final for those receivers;
-///  - by blockers, shard I casts every blocker whose position in the largest-first stream is I
-///    modulo N, against every receiver; the merge ORs the masks.
+///  - by blockers, shard I casts the I-th of N interleaved shares of the blocker stream (blocks
+///    of the source's stream dealt out in turn, stream/BlockCyclicSource.h) against every
+///    receiver, and generates or reads only its share where the source can skip; the merge ORs
+///    the masks.
 /// Either way the merge shades the complete masks once, the way an unsharded bake does, so its
 /// outputs are byte-identical.
 
@@ -16,8 +18,9 @@
 #include "bake/shard/PartialFile.h"
 #include "bake/shard/ShardSettings.h"
 #include "receivers/ReceiverSet.h"
-#include "stream/TriangleSource.h"
+#include "stream/BlockCyclicSource.h"
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -53,34 +56,14 @@ std::string shardFilePath(const std::string& dir, uint32_t index, uint32_t count
 std::vector<uint32_t> shardReceivers(const ReceiverSet& receivers, const std::vector<uint32_t>& ids, uint32_t index,
                                      uint32_t count);
 
-/// @brief The blockers of one shard (by-blockers cut): every one whose position in @p inner's
-/// stream is @p index modulo @p count, in stream order.
-class BlockerShardSource final : public TriangleSource {
-public:
-    BlockerShardSource(TriangleSource& inner, uint32_t index, uint32_t count);
-    size_t read(std::span<Triangle> out) override;
-    void rewind() override;
-    std::string name() const override { return inner_.name(); }
-    std::optional<uint64_t> sizeHint() const override;
-
-private:
-    TriangleSource& inner_;
-    uint32_t index_, count_;
-    uint64_t position_ = 0;  ///< stream position of the next triangle of inner_
-    std::vector<Triangle> buffer_;
-};
+/// @brief Which share of the blocker stream a by-blockers shard casts (stream/BlockCyclicSource.h),
+/// or nullopt when the bake casts every blocker (not a shard, cut by receivers, or one shard).
+/// The block size follows from @p triangles, the whole stream's count, the same in every shard.
+std::optional<BlockShare> blockerShareOf(const ShardSettings& settings, size_t receivers, uint64_t triangles);
 
 /// @brief Writes shard @p settings.index's file: the masks of the receivers marked in @p present.
 /// @throw InputError naming the file.
 void writeShardFile(const ShardSettings& settings, ShardCut cut, const BakeIdentity& id, const LightSamples& samples,
                     const VisibilityMasks& masks, std::span<const uint8_t> present);
-
-/// @brief Reads every shard file of @p dir, checks that they are the N shards of this bake, once
-/// each, complete, and ORs them into @p masks (sized for every receiver).
-/// @return the number of shards merged.
-/// @throw InputError (one line) for shards of another scene or settings, a missing shard, a
-/// duplicate, a truncated or damaged file, or receivers no shard (or two) cast.
-uint32_t mergeShardFiles(const std::string& dir, const BakeIdentity& id, const LightSamples& samples,
-                         VisibilityMasks& masks);
 
 }  // namespace penumbra

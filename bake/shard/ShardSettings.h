@@ -13,7 +13,7 @@ namespace penumbra {
 enum class ShardCut : uint32_t {
     Automatic = 0,  ///< receivers when there are enough of them to cut, else blockers
     Receivers = 1,  ///< shard I casts every blocker against a spatial 1/N of the receivers
-    Blockers = 2,   ///< shard I casts every N-th blocker of the largest-first stream against all receivers
+    Blockers = 2,   ///< shard I casts the I-th of N interleaved shares of the blockers against all receivers
 };
 
 /// @brief The shard, merge and checkpoint part of a bake's settings.

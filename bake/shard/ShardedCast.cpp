@@ -1,5 +1,6 @@
 #include "bake/shard/ShardedCast.h"
 
+#include "bake/shard/ShardFiles.h"
 #include "stream/util/Error.h"
 
 namespace penumbra {
@@ -28,12 +29,6 @@ ShardedCast::ShardedCast(const ShardSettings& settings, const std::string& scene
 }
 
 ShardedCast::~ShardedCast() = default;
-
-TriangleSource& ShardedCast::blockers(TriangleSource& all) {
-    if (!settings_.casting() || cut_ != ShardCut::Blockers || settings_.count == 1) return all;
-    blockers_ = std::make_unique<BlockerShardSource>(all, settings_.index, settings_.count);
-    return *blockers_;
-}
 
 TileHooks ShardedCast::tileHooks(VisibilityMasks& masks, std::function<void(uint32_t, const uint64_t*)> restored) {
     TileHooks hooks;

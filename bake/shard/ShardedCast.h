@@ -30,9 +30,6 @@ public:
 
     ShardCut cut() const { return cut_; }
 
-    /// @brief The blockers this bake casts: @p all, or the shard's 1/N of it (by blockers).
-    TriangleSource& blockers(TriangleSource& all);
-
     /// @brief Hooks for the caster's first pass: the shard's receivers, restored and finished tiles.
     /// @param masks every receiver's masks, filled by the sink as tiles finish
     /// @param restored called for each receiver of a restored tile, with its masks (to shade it)
@@ -58,7 +55,6 @@ private:
     BakeIdentity id_;
     ShardCut cut_ = ShardCut::Automatic;
     std::vector<uint8_t> present_;  ///< receivers this bake has cast or restored
-    std::unique_ptr<BlockerShardSource> blockers_;
     std::unique_ptr<Checkpoints> checkpoints_;
 };
 

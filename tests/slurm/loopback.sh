@@ -93,8 +93,9 @@ mkdir -p "$D/local"  # -o names an existing folder
 "$PENUMBRA" bake "$D/scene.json" -o "$D/local/scene.exr" --quiet || fail "the local bake failed"
 for CUT in $CUTS; do
   mkdir -p "$D/merged-$CUT"
+  # A fan-in of 2 makes a tree: two combine tasks of two shards each, then a merge of their files.
   "$PENUMBRA" slurm "$D/scene.json" --shards 4 --shard-by "$CUT" --threads 1 --dir "$D/job-$CUT" -o "$D/merged-$CUT/scene.exr" \
-    --partition loopback > "$D/submitted-$CUT.txt" || fail "penumbra slurm failed: $(cat "$D/submitted-$CUT.txt")"
+    --partition loopback --fan-in 2 > "$D/submitted-$CUT.txt" || fail "penumbra slurm failed: $(cat "$D/submitted-$CUT.txt")"
   cat "$D/submitted-$CUT.txt"
   MERGE=$(awk '/^merge job/ {print $3}' "$D/submitted-$CUT.txt")
   [ -n "$MERGE" ] || fail "no merge job id"
@@ -106,7 +107,9 @@ for CUT in $CUTS; do
   done
   [ "$STATE" = COMPLETED ] || fail "the merge job ended $STATE"
   [ "$(ls "$D/job-$CUT/shards" | wc -l)" = 4 ] || fail "expected 4 shard files, found: $(ls "$D/job-$CUT/shards")"
+  [ "$(ls "$D/job-$CUT/level-1")" = "$(printf 'shards-0-1-of-4.pnpart\nshards-2-3-of-4.pnpart')" ] ||
+    fail "expected two combined files, found: $(ls "$D/job-$CUT/level-1")"
   cmp "$D/local/scene.exr" "$D/merged-$CUT/scene.exr" || fail "merged EXR differs from the local bake"
   cmp "$D/local/scene.png" "$D/merged-$CUT/scene.png" || fail "merged PNG differs from the local bake"
-  echo "OK: 4 shards by $CUT on a loopback Slurm cluster merged to the local bake's bytes"
+  echo "OK: 4 shards by $CUT on a loopback Slurm cluster, combined in a tree of fan-in 2, merged to the local bake's bytes"
 done

@@ -1,0 +1,198 @@
+// By-blockers shards make only their share of the stream (#18): a generator skips the blocks of
+// the other shards instead of generating them, and the shares still merge to the unsharded bytes.
+
+#include "CliRunner.h"
+
+#include "bake/Pipeline.h"
+#include "bake/Scene.h"
+#include "procedural/Generators.h"
+#include "stream/SourceRegistry.h"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <fmt/format.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+
+using namespace penumbra;
+using namespace penumbra::test;
+namespace fs = std::filesystem;
+
+namespace {
+
+/// Counts the triangles another source hands out; skips are passed on, uncounted.
+class CountingSource final : public TriangleSource {
+public:
+    CountingSource(TriangleSourcePtr inner, std::atomic<uint64_t>& made) : inner_(std::move(inner)), made_(made) {}
+    size_t read(std::span<Triangle> out) override {
+        const size_t n = inner_->read(out);
+        made_ += n;
+        return n;
+    }
+    void rewind() override { inner_->rewind(); }
+    uint64_t skip(uint64_t count) override { return inner_->skip(count); }
+    std::string name() const override { return inner_->name(); }
+    std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
+
+private:
+    TriangleSourcePtr inner_;
+    std::atomic<uint64_t>& made_;
+};
+
+std::atomic<uint64_t> grassMade{0};
+
+/// Grass on a floor under a light: 20,000 blades of 5 triangles, seen by a small camera.
+nlohmann::json grassScene(const std::string& grassType) {
+    nlohmann::json scene = nlohmann::json::parse(R"({
+      "geometry": [{"type": "grid", "cells": 1, "levels": 0, "size": 1, "floor_size": 6},
+                   {"type": "grass", "count": 20000, "area": [[-2, -2], [2, 2]], "height": [0.2, 0.5], "seed": 3}],
+      "lights": [{"type": "rect", "center": [0.5, 3, 0.2], "u": [0.6, 0, 0], "v": [0, 0, 0.6], "samples": 64, "sample_sets": 4}],
+      "receivers": {"type": "camera", "eye": [0, 2.5, 3], "target": [0, 0, 0], "width": 48, "height": 36},
+      "output": "out/grass.exr"})");
+    scene["geometry"][1]["type"] = grassType;
+    return scene;
+}
+
+void write(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+
+void bakeOk(const std::string& args) {
+    RunResult r = runPenumbra(args + " --quiet");
+    INFO("penumbra " << args << "\n" << r.err);
+    REQUIRE(r.exitCode == 0);
+}
+
+}  // namespace
+
+TEST_CASE("a by-blockers shard generates only its share of a generator's stream", "[shards]") {
+    registerProceduralGenerators();
+    registerSourceType("counted-grass", [](const SourceRequest& r) {
+        nlohmann::json params = r.params;
+        params.erase("type");
+        return TriangleSourcePtr(std::make_unique<CountingSource>(openSource("grass", SourceRequest{params, r.file, r.path, r.baseDir}), grassMade));
+    });
+    ScratchDir dir("shard-share");
+    write(dir / "scene.json", grassScene("counted-grass").dump());  // a shard file names its scene by hash
+    const uint64_t blades = 20000 * 5;
+    auto bakeShard = [&](uint32_t index, uint32_t count) {
+        BakeSettings settings;
+        settings.quiet = true;
+        settings.threads = 2;
+        settings.shard.index = index, settings.shard.count = count, settings.shard.cut = ShardCut::Blockers;
+        settings.shard.dir = dir / "shards";
+        grassMade = 0;
+        const nlohmann::json stats = runBake(parseScene(grassScene("counted-grass"), dir / "scene.json"), settings);
+        return std::pair(grassMade.load(), stats["shard"]["blockers_cast"].get<uint64_t>());
+    };
+    uint64_t cast = 0;
+    for (uint32_t i = 0; i < 4; ++i) {
+        const auto [made, blockers] = bakeShard(i, 4);
+        INFO("shard " << i);
+        // The scan sees every blade (the camera's z-buffer needs them all); the bucket pass makes
+        // only the shard's quarter, give or take a block.
+        CHECK(made > blades);
+        CHECK(made - blades < blades / 4 + 2048);
+        CHECK(made - blades > blades / 4 - 2048);
+        cast += blockers;
+    }
+    // An unsharded bake makes the stream twice; the shares hold each of its triangles once.
+    BakeSettings whole;
+    whole.quiet = true;
+    grassMade = 0;
+    const nlohmann::json stats = runBake(parseScene(grassScene("counted-grass"), dir / "scene.json"), whole);
+    CHECK(grassMade.load() == 2 * blades);
+    CHECK(cast == stats["stream"]["triangles"].get<uint64_t>());
+}
+
+TEST_CASE("generated shares merge to the unsharded bytes", "[shards]") {
+    ScratchDir dir("shard-share-merge");
+    write(dir / "grass.json", grassScene("grass").dump());
+    bakeOk("bake " + dir / "grass.json");
+    const std::string expected = slurp(dir / "out/grass.exr") + slurp(dir / "out/grass.png");
+    REQUIRE(expected.size() > 1000);
+    for (int n : {3, 5}) {
+        const std::string shards = dir / fmt::format("s{}", n);
+        for (int i = 0; i < n; ++i)
+            bakeOk("bake " + dir / "grass.json" + fmt::format(" --shard {}/{} --shard-by blockers --shard-dir {}", i, n, shards));
+        fs::remove_all(dir / "out");
+        bakeOk("merge " + dir / "grass.json" + " --shard-dir " + shards);
+        CHECK(slurp(dir / "out/grass.exr") + slurp(dir / "out/grass.png") == expected);
+    }
+}
+
+TEST_CASE("a tree of combines merges to the unsharded bytes, for either cut", "[shards]") {
+    ScratchDir dir("shard-tree");
+    write(dir / "grass.json", grassScene("grass").dump());
+    const std::string scene = dir / "grass.json";
+    bakeOk("bake " + scene);
+    const std::string expected = slurp(dir / "out/grass.exr") + slurp(dir / "out/grass.png");
+    for (const char* cut : {"blockers", "receivers"}) {
+        const std::string shards = dir / fmt::format("{}-shards", cut), level = dir / fmt::format("{}-level1", cut);
+        for (int i = 0; i < 5; ++i) bakeOk("bake " + scene + fmt::format(" --shard {}/5 --shard-by {} --shard-dir {}", i, cut, shards));
+        // Two inner nodes, of shards 0-1 and 2-4, then the merge of their two files.
+        bakeOk("combine " + shards + " --range 0-1 --shard-dir " + level);
+        bakeOk("combine " + shards + " --range 2-4 --shard-dir " + level);
+        CHECK(fs::exists(level + "/shards-0-1-of-5.pnpart"));
+        CHECK(fs::exists(level + "/shards-2-4-of-5.pnpart"));
+        fs::remove_all(dir / "out");
+        bakeOk("merge " + scene + " --shard-dir " + level);
+        INFO(cut);
+        CHECK(slurp(dir / "out/grass.exr") + slurp(dir / "out/grass.png") == expected);
+        // One more level, combining files given by name: one file of all five shards.
+        const std::string top = dir / fmt::format("{}-top", cut);
+        RunResult r = runPenumbra("combine " + level + "/shards-2-4-of-5.pnpart " + level + "/shards-0-1-of-5.pnpart --shard-dir " + top);
+        REQUIRE(r.exitCode == 0);
+        CHECK(r.out.find("shards-0-4-of-5.pnpart") != std::string::npos);
+        fs::remove_all(dir / "out");
+        bakeOk("merge " + scene + " --shard-dir " + top);
+        CHECK(slurp(dir / "out/grass.exr") + slurp(dir / "out/grass.png") == expected);
+    }
+}
+
+TEST_CASE("combine and merge refuse overlaps, gaps and files of other bakes", "[shards][cli]") {
+    ScratchDir dir("shard-tree-bad");
+    write(dir / "grass.json", grassScene("grass").dump());
+    const std::string scene = dir / "grass.json";
+    for (int i = 0; i < 4; ++i) bakeOk("bake " + scene + fmt::format(" --shard {}/4 --shard-by blockers --shard-dir {}", i, dir / "s"));
+    bakeOk("combine " + dir / "s" + " --range 0-1 --shard-dir " + dir / "l");
+    // The combined file beside a shard it holds: shard 1 twice.
+    fs::copy_file(dir / "s/shard-1-of-4.pnpart", dir / "l/shard-1-of-4.pnpart");
+    requireCleanError(runPenumbra("merge " + scene + " --shard-dir " + dir / "l" + " --quiet"), "overlap");
+    fs::remove(dir / "l/shard-1-of-4.pnpart");
+    requireCleanError(runPenumbra("merge " + scene + " --shard-dir " + dir / "l" + " --quiet"), "missing 2 of 4 shards (2, 3)");
+    // A range with a hole, a file across the range's edge, a range past the shards.
+    fs::create_directories(dir / "holey");
+    for (int i : {0, 2}) fs::copy_file(dir / fmt::format("s/shard-{}-of-4.pnpart", i), dir / fmt::format("holey/shard-{}-of-4.pnpart", i));
+    requireCleanError(runPenumbra("combine " + dir / "holey" + " --range 0-2 --shard-dir " + dir / "x"), "missing 1 of 3 shards (1)");
+    requireCleanError(runPenumbra("combine " + dir / "l/shards-0-1-of-4.pnpart " + dir / "s/shard-2-of-4.pnpart --range 1-2 --shard-dir " + dir / "x"),
+                      "across the edge of the range 1-2");
+    requireCleanError(runPenumbra("combine " + dir / "s" + " --range 3-1 --shard-dir " + dir / "x"), "--range");
+    // Shards of another cut.
+    bakeOk("bake " + scene + " --shard 3/4 --shard-by receivers --shard-dir " + dir / "r");
+    requireCleanError(runPenumbra("combine " + dir / "s/shard-2-of-4.pnpart " + dir / "r/shard-3-of-4.pnpart --shard-dir " + dir / "x"), "cut by");
+    CHECK_FALSE(fs::exists(dir / "x"));
+    CHECK_FALSE(hasTempFiles(dir.path));
+}
+
+TEST_CASE("penumbra slurm puts a tree of combine jobs between many shards and the merge", "[shards][cli]") {
+    ScratchDir dir("slurm-tree");
+    write(dir / "grass.json", grassScene("grass").dump());
+    RunResult r = runPenumbra("slurm " + dir / "grass.json" + " --shards 10 --fan-in 3 --dir " + dir / "job" + " --dry-run");
+    REQUIRE(r.exitCode == 0);
+    // 10 shards, at most 3 files a job: 4 combines of 3 shards, 2 of 9, then the merge reads 2.
+    const std::string& s = r.out;
+    CHECK(s.find("combine-1.sbatch") != std::string::npos);
+    CHECK(s.find("#SBATCH --array=0-3\n") != std::string::npos);
+    CHECK(s.find("first=$((SLURM_ARRAY_TASK_ID * 3)); last=$((first + 2))") != std::string::npos);
+    CHECK(s.find("combine-2.sbatch") != std::string::npos);
+    CHECK(s.find("#SBATCH --array=0-1\n") != std::string::npos);
+    CHECK(s.find("first=$((SLURM_ARRAY_TASK_ID * 9)); last=$((first + 8))") != std::string::npos);
+    CHECK(s.find("combine-3.sbatch") == std::string::npos);
+    CHECK(s.find("merge '" + fs::absolute(dir / "grass.json").string() + "' --shard-dir '" + dir / "job/level-2'") != std::string::npos);
+    // Few shards need no tree; --fan-in 0 never makes one.
+    RunResult few = runPenumbra("slurm " + dir / "grass.json" + " --shards 10 --fan-in 0 --dir " + dir / "job" + " --dry-run");
+    REQUIRE(few.exitCode == 0);
+    CHECK(few.out.find("combine") == std::string::npos);
+}
