@@ -12,7 +12,12 @@
 namespace penumbra {
 
 /// @brief The one-line message of @p e if a library threw it (nlohmann::json::exception,
-/// Iex::BaseExc, openvdb::Exception, std::filesystem::filesystem_error), else nullopt.
+/// Iex::BaseExc, std::filesystem::filesystem_error, or a type a plugin registered, such as
+/// openvdb::Exception), else nullopt.
 std::optional<std::string> libraryErrorMessage(const std::exception& e);
+
+/// @brief Makes libraryErrorMessage() recognise the exceptions for which @p isLibraryError is true:
+/// a plugin's library (OpenVDB) registers its exception type when the plugin loads.
+void registerLibraryErrorType(bool (*isLibraryError)(const std::exception&));
 
 }  // namespace penumbra

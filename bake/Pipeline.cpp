@@ -32,6 +32,8 @@
 #include <tbb/parallel_for.h>
 
 #include <filesystem>
+#include <string_view>
+#include <system_error>
 
 namespace penumbra {
 namespace {
@@ -276,6 +278,7 @@ void scanScene(Bake& b) {
     checkBeforeScan(b.demand, b.budget);
     // Without a budget the machine is the bound: refuse before any work what it cannot hold.
     checkMemoryFits(scene.file, "the scan pass", scanPhaseBytes(b.demand));
+    checkAddressSpaceLeft(scene.file, "the scan pass", scanPhaseBytes(b.demand));
     checkMemoryFits(scene.file, "casting", planMemory(b.demand, 0).minimumBudget);
     auto afterScan = [&](const Prepared& prepared, uint64_t triangles) {
         b.demand.receivers = prepared.receivers.size();
@@ -388,6 +391,31 @@ void writeOutputs(Bake& b) {
 
 }  // namespace
 
+namespace {
+nlohmann::json bakeScene(Bake& b, const Stopwatch& total);
+
+/// Whether @p e says that a thread could not be started: std::thread's system_error, or the
+/// runtime_error TBB throws when pthread_create fails.
+bool isThreadStartFailure(const std::exception& e) {
+    if (const auto* se = dynamic_cast<const std::system_error*>(&e))
+        return se->code() == std::errc::resource_unavailable_try_again;
+    return std::string_view(e.what()).starts_with("pthread_create has failed");
+}
+
+/// The plan let through what the allocator could not give (the plan estimates what a bake maps;
+/// the process maps more): one line with the least the bake needs, as the plan's refusals say.
+[[noreturn]] void failOutOfMemory(const Bake& b) {
+    const uint64_t data = std::max(b.minimum, scanPhaseBytes(b.demand));
+    const uint64_t limit = addressSpaceLimit();
+    if (limit)
+        fail(b.scene.file, "out of memory under the address-space limit (prlimit --as, ulimit -v) of {}: this bake needs "
+             "at least {}; give it more, or lower the resolution or sample count", formatBytes(limit),
+             formatBytes(mappedNotResidentBytes() + 2 * kReadAheadStackBytes + kBaselineBytes + data + data / 4));
+    fail(b.scene.file, "out of memory: this bake's data needs at least {} at once; lower the resolution or sample "
+         "count, or give --memory-budget to bake in memory tiles", formatBytes(data + data / 4));
+}
+}  // namespace
+
 nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     InputScope inputs;  // no output may replace a file this bake reads
     if (settings.threads < 0 || settings.threads > kMaxThreads)
@@ -396,8 +424,33 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     if (!settings.visibilityPath.empty()) checkOutputAgainstInputs(scene, settings.visibilityPath);
     Stopwatch total;
     Bake b(scene, settings);
-    tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(b.threads));
-    tbb::global_control stacks(tbb::global_control::thread_stack_size, size_t(kWorkerStackBytes));
+    try {
+        tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(b.threads));
+        // One thread (what a tight address-space limit leaves) sets no stack size: undoing that
+        // control restarts TBB's thread pool, which throws from a destructor, and so aborts, when
+        // the bake ends by running out of address space.
+        if (b.threads == 1) return bakeScene(b, total);
+        tbb::global_control stacks(tbb::global_control::thread_stack_size, size_t(kWorkerStackBytes));
+        return bakeScene(b, total);
+    } catch (const std::bad_alloc&) {
+        failOutOfMemory(b);
+    } catch (const std::exception& e) {
+        // TBB could not start its workers (an address-space or process limit): nothing is
+        // committed yet, so bake again on one thread, which starts none.
+        if (b.threads == 1 || !isThreadStartFailure(e)) throw;
+        printWarning("could not start {} threads ({}); baking on one", b.threads, e.what());
+        BakeSettings one = settings;
+        one.threads = 1;
+        return runBake(scene, one);
+    }
+}
+
+namespace {
+
+/// The bake's passes, in the parallelism runBake() set up.
+nlohmann::json bakeScene(Bake& b, const Stopwatch& total) {
+    const SceneDesc& scene = b.scene;
+    const BakeSettings& settings = b.settings;
     setScratchDirectory(settings.tmpDir);  // spilled OBJ vertices go where the buckets go
 
     scanScene(b);
@@ -431,6 +484,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     }
     return stats;
 }
+
+}  // namespace
 
 void writeCapturedOutputs(const SceneDesc& scene, const BakeCapture& c, const std::string& output) {
     InputScope inputs;

@@ -16,6 +16,9 @@
 
 namespace penumbra {
 namespace {
+constexpr uint64_t kReadAheadReserve = 16ull << 20;
+}  // namespace
+namespace {
 
 /// The cgroup v2 memory limit of this process, if it has one.
 std::optional<uint64_t> cgroupMemoryLimit() {
@@ -48,6 +51,15 @@ uint64_t freeDiskBytes(const std::string& dir) {
     struct statvfs fs {};
     if (::statvfs(dir.c_str(), &fs) != 0) return 0;
     return uint64_t(fs.f_bavail) * fs.f_frsize;
+}
+
+void checkAddressSpaceLeft(const std::string& scene, const char* what, uint64_t neededBytes) {
+    // The plan's estimate of what is already mapped can be short: ask the kernel. The read-ahead
+    // thread's stack rides along.
+    const uint64_t limit = addressSpaceLimit();
+    if (!limit || addressSpaceAvailable(neededBytes + kReadAheadReserve)) return;
+    fail(scene, "{} does not fit under the address-space limit (prlimit --as, ulimit -v) of {}: it needs at least {}",
+         what, formatBytes(limit), formatBytes(mappedBytes() + neededBytes + kReadAheadReserve));
 }
 
 void checkMemoryFits(const std::string& scene, const char* what, uint64_t neededBytes) {

@@ -24,6 +24,13 @@ uint64_t machineMemoryBytes();
 /// @brief Bytes free for an unprivileged writer on the file system of @p dir; 0 when unknown.
 uint64_t freeDiskBytes(const std::string& dir);
 
+/// @brief Refuses, before the work, a phase that needs @p neededBytes more address space than an
+/// address-space limit leaves now, asking the kernel rather than trusting the plan's estimate of
+/// what is mapped already (a tight `prlimit --as` would otherwise end in a failed allocation, or
+/// a thread that cannot start, in the middle of the scan).
+/// @throw InputError naming @p scene and the least limit that works.
+void checkAddressSpaceLeft(const std::string& scene, const char* what, uint64_t neededBytes);
+
 /// @brief Refuses a bake whose smallest workable memory, @p neededBytes, exceeds
 /// machineMemoryBytes(). @p what says which phase needs it ("the scan pass", "casting").
 /// @throw InputError "SCENE: the scan pass needs at least 64.0 GiB of memory, but this machine has

@@ -1,6 +1,6 @@
 #include "FileCommands.h"
 
-#include "bake/output/OpenVdb.h"
+#include "bake/output/VolumeSlice.h"
 #include "stream/GeometryFile.h"
 #include "stream/util/Error.h"
 

@@ -6,6 +6,7 @@
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
 #include "stream/util/Npy.h"
+#include "stream/util/Plugins.h"
 #include "stream/util/SafePath.h"
 
 #include <fmt/ranges.h>
@@ -27,6 +28,19 @@ struct KindEntry {
 std::map<std::string, KindEntry>& registry() {
     static std::map<std::string, KindEntry> kinds;
     return kinds;
+}
+
+/// The kind @p type, loading its plugin (penumbra_TYPE.so, stream/util/Plugins.h) when no kind of
+/// that name is built in; nullopt when there is none.
+std::optional<KindEntry> findKind(const std::string& type) {
+    for (int attempt = 0; attempt < 2; ++attempt) {
+        {
+            std::lock_guard lock(registryMutex);
+            if (auto it = registry().find(type); it != registry().end()) return it->second;
+        }
+        if (attempt == 0 && !loadPlugin(type)) break;  // the plugin registers its kind as it loads
+    }
+    return std::nullopt;
 }
 
 /// Point receivers from a file; a .npy of visible fractions.
@@ -75,9 +89,8 @@ void registerReceiverKind(const std::string& type, ReceiverKindFactory factory, 
 
 std::string receiverKindExtension(const nlohmann::json& receivers) {
     if (!receivers.is_object() || !receivers.contains("type") || !receivers["type"].is_string()) return ".exr";
-    std::lock_guard lock(registryMutex);
-    auto it = registry().find(receivers["type"].get<std::string>());
-    return it == registry().end() ? ".exr" : it->second.extension;
+    const std::optional<KindEntry> kind = findKind(receivers["type"].get<std::string>());
+    return kind ? kind->extension : ".exr";
 }
 
 namespace {
@@ -89,18 +102,14 @@ const ReceiverKindRegistration kPoints{"points", [](const JsonParams& j, const S
 std::unique_ptr<ReceiverKind> makeKind(const nlohmann::json& receivers, const SceneDesc& scene, KindUse use) {
     JsonParams j(receivers, scene.file, "receivers");
     const std::string type = j.string("type");
-    ReceiverKindFactory factory;
-    {
+    const std::optional<KindEntry> entry = findKind(type);
+    if (!entry) {
         std::lock_guard lock(registryMutex);
-        auto it = registry().find(type);
-        if (it == registry().end()) {
-            std::vector<std::string> known;
-            for (const auto& entry : registry()) known.push_back(entry.first);
-            fail(j.where("type"), "unknown receiver type \"{}\" (known: {})", type, fmt::join(known, ", "));
-        }
-        factory = it->second.factory;
+        std::vector<std::string> known;
+        for (const auto& e : registry()) known.push_back(e.first);
+        fail(j.where("type"), "unknown receiver type \"{}\" (known: {})", type, fmt::join(known, ", "));
     }
-    std::unique_ptr<ReceiverKind> kind = factory(j, scene, use);
+    std::unique_ptr<ReceiverKind> kind = entry->factory(j, scene, use);
     j.finish();
     return kind;
 }

@@ -1,6 +1,7 @@
 #include "stream/util/Memory.h"
 
 #include <malloc.h>
+#include <sys/mman.h>
 
 #include "stream/util/Error.h"
 
@@ -55,6 +56,19 @@ uint64_t mappedNotResidentBytes() {
     unsigned long long sizePages = 0, residentPages = 0;
     if (!statmPages(sizePages, residentPages) || residentPages > sizePages) return 0;
     return (sizePages - residentPages) * pageBytes();
+}
+
+uint64_t mappedBytes() {
+    unsigned long long sizePages = 0, residentPages = 0;
+    return statmPages(sizePages, residentPages) ? sizePages * pageBytes() : 0;
+}
+
+bool addressSpaceAvailable(uint64_t bytes) {
+    if (bytes == 0) return true;
+    void* probe = ::mmap(nullptr, size_t(bytes), PROT_NONE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+    if (probe == MAP_FAILED) return false;
+    ::munmap(probe, size_t(bytes));
+    return true;
 }
 
 void useOneMallocArena() { ::mallopt(M_ARENA_MAX, 1); }

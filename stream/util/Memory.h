@@ -22,6 +22,14 @@ uint64_t addressSpaceLimit();
 /// spent before any bake data; 0 when unavailable.
 uint64_t mappedNotResidentBytes();
 
+/// @brief Address space mapped now (/proc/self/statm size), 0 when unavailable.
+uint64_t mappedBytes();
+
+/// @brief Whether @p bytes more of address space can be mapped now: a reservation is made and
+/// released at once (nothing is touched), so that a plan can be checked against what a limit
+/// really leaves before the work allocates it.
+bool addressSpaceAvailable(uint64_t bytes);
+
 /// @brief Makes glibc's malloc use one arena. Each further arena reserves 64 MiB of address space
 /// per thread that allocates, which an address-space limit cannot afford.
 void useOneMallocArena();

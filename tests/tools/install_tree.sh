@@ -21,4 +21,7 @@ src=$(cd "$(dirname "$0")/../.." && pwd)
 mkdir -p "$prefix/run/out"
 "$prefix/bin/penumbra" bake "$src/examples/grids.json" -q --threads 2 -o "$prefix/run/out/g.exr" --allow-outside-uris
 [ -s "$prefix/run/out/g.exr" ] && [ -s "$prefix/run/out/g.png" ] || { echo "the installed penumbra wrote no bake"; exit 1; }
+# The volume receivers are a plugin (lib/penumbra/penumbra_volume.so): the installed CLI finds it.
+"$prefix/bin/penumbra" bake "$src/examples/volume.json" -q -o "$prefix/run/out/v.vdb" --allow-outside-uris
+[ -s "$prefix/run/out/v.vdb" ] || { echo "the installed penumbra wrote no volume"; exit 1; }
 echo "install tree OK"

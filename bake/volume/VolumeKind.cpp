@@ -1,6 +1,6 @@
-#include "bake/kinds/VolumeKind.h"
+#include "bake/volume/VolumeKind.h"
 
-#include "bake/output/OpenVdb.h"
+#include "bake/volume/OpenVdb.h"
 #include "bake/kinds/ReceiverKind.h"
 #include "bake/Scene.h"
 #include "stream/util/AtomicFile.h"

@@ -1,6 +1,8 @@
-#include "bake/output/OpenVdb.h"
+#include "bake/volume/OpenVdb.h"
 
+#include "bake/LibraryErrors.h"
 #include "bake/output/ImageWriters.h"
+#include "bake/output/VolumeSlice.h"
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
 
@@ -19,8 +21,10 @@ void initializeOpenVdb() {
     std::call_once(once, [] { openvdb::initialize(); });
 }
 
-void writeVolumeSlicePng(const std::string& vdbPath, const std::string& pngPath, const std::string& gridName,
-                         char axis, double at, int minWidth) {
+namespace {
+
+void writeOpenVdbSlicePng(const std::string& vdbPath, const std::string& pngPath, const std::string& gridName,
+                          char axis, double at, int minWidth) {
     initializeOpenVdb();
     if (axis != 'x' && axis != 'y' && axis != 'z') fail(vdbPath, "slice axis must be x, y or z (got '{}')", axis);
     openvdb::FloatGrid::Ptr grid;
@@ -69,5 +73,15 @@ void writeVolumeSlicePng(const std::string& vdbPath, const std::string& pngPath,
     writePng8(pngPath, w * scale, h * scale, 1, pixels);
 }
 
+
+/// Registers what this plugin adds when it is linked in or loaded: the slice writer, and
+/// OpenVDB's exceptions as library errors (one line naming the file, exit 1).
+const bool kRegistered = [] {
+    registerVolumeSliceWriter(&writeOpenVdbSlicePng);
+    registerLibraryErrorType([](const std::exception& e) { return dynamic_cast<const openvdb::Exception*>(&e) != nullptr; });
+    return true;
+}();
+
+}  // namespace
 
 }  // namespace penumbra

@@ -1,0 +1,67 @@
+#include "stream/util/Plugins.h"
+
+#include "stream/util/Error.h"
+
+#include <dlfcn.h>
+#include <sys/mman.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <vector>
+
+#ifndef PENUMBRA_PLUGIN_RELDIR
+#define PENUMBRA_PLUGIN_RELDIR "../lib/penumbra"
+#endif
+
+namespace penumbra {
+namespace fs = std::filesystem;
+namespace {
+
+/// Address space a plugin's libraries may need to map; checked first, so that a capped process
+/// gets a sentence instead of a loader abort (a library that starts a thread while loading
+/// terminates the process when the thread's stack cannot be mapped).
+constexpr size_t kPluginHeadroom = size_t(80) << 20;  // OpenVDB and its libraries map 58 MiB, log4cplus a thread stack
+
+std::string pluginPath(const std::string& name) {
+    const std::string file = "penumbra_" + name + ".so";
+    std::vector<fs::path> dirs;
+    if (const char* dir = std::getenv("PENUMBRA_PLUGIN_DIR"); dir && *dir) dirs.emplace_back(dir);
+    std::error_code ec;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    if (!ec) dirs.push_back(exe.parent_path()), dirs.push_back(exe.parent_path() / PENUMBRA_PLUGIN_RELDIR);
+    for (const fs::path& d : dirs)
+        if (fs::is_regular_file(d / file, ec)) return (d / file).lexically_normal().string();
+    return {};
+}
+
+/// Fails unless @p bytes of address space can still be reserved.
+void requireHeadroom(const std::string& path) {
+    void* probe = ::mmap(nullptr, kPluginHeadroom, PROT_NONE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+    if (probe == MAP_FAILED)
+        fail(path, "cannot load: it needs at least {} MiB more address space than the limit (prlimit --as, ulimit -v) leaves",
+             kPluginHeadroom >> 20);
+    ::munmap(probe, kPluginHeadroom);
+}
+
+}  // namespace
+
+bool loadPlugin(const std::string& name) {
+    static std::mutex mutex;
+    static std::map<std::string, bool> loaded;
+    std::lock_guard lock(mutex);
+    if (auto it = loaded.find(name); it != loaded.end()) return it->second;
+    const std::string path = pluginPath(name);
+    if (path.empty()) return loaded[name] = false;
+    requireHeadroom(path);
+    // RTLD_GLOBAL: the plugin's libraries serve later plugins too; symbols of penumbra itself
+    // come from the executable, which exports them.
+    if (!::dlopen(path.c_str(), RTLD_NOW | RTLD_GLOBAL)) {
+        const char* why = ::dlerror();
+        fail(path, "cannot load: {}", why ? why : "unknown error");
+    }
+    return loaded[name] = true;
+}
+
+}  // namespace penumbra
