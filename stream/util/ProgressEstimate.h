@@ -1,0 +1,44 @@
+#pragma once
+/// @file ProgressEstimate.h
+/// @brief The share of a phase done and the time it still needs, from measured work as well as
+/// from the count of finished items.
+///
+/// A cast reports two counters: items with a known total (triangles that every tile has cast)
+/// and work with an unknown total (hierarchy visits and exact tests, whose count follows the time
+/// spent: on grids, flowers and sponza-like 20-30 million units a second on two threads). Work
+/// per item varies a lot along the stream (docs/performance.md, "Progress and ETA"), and the
+/// mean so far predicted the rest better than a recent window did. Items are finished a chunk at a time, so between
+/// two finished chunks the work already spent on the next ones counts against what they are
+/// expected to need: when it exceeds that, they are heavier than the mean, and are taken as about
+/// two-thirds done, so the ETA grows rather than sitting near zero while the last chunk drains.
+
+#include <cstdint>
+#include <optional>
+
+namespace penumbra {
+
+/// @brief Turns samples of (seconds, items, work) into a fraction done and a remaining time.
+/// Not thread-safe: one thread (the progress display) samples and reads it.
+class WorkEstimate {
+public:
+    /// @param totalItems the items the phase will finish (> 0)
+    explicit WorkEstimate(uint64_t totalItems);
+
+    /// @brief Records the counters at @p seconds since the phase began. Counters never decrease.
+    void sample(double seconds, uint64_t items, uint64_t work);
+
+    /// @brief The share done, in [0, 0.999]: never lower than a previous answer, and 0.999 once
+    /// the items reach their total (the phase's closing line says 100 %, not a running one).
+    /// Without work (0 so far) it is items / total.
+    double fraction() const { return fraction_; }
+    /// @brief Seconds still needed; nullopt before anything is done or once every item is.
+    std::optional<double> remainingSeconds() const { return remaining_; }
+
+private:
+    uint64_t total_;
+    uint64_t itemsSeen_ = 0, workAtItems_ = 0;  ///< the items last seen, and the work when they changed
+    double fraction_ = 0;
+    std::optional<double> remaining_;
+};
+
+}  // namespace penumbra
