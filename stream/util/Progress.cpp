@@ -36,7 +36,8 @@ std::optional<ProgressSnapshot> currentProgress() {
 }
 
 ProgressSnapshot ProgressReporter::snapshot() const {
-    ProgressSnapshot s{phase_, 0, total_, clock_.seconds()};
+    ProgressSnapshot s;
+    s.phase = phase_, s.total = total_, s.elapsedSeconds = clock_.seconds();
     std::lock_guard lock(estimateMutex_);
     s.done = workDone();
     if (total_ == 0) return s;

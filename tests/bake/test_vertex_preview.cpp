@@ -76,7 +76,7 @@ TEST_CASE("vertices: a PNG preview from a framing view is written, listed and th
             covered += image.grey(x, y) != background;
             shades.insert(image.grey(x, y));
         }
-    CHECK(covered > size_t(image.width * image.height) / 5);
+    CHECK(covered > size_t(image.width * image.height) / 8);
     CHECK(shades.size() > 20);
 }
 
