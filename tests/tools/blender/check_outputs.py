@@ -1,8 +1,9 @@
 """Opens penumbra's outputs in Blender (3.4, headless) and checks what a user would see there.
 
 Run by run.sh:  blender -b --factory-startup --python check_outputs.py -- EXR GLB SCALE [VDB]
-  EXR    a camera bake: one multilayer image, R,G,B,A as its Combined pass and visibility,
-         depth and normal as passes of those names (README, "Outputs")
+  EXR    a camera bake with two lights and two depth layers: one multilayer image, R,G,B,A as
+         its Combined pass and visibility, depth and normal as passes of those names, and the
+         layers light0, light1 and layer1 with their own passes (README, "Outputs")
   GLB    a vertex bake of examples/vertices-floor.glb placed at x SCALE: a colour attribute, and
          the floor's world size is 6 x SCALE (the scene transform is kept)
   VDB    optional, a volume bake: a Volume object with a grid named visibility
@@ -33,13 +34,13 @@ def exr_passes(path):
     scene.use_nodes = True
     node = scene.node_tree.nodes.new("CompositorNodeImage")
     node.image = image
-    return image, {o.name: o.type for o in node.outputs if o.enabled}
+    return image, node, {o.name: o.type for o in node.outputs if o.enabled}
 
 
 def check_exr(path):
     # A multilayer image has no pixel buffer of its own before something renders it, so the
     # checks are on what Blender parsed from the header: the passes and their kinds.
-    image, outputs = exr_passes(path)
+    image, node, outputs = exr_passes(path)
     check(image.type == "MULTILAYER", f"{path} opens as a multilayer image (type {image.type})")
     # R, G, B, A without a prefix are the Combined pass (and its Alpha), as a render's are; each
     # named layer is one pass with its channels grouped: visibility.V and depth.Z one value
@@ -50,6 +51,17 @@ def check_exr(path):
         check(outputs.get(name) in kinds, f"{path}: compositor Image node offers '{name}' as {' or '.join(kinds)} (outputs {outputs})")
     stray = sorted(set(outputs) - set(expect))
     check(not stray, f"{path}: no stray passes ({stray})")
+    # Per-light passes and deeper surfaces are layers of their own, each with its passes grouped
+    # (the node lists a layer's passes once the layer is chosen; an unknown name raises).
+    layers = {"light0": {"irradiance", "visibility"}, "light1": {"irradiance", "visibility"},
+              "layer1": {"Combined", "Alpha", "visibility", "depth", "normal"}}
+    for layer, passes in layers.items():
+        try:
+            node.layer = layer
+            seen = {o.name for o in node.outputs if o.enabled}
+        except TypeError as error:
+            seen = {f"no such layer: {error}"}
+        check(seen == passes, f"{path}: layer '{layer}' has the passes {sorted(passes)} ({sorted(seen)})")
 
 
 def world_box(objects):
@@ -92,6 +104,13 @@ def check_vdb(path):
         grids.load()
         names = [g.name for g in grids]
         check("visibility" in names, f"{path}: grid 'visibility' ({names})")
+        # Lit voxels are active too, so the volume's bounds are the whole baked box (6 x 1.1 x 6
+        # in run.sh's scene, voxels of 0.2), not just the shadowed part.
+        bpy.context.view_layer.update()
+        lo, hi = world_box(volumes)
+        size = sorted(h - l for l, h in zip(lo, hi))
+        check(abs(size[0] - 1.1) < 0.45 and abs(size[1] - 6) < 0.45 and abs(size[2] - 6) < 0.45,
+              f"{path}: the volume's bounds are the baked box ({size[0]:.2f} x {size[1]:.2f} x {size[2]:.2f}, expected 1.1 x 6 x 6)")
 
 
 def main():

@@ -14,9 +14,11 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 cp "$source_dir/examples/vertices-floor.glb" "$work/"
 light='{"type": "rect", "center": [0.8, 4, 0.4], "u": [1.5, 0, 0], "v": [0, 0, 1.5], "radiance": [10, 10, 10], "samples": 64}'
+# Two lights and two depth layers: light<i>.* and layer1.* must be layers of their own in Blender.
 cat >"$work/camera.json" <<JSON
-{"geometry": [{"type": "glb", "path": "vertices-floor.glb"}], "lights": [$light],
- "receivers": {"type": "camera", "eye": [0, 5, 6], "target": [0, 0, 0], "width": 96, "height": 64},
+{"geometry": [{"type": "glb", "path": "vertices-floor.glb"}],
+ "lights": [$light, {"type": "rect", "center": [-0.8, 4, 0.4], "u": [1.5, 0, 0], "v": [0, 0, 1.5], "radiance": [5, 5, 5], "samples": 16}],
+ "receivers": {"type": "camera", "eye": [0, 5, 6], "target": [0, 0, 0], "width": 96, "height": 64, "layers": 2},
  "output": "camera.exr"}
 JSON
 cat >"$work/vertices.json" <<JSON
