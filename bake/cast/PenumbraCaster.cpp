@@ -153,10 +153,13 @@ void PenumbraCaster::Impl::castOnTile(size_t t, BlockerBatch& batch) {
         reached[i] = tile.castTriangle(batch.prepared[i], &batch.lightVolumes[i * lights], &batch.lightActive[i * lights]);
     }
     const uint64_t work = tile.work() - workBefore;
-    if (batch.remaining.fetch_sub(1) != 1) {
-        if (progress) progress(0, work);
-        return;
-    }
+    // Each tile finishing the chunk credits its share of the chunk's triangles (tiles hold
+    // near-equal receiver counts); the shares add up to n exactly. Counted as tiles finish, not
+    // when the chunk is handed out, so the display reaches 100 % when the cast does.
+    const int before = batch.remaining.fetch_sub(1);
+    const uint64_t finished = tiles.size() - size_t(before), count = tiles.size();
+    if (progress) progress(n * (finished + 1) / count - n * finished / count, work);
+    if (before != 1) return;
     uint64_t culled = 0;  // the last tile: every tile's flags are written
     for (size_t i = 0; i < n; ++i) {
         bool any = false;
@@ -164,9 +167,6 @@ void PenumbraCaster::Impl::castOnTile(size_t t, BlockerBatch& batch) {
         culled += !any;
     }
     culledAtRoot += culled;
-    // Counted once every tile has cast the chunk, not when it is handed out: the display reaches
-    // 100 % when the cast does, not while the ring of chunks still drains.
-    if (progress) progress(n, work);
 }
 
 void PenumbraCaster::Impl::drain(size_t t) {

@@ -22,9 +22,10 @@ namespace penumbra {
 /// relation of the receiver is blocked. @p fullUmbra means every sample is blocked.
 using MaskVisitor = std::function<void(uint32_t receiver, const uint64_t* groupWords, bool fullUmbra)>;
 
-/// @brief Called from the threads that cast as work finishes: @p triangles blockers now cast by
-/// every tile (a chunk's count, once, by the last tile to finish it) and @p work units spent
-/// (TileCaster::work(), per tile and chunk). Must not throw; it runs inside the tiles' tasks.
+/// @brief Called from the threads that cast each time a tile finishes a chunk: @p triangles is
+/// that tile's share of the chunk's count (the shares of all tiles add up to it exactly) and
+/// @p work the units the tile spent on it (TileCaster::work()). Must not throw; it runs inside
+/// the tiles' tasks.
 using CastProgress = std::function<void(uint64_t triangles, uint64_t work)>;
 
 /// @brief Receivers are split spatially into tiles, each with its own hierarchy and mask pool.

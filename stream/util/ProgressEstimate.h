@@ -3,13 +3,13 @@
 /// @brief The share of a phase done and the time it still needs, from measured work as well as
 /// from the count of finished items.
 ///
-/// A cast reports two counters: items with a known total (triangles that every tile has cast)
+/// A cast reports two counters: items with a known total (triangles cast, each tile crediting its
+/// share of a chunk when it finishes it)
 /// and work with an unknown total (hierarchy nodes visited and exact tests, whose count follows
 /// the time spent whatever else runs on the machine). Work per item varies a lot along the
 /// stream, and the mean so far predicted the rest better than a recent window did
-/// (docs/performance.md, "Progress and ETA"). Items finish a chunk at a time, so between two
-/// finished chunks the work already spent on the next ones counts against what they are
-/// expected to need; when it exceeds that, they are heavier than the mean and are taken as
+/// (docs/performance.md, "Progress and ETA"). Items finish a tile's chunk at a time, so between
+/// two the work already spent on the next ones counts against what they are expected to need; when it exceeds that, they are heavier than the mean and are taken as
 /// two-thirds done, so the ETA grows rather than sitting near zero while the last chunk drains.
 
 #include <cstdint>
