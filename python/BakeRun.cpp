@@ -200,10 +200,9 @@ void reportProgress(const py::object& progress) {
     std::optional<ProgressSnapshot> s = currentProgress();
     if (!s) return;
     py::object fraction = py::none(), eta = py::none();
-    if (s->total) {
-        const double f = std::min(1.0, double(s->done) / double(s->total));
-        fraction = py::float_(f);
-        if (s->done > 0) eta = py::float_(s->elapsedSeconds * (1.0 - f) / f);
+    if (s->total) {  // the terminal display's share and ETA (ProgressEstimate.h)
+        fraction = py::float_(s->fraction);
+        if (s->remainingSeconds) eta = py::float_(*s->remainingSeconds);
     }
     progress(s->phase, fraction, eta);
 }

@@ -31,9 +31,15 @@ public:
         ProgressReporter progress("cast", blockers.sizeHint().value_or(0) * tiles.size(), c_.quiet);
         std::vector<Triangle> chunk(kTriangleChunk);
         for (size_t t = 0; t < tiles.size(); ++t) {
-            if (hooks && hooks->restore && hooks->restore(t, tiles.size(), tiles[t])) continue;
+            if (hooks && hooks->restore && hooks->restore(t, tiles.size(), tiles[t])) {
+                progress.update(blockers.sizeHint().value_or(0));  // a tile restored from a checkpoint is done
+                continue;
+            }
             double readSeconds = 0;
             PenumbraCaster caster(c_.samples, c_.receivers, c_.sampleSets, c_.options, subTiles(c_.threads), tiles[t]);
+            // Triangles are counted as the tiles finish them, with the work they took, so the
+            // share and ETA follow the work rather than the count (ProgressEstimate.h).
+            caster.setProgress([&progress](uint64_t triangles, uint64_t work) { progress.updateMeasured(triangles, work); });
             // The first tile of the bake reads the replay the bucket pass left ready.
             if (!fresh_) blockers.rewind();
             fresh_ = false;
@@ -49,7 +55,7 @@ public:
                 // the tiles cast earlier chunks on the others.
                 if (c_.observeChunk && !observed_) c_.observeChunk(part);
                 caster.cast(part);
-                progress.update(n);
+                progress.update(0);  // where Ctrl-C (requestCancel) stops the cast
             }
             observed_ = true;
             caster.finish(sink.masks);

@@ -41,6 +41,7 @@ struct PenumbraCaster::Impl {
     std::unique_ptr<std::atomic<bool>[]> tileBusy;
     std::atomic<bool> failed{false};  ///< a tile threw; flush() rethrows it
     std::atomic<uint64_t> culledAtRoot{0};
+    CastProgress progress;  ///< empty: nobody is watching
     tbb::task_group group;
     bool started = false;
     Stopwatch castWatch;
@@ -145,12 +146,20 @@ void PenumbraCaster::Impl::castOnTile(size_t t, BlockerBatch& batch) {
     const size_t n = batch.n, lights = size_t(samples.lightCount());
     TileCaster& tile = *tiles[t];
     uint8_t* reached = &batch.reached[t * n];
+    const uint64_t workBefore = tile.work();
     for (size_t i = 0; i < n; ++i) {
         reached[i] = 0;
         if (!batch.prepared[i].valid) continue;
         reached[i] = tile.castTriangle(batch.prepared[i], &batch.lightVolumes[i * lights], &batch.lightActive[i * lights]);
     }
-    if (batch.remaining.fetch_sub(1) != 1) return;
+    const uint64_t work = tile.work() - workBefore;
+    // Each tile finishing the chunk credits its share of the chunk's triangles (tiles hold
+    // near-equal receiver counts); the shares add up to n exactly. Counted as tiles finish, not
+    // when the chunk is handed out, so the display reaches 100 % when the cast does.
+    const int before = batch.remaining.fetch_sub(1);
+    const uint64_t finished = tiles.size() - size_t(before), count = tiles.size();
+    if (progress) progress(n * (finished + 1) / count - n * finished / count, work);
+    if (before != 1) return;
     uint64_t culled = 0;  // the last tile: every tile's flags are written
     for (size_t i = 0; i < n; ++i) {
         bool any = false;
@@ -179,6 +188,8 @@ void PenumbraCaster::Impl::drain(size_t t) {
         if (next >= published.load()) return;
     }
 }
+
+void PenumbraCaster::setProgress(CastProgress progress) { impl_->progress = std::move(progress); }
 
 void PenumbraCaster::cast(std::span<const Triangle> blockers) {
     Impl& m = *impl_;

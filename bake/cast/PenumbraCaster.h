@@ -22,6 +22,12 @@ namespace penumbra {
 /// relation of the receiver is blocked. @p fullUmbra means every sample is blocked.
 using MaskVisitor = std::function<void(uint32_t receiver, const uint64_t* groupWords, bool fullUmbra)>;
 
+/// @brief Called from the threads that cast each time a tile finishes a chunk: @p triangles is
+/// that tile's share of the chunk's count (the shares of all tiles add up to it exactly) and
+/// @p work the units the tile spent on it (TileCaster::work()). Must not throw; it runs inside
+/// the tiles' tasks.
+using CastProgress = std::function<void(uint64_t triangles, uint64_t work)>;
+
 /// @brief Receivers are split spatially into tiles, each with its own hierarchy and mask pool.
 /// Tiles are independent, so they are cast in parallel and the result does not depend on the
 /// tile count or the thread count. Blocker order does not change the result either: a mask is
@@ -38,6 +44,8 @@ public:
     /// copied and prepared on the calling thread, then cast by the tiles in the background; when
     /// the ring of prepared chunks is full, the calling thread casts tiles until a slot is free.
     void cast(std::span<const Triangle> blockers);
+    /// @brief Reports finished work to @p progress from now on (before the first cast()).
+    void setProgress(CastProgress progress);
     /// @brief Waits until every tile has cast every chunk; rethrows a tile's exception.
     void flush();
     /// @brief Flushes, then reports every receiver's result to @p visit exactly once. Visits run

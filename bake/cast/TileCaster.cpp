@@ -121,6 +121,7 @@ bool TileCaster::castTriangle(const BlockerTriangle& t, const PenumbraVolume* li
 void TileCaster::visit(uint32_t nodeIndex, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd) {
     ReceiverHierarchy& h = hierarchy_;
     const ReceiverHierarchy::Node node = h.nodes[nodeIndex];
+    ++stats_.visits;
     if (umbra() && h.nodeFullUmbra[nodeIndex]) return;  // line 35
     Box box{node.lo, node.hi};
     uint32_t planes = options.activePlanes ? lightPlanes : lightVolume->all();

@@ -26,6 +26,7 @@ namespace penumbra {
 struct TileStats {
     double buildSeconds = 0;  ///< hierarchy builds and rebuilds
     uint64_t rebuilds = 0, hardTests = 0, tableDecided = 0, alphaTests = 0, alphaRejected = 0;
+    uint64_t visits = 0;  ///< hierarchy nodes visited: with hardTests, the work the progress display counts
     size_t peakHierarchyBytes = 0, peakReceiverBytes = 0;
 };
 
@@ -46,6 +47,9 @@ public:
     const ReceiverHierarchy& hierarchy() const { return hierarchy_; }
     const MaskPool& pool() const { return pool_; }
     const TileStats& stats() const { return stats_; }
+    /// @brief Work done so far, in units whose rate follows the time spent: nodes visited plus
+    /// exact sample tests (the progress display's measure; ProgressEstimate.h).
+    uint64_t work() const { return stats_.visits + stats_.hardTests; }
 
 private:
     struct ActiveGroup {

@@ -147,14 +147,19 @@ private:
 
 }  // namespace
 
-std::unique_ptr<ReceiverKind> makeCameraKind(const JsonParams& j, const SceneDesc& scene, KindUse use) {
-    requireOutputExtension(scene, {".exr"}, "camera");
+CameraDesc readCameraView(const JsonParams& j) {
     CameraDesc c;
     c.where = j.where();
     c.eye = j.vec3("eye"), c.target = j.vec3("target"), c.up = j.vec3("up", c.up);
     c.fovDeg = j.number("fov_deg", c.fovDeg);
     c.width = int(j.integer("width", c.width, 1, 65536));
     c.height = int(j.integer("height", c.height, 1, 65536));
+    return c;
+}
+
+std::unique_ptr<ReceiverKind> makeCameraKind(const JsonParams& j, const SceneDesc& scene, KindUse use) {
+    requireOutputExtension(scene, {".exr"}, "camera");
+    CameraDesc c = readCameraView(j);
     c.layers = int(j.integer("layers", c.layers, 1, 16));
     CameraAntialias aa;
     if (const nlohmann::json* raw = j.raw("antialias")) {

@@ -4,6 +4,7 @@
 /// per covered pixel; it writes a multi-channel EXR and a shaded PNG preview (CameraOutput.h).
 
 #include "bake/kinds/ReceiverKind.h"
+#include "receivers/CameraReceivers.h"
 
 #include <memory>
 #include <span>
@@ -22,6 +23,11 @@ struct CameraAntialias {
 /// surface and the other none. Receivers from @p firstPass on are ignored.
 std::vector<uint32_t> highContrastPixels(const ReceiverSet& receivers, std::span<const float> visibility, size_t firstPass,
                                          double threshold);
+
+/// @brief Reads a camera's view from @p j: eye, target (required), up, fov_deg, width and height
+/// (the camera kind's keys; a vertex bake's preview camera takes the same). Not validated.
+/// @throw InputError naming the key for a value of the wrong type or out of range.
+CameraDesc readCameraView(const JsonParams& j);
 
 /// @brief Makes the camera kind from its "receivers" object (eye, target, up, fov_deg, width,
 /// height) and the scene (lights and bake.smooth_shading, for the preview); null for

@@ -2,6 +2,7 @@
 
 #include "bake/ExrMetadata.h"
 #include "bake/output/ImageWriters.h"
+#include "bake/output/PreviewTone.h"
 #include "stream/util/AtomicFile.h"
 
 #include <glm/geometric.hpp>
@@ -49,7 +50,7 @@ struct CameraLayout {
     size_t perLayer = 9;  // channels per depth layer (cameraChannels())
     std::vector<uint32_t> order;
     std::vector<RefinedPixel> refined;
-    float exposure = 1.f;
+    PreviewTone tone;
 };
 
 /// Channels per depth layer: R, G, B, A, V, Z, N.XYZ, and the irradiance when RGB holds V.
@@ -77,19 +78,10 @@ CameraLayout layoutOf(const ReceiverSet& receivers, const ReceiverResults& resul
         i = end;
     }
     std::stable_sort(c.refined.begin(), c.refined.end(), [](const RefinedPixel& a, const RefinedPixel& b) { return a.pixel < b.pixel; });
-    // Preview exposure: the brighter lit surfaces sit near white (99th percentile of luminance).
+    // Preview exposure: the brighter lit surfaces sit near white (PreviewTone.h).
     std::vector<float> luminance(c.front);
-    for (size_t i = 0; i < c.front; ++i) {
-        const glm::vec3 x = shadedIrradiance(receivers, results, i, smooth);
-        luminance[i] = 0.2126f * x.x + 0.7152f * x.y + 0.0722f * x.z;
-    }
-    float white = 1.f;
-    if (!luminance.empty()) {
-        size_t q = std::min(luminance.size() - 1, size_t(0.99 * double(luminance.size())));
-        std::nth_element(luminance.begin(), luminance.begin() + q, luminance.end());
-        white = luminance[q] > 0 ? luminance[q] : 1.f;
-    }
-    c.exposure = 0.92f / white;
+    for (size_t i = 0; i < c.front; ++i) luminance[i] = previewLuminance(shadedIrradiance(receivers, results, i, smooth));
+    c.tone = previewTone(luminance);
     return c;
 }
 
@@ -122,7 +114,7 @@ public:
         for (size_t layer = 0; layer < c_.layers; ++layer)  // no surface: infinitely far
             std::fill_n(&at(c_.perLayer * layer + kZ, 0), kStripRows * width_, std::numeric_limits<float>::infinity());
         const size_t first = size_t(y0) * width_, end = first + size_t(rows) * width_;
-        for (size_t px = 0; px < end - first; ++px) setColour(px, glm::vec3(0.02f));  // background: a neutral dark grey
+        for (size_t px = 0; px < end - first; ++px) setColour(px, glm::vec3(PreviewTone::kBackground));
         for (; next_ < c_.order.size() && r_.pixel[c_.order[next_]] % c_.pixels < end; ++next_) firstPass(c_.order[next_], first);
         for (; nextRefined_ < c_.refined.size() && c_.refined[nextRefined_].pixel < end; ++nextRefined_)
             refinedPixel(c_.refined[nextRefined_], first);
@@ -160,7 +152,7 @@ private:
             const float v[4] = {res_.visibilityOf(i, l), el.x, el.y, el.z};
             for (size_t k = 0; k < 4; ++k) at(c_.perLayer * c_.layers + 4 * size_t(l) + k, local) = v[k];
         }
-        setColour(local, glm::vec3(kAmbient) + c_.exposure * shadedIrradiance(r_, res_, i, smooth_));
+        setColour(local, c_.tone(shadedIrradiance(r_, res_, i, smooth_)));
     }
 
     /// A refined pixel: the mean over its sub-pixel receivers (summed in double, in receiver order).
@@ -185,10 +177,9 @@ private:
         const float a = float(count / refinement_.subPixels);
         at(kA, local) = a;
         // Coverage blends with the background.
-        setColour(local, a * (glm::vec3(kAmbient) + c_.exposure * glm::vec3(shade / count)) + (1.f - a) * glm::vec3(0.02f));
+        setColour(local, a * c_.tone(glm::vec3(shade / count)) + (1.f - a) * glm::vec3(PreviewTone::kBackground));
     }
 
-    static constexpr float kAmbient = 0.06f;  // white Lambert surfaces, a little ambient
     const CameraLayout& c_;
     glm::dvec3 eye_, forward_;
     const ReceiverSet& r_;

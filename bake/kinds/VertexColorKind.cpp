@@ -2,7 +2,12 @@
 #include "stream/util/PathText.h"
 
 #include "stream/GltfBuffers.h"
+#include "bake/kinds/CameraKind.h"
+#include "bake/kinds/CameraOutput.h"
 #include "bake/kinds/ReceiverKind.h"
+#include "bake/output/ImageWriters.h"
+#include "bake/output/MeshPreview.h"
+#include "bake/output/PreviewTone.h"
 #include "bake/Scene.h"
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
@@ -23,6 +28,8 @@
 #include <cstring>
 #include <filesystem>
 #include <map>
+#include <optional>
+#include <span>
 #include <sstream>
 
 namespace penumbra {
@@ -171,38 +178,74 @@ void writeCopy(VertexFile& file, const ReceiverResults& results) {
                         std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()));
 }
 
+/// Calls @p visit(reader, world) for every triangle primitive of @p file, in the receivers' order,
+/// after the checks that a copy can be written (one placement per mesh, uncompressed).
+template <class Visit>
+void walkPrimitives(const VertexFile& file, Visit&& visit) {
+    const GltfDocument doc = loadGltfDocument(file.input);
+    GltfBytes bytes(doc, UINT64_MAX);
+    const std::vector<GltfMeshNode> nodes = walkGltfScene(doc);
+    // A vertex attribute holds one value per vertex, so a mesh drawn by two nodes (two
+    // different shadows) cannot be written back; say so instead of picking one.
+    std::map<int, int> drawnBy;
+    for (const GltfMeshNode& node : nodes) {
+        if (auto [it, fresh] = drawnBy.emplace(node.mesh, node.node); !fresh)
+            fail(file.input, "mesh {} is drawn by nodes {} and {}; vertex results need one placement per mesh", node.mesh,
+                 it->second, node.node);
+        if (doc.nodes[size_t(node.node)].instanced())
+            fail(file.input, "node {} uses EXT_mesh_gpu_instancing; vertex results need one placement per mesh", node.node);
+    }
+    for (const GltfMeshNode& node : nodes) {
+        const glm::dmat4 world = file.sceneMatrix * node.world;
+        for (size_t p = 0; p < doc.meshes[size_t(node.mesh)].primitives.size(); ++p) {
+            const auto layout = gltfTrianglePrimitive(doc, node.mesh, int(p));
+            if (!layout) continue;  // points and lines carry no surface to shade
+            if (layout->draco || layout->decodeBytes > 0)
+                fail(layout->where(doc), "is compressed; vertex results can only be written into an uncompressed "
+                     "glTF (decompress it with gltfpack -noq, or bake a lightmap)");
+            GltfPrimitiveReader reader(doc, bytes, *layout);
+            visit(reader, world);
+        }
+    }
+}
+
+/// @brief Renders every file's triangles with their baked irradiance (the camera preview's tone
+/// mapping) from @p camera, or from a view framing the receivers, and writes the PNG.
+void writePreview(std::span<const VertexFile> files, const OutputContext& c, const std::optional<CameraDesc>& camera) {
+    glm::dvec3 lo(0.0), hi(0.0);
+    if (!c.receivers.position.empty()) {
+        lo = hi = glm::dvec3(c.receivers.position[0]);
+        for (const glm::vec3& p : c.receivers.position) lo = glm::min(lo, glm::dvec3(p)), hi = glm::max(hi, glm::dvec3(p));
+    }
+    MeshPreviewRaster raster(camera ? *camera : framingCamera(lo, hi));
+    std::vector<float> luminance(c.results.irradiance.size());
+    for (size_t i = 0; i < luminance.size(); ++i) luminance[i] = previewLuminance(c.results.irradiance[i]);
+    const PreviewTone tone = previewTone(luminance);
+    for (const VertexFile& file : files) {
+        size_t k = 0;
+        walkPrimitives(file, [&](GltfPrimitiveReader& reader, const glm::dmat4&) {
+            const size_t first = file.primitives.at(k++).first;
+            for (uint64_t t = 0; t < reader.layout().triangles; ++t) {
+                const std::array<uint32_t, 3> v = reader.triangle(t);
+                std::array<glm::vec3, 3> p, colour;
+                for (size_t j = 0; j < 3; ++j)
+                    p[j] = c.receivers.position[first + v[j]], colour[j] = tone(c.results.irradiance[first + v[j]]);
+                raster.add(p, colour);
+            }
+        });
+    }
+    writePng8(previewPath(c.output), raster.width(), raster.height(), 3, raster.rgb());
+}
+
 class VertexColorKind final : public ReceiverKind {
 public:
-    explicit VertexColorKind(std::vector<VertexFile> files) : files_(std::move(files)) {}
+    VertexColorKind(std::vector<VertexFile> files, std::optional<CameraDesc> camera)
+        : files_(std::move(files)), camera_(std::move(camera)) {}
 
     ReceiverSet receivers() override {
         ReceiverSet set;
         for (VertexFile& file : files_) {
-            const GltfDocument doc = loadGltfDocument(file.input);
-            GltfBytes bytes(doc, UINT64_MAX);
-            const std::vector<GltfMeshNode> nodes = walkGltfScene(doc);
-            // A vertex attribute holds one value per vertex, so a mesh drawn by two nodes (two
-            // different shadows) cannot be written back; say so instead of picking one.
-            std::map<int, int> drawnBy;
-            for (const GltfMeshNode& node : nodes) {
-                if (auto [it, fresh] = drawnBy.emplace(node.mesh, node.node); !fresh)
-                    fail(file.input, "mesh {} is drawn by nodes {} and {}; vertex results need one placement per mesh",
-                         node.mesh, it->second, node.node);
-                if (doc.nodes[size_t(node.node)].instanced())
-                    fail(file.input, "node {} uses EXT_mesh_gpu_instancing; vertex results need one placement per mesh", node.node);
-            }
-            for (const GltfMeshNode& node : nodes) {
-                const glm::dmat4 world = file.sceneMatrix * node.world;
-                for (size_t p = 0; p < doc.meshes[size_t(node.mesh)].primitives.size(); ++p) {
-                    const auto layout = gltfTrianglePrimitive(doc, node.mesh, int(p));
-                    if (!layout) continue;  // points and lines carry no surface to shade
-                    if (layout->draco || layout->decodeBytes > 0)
-                        fail(layout->where(doc), "is compressed; vertex results can only be written into an uncompressed "
-                             "glTF (decompress it with gltfpack -noq, or bake a lightmap)");
-                    GltfPrimitiveReader reader(doc, bytes, *layout);
-                    addPrimitive(file, reader, world, set);
-                }
-            }
+            walkPrimitives(file, [&](GltfPrimitiveReader& reader, const glm::dmat4& world) { addPrimitive(file, reader, world, set); });
             file.fileBytes = std::filesystem::file_size(file.input);
         }
         return set;
@@ -213,15 +256,19 @@ public:
         // accessors (28 bytes per vertex), and the serialized file, about the input again.
         uint64_t bytes = receivers * 28 * 2;
         for (const VertexFile& file : files_) bytes = std::max(bytes, 3 * file.fileBytes + receivers * 56);
-        return bytes;
+        // The preview comes after the copies: its raster and a luminance per receiver.
+        const int w = camera_ ? camera_->width : 640, h = camera_ ? camera_->height : 480;
+        return std::max(bytes, MeshPreviewRaster::bytes(w, h) + receivers * 4);
     }
 
     void write(const OutputContext& c) override {
         for (VertexFile& file : files_) writeCopy(file, c.results);
+        writePreview(files_, c, camera_);
     }
 
 private:
     std::vector<VertexFile> files_;
+    std::optional<CameraDesc> camera_;  ///< receivers.camera: the preview's view
 };
 
 }  // namespace
@@ -234,6 +281,14 @@ const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, con
         if (colourFormat != "float" && colourFormat != "unorm16")
             fail(j.where("color_format"), "expected \"float\" or \"unorm16\", got \"{}\"", colourFormat);
         requireOutputExtension(scene, {".glb", ".gltf"}, "vertices");
+        std::optional<CameraDesc> camera;
+        if (const nlohmann::json* raw = j.raw("camera")) {
+            if (!raw->is_object()) fail(j.where("camera"), "expected an object such as {{\"eye\": [3, 2, 4], \"target\": [0, 0, 0]}}");
+            JsonParams view(*raw, j.file(), j.path("camera"));
+            camera = readCameraView(view);
+            view.finish();
+            validateCamera(*camera);
+        }
         std::vector<VertexFile> files;
         for (size_t i = 0; i < meshes.size(); ++i) {
             const size_t index = meshes[i];
@@ -257,7 +312,7 @@ const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, con
             }
             files.push_back(std::move(file));
         }
-        return use == KindUse::Validate ? nullptr : std::make_unique<VertexColorKind>(std::move(files));
+        return use == KindUse::Validate ? nullptr : std::make_unique<VertexColorKind>(std::move(files), std::move(camera));
     }, ".glb"};
 
 }  // namespace

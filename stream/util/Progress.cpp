@@ -32,8 +32,19 @@ std::vector<const ProgressReporter*>& running() {
 std::optional<ProgressSnapshot> currentProgress() {
     std::lock_guard lock(runningMutex);
     if (running().empty()) return std::nullopt;
-    const ProgressReporter* r = running().back();
-    return ProgressSnapshot{r->phase(), r->workDone(), r->totalWork(), r->elapsedSeconds()};
+    return running().back()->snapshot();
+}
+
+ProgressSnapshot ProgressReporter::snapshot() const {
+    ProgressSnapshot s;
+    s.phase = phase_, s.total = total_, s.elapsedSeconds = clock_.seconds();
+    std::lock_guard lock(estimateMutex_);
+    s.done = workDone();
+    if (total_ == 0) return s;
+    estimate_.sample(s.elapsedSeconds, s.done, work_.load(std::memory_order_relaxed));
+    s.fraction = estimate_.fraction();
+    s.remainingSeconds = estimate_.remainingSeconds();
+    return s;
 }
 
 std::string formatDuration(double seconds) {
@@ -65,9 +76,17 @@ std::string formatProgressLine(std::string_view phase, uint64_t done, uint64_t t
     return line;
 }
 
+std::string formatProgressLine(std::string_view phase, uint64_t done, uint64_t total, double elapsedSeconds,
+                               double fraction, std::optional<double> remainingSeconds) {
+    std::string line = fmt::format("[{}] {:.1f}% ({}/{}) elapsed {}", phase, 100.0 * fraction, done, total,
+                                   formatDuration(elapsedSeconds));
+    if (remainingSeconds) line += fmt::format(" ETA {}", formatDuration(*remainingSeconds));
+    return line;
+}
+
 ProgressReporter::ProgressReporter(std::string phase, uint64_t totalWork, bool quiet)
     : phase_(std::move(phase)), total_(totalWork), quiet_(quiet),
-      uncaughtAtStart_(std::uncaught_exceptions()) {
+      uncaughtAtStart_(std::uncaught_exceptions()), estimate_(totalWork) {
     {
         std::lock_guard lock(runningMutex);
         running().push_back(this);
@@ -113,14 +132,17 @@ void ProgressReporter::run() {
     std::unique_lock lock(mutex_);
     for (;;) {
         if (wake_.wait_for(lock, kRedrawInterval, [this] { return stopping_; })) return;
-        double now = clock_.seconds();
+        // Sampled at every tick, printed or not, so the estimate sees each finished chunk.
+        const ProgressSnapshot s = snapshot();
         if (!tty_) {
-            if (now - lastLog < kLogInterval) continue;
-            lastLog = now;
+            if (s.elapsedSeconds - lastLog < kLogInterval) continue;
+            lastLog = s.elapsedSeconds;
         }
         // Format and write without holding the lock so done() never waits on stderr.
         lock.unlock();
-        print(formatProgressLine(phase_, workDone(), total_, now, false), false);
+        print(total_ > 0 ? formatProgressLine(phase_, s.done, total_, s.elapsedSeconds, s.fraction, s.remainingSeconds)
+                         : formatProgressLine(phase_, s.done, total_, s.elapsedSeconds, false),
+              false);
         lock.lock();
     }
 }

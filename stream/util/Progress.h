@@ -7,6 +7,7 @@
 /// every 0.25 s. On a terminal the line is redrawn in place with '\r'; when stderr is a file
 /// or pipe (CI logs) a full line is printed at most every 2 s so logs stay short.
 
+#include "stream/util/ProgressEstimate.h"
 #include "stream/util/Timer.h"
 
 #include <atomic>
@@ -43,6 +44,8 @@ struct ProgressSnapshot {
     std::string phase;
     uint64_t done = 0, total = 0;  ///< total 0: unknown
     double elapsedSeconds = 0;
+    double fraction = 0;  ///< the share done as the display shows it (WorkEstimate; 0 when total is 0)
+    std::optional<double> remainingSeconds;  ///< the display's ETA
 };
 /// @brief The most recently started ProgressReporter still running, in any thread, quiet or not;
 /// nullopt between phases. Thread safe.
@@ -69,6 +72,16 @@ public:
         if (cancelFlag.load(std::memory_order_relaxed)) throw Cancelled();
     }
 
+    /// @brief Records @p items more units as finished and @p work more units of measured effort
+    /// spent on them, whose total is unknown (a cast's visits: ProgressEstimate.h). Once any work
+    /// is reported the share and ETA shown follow the work, not the count of items. Thread safe
+    /// and never throws, for worker tasks that must not unwind: the caller's own update() calls
+    /// are where it is cancelled.
+    void updateMeasured(uint64_t items, uint64_t work) noexcept {
+        work_.fetch_add(work, std::memory_order_relaxed);
+        done_.fetch_add(items, std::memory_order_relaxed);
+    }
+
     /// @brief Stops the display thread and prints the final line with the total time.
     /// Idempotent.
     void done();
@@ -81,6 +94,9 @@ public:
     const std::string& phase() const { return phase_; }
     /// Seconds since construction.
     double elapsedSeconds() const { return clock_.seconds(); }
+    /// @brief Samples the counters now and returns the share done and the ETA (WorkEstimate), as
+    /// the display shows them. Thread safe.
+    ProgressSnapshot snapshot() const;
 
 private:
     void run();
@@ -93,6 +109,9 @@ private:
     bool tty_ = false;
     int uncaughtAtStart_;
     std::atomic<uint64_t> done_{0};
+    std::atomic<uint64_t> work_{0};  ///< updateMeasured()'s work
+    mutable std::mutex estimateMutex_;
+    mutable WorkEstimate estimate_;  ///< guarded by estimateMutex_; sampled by snapshot()
     Stopwatch clock_;
 
     std::mutex mutex_;
@@ -107,6 +126,11 @@ private:
 /// @param final true for the closing line, which shows total time instead of an ETA.
 std::string formatProgressLine(std::string_view phase, uint64_t done, uint64_t total,
                                double elapsedSeconds, bool final);
+
+/// @brief A line before the end, with the share done and the remaining time estimated elsewhere
+/// (WorkEstimate): `[cast] 42.0% (4200/10000) elapsed 3.1s ETA 4.3s`.
+std::string formatProgressLine(std::string_view phase, uint64_t done, uint64_t total, double elapsedSeconds,
+                               double fraction, std::optional<double> remainingSeconds);
 
 /// @brief Short duration for humans: "3.1s", "2m05s", "1h02m".
 std::string formatDuration(double seconds);

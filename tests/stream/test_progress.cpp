@@ -1,6 +1,7 @@
 // Tests for ProgressReporter, its line format and the timers.
 
 #include "stream/util/Progress.h"
+#include "stream/util/ProgressEstimate.h"
 
 #include <catch2/catch.hpp>
 
@@ -8,7 +9,10 @@
 #include <stdlib.h>
 #include <unistd.h>
 
+#include <cmath>
+#include <algorithm>
 #include <cstdio>
+#include <optional>
 #include <fstream>
 #include <sstream>
 #include <thread>
@@ -90,4 +94,86 @@ TEST_CASE("Stopwatch and ScopedTimer measure wall time", "[io]") {
     CHECK(watch.seconds() >= total);
     watch.reset();
     CHECK(watch.seconds() < 0.019);
+}
+
+namespace {
+
+/// A synthetic cast: @p items items in chunks of @p chunk, item i costing cost(i) units of work,
+/// one unit a microsecond. Samples every 0.25 s as the display does, and returns what the
+/// estimate said at each sample with the true remaining time.
+struct EstimatePoint {
+    double seconds, fraction, remaining;
+    std::optional<double> eta;
+};
+template <class Cost>
+std::vector<EstimatePoint> runSchedule(uint64_t items, uint64_t chunk, Cost cost) {
+    std::vector<double> finished;  // time at which each chunk is finished
+    std::vector<uint64_t> workAt;  // work at that time
+    double t = 0;
+    uint64_t work = 0;
+    for (uint64_t i = 0; i < items; ++i) {
+        work += cost(i);
+        t = double(work) * 1e-6;
+        if ((i + 1) % chunk == 0 || i + 1 == items) finished.push_back(t), workAt.push_back(work);
+    }
+    const double end = t;
+    penumbra::WorkEstimate estimate(items);
+    std::vector<EstimatePoint> out;
+    for (double s = 0.25; s < end; s += 0.25) {
+        size_t c = 0;
+        while (c < finished.size() && finished[c] <= s) ++c;
+        const uint64_t done = std::min<uint64_t>(items, c * chunk);
+        estimate.sample(s, done, uint64_t(s * 1e6));  // the work counter follows the time
+        out.push_back({s, estimate.fraction(), end - s, estimate.remainingSeconds()});
+    }
+    return out;
+}
+
+}  // namespace
+
+TEST_CASE("WorkEstimate: monotone share below 100 %, an ETA that grows while a heavy tail drains", "[io][progress]") {
+    // Cut-out blockers replay after the opaque ones and cost far more: the last 6000 items take
+    // 30 times as long (sponza-like spends a third of its cast in its last 1 % of triangles).
+    const uint64_t items = 100000;
+    const auto points = runSchedule(items, 4096, [&](uint64_t i) { return uint64_t(i >= items - 6000 ? 3000 : 100); });
+    REQUIRE(points.size() > 40);
+    double last = 0;
+    for (const EstimatePoint& p : points) {
+        CHECK(p.fraction >= last);
+        CHECK(p.fraction < 1.0);
+        last = p.fraction;
+    }
+    // Between 12 s and 22 s the same chunk is cast: counting items alone would keep an ETA under
+    // 1.5 s for the 15 s still to go; the work in flight makes it grow instead.
+    const auto at = [&](double s) { return *std::find_if(points.begin(), points.end(), [&](const EstimatePoint& p) { return p.seconds >= s; }); };
+    REQUIRE(at(12.0).eta);
+    REQUIRE(at(21.0).eta);
+    CHECK(*at(21.0).eta > 3 * *at(12.0).eta);
+    CHECK(*at(21.0).eta > 0.5 * at(21.0).remaining);
+}
+
+TEST_CASE("WorkEstimate: work in flight past its expectation raises the ETA", "[io][progress]") {
+    penumbra::WorkEstimate e(100);
+    e.sample(1.0, 50, 1000);  // 20 units an item so far: 1000 more expected
+    REQUIRE(e.remainingSeconds());
+    CHECK(*e.remainingSeconds() == Approx(1.0));
+    CHECK(e.fraction() == Approx(0.5));
+    e.sample(2.0, 50, 2000);  // the next items took all of it and are still running
+    CHECK(*e.remainingSeconds() == Approx(2.0 * 500 / 2000));  // taken as two-thirds done
+    CHECK(e.fraction() == Approx(0.8));
+    e.sample(3.0, 100, 2500);  // every item finished: the closing line says 100 %, not this
+    CHECK(e.fraction() == Approx(0.999));
+    CHECK(!e.remainingSeconds());
+}
+
+TEST_CASE("WorkEstimate without work is the items' share with a linear ETA", "[io][progress]") {
+    penumbra::WorkEstimate e(1000);
+    e.sample(0.5, 0, 0);
+    CHECK(e.fraction() == 0);
+    CHECK(!e.remainingSeconds());
+    e.sample(1.0, 250, 0);
+    CHECK(e.fraction() == Approx(0.25));
+    CHECK(*e.remainingSeconds() == Approx(3.0));
+    CHECK(formatProgressLine("cast", 250, 1000, 1.0, e.fraction(), e.remainingSeconds()) ==
+          "[cast] 25.0% (250/1000) elapsed 1.0s ETA 3.0s");
 }

@@ -9,6 +9,9 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <sstream>
+
 using namespace penumbra;
 using namespace penumbra::test;
 
@@ -149,4 +152,39 @@ TEST_CASE("point receivers from .npy and .csv bake to a .npy of visible fraction
         CHECK(v[1] < 1.0f);
         CHECK(v[2] == 1.0f);
     }
+}
+
+TEST_CASE("bake: the cast's progress lines on a terminal rise monotonically and only the last says 100 %", "[cli][progress]") {
+    // `script` (util-linux) gives the bake a terminal, so the line is redrawn every 0.25 s.
+    if (runShell("command -v script >/dev/null 2>&1") != 0) {
+        WARN("script (util-linux) is not installed: skipped");
+        return;
+    }
+    ScratchDir dir("progress");
+    write(dir / "scene.json", R"({
+      "geometry": [{"type": "grid", "cells": 24, "levels": 3, "size": 4, "floor_size": 10}],
+      "lights": [{"type": "rect", "center": [0,5,0], "u": [2,0,0], "v": [0,0,2], "samples": 256, "sample_sets": 4}],
+      "receivers": {"type": "camera", "eye": [0,5,7], "target": [0,0.5,0], "width": 320, "height": 240},
+      "output": "out/progress.exr"})");
+    const std::string bake = std::string(PENUMBRA_BINARY) + " bake " + (dir / "scene.json") + " --threads 2";
+    REQUIRE(runShell("script -qfec '" + bake + "' " + (dir / "tty.txt") + " >/dev/null 2>&1") == 0);
+    std::string text = slurp(dir / "tty.txt");
+    std::replace(text.begin(), text.end(), '\r', '\n');
+    std::vector<std::string> cast;
+    std::istringstream lines(text);
+    for (std::string line; std::getline(lines, line);)
+        if (line.rfind("[cast] ", 0) == 0) cast.push_back(line);
+    REQUIRE(!cast.empty());
+    double last = 0;
+    for (size_t i = 0; i < cast.size(); ++i) {
+        INFO(cast[i]);
+        const double percent = std::stod(cast[i].substr(7));
+        CHECK(percent >= last);
+        last = percent;
+        if (i + 1 < cast.size()) CHECK(percent < 100.0);
+    }
+    CHECK_THAT(cast.back(), Catch::StartsWith("[cast] 100.0% (") && Catch::Contains(" done in "));
+    // The counts of the closing line are equal: every triangle was cast by every tile.
+    const std::string counts = cast.back().substr(cast.back().find('(') + 1);
+    CHECK(counts.substr(0, counts.find('/')) == counts.substr(counts.find('/') + 1, counts.find(')') - counts.find('/') - 1));
 }
