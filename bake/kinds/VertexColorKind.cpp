@@ -36,10 +36,13 @@ namespace penumbra {
 namespace {
 
 /// One triangle primitive that contributes receivers: its vertices are receivers
-/// [first, first + count) of the kind's ReceiverSet.
+/// [first, first + count) of the kind's ReceiverSet. Primitives of one mesh that share a POSITION
+/// accessor share its receivers (and, in the copy, its result accessors): @p owner is the first
+/// of them, the one that added the receivers.
 struct PrimitiveRange {
     int mesh = 0, primitive = 0;
     size_t first = 0, count = 0;
+    size_t owner = 0;  ///< index in VertexFile::primitives of the range that added the receivers
 };
 
 /// One "meshes" entry: a glTF file, its model (kept for writing the copy) and its receivers.
@@ -50,17 +53,39 @@ struct VertexFile {
     bool colourUnorm16 = false;  ///< "color_format": "unorm16": COLOR_0 as normalized unsigned shorts
     uint64_t fileBytes = 0;
     std::vector<PrimitiveRange> primitives;
+    std::map<std::pair<int, int>, size_t> owners;                ///< (mesh, POSITION accessor) -> owner range
+    std::map<size_t, std::vector<glm::dvec3>> faceNormalSums;   ///< owner range -> sums, for meshes without normals
 };
 
+/// Adds the area-weighted face normals of @p reader's triangles to @p sum (the unnormalized cross
+/// product is twice the area), from the world positions of receivers [first, first + n).
+void addFaceNormals(GltfPrimitiveReader& reader, const ReceiverSet& set, size_t first, bool mirrored, std::vector<glm::dvec3>& sum) {
+    for (uint64_t t = 0; t < reader.layout().triangles; ++t) {
+        const std::array<uint32_t, 3> c = reader.triangle(t);
+        glm::dvec3 pa(set.position[first + c[0]]), pb(set.position[first + c[1]]), pd(set.position[first + c[2]]);
+        // World-space winding of a mirrored node is reversed; its front face is not.
+        glm::dvec3 face = glm::cross(pb - pa, pd - pa) * (mirrored ? -1.0 : 1.0);
+        sum[c[0]] += face, sum[c[1]] += face, sum[c[2]] += face;
+    }
+}
+
 /// Adds receivers for one primitive placed by @p world, read through the shared glTF walker
-/// (GltfPrimitive.h), which does every check of positions, normals and indices.
+/// (GltfPrimitive.h), which does every check of positions, normals and indices. A primitive whose
+/// mesh already placed its POSITION accessor shares those receivers: only its faces are read.
 void addPrimitive(VertexFile& file, GltfPrimitiveReader& reader, const glm::dmat4& world, ReceiverSet& out) {
     const GltfPrimitiveLayout& layout = reader.layout();
+    const bool mirrored = glm::determinant(glm::dmat3(world)) < 0;
+    const auto [owner, fresh] = file.owners.emplace(std::pair(layout.mesh, layout.positions), file.primitives.size());
+    if (!fresh) {
+        const PrimitiveRange shared = file.primitives[owner->second];
+        file.primitives.push_back({layout.mesh, layout.primitive, shared.first, shared.count, owner->second});
+        if (auto sums = file.faceNormalSums.find(owner->second); sums != file.faceNormalSums.end())
+            addFaceNormals(reader, out, shared.first, mirrored, sums->second);
+        return;
+    }
     const size_t n = size_t(layout.vertices);
     const bool normals = reader.has("NORMAL");
-    const glm::dmat3 linear(world);
-    const glm::dmat3 normalMatrix = glm::transpose(glm::inverse(linear));
-    const bool mirrored = glm::determinant(linear) < 0;
+    const glm::dmat3 normalMatrix = glm::transpose(glm::inverse(glm::dmat3(world)));
     const size_t first = out.position.size();
     out.position.resize(first + n);
     out.normal.resize(first + n, glm::vec3(0.f));
@@ -76,22 +101,21 @@ void addPrimitive(VertexFile& file, GltfPrimitiveReader& reader, const glm::dmat
             if (len > 0 && std::isfinite(len)) out.normal[first + v] = glm::vec3(nn / len);
         }
     }
-    if (!normals) {
-        // Area-weighted face normals: the unnormalized cross product is twice the area.
-        std::vector<glm::dvec3> sum(n, glm::dvec3(0.0));
-        for (uint64_t t = 0; t < layout.triangles; ++t) {
-            const std::array<uint32_t, 3> c = reader.triangle(t);
-            glm::dvec3 pa(out.position[first + c[0]]), pb(out.position[first + c[1]]), pd(out.position[first + c[2]]);
-            // World-space winding of a mirrored node is reversed; its front face is not.
-            glm::dvec3 face = glm::cross(pb - pa, pd - pa) * (mirrored ? -1.0 : 1.0);
-            sum[c[0]] += face, sum[c[1]] += face, sum[c[2]] += face;
-        }
-        for (size_t v = 0; v < n; ++v) {
-            double len = glm::length(sum[v]);
+    file.primitives.push_back({layout.mesh, layout.primitive, first, n, file.primitives.size()});
+    if (!normals) addFaceNormals(reader, out, first, mirrored, file.faceNormalSums[file.primitives.size() - 1] = std::vector<glm::dvec3>(n));
+}
+
+/// Normalizes the face-normal sums of the meshes without normals into their receivers' normals,
+/// once every primitive sharing their vertices has added its faces.
+void finishNormals(VertexFile& file, ReceiverSet& out) {
+    for (const auto& [owner, sum] : file.faceNormalSums) {
+        const size_t first = file.primitives[owner].first;
+        for (size_t v = 0; v < sum.size(); ++v) {
+            const double len = glm::length(sum[v]);
             if (len > 0 && std::isfinite(len)) out.normal[first + v] = glm::vec3(sum[v] / len);
         }
     }
-    file.primitives.push_back({layout.mesh, layout.primitive, first, n});
+    file.faceNormalSums.clear();
 }
 
 /// Appends float @p values as a vertex attribute accessor; returns its index.
@@ -144,17 +168,34 @@ int appendColour(tinygltf::Model& model, const std::vector<float>& v, bool unorm
 void writeCopy(VertexFile& file, const ReceiverResults& results) {
     tinygltf::Model model;
     loadTinyGltf(file.input, model);
-    for (const PrimitiveRange& r : file.primitives) {
-        std::vector<float> v(results.visibility.begin() + long(r.first), results.visibility.begin() + long(r.first + r.count));
-        std::vector<float> e;
-        for (size_t i = 0; i < r.count; ++i) {
-            const glm::vec3& x = results.irradiance[r.first + i];
-            e.insert(e.end(), {x.x, x.y, x.z});
-        }
+    struct Written {
+        int visibility = -1, irradiance = -1, colour = -1;
+    };
+    std::map<size_t, Written> written;  // owner range -> its accessors, shared by the ranges sharing its vertices
+    for (size_t k = 0; k < file.primitives.size(); ++k) {
+        const PrimitiveRange& r = file.primitives[k];
         auto& attributes = model.meshes[size_t(r.mesh)].primitives[size_t(r.primitive)].attributes;
-        attributes["_VISIBILITY"] = appendAccessor(model, v, TINYGLTF_TYPE_SCALAR, r.count);
-        attributes["_IRRADIANCE"] = appendAccessor(model, e, TINYGLTF_TYPE_VEC3, r.count);
-        if (!attributes.count("COLOR_0")) attributes["COLOR_0"] = appendColour(model, v, file.colourUnorm16);
+        Written& w = written[r.owner];
+        if (w.visibility < 0) {
+            std::vector<float> v(results.visibility.begin() + long(r.first), results.visibility.begin() + long(r.first + r.count));
+            std::vector<float> e;
+            for (size_t i = 0; i < r.count; ++i) {
+                const glm::vec3& x = results.irradiance[r.first + i];
+                e.insert(e.end(), {x.x, x.y, x.z});
+            }
+            w.visibility = appendAccessor(model, v, TINYGLTF_TYPE_SCALAR, r.count);
+            w.irradiance = appendAccessor(model, e, TINYGLTF_TYPE_VEC3, r.count);
+            if (!attributes.count("COLOR_0")) w.colour = appendColour(model, v, file.colourUnorm16);
+        }
+        attributes["_VISIBILITY"] = w.visibility;
+        attributes["_IRRADIANCE"] = w.irradiance;
+        if (!attributes.count("COLOR_0")) {
+            if (w.colour < 0) {
+                std::vector<float> v(results.visibility.begin() + long(r.first), results.visibility.begin() + long(r.first + r.count));
+                w.colour = appendColour(model, v, file.colourUnorm16);
+            }
+            attributes["COLOR_0"] = w.colour;
+        }
     }
     applySceneTransform(model, file.sceneMatrix);
     // Every buffer is already in memory: embed them all (buffer 0 as the GLB BIN chunk), so the
@@ -246,6 +287,7 @@ public:
         ReceiverSet set;
         for (VertexFile& file : files_) {
             walkPrimitives(file, [&](GltfPrimitiveReader& reader, const glm::dmat4& world) { addPrimitive(file, reader, world, set); });
+            finishNormals(file, set);
             file.fileBytes = std::filesystem::file_size(file.input);
         }
         return set;

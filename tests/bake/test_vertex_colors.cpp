@@ -244,3 +244,40 @@ TEST_CASE("vertices: a mesh drawn by two nodes is an error naming the file", "[v
                Catch::Contains("twice.glb") && Catch::Contains("mesh 1 is drawn by nodes 1 and 2"));
     CHECK(!std::filesystem::exists(dir / "out.glb"));
 }
+
+TEST_CASE("vertices: primitives sharing one POSITION accessor share its receivers and result accessors", "[vertices]") {
+    // The floor's triangles split into 64 primitives over the same vertices: the bake must give
+    // each vertex one receiver (not one per primitive: that grew as primitives x vertices), the
+    // same values as the unsplit floor, and one set of result accessors for all of them.
+    ScratchDir dir("vertices-shared");
+    tinygltf::Model model = load(kFloor);
+    tinygltf::Primitive whole = model.meshes[0].primitives.at(0);
+    const tinygltf::Accessor indices = model.accessors.at(size_t(whole.indices));
+    const size_t triangles = indices.count / 3, parts = 64;
+    const size_t bytes = size_t(tinygltf::GetComponentSizeInBytes(uint32_t(indices.componentType)));
+    model.meshes[0].primitives.clear();
+    for (size_t k = 0; k < parts; ++k) {
+        const size_t first = triangles * k / parts, end = triangles * (k + 1) / parts;
+        tinygltf::Accessor part = indices;
+        part.byteOffset = indices.byteOffset + 3 * first * bytes;
+        part.count = 3 * (end - first);
+        part.minValues.clear(), part.maxValues.clear();
+        model.accessors.push_back(part);
+        tinygltf::Primitive p = whole;
+        p.indices = int(model.accessors.size() - 1);
+        model.meshes[0].primitives.push_back(p);
+    }
+    tinygltf::TinyGLTF writer;
+    REQUIRE(writer.WriteGltfSceneToFile(&model, dir / "split.glb", false, true, false, true));
+    const nlohmann::json split = bake(dir, sceneJson(dir / "split.glb", dir / "split-out.glb"));
+    const nlohmann::json plain = bake(dir, sceneJson(kFloor, dir / "plain-out.glb"));
+    CHECK(split["receivers"] == plain["receivers"]);
+    const tinygltf::Model a = load(dir / "split-out.glb"), b = load(dir / "plain-out.glb");
+    REQUIRE(a.meshes[0].primitives.size() == parts);
+    const int shared = a.meshes[0].primitives[0].attributes.at("_VISIBILITY");
+    for (const tinygltf::Primitive& p : a.meshes[0].primitives) {
+        CHECK(p.attributes.at("_VISIBILITY") == shared);
+        CHECK(p.attributes.at("COLOR_0") == a.meshes[0].primitives[0].attributes.at("COLOR_0"));
+    }
+    CHECK(floats(a, shared) == floats(b, b.meshes[0].primitives[0].attributes.at("_VISIBILITY")));
+}
