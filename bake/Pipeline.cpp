@@ -201,6 +201,11 @@ void append(ReceiverSet& set, const ReceiverSet& extra) {
     set.normal.insert(set.normal.end(), extra.normal.begin(), extra.normal.end());
     set.pixel.insert(set.pixel.end(), extra.pixel.begin(), extra.pixel.end());
     set.depth.insert(set.depth.end(), extra.depth.begin(), extra.depth.end());
+    if (!set.unshadowed.empty() || !extra.unshadowed.empty()) {  // either may be empty: all receive
+        set.unshadowed.resize(set.size() - extra.size(), 0);
+        if (extra.unshadowed.empty()) set.unshadowed.resize(set.size(), 0);
+        else set.unshadowed.insert(set.unshadowed.end(), extra.unshadowed.begin(), extra.unshadowed.end());
+    }
 }
 
 /// One bake's state, filled stage by stage.
@@ -310,12 +315,17 @@ void castReceivers(Bake& b, uint32_t first) {
     if (first > 0 && b.settings.shard.merge) p.blockers->rewind();
     CastSink sink;
     sink.masks = [&](uint32_t r, const uint64_t* words, bool full) {
+        // A receiver on a "receive_shadows": false entry is unshadowed, whatever the method found.
+        if (p.receivers.isUnshadowed(r)) words = nullptr, full = false;
         shader.shade(r, words, full, b.results);
         if (b.keepMasks())
             for (int k = 0; k < b.masks.groups; ++k)
                 b.masks.row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
     };
-    sink.visibility = [&](uint32_t r, const float* lightVisibility) { shader.shadeVisibleFraction(r, lightVisibility, b.results); };
+    const std::vector<float> lit(p.lights.size(), 1.0f);
+    sink.visibility = [&](uint32_t r, const float* lightVisibility) {
+        shader.shadeVisibleFraction(r, p.receivers.isUnshadowed(r) ? lit.data() : lightVisibility, b.results);
+    };
     b.caster->cast(first == 0 && b.sharded ? b.sharded->blockers(*p.blockers) : *p.blockers, first, sink);
 }
 
