@@ -77,11 +77,12 @@ public:
             // The z-buffer (plus the triangle id per pixel for smooth shading) and, at the end of
             // the pass, the receiver set made from it (32 bytes per covered pixel) and the ids
             // moved to the receivers' order (8).
-            uint64_t perPixel = CameraRasterizer::kBytesPerPixel + (smooth_ ? 2 * sizeof(uint64_t) : 0) + 32;
+            // Per-object receiver classes: a byte per pixel and one per receiver.
+            uint64_t perPixel = CameraRasterizer::kBytesPerPixel + (smooth_ ? 2 * sizeof(uint64_t) : 0) + 32 + classBytes();
             return uint64_t(camera_.width) * camera_.height * camera_.layers * perPixel;
         }
         if (pass == StreamPass::Refine)
-            return refinedPixels_ * uint64_t(aa_.samples) * (CameraRasterizer::kBytesPerPixel + (smooth_ ? 36 : 0) + 32) +
+            return refinedPixels_ * uint64_t(aa_.samples) * (CameraRasterizer::kBytesPerPixel + (smooth_ ? 36 : 0) + 32 + classBytes()) +
                    uint64_t(camera_.width) * camera_.height * 4;
         return 0;
     }
@@ -136,6 +137,7 @@ private:
         }
         return *raster_;
     }
+    uint64_t classBytes() const { return classes_.size() > 1 ? 2 : 0; }
     /// The entries' receive_shadows and receiver_offset on the receivers the rasterizer made
     /// (after smooth shading took the normals it needs), and the rasterizer's end.
     void takeClasses(ReceiverSet& set) {

@@ -288,3 +288,60 @@ TEST_CASE("object controls: methods without the distance test refuse max_distanc
     const SceneDesc hidden = sceneOf(dir, {floor(), boxes({box({-1, 1, -1}, {1, 1.2f, 1})}, {{"cast_shadows", false}})}, floorPoints(dir));
     for (const char* method : {"ssv", "penumbra-map"}) CHECK(shadowed(bake(hidden, method)) == 0);
 }
+
+TEST_CASE("object controls: vertex and lightmap receivers take their entry's receive_shadows and receiver_offset",
+          "[objects][vertices][lightmap]") {
+    ScratchDir dir("objects");
+    AllowOutsidePaths examples;
+    const std::string source = std::string(PENUMBRA_SOURCE_DIR) + "/examples/";
+    auto entry = [&](const std::string& type, const std::string& file, const json& controls) {
+        json e = {{"type", type}, {"path", source + file}};
+        for (const auto& [key, value] : controls.items()) e[key] = value;
+        return e;
+    };
+    const json occluder = boxes({box({-0.6f, 1.0f, -0.6f}, {0.6f, 1.2f, 0.6f})});
+    const json vertices = {{"type", "vertices"}, {"meshes", {0}}};
+    auto vertexScene = [&](const json& controls) {
+        registerFileSourceTypes();
+        registerProceduralGenerators();
+        const json scene = {{"geometry", {entry("glb", "vertices-floor.glb", controls), occluder}},
+                            {"lights", {kLight}}, {"receivers", vertices}, {"output", "out.glb"}};
+        return parseScene(scene, (dir.path / "scene.json").string());
+    };
+    const BakeCapture a = bake(vertexScene(json::object()), "hpc");
+    const BakeCapture b = requireMethodsAgree(vertexScene({{"receive_shadows", false}, {"receiver_offset", 0.05}}));
+    REQUIRE(a.receivers.size() == b.receivers.size());
+    CHECK(shadowed(a) > 0);
+    CHECK(shadowed(b) == 0);
+    for (size_t r = 0; r < a.receivers.size(); ++r) {
+        CHECK(b.receivers.isUnshadowed(r));
+        const glm::vec3 moved = glm::vec3(glm::dvec3(a.receivers.position[r]) + 0.05 * glm::dvec3(a.receivers.normal[r]));
+        CHECK(b.receivers.position[r] == moved);
+    }
+
+    // A lightmap atlas of two meshes: the blockers' texels are unshadowed, the room's lifted.
+    auto lightmapScene = [&](const json& room, const json& blockers) {
+        const json scene = {{"geometry", {entry("obj", "room.obj", room), entry("obj", "room-blockers.obj", blockers)}},
+                            {"lights", {{{"type", "rect"}, {"center", {2.2, 4.0, 1.8}}, {"u", {1.5, 0, 0}}, {"v", {0, 0, 1.5}}, {"samples", 64}}}},
+                            {"receivers", {{"type", "lightmap"}, {"meshes", {0, 1}}, {"uv", "generate"}, {"resolution", 48}, {"padding", 1}}},
+                            {"output", "out.exr"}};
+        return parseScene(scene, (dir.path / "scene.json").string());
+    };
+    const BakeCapture plain = bake(lightmapScene(json::object(), json::object()), "hpc");
+    const BakeCapture mixed = requireMethodsAgree(lightmapScene({{"receiver_offset", 0.01}}, {{"receive_shadows", false}}));
+    REQUIRE(plain.receivers.size() == mixed.receivers.size());
+    size_t unshadowed = 0, lifted = 0;
+    for (size_t r = 0; r < plain.receivers.size(); ++r) {
+        if (mixed.receivers.isUnshadowed(r)) {
+            ++unshadowed;
+            CHECK(mixed.receivers.position[r] == plain.receivers.position[r]);
+            CHECK(mixed.results.visibility[r] == 1.0f);
+        } else {
+            ++lifted;
+            CHECK(glm::length(glm::dvec3(mixed.receivers.position[r]) - glm::dvec3(plain.receivers.position[r])) ==
+                  Approx(0.01).epsilon(1e-3));
+        }
+    }
+    CHECK(unshadowed > 0);
+    CHECK(lifted > unshadowed);
+}
