@@ -30,6 +30,7 @@
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <filesystem>
 
 namespace penumbra {
@@ -107,6 +108,15 @@ void feedPass(ReceiverKind& kind, StreamPass pass, TriangleSource& source, bool 
     }
 }
 
+/// @p keep, and also dropping "cast_shadows": false triangles when no later pass of the kind reads
+/// the blockers (its cast pass, a refinement): then they are worth no bucket space.
+BlockerFilter withoutNonCasting(const SceneDesc& scene, const ReceiverKind& kind, BlockerFilter keep) {
+    const bool any = std::any_of(scene.geometry.begin(), scene.geometry.end(), [](const GeometryDesc& g) { return !g.castShadows; });
+    if (!any || kind.wantsPass(StreamPass::Cast) || kind.mayRefine()) return keep;
+    if (!keep) return [](const Triangle& t) { return !(t.flags & kTriangleNoCast); };
+    return [cull = std::move(keep)](const Triangle& t) { return !(t.flags & kTriangleNoCast) && cull(t); };
+}
+
 /// Pass 1 over the stream: camera receivers are rasterized (or points loaded) while the area
 /// histogram is built and every vertex is checked. Pass 2 streams the blockers into area buckets
 /// on disk; casting then replays the buckets, largest first, once per memory tile. So the source
@@ -182,6 +192,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     // has found them (refinement receivers are not known yet, so a kind that refines keeps all).
     BlockerFilter keep;
     if (scene.options.cullBeforeSpill && !kind.mayRefine()) keep = makeReachCull(p.samples.lightBounds, p.receivers);
+    keep = withoutNonCasting(scene, kind, std::move(keep));
     auto set = std::make_shared<BucketSet>(writeBuckets(*source, planBucketRanges(options, &histogram), options, &buckets,
                                                         [&](std::span<const Triangle> c) {
                                                             if (rescan) kind.consume(StreamPass::Rescan, StreamChunk{c, source->part()});

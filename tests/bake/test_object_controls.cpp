@@ -284,9 +284,10 @@ TEST_CASE("object controls: methods without the distance test refuse max_distanc
     ScratchDir dir("objects");
     const SceneDesc scene = sceneOf(dir, {floor(), boxes({box({-1, 1, -1}, {1, 1.2f, 1})}, {{"max_distance", 2}})}, floorPoints(dir));
     for (const char* method : {"ssv", "penumbra-map"}) CHECK_THROWS_WITH(bake(scene, method), Catch::Contains("max_distance"));
-    // cast_shadows is honoured by every method: the approximate penumbra map sees no occluder.
+    // cast_shadows is honoured by every method: the approximate penumbra map sees no occluder, and
+    // hpc with points receivers (no pass after the bucket pass) never even writes it to a bucket.
     const SceneDesc hidden = sceneOf(dir, {floor(), boxes({box({-1, 1, -1}, {1, 1.2f, 1})}, {{"cast_shadows", false}})}, floorPoints(dir));
-    for (const char* method : {"ssv", "penumbra-map"}) CHECK(shadowed(bake(hidden, method)) == 0);
+    for (const char* method : {"hpc", "reference", "ssv", "penumbra-map"}) CHECK(shadowed(bake(hidden, method)) == 0);
 }
 
 TEST_CASE("object controls: vertex and lightmap receivers take their entry's receive_shadows and receiver_offset",
