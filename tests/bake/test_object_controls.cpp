@@ -37,7 +37,7 @@ json boxes(std::initializer_list<json> list, const json& controls = json::object
 }
 
 /// A flat floor quad of side 6 at y = 0 (a grid without levels), with the keys of @p controls.
-json floor(const json& controls = json::object()) {
+json floorEntry(const json& controls = json::object()) {
     json entry = {{"type", "grid"}, {"levels", 0}, {"floor_size", 6}};
     for (const auto& [key, value] : controls.items()) entry[key] = value;
     return entry;
@@ -114,8 +114,8 @@ BakeCapture requireMethodsAgree(const SceneDesc& scene) {
 TEST_CASE("object controls: cast_shadows false keeps the occluder visible but unshadows the floor", "[objects][exactness]") {
     ScratchDir dir("objects");
     const json occluder = box({-0.7f, 1.5f, -0.7f}, {0.7f, 1.7f, 0.7f});
-    const SceneDesc casting = sceneOf(dir, {floor(), boxes({occluder})}, kCamera);
-    const SceneDesc hidden = sceneOf(dir, {floor(), boxes({occluder}, {{"cast_shadows", false}})}, kCamera);
+    const SceneDesc casting = sceneOf(dir, {floorEntry(), boxes({occluder})}, kCamera);
+    const SceneDesc hidden = sceneOf(dir, {floorEntry(), boxes({occluder}, {{"cast_shadows", false}})}, kCamera);
     const BakeCapture a = requireMethodsAgree(casting), b = requireMethodsAgree(hidden);
     // The camera still sees the occluder: the same receivers, now all unshadowed.
     REQUIRE(a.receivers.size() == b.receivers.size());
@@ -129,9 +129,9 @@ TEST_CASE("object controls: cast_shadows false keeps the occluder visible but un
 TEST_CASE("object controls: receive_shadows false gives unshadowed receivers that still cast", "[objects][exactness]") {
     ScratchDir dir("objects");
     const json low = box({-0.5f, 0.8f, -0.5f}, {0.5f, 1.0f, 0.5f}), high = box({-0.7f, 1.8f, -0.7f}, {0.7f, 2.0f, 0.7f});
-    const SceneDesc plain = sceneOf(dir, {floor(), boxes({low}), boxes({high})}, kCamera);
+    const SceneDesc plain = sceneOf(dir, {floorEntry(), boxes({low}), boxes({high})}, kCamera);
     const SceneDesc noReceive =
-        sceneOf(dir, {floor({{"receive_shadows", false}}), boxes({low}), boxes({high})}, kCamera);
+        sceneOf(dir, {floorEntry({{"receive_shadows", false}}), boxes({low}), boxes({high})}, kCamera);
     const BakeCapture a = requireMethodsAgree(plain), b = requireMethodsAgree(noReceive);
     REQUIRE(a.receivers.size() == b.receivers.size());
     REQUIRE(b.receivers.unshadowed.size() == b.receivers.size());
@@ -151,13 +151,29 @@ TEST_CASE("object controls: receive_shadows false gives unshadowed receivers tha
     CHECK(floor > 100);
     CHECK(shadowedOthers > 0);  // the high box shadows the low box's top
     CHECK(shadowed(a) > shadowed(b));
+
+    // Antialiasing: the refinement's sub-pixel receivers know their entry too (the triangle's
+    // receiver class), and its cast agrees across methods as the first one does.
+    json antialiased = kCamera;
+    antialiased["antialias"] = {{"threshold", 0.05}, {"samples", 4}};
+    const BakeCapture c = requireMethodsAgree(
+        sceneOf(dir, {floorEntry({{"receive_shadows", false}}), boxes({low}), boxes({high})}, antialiased));
+    REQUIRE(c.receivers.size() > c.firstPass);
+    size_t refinedOnFloor = 0;
+    for (size_t r = 0; r < c.receivers.size(); ++r) {
+        const bool onFloor = c.receivers.position[r].y < 0.01f;
+        CHECK(c.receivers.isUnshadowed(r) == onFloor);
+        if (onFloor) CHECK(c.results.visibility[r] == 1.0f);
+        refinedOnFloor += onFloor && r >= c.firstPass;
+    }
+    CHECK(refinedOnFloor > 0);
 }
 
 TEST_CASE("object controls: receiver_offset lifts an entry's receivers above a low occluder", "[objects][exactness]") {
     ScratchDir dir("objects");
     const json slab = box({-1, 0.1f, -1}, {1, 0.3f, 1});
-    const SceneDesc plain = sceneOf(dir, {floor(), boxes({slab})}, kCamera);
-    const SceneDesc lifted = sceneOf(dir, {floor({{"receiver_offset", 0.5}}), boxes({slab})}, kCamera);
+    const SceneDesc plain = sceneOf(dir, {floorEntry(), boxes({slab})}, kCamera);
+    const SceneDesc lifted = sceneOf(dir, {floorEntry({{"receiver_offset", 0.5}}), boxes({slab})}, kCamera);
     const BakeCapture a = requireMethodsAgree(plain), b = requireMethodsAgree(lifted);
     REQUIRE(a.receivers.size() == b.receivers.size());
     size_t moved = 0;
@@ -180,18 +196,18 @@ TEST_CASE("object controls: max_distance drops a far occluder's shadow and keeps
     const json points = floorPoints(dir);
     const json nearBox = box({-1.8f, 0.2f, -0.4f}, {-1.0f, 0.5f, 0.4f}), farBox = box({0.6f, 2.0f, -0.5f}, {1.6f, 2.2f, 0.5f});
     const json limit = {{"max_distance", 1.0}};
-    const SceneDesc both = sceneOf(dir, {floor(), boxes({nearBox}, limit), boxes({farBox}, limit)}, points);
-    const SceneDesc nearOnly = sceneOf(dir, {floor(), boxes({nearBox})}, points);
-    const SceneDesc unlimited = sceneOf(dir, {floor(), boxes({nearBox}), boxes({farBox})}, points);
+    const SceneDesc both = sceneOf(dir, {floorEntry(), boxes({nearBox}, limit), boxes({farBox}, limit)}, points);
+    const SceneDesc nearOnly = sceneOf(dir, {floorEntry(), boxes({nearBox})}, points);
+    const SceneDesc unlimited = sceneOf(dir, {floorEntry(), boxes({nearBox}), boxes({farBox})}, points);
     const BakeCapture limited = requireMethodsAgree(both), expected = bake(nearOnly, "reference"), full = bake(unlimited, "reference");
     CHECK(limited.masks.words == expected.masks.words);  // the near box is within 1, the far one beyond
     CHECK(shadowed(limited) > 20);
     CHECK(shadowed(full) > shadowed(limited));
     // A limit inside the far box's thickness keeps a part of it: still exact.
-    const SceneDesc partial = sceneOf(dir, {floor(), boxes({farBox}, {{"max_distance", 2.1}})}, points);
+    const SceneDesc partial = sceneOf(dir, {floorEntry(), boxes({farBox}, {{"max_distance", 2.1}})}, points);
     const BakeCapture p = requireMethodsAgree(partial);
     CHECK(shadowed(p) > 0);
-    CHECK(p.masks.blockedCount() < bake(sceneOf(dir, {floor(), boxes({farBox})}, points), "reference").masks.blockedCount());
+    CHECK(p.masks.blockedCount() < bake(sceneOf(dir, {floorEntry(), boxes({farBox})}, points), "reference").masks.blockedCount());
 }
 
 TEST_CASE("object controls: max_distance on random soups, hpc equals the reference in every variant", "[objects][exactness][hpc]") {
@@ -259,7 +275,7 @@ TEST_CASE("object controls: bad values are one-line errors naming the key", "[ob
     const json points = floorPoints(dir);
     auto error = [&](const json& controls) {
         try {
-            sceneOf(dir, {floor(), floor(controls)}, points);
+            sceneOf(dir, {floorEntry(), floorEntry(controls)}, points);
         } catch (const InputError& e) {
             return std::string(e.what());
         }
@@ -276,17 +292,17 @@ TEST_CASE("object controls: bad values are one-line errors naming the key", "[ob
     for (const std::string& message : {wrongType, error({{"max_distance", -1}})}) CHECK(message.find('\n') == std::string::npos);
     // Sixteen different (receive_shadows, receiver_offset) pairs do not fit the triangle's 4 bits.
     json many = json::array();
-    for (int i = 0; i < 16; ++i) many.push_back(floor({{"receiver_offset", 0.01 * (i + 1)}}));
+    for (int i = 0; i < 16; ++i) many.push_back(floorEntry({{"receiver_offset", 0.01 * (i + 1)}}));
     CHECK_THROWS_WITH(sceneOf(dir, many, points), Catch::Contains("receiver_offset"));
 }
 
 TEST_CASE("object controls: methods without the distance test refuse max_distance", "[objects]") {
     ScratchDir dir("objects");
-    const SceneDesc scene = sceneOf(dir, {floor(), boxes({box({-1, 1, -1}, {1, 1.2f, 1})}, {{"max_distance", 2}})}, floorPoints(dir));
+    const SceneDesc scene = sceneOf(dir, {floorEntry(), boxes({box({-1, 1, -1}, {1, 1.2f, 1})}, {{"max_distance", 2}})}, floorPoints(dir));
     for (const char* method : {"ssv", "penumbra-map"}) CHECK_THROWS_WITH(bake(scene, method), Catch::Contains("max_distance"));
     // cast_shadows is honoured by every method: the approximate penumbra map sees no occluder, and
     // hpc with points receivers (no pass after the bucket pass) never even writes it to a bucket.
-    const SceneDesc hidden = sceneOf(dir, {floor(), boxes({box({-1, 1, -1}, {1, 1.2f, 1})}, {{"cast_shadows", false}})}, floorPoints(dir));
+    const SceneDesc hidden = sceneOf(dir, {floorEntry(), boxes({box({-1, 1, -1}, {1, 1.2f, 1})}, {{"cast_shadows", false}})}, floorPoints(dir));
     for (const char* method : {"hpc", "reference", "ssv", "penumbra-map"}) CHECK(shadowed(bake(hidden, method)) == 0);
 }
 
