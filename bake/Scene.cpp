@@ -163,12 +163,14 @@ private:
 };
 
 /// The entry's source with its controls' marks: kTriangleNoCast, the receiver class, the
-/// max_distance ids.
-TriangleSourcePtr withObjectControls(TriangleSourcePtr source, const GeometryDesc& g, const std::string& file) {
-    const uint32_t set = (g.castShadows ? 0u : uint32_t(kTriangleNoCast)) | g.receiverClass << kTriangleClassShift;
+/// max_distance ids; for an export only the first, as the others mean something only with this
+/// scene's receiver classes and alpha table.
+TriangleSourcePtr withObjectControls(TriangleSourcePtr source, const GeometryDesc& g, const std::string& file, bool exporting) {
+    const uint32_t cls = exporting ? 0u : g.receiverClass << kTriangleClassShift;
+    const uint32_t set = (g.castShadows ? 0u : uint32_t(kTriangleNoCast)) | cls;
     // A .ptri keeps the receiver classes of the scene that wrote it, which mean nothing here.
     if (set || g.type == "ptri" || g.type == "file") source = std::make_unique<FlagSource>(std::move(source), set, kTriangleClassMax << kTriangleClassShift);
-    if (g.maxDistance) source = std::make_unique<DistanceIdSource>(std::move(source), g.distanceIds, file + ": " + g.path + ".max_distance");
+    if (g.maxDistance && !exporting) source = std::make_unique<DistanceIdSource>(std::move(source), g.distanceIds, file + ": " + g.path + ".max_distance");
     return source;
 }
 
@@ -286,7 +288,9 @@ void checkSceneOutput(const SceneDesc& scene) {
 
 SceneDesc loadScene(const std::string& path) { return parseScene(readJsonFile(path), path); }
 
-TriangleSourcePtr openSceneGeometry(const SceneDesc& scene) {
+namespace {
+
+TriangleSourcePtr openGeometry(const SceneDesc& scene, bool exporting) {
     std::vector<TriangleSourcePtr> parts;
     for (const GeometryDesc& g : scene.geometry) {
         TriangleSourcePtr source = openSource(g.type, SourceRequest{g.params, scene.file, g.path, scene.baseDir});
@@ -295,10 +299,16 @@ TriangleSourcePtr openSceneGeometry(const SceneDesc& scene) {
         if (g.closed)
             source = std::make_unique<FlagSource>(std::move(source), *g.closed ? kTriangleClosed : 0u,
                                                   *g.closed ? 0u : kTriangleClosed | kTriangleSolidStart);
-        source = withObjectControls(std::move(source), g, scene.file);
+        source = withObjectControls(std::move(source), g, scene.file, exporting);
         parts.push_back(std::move(source));
     }
     return std::make_unique<ConcatSource>(std::move(parts));
 }
+
+}  // namespace
+
+TriangleSourcePtr openSceneGeometry(const SceneDesc& scene) { return openGeometry(scene, false); }
+
+TriangleSourcePtr openSceneGeometryForExport(const SceneDesc& scene) { return openGeometry(scene, true); }
 
 }  // namespace penumbra

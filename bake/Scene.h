@@ -95,6 +95,10 @@ void checkSceneOutput(const SceneDesc& scene);
 
 /// @brief Opens every geometry entry as one stream, in scene order, with transforms applied.
 TriangleSourcePtr openSceneGeometry(const SceneDesc& scene);
+/// @brief The same triangles for a file other scenes read (`penumbra generate`): they keep the
+/// "cast_shadows" mark, not the receiver classes or "max_distance" ids, which only this scene's
+/// receiverClasses and alpha table give a meaning.
+TriangleSourcePtr openSceneGeometryForExport(const SceneDesc& scene);
 
 /// @brief The "parts" of a geometry entry: the OBJ o/g groups it takes (empty: the whole file).
 /// @throw InputError naming the key when it is not a non-empty array of strings.

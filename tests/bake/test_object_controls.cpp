@@ -362,3 +362,23 @@ TEST_CASE("object controls: vertex and lightmap receivers take their entry's rec
     CHECK(unshadowed > 0);
     CHECK(lifted > unshadowed);
 }
+
+TEST_CASE("object controls: an export keeps cast_shadows, not the scene's receiver classes and distance ids", "[objects][scene]") {
+    ScratchDir dir("objects");
+    const SceneDesc scene = sceneOf(dir,
+                                    {floorEntry({{"receive_shadows", false}, {"receiver_offset", 0.1}}),
+                                     boxes({box({-1, 1, -1}, {1, 1.2f, 1})}, {{"cast_shadows", false}, {"max_distance", 2}})},
+                                    floorPoints(dir));
+    TriangleSourcePtr baked = openSceneGeometry(scene), exported = openSceneGeometryForExport(scene);
+    const std::vector<Triangle> a = readAll(*baked), b = readAll(*exported);
+    REQUIRE(a.size() == 14);
+    REQUIRE(b.size() == a.size());
+    for (size_t i = 0; i < a.size(); ++i) {
+        const bool box = i >= 2;
+        CHECK(receiverClassOf(a[i].flags) == (box ? 0u : 1u));
+        CHECK(bool(a[i].flags & kTriangleNoCast) == box);
+        CHECK((alphaIdOf(a[i].flags) != 0) == box);
+        CHECK(scene.options.alphaTable->maxDistance(alphaIdOf(a[i].flags)) == (box ? 2.0 : INFINITY));
+        CHECK(b[i].flags == (box ? uint32_t(kTriangleNoCast) | kTriangleClosed | (i == 2 ? kTriangleSolidStart : 0u) : 0u));
+    }
+}
