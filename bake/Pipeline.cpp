@@ -427,6 +427,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     if (b.sharded) stats["shard"] = b.sharded->stats();
     stats["outputs_written"] = outputs.paths();  // every file of the bake but the stats themselves
     if (!b.p.warnings.empty()) stats["warnings"] = b.p.warnings;
+    if (const auto& u = b.p.receivers.unshadowed; !u.empty())  // "receive_shadows": false
+        stats["unshadowed_receivers"] = uint64_t(std::count(u.begin(), u.end(), uint8_t(1)));
     if (!settings.statsPath.empty()) writeStats(settings.statsPath, stats);
     outputs.commit();
     if (b.sharded) b.sharded->complete();  // the outputs are in place: no checkpoint is needed

@@ -65,7 +65,7 @@ SceneDesc sceneOf(const ScratchDir& dir, json geometry, const json& receivers) {
 }
 
 /// A captured bake of @p scene with @p method: receivers, results and masks; the rule's
-/// epsilon length L goes to @p epsilonLength.
+/// epsilon length L goes to @p epsilonLength. The stats count the unshadowed receivers.
 BakeCapture bake(const SceneDesc& scene, const std::string& method, double* epsilonLength = nullptr) {
     BakeCapture capture;
     capture.wantMasks = method != "penumbra-map";
@@ -73,6 +73,8 @@ BakeCapture bake(const SceneDesc& scene, const std::string& method, double* epsi
     settings.quiet = true, settings.threads = 2, settings.method = method, settings.capture = &capture;
     const json stats = runBake(scene, settings);
     if (epsilonLength) *epsilonLength = stats["epsilon"]["length"].get<double>();
+    const auto& u = capture.receivers.unshadowed;
+    CHECK(stats.value("unshadowed_receivers", uint64_t(0)) == uint64_t(std::count(u.begin(), u.end(), uint8_t(1))));
     return capture;
 }
 
