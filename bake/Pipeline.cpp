@@ -31,6 +31,7 @@
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <string_view>
 #include <system_error>
@@ -109,6 +110,15 @@ void feedPass(ReceiverKind& kind, StreamPass pass, TriangleSource& source, bool 
         kind.consume(pass, StreamChunk{std::span<const Triangle>(chunk.data(), n), streamOrder ? source.part() : kAnyGeometryEntry});
         if (progress) progress->update(n);
     }
+}
+
+/// @p keep, and also dropping "cast_shadows": false triangles when no later pass of the kind reads
+/// the blockers (its cast pass, a refinement): then they are worth no bucket space.
+BlockerFilter withoutNonCasting(const SceneDesc& scene, const ReceiverKind& kind, BlockerFilter keep) {
+    const bool any = std::any_of(scene.geometry.begin(), scene.geometry.end(), [](const GeometryDesc& g) { return !g.castShadows; });
+    if (!any || kind.wantsPass(StreamPass::Cast) || kind.mayRefine()) return keep;
+    if (!keep) return [](const Triangle& t) { return !(t.flags & kTriangleNoCast); };
+    return [cull = std::move(keep)](const Triangle& t) { return !(t.flags & kTriangleNoCast) && cull(t); };
 }
 
 /// Pass 1 over the stream: camera receivers are rasterized (or points loaded) while the area
@@ -199,6 +209,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     // a shard never refines: the merge casts the refinement).
     BlockerFilter keep;
     if (scene.options.cullBeforeSpill && (!kind.mayRefine() || shard)) keep = makeReachCull(p.samples.lightBounds, p.receivers);
+    keep = withoutNonCasting(scene, kind, std::move(keep));
     auto set = std::make_shared<BucketSet>(writeBuckets(*source, planBucketRanges(options, &histogram), options, &buckets,
                                                         [&](std::span<const Triangle> c) {
                                                             if (rescan) kind.consume(StreamPass::Rescan, StreamChunk{c, source->part()});
@@ -218,6 +229,11 @@ void append(ReceiverSet& set, const ReceiverSet& extra) {
     set.normal.insert(set.normal.end(), extra.normal.begin(), extra.normal.end());
     set.pixel.insert(set.pixel.end(), extra.pixel.begin(), extra.pixel.end());
     set.depth.insert(set.depth.end(), extra.depth.begin(), extra.depth.end());
+    if (!set.unshadowed.empty() || !extra.unshadowed.empty()) {  // either may be empty: all receive
+        set.unshadowed.resize(set.size() - extra.size(), 0);
+        if (extra.unshadowed.empty()) set.unshadowed.resize(set.size(), 0);
+        else set.unshadowed.insert(set.unshadowed.end(), extra.unshadowed.begin(), extra.unshadowed.end());
+    }
 }
 
 /// One bake's state, filled stage by stage.
@@ -328,12 +344,17 @@ void castReceivers(Bake& b, uint32_t first) {
     if (first > 0 && b.settings.shard.merge) p.blockers->rewind();
     CastSink sink;
     sink.masks = [&](uint32_t r, const uint64_t* words, bool full) {
+        // A receiver on a "receive_shadows": false entry is unshadowed, whatever the method found.
+        if (p.receivers.isUnshadowed(r)) words = nullptr, full = false;
         shader.shade(r, words, full, b.results);
         if (b.keepMasks())
             for (int k = 0; k < b.masks.groups; ++k)
                 b.masks.row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
     };
-    sink.visibility = [&](uint32_t r, const float* lightVisibility) { shader.shadeVisibleFraction(r, lightVisibility, b.results); };
+    const std::vector<float> lit(p.lights.size(), 1.0f);
+    sink.visibility = [&](uint32_t r, const float* lightVisibility) {
+        shader.shadeVisibleFraction(r, p.receivers.isUnshadowed(r) ? lit.data() : lightVisibility, b.results);
+    };
     b.caster->cast(*p.blockers, first, sink);
 }
 
@@ -474,6 +495,8 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total) {
     if (b.sharded) stats["shard"] = b.sharded->stats(), stats["shard"]["blockers_cast"] = b.p.blockersCast;
     stats["outputs_written"] = outputs.paths();  // every file of the bake but the stats themselves
     if (!b.p.warnings.empty()) stats["warnings"] = b.p.warnings;
+    if (const auto& u = b.p.receivers.unshadowed; !u.empty())  // "receive_shadows": false
+        stats["unshadowed_receivers"] = uint64_t(std::count(u.begin(), u.end(), uint8_t(1)));
     if (!settings.statsPath.empty()) writeStats(settings.statsPath, stats);
     outputs.commit();
     if (b.sharded) b.sharded->complete();  // the outputs are in place: no checkpoint is needed

@@ -107,6 +107,75 @@ void parseOptions(const JsonParams& j, SceneDesc& scene) {
     j.finish();
 }
 
+/// The receiver class of @p c, added to the scene's list when new.
+uint32_t receiverClassIndex(SceneDesc& scene, const ReceiverClass& c, const std::string& where) {
+    for (size_t i = 0; i < scene.receiverClasses.size(); ++i)
+        if (scene.receiverClasses[i] == c) return uint32_t(i);
+    if (scene.receiverClasses.size() > kTriangleClassMax)
+        fail(where, "at most {} different pairs of receive_shadows and receiver_offset in one scene", kTriangleClassMax);
+    scene.receiverClasses.push_back(c);
+    return uint32_t(scene.receiverClasses.size() - 1);
+}
+
+/// The per-object controls of a geometry entry (docs/scene-format.md, "Per-object controls").
+void parseObjectControls(const JsonParams& g, GeometryDesc& desc, SceneDesc& scene) {
+    desc.castShadows = g.boolean("cast_shadows", true);
+    desc.receiveShadows = g.boolean("receive_shadows", true);
+    desc.receiverOffset = g.number("receiver_offset", 0.0);
+    if (!std::isfinite(desc.receiverOffset)) fail(g.where("receiver_offset"), "must be a finite number, got {}", desc.receiverOffset);
+    if (g.has("max_distance")) {
+        const double d = g.number("max_distance");
+        if (!(d > 0.0) || !std::isfinite(d)) fail(g.where("max_distance"), "must be a finite number > 0, got {}", d);
+        desc.maxDistance = d;
+    }
+    desc.receiverClass = receiverClassIndex(scene, {desc.receiveShadows, desc.receiverOffset}, g.where("receiver_offset"));
+}
+
+/// A table with every entry's max_distance ids (AlphaTable::withDistance), when one has it.
+void addDistanceIds(SceneDesc& scene) {
+    std::shared_ptr<AlphaTable> table;
+    for (GeometryDesc& g : scene.geometry) {
+        if (!g.maxDistance) continue;
+        if (!table) table = std::make_shared<AlphaTable>();
+        for (uint32_t a = 0; a < kBuiltinAlphaCount; ++a) g.distanceIds[a] = table->withDistance(a, *g.maxDistance);
+    }
+    if (table) scene.options.alphaTable = std::move(table);
+}
+
+/// Gives an entry's triangles its max_distance ids: alpha id a becomes GeometryDesc::distanceIds[a].
+class DistanceIdSource final : public DecoratedSource {
+public:
+    DistanceIdSource(TriangleSourcePtr inner, const std::array<uint32_t, kBuiltinAlphaCount>& ids, std::string where)
+        : DecoratedSource(std::move(inner)), ids_(ids), where_(std::move(where)) {}
+    size_t read(std::span<Triangle> out) override {
+        const size_t n = inner_->read(out);
+        for (size_t i = 0; i < n; ++i) {
+            const uint32_t id = alphaIdOf(out[i].flags);
+            if (id >= kBuiltinAlphaCount) fail(where_, "is not supported on triangles with an alpha texture of their own");
+            out[i].flags = withAlphaId(out[i].flags, ids_[id]);
+        }
+        return n;
+    }
+    /// One triangle out for one in: a skip is the inner source's.
+    uint64_t skip(uint64_t count) override { return inner_->skip(count); }
+
+private:
+    std::array<uint32_t, kBuiltinAlphaCount> ids_;
+    std::string where_;
+};
+
+/// The entry's source with its controls' marks: kTriangleNoCast, the receiver class, the
+/// max_distance ids; for an export only the first, as the others mean something only with this
+/// scene's receiver classes and alpha table.
+TriangleSourcePtr withObjectControls(TriangleSourcePtr source, const GeometryDesc& g, const std::string& file, bool exporting) {
+    const uint32_t cls = exporting ? 0u : g.receiverClass << kTriangleClassShift;
+    const uint32_t set = (g.castShadows ? 0u : uint32_t(kTriangleNoCast)) | cls;
+    // A .ptri keeps the receiver classes of the scene that wrote it, which mean nothing here.
+    if (set || g.type == "ptri" || g.type == "file") source = std::make_unique<FlagSource>(std::move(source), set, kTriangleClassMax << kTriangleClassShift);
+    if (g.maxDistance && !exporting) source = std::make_unique<DistanceIdSource>(std::move(source), g.distanceIds, file + ": " + g.path + ".max_distance");
+    return source;
+}
+
 }  // namespace
 
 std::vector<std::string> geometryParts(const JsonParams& entry) {
@@ -174,12 +243,13 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
         desc.type = g.string("type");
         desc.transform = parseTransform(g);
         if (g.raw("closed")) desc.closed = g.boolean("closed", false);
+        parseObjectControls(g, desc, scene);
         desc.params = (*geometry)[i];
-        desc.params.erase("type");
-        desc.params.erase("transform");
-        desc.params.erase("closed");
+        for (const char* key : {"type", "transform", "closed", "cast_shadows", "receive_shadows", "receiver_offset", "max_distance"})
+            desc.params.erase(key);
         scene.geometry.push_back(std::move(desc));
     }
+    addDistanceIds(scene);
 
     const nlohmann::json* lights = j.raw("lights");
     if (!lights) j.missing("lights");
@@ -220,7 +290,9 @@ void checkSceneOutput(const SceneDesc& scene) {
 
 SceneDesc loadScene(const std::string& path) { return parseScene(readJsonFile(path), path); }
 
-TriangleSourcePtr openSceneGeometry(const SceneDesc& scene) {
+namespace {
+
+TriangleSourcePtr openGeometry(const SceneDesc& scene, bool exporting) {
     std::vector<TriangleSourcePtr> parts;
     for (const GeometryDesc& g : scene.geometry) {
         TriangleSourcePtr source = openSource(g.type, SourceRequest{g.params, scene.file, g.path, scene.baseDir});
@@ -229,9 +301,16 @@ TriangleSourcePtr openSceneGeometry(const SceneDesc& scene) {
         if (g.closed)
             source = std::make_unique<FlagSource>(std::move(source), *g.closed ? kTriangleClosed : 0u,
                                                   *g.closed ? 0u : kTriangleClosed | kTriangleSolidStart);
+        source = withObjectControls(std::move(source), g, scene.file, exporting);
         parts.push_back(std::move(source));
     }
     return std::make_unique<ConcatSource>(std::move(parts));
 }
+
+}  // namespace
+
+TriangleSourcePtr openSceneGeometry(const SceneDesc& scene) { return openGeometry(scene, false); }
+
+TriangleSourcePtr openSceneGeometryForExport(const SceneDesc& scene) { return openGeometry(scene, true); }
 
 }  // namespace penumbra

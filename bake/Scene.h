@@ -8,10 +8,13 @@
 #include "bake/light/Light.h"
 #include "stream/util/JsonParams.h"
 #include "stream/Transform.h"
+#include "receivers/ReceiverSet.h"
+#include "stream/AlphaTable.h"
 #include "stream/TriangleSource.h"
 
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <optional>
 
 #include <filesystem>
@@ -37,13 +40,31 @@ struct GeometryDesc {
     /// "closed": true marks every triangle as part of a closed, outward-wound surface
     /// (kTriangleClosed), false clears the mark that a generator set; absent keeps the source's.
     std::optional<bool> closed;
+    /// "cast_shadows": false: the triangles are seen by the receivers' passes but block nothing
+    /// (kTriangleNoCast).
+    bool castShadows = true;
+    /// "receive_shadows": false: receivers made on this entry's surface are unshadowed (V = 1).
+    bool receiveShadows = true;
+    /// "receiver_offset": receivers made on this entry's surface move this far along their
+    /// normal (scene units) before casting.
+    double receiverOffset = 0.0;
+    /// "max_distance": a hit on this entry's triangles blocks only within this distance of the
+    /// receiver (AlphaRule.h, distanceAtHit).
+    std::optional<double> maxDistance;
+    /// The receiver class of the entry's triangles (Triangle.h; SceneDesc::receiverClasses).
+    uint32_t receiverClass = 0;
+    /// With maxDistance: the alpha id its triangles take for alpha id a < kBuiltinAlphaCount.
+    std::array<uint32_t, kBuiltinAlphaCount> distanceIds{};
 };
+
 
 /// @brief A parsed scene. Paths are already resolved relative to the scene file.
 struct SceneDesc {
     std::string file;  ///< the scene file, for messages
     std::filesystem::path baseDir;
     std::vector<GeometryDesc> geometry;
+    /// Index = receiver class (Triangle.h, receiverClassOf()); class 0 is the default pair.
+    std::vector<ReceiverClass> receiverClasses{ReceiverClass{}};
     std::vector<LightDesc> lights;
     nlohmann::json receivers;  ///< the "receivers" object; ReceiverKind.h makes the kind from it
     std::string output = "out/shadows.exr";
@@ -74,6 +95,10 @@ void checkSceneOutput(const SceneDesc& scene);
 
 /// @brief Opens every geometry entry as one stream, in scene order, with transforms applied.
 TriangleSourcePtr openSceneGeometry(const SceneDesc& scene);
+/// @brief The same triangles for a file other scenes read (`penumbra generate`): they keep the
+/// "cast_shadows" mark, not the receiver classes or "max_distance" ids, which only this scene's
+/// receiverClasses and alpha table give a meaning.
+TriangleSourcePtr openSceneGeometryForExport(const SceneDesc& scene);
 
 /// @brief The "parts" of a geometry entry: the OBJ o/g groups it takes (empty: the whole file).
 /// @throw InputError naming the key when it is not a non-empty array of strings.

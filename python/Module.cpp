@@ -89,7 +89,8 @@ Scene(dict, points=None, base_dir=".") takes the keys of the JSON scene format
         .def("add_geometry", [](PyScene& s, const std::string& type, py::kwargs params) { s.addGeometry(type, toJson(params)); },
              py::arg("type"),
              "add_geometry(type, transform=None, closed=None, **params): a file (obj, gltf, glb, ptri, file) or a "
-             "generator (grid, terrain, grass, tree, forest, flowers, scatter, boxes, colonnade) with its parameters.")
+             "generator (grid, terrain, grass, tree, forest, flowers, scatter, boxes, colonnade) with its parameters, "
+             "and the per-object controls cast_shadows, receive_shadows, receiver_offset and max_distance.")
         .def("add_source", &PyScene::addSource, py::arg("source"), py::arg("alpha") = false,
              py::arg("closed") = py::none(), py::arg("count") = py::none(),
              R"doc(Streams triangles from Python.

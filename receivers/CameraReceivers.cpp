@@ -147,11 +147,13 @@ void CameraRasterizer::add(std::span<const Triangle> chunk) {
                     depth_[base + j] = depth_[base + j - 1], normal_[base + j] = normal_[base + j - 1];
                     if (!triangle_.empty()) triangle_[base + j] = triangle_[base + j - 1];
                     if (!triangleId_.empty()) triangleId_[base + j] = triangleId_[base + j - 1];
+                    if (!class_.empty()) class_[base + j] = class_[base + j - 1];
                 }
                 depth_[base + k] = ft;
                 normal_[base + k] = glm::vec3(glm::normalize(denom > 0 ? -n : n));
                 if (!triangle_.empty()) triangle_[base + k] = {tri.v[0], tri.v[1], tri.v[2]};
                 if (!triangleId_.empty()) triangleId_[base + k] = (seen_ + index) | (denom > 0 ? kFlippedBit : 0);
+                if (!class_.empty()) class_[base + k] = uint8_t(receiverClassOf(tri.flags));
             }
         }
     }
@@ -170,6 +172,7 @@ ReceiverSet CameraRasterizer::finish() {
     set.position.reserve(covered), set.normal.reserve(covered), set.pixel.reserve(covered), set.depth.reserve(covered);
     if (!triangle_.empty()) winners_.reserve(covered);
     if (!triangleId_.empty()) winnerIds_.reserve(covered);
+    if (!class_.empty()) winnerClasses_.reserve(covered);
     auto emit = [&](size_t slot, int x, int y, uint32_t pixel) {
         set.position.push_back(glm::vec3(camera_.eye + double(depth_[slot]) * direction(x, y)));
         set.normal.push_back(normal_[slot]);
@@ -177,6 +180,7 @@ ReceiverSet CameraRasterizer::finish() {
         set.depth.push_back(depth_[slot]);
         if (!triangle_.empty()) winners_.push_back(triangle_[slot]);
         if (!triangleId_.empty()) winnerIds_.push_back(triangleId_[slot]);
+        if (!class_.empty()) winnerClasses_.push_back(class_[slot]);
     };
     if (sub_ > 1) {  // refinement: pixel by pixel, sub-pixels in scanline order
         set.width = coarseWidth_, set.height = H / sub_;
@@ -186,7 +190,7 @@ ReceiverSet CameraRasterizer::finish() {
                 for (int sx = 0; sx < sub_; ++sx, ++slot)
                     if (std::isfinite(depth_[slot])) emit(slot, x0 + sx, y0 + sy, refined_[i]);
         }
-        depth_ = {}, normal_ = {}, triangle_ = {}, lookup_ = {};
+        depth_ = {}, normal_ = {}, triangle_ = {}, lookup_ = {}, class_ = {};
         return set;
     }
     for (size_t layer = 0; layer < L; ++layer)
@@ -195,7 +199,7 @@ ReceiverSet CameraRasterizer::finish() {
                 size_t p = size_t(y) * W + x, slot = p * L + layer;
                 if (std::isfinite(depth_[slot])) emit(slot, x, y, uint32_t(layer * size_t(W) * H + p));
             }
-    depth_ = {}, normal_ = {}, triangle_ = {}, triangleId_ = {};
+    depth_ = {}, normal_ = {}, triangle_ = {}, triangleId_ = {}, class_ = {};
     return set;
 }
 

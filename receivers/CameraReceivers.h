@@ -62,6 +62,9 @@ public:
     /// add() saw it (8 more bytes per pixel; the top bit is set when the triangle's winding faces
     /// away from the camera), so its vertices can be found again in a later pass.
     void recordTriangleIds() { triangleId_.assign(depth_.size(), kNoTriangle); }
+    /// Also keep, per pixel, the winning triangle's receiver class (Triangle.h, receiverClassOf():
+    /// its entry's "receive_shadows" and "receiver_offset"; 1 more byte per pixel).
+    void recordClasses() { class_.assign(depth_.size(), 0); }
     /// One receiver per covered pixel and layer: layer 0 in scanline order, then layer 1... Call once.
     /// In refinement mode: the covered sub-pixels of each chosen pixel, pixel by pixel, each
     /// pixel's sub-pixels in scanline order; `pixel` is the (coarse) pixel they refine.
@@ -70,6 +73,8 @@ public:
     std::vector<std::array<glm::vec3, 3>> takeTriangles() { return std::move(winners_); }
     /// After finish() with recordTriangleIds(): each receiver's triangle id, in receiver order.
     std::vector<uint64_t> takeTriangleIds() { return std::move(winnerIds_); }
+    /// After finish() with recordClasses(): each receiver's receiver class, in receiver order.
+    std::vector<uint8_t> takeClasses() { return std::move(winnerClasses_); }
     static constexpr uint64_t kFlippedBit = 1ull << 63, kNoTriangle = ~0ull;
     /// Bytes per pixel held while rasterizing.
     static constexpr uint64_t kBytesPerPixel = 16;
@@ -85,6 +90,7 @@ private:
     std::vector<uint32_t> lookup_;    ///< refinement: coarse pixel -> index in refined_, or ~0u
     uint64_t seen_ = 0;               ///< triangles given to add() so far
     std::vector<uint64_t> triangleId_, winnerIds_;
+    std::vector<uint8_t> class_, winnerClasses_;
     glm::dvec3 right_, up_, forward_;
     double tanHalf_, aspect_;
     std::vector<float> depth_;

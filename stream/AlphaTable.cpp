@@ -91,6 +91,22 @@ uint32_t AlphaTable::addEntry(const AlphaEntry& entry) {
     return uint32_t(entries_.size() - 1);
 }
 
+uint32_t AlphaTable::withDistance(uint32_t id, double maxDistance) {
+    AlphaEntry entry;
+    if (id != 0 && id < entries_.size()) entry = entries_[id];
+    else {
+        if (solid_ == ~0u) {
+            AlphaMap solid;
+            solid.shape = AlphaShape::Solid, solid.name = "opaque";
+            solid_ = addMap(std::move(solid));
+        }
+        entry.map = solid_;
+    }
+    entry.maxDistance = maxDistance;
+    distances_ = true;
+    return addEntry(entry);
+}
+
 AlphaLookup AlphaTable::lookup(uint32_t id, double b0, double b1, double b2) const {
     if (id == 0 || id >= entries_.size()) return {};
     const AlphaEntry& e = entries_[id];
@@ -105,6 +121,7 @@ AlphaLookup AlphaTable::lookup(uint32_t id, double b0, double b1, double b2) con
             const double x = 2.0 * u - 1.0, y = 2.0 * v - 1.0;
             return outline(1.0 - (x * x + y * y));
         }
+        case AlphaShape::Solid: return {};
         case AlphaShape::Texture: break;
     }
     if (m.width == 0 || m.height == 0 || !std::isfinite(u) || !std::isfinite(v)) return {};

@@ -26,6 +26,7 @@
 #include <glm/vec2.hpp>
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -46,7 +47,7 @@ enum BuiltinAlpha : uint32_t {
 enum class AlphaWrap : uint8_t { Repeat, Clamp, Mirror };
 
 /// What decides opacity on a map.
-enum class AlphaShape : uint8_t { Texture, Leaf, Petal };
+enum class AlphaShape : uint8_t { Texture, Leaf, Petal, Solid /* opaque everywhere: a max_distance id of an opaque triangle */ };
 
 /// @brief One alpha map: an analytic outline or a 1-bit texture.
 struct AlphaMap {
@@ -74,6 +75,9 @@ struct AlphaMap {
 struct AlphaEntry {
     uint32_t map = 0;
     std::array<glm::dvec2, 3> uv{};
+    /// A scene entry's "max_distance": the hit blocks only within this distance of the receiver
+    /// (bake/rule/AlphaRule.h, alphaAtHit). Infinity: no limit.
+    double maxDistance = INFINITY;
 };
 
 /// @brief The result of one alpha test.
@@ -98,6 +102,14 @@ public:
     /// @throw InputError when the 24-bit id space of Triangle::flags is exhausted.
     uint32_t addEntry(const AlphaEntry& entry);
 
+    /// @brief An id that tests like @p id (0: an opaque triangle) and also limits the blocking
+    /// hit to @p maxDistance from the receiver (a scene entry's "max_distance"); @return it.
+    uint32_t withDistance(uint32_t id, double maxDistance);
+    /// @brief The hit distance limit of @p id (infinity: none).
+    double maxDistance(uint32_t id) const { return id < entries_.size() ? entries_[id].maxDistance : INFINITY; }
+    /// @brief True when some id limits the hit distance.
+    bool hasDistances() const { return distances_; }
+
     /// @brief The test at barycentrics (@p b0, @p b1, @p b2) of alpha id @p id. An id the table
     /// does not hold is opaque (never less blocking than the triangle without alpha).
     AlphaLookup lookup(uint32_t id, double b0, double b1, double b2) const;
@@ -110,6 +122,8 @@ public:
 private:
     std::vector<AlphaMap> maps_;
     std::vector<AlphaEntry> entries_;  ///< index = alpha id (entry 0 unused)
+    uint32_t solid_ = ~0u;             ///< the Solid map, once a distance id of an opaque triangle needs it
+    bool distances_ = false;
 };
 
 }  // namespace penumbra

@@ -64,7 +64,7 @@ glm::mat4 Transform::matrix() const {
 bool Transform::isIdentity() const { return matrix() == glm::mat4(1.0f); }
 
 TransformedSource::TransformedSource(TriangleSourcePtr inner, const glm::mat4& matrix)
-    : inner_(std::move(inner)), matrix_(matrix),
+    : DecoratedSource(std::move(inner)), matrix_(matrix),
       mirrors_(glm::determinant(glm::mat3(matrix)) < 0.0f) {}
 
 size_t TransformedSource::read(std::span<Triangle> out) {

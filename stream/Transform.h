@@ -40,7 +40,7 @@ inline glm::vec3 transformPoint(const glm::mat4& m, const glm::vec3& p) { return
 /// (negative determinant of its 3x3 part) the second and third vertex of every triangle are
 /// swapped, so that the counter-clockwise side stays the front side in world space, as glTF
 /// prescribes for mirrored nodes.
-class TransformedSource final : public TriangleSource {
+class TransformedSource final : public DecoratedSource {
 public:
     /// @param inner the source whose vertices are transformed; owned.
     /// @param matrix applied to each vertex as a point.
@@ -48,16 +48,10 @@ public:
 
     /// @throw InputError when the inner source does, or when a transformed vertex is not finite.
     size_t read(std::span<Triangle> out) override;
-    void rewind() override { inner_->rewind(); }
+    /// One triangle out for one in: a skip is the inner source's.
     uint64_t skip(uint64_t count) override { return inner_->skip(count); }
-    std::string name() const override { return inner_->name(); }
-    std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
-    std::optional<uint64_t> knownSize() const override { return inner_->knownSize(); }
-    uint64_t residentBytes() const override { return inner_->residentBytes(); }
-    std::string residentDetail() const override { return inner_->residentDetail(); }
 
 private:
-    TriangleSourcePtr inner_;
     glm::mat4 matrix_;
     bool mirrors_;
 };

@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <span>
 
 namespace penumbra {
 
@@ -24,12 +25,22 @@ enum TriangleFlag : uint32_t {
     /// solids a light reaches inside (bake/ClosedSolids.h) without storing anything per solid.
     /// A run of closed triangles without it is taken as one solid, which is conservative.
     kTriangleSolidStart = 1u << 2,
+    /// The scene entry says "cast_shadows": false: receiver scans and smooth shading see the
+    /// triangle, every method skips it as a blocker (dropNonCasting(), BlockerBatch).
+    kTriangleNoCast = 1u << 3,
 };
 
-/// Layout of Triangle::flags: bits 0..2 are the TriangleFlag bits, 3..7 are reserved (zero), and
-/// bits 8..31 hold the triangle's alpha id (stream/AlphaTable.h), 0 for an opaque triangle. A
-/// triangle with an alpha id also has kTriangleAlphaMatte, so that it is bucketed last.
+/// Layout of Triangle::flags: bits 0..3 are the TriangleFlag bits, bits 4..7 the triangle's
+/// receiver class (its entry's "receive_shadows" and "receiver_offset", SceneDesc::receiverClasses;
+/// 0: the defaults), and bits 8..31 hold the triangle's alpha id (stream/AlphaTable.h), 0 for an
+/// opaque triangle. A triangle with an alpha id also has kTriangleAlphaMatte, so that it is
+/// bucketed last.
+constexpr uint32_t kTriangleClassShift = 4;
+constexpr uint32_t kTriangleClassMax = 15;
 constexpr uint32_t kTriangleAlphaIdShift = 8;
+
+/// The receiver class in @p flags (0: receives shadows, no offset).
+constexpr uint32_t receiverClassOf(uint32_t flags) { return (flags >> kTriangleClassShift) & kTriangleClassMax; }
 constexpr uint32_t kTriangleAlphaIdMax = (1u << 24) - 1;
 
 /// The alpha id in @p flags (0: no alpha test).
@@ -60,6 +71,16 @@ inline glm::vec3 roundToFloat(const glm::dvec3& p, bool below) {
         if (!below && double(f[a]) < p[a]) f[a] = std::nextafter(f[a], INFINITY);
     }
     return f;
+}
+
+/// @brief Moves the triangles of @p chunk that cast shadows to its front, in order, and
+/// @return how many there are: what a method casts of a chunk ("cast_shadows": false entries
+/// are read for the receivers' sake only).
+inline size_t dropNonCasting(std::span<Triangle> chunk) {
+    size_t kept = 0;
+    for (const Triangle& t : chunk)
+        if (!(t.flags & kTriangleNoCast)) chunk[kept++] = t;
+    return kept;
 }
 
 /// True when all nine coordinates are finite.

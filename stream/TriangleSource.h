@@ -62,6 +62,22 @@ public:
 
 using TriangleSourcePtr = std::unique_ptr<TriangleSource>;
 
+/// @brief Base of the sources that change what another source delivers triangle by triangle
+/// (flags, transforms, alpha ids): everything but read() and rewind() is the inner source's.
+class DecoratedSource : public TriangleSource {
+public:
+    explicit DecoratedSource(TriangleSourcePtr inner) : inner_(std::move(inner)) {}
+    void rewind() override { inner_->rewind(); }
+    std::string name() const override { return inner_->name(); }
+    std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
+    std::optional<uint64_t> knownSize() const override { return inner_->knownSize(); }
+    uint64_t residentBytes() const override { return inner_->residentBytes(); }
+    std::string residentDetail() const override { return inner_->residentDetail(); }
+
+protected:
+    TriangleSourcePtr inner_;
+};
+
 /// @brief A source over triangles already in memory (tests, small scenes).
 class VectorSource final : public TriangleSource {
 public:
@@ -103,10 +119,10 @@ private:
 /// @brief Sets and clears bits of Triangle::flags on everything another source delivers (a scene
 /// entry's "closed": true or false). Marking a source closed also starts a solid at its first
 /// triangle (kTriangleSolidStart), so the entry is at least one solid of its own.
-class FlagSource final : public TriangleSource {
+class FlagSource final : public DecoratedSource {
 public:
     FlagSource(TriangleSourcePtr inner, uint32_t set, uint32_t clear)
-        : inner_(std::move(inner)), set_(set), keep_(~clear) {}
+        : DecoratedSource(std::move(inner)), set_(set), keep_(~clear) {}
     size_t read(std::span<Triangle> out) override {
         const size_t n = inner_->read(out);
         for (size_t i = 0; i < n; ++i) out[i].flags = (out[i].flags & keep_) | set_;
@@ -121,14 +137,8 @@ public:
         if (n) first_ = false;
         return n;
     }
-    std::string name() const override { return inner_->name(); }
-    std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
-    std::optional<uint64_t> knownSize() const override { return inner_->knownSize(); }
-    uint64_t residentBytes() const override { return inner_->residentBytes(); }
-    std::string residentDetail() const override { return inner_->residentDetail(); }
 
 private:
-    TriangleSourcePtr inner_;
     uint32_t set_, keep_;
     bool first_ = true;
 };

@@ -30,7 +30,8 @@ const char* quantityName(RuleQuantity q) {
 std::unique_ptr<TieClassifier> makeClassifier(const std::string& scenePath, const ReceiverEpsilon& epsilon) {
     const SceneDesc scene = loadScene(scenePath);
     TriangleSourcePtr source = openSceneGeometry(scene);
-    return std::make_unique<TieClassifier>(readAll(*source), epsilon);
+    // The scene's alpha table: its max_distance ids carry the limits the classifier tests.
+    return std::make_unique<TieClassifier>(readAll(*source), epsilon, TieClassifier::kDefaultUlps, scene.options.alphaTable);
 }
 
 void checkSameInputs(const BakeDumpReader& a, const BakeDumpReader& b, const std::string& dirA, const std::string& dirB) {

@@ -38,7 +38,7 @@ uint64_t runGenerate(const GenerateOptions& options) {
     const Stopwatch watch;
     SceneDesc scene = loadScene(options.scene);
     checkOutputAgainstInputs(scene, options.output);
-    TriangleSourcePtr source = openSceneGeometry(scene);
+    TriangleSourcePtr source = openSceneGeometryForExport(scene);
     convertGeometry(*source, options.output);
     // convertGeometry does not report a count; the stream's size is known for every generator,
     // and for files it equals what was written, so ask the source rather than reading it again.

@@ -66,6 +66,11 @@ std::vector<std::string> casterNames() {
     return names;
 }
 
+void refuseMaxDistance(const CastContext& context, const std::string& method) {
+    if (alphaTableOf(context.options).hasDistances())
+        fail("--method " + method, "does not apply \"max_distance\" of geometry entries (use hpc, reference or embree)");
+}
+
 const CasterEntry& casterEntry(const std::string& name) {
     Registry& r = registry();
     {

@@ -112,6 +112,11 @@ struct CasterRegistration {
 /// @throw InputError ("--method: unknown method ... (known: ...)") for an unknown name.
 const CasterEntry& casterEntry(const std::string& name);
 
+/// @brief Refuses a scene with "max_distance" blockers for method @p method, which does not
+/// apply the distance test (only hpc, reference and embree do: AlphaRule.h).
+/// @throw InputError "--method ssv: ...".
+void refuseMaxDistance(const CastContext& context, const std::string& method);
+
 /// @brief Every registered method's name, in the order they are listed (hpc first).
 std::vector<std::string> casterNames();
 

@@ -23,6 +23,7 @@ void SceneCaster::cast(TriangleSource& blockers, uint32_t first, const CastSink&
         if (c_.observeChunk)
             for (size_t i = 0; i < all_.size(); i += kTriangleChunk)
                 c_.observeChunk(std::span<const Triangle>(all_).subspan(i, std::min(kTriangleChunk, all_.size() - i)));
+        all_.resize(dropNonCasting(all_));  // seen by the kind's pass, never a blocker
     }
     const ReceiverSet targets = receiversFrom(c_.receivers, first);
     ProgressReporter progress(phase_, targets.size(), c_.quiet);

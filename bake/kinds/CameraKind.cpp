@@ -41,7 +41,7 @@ class CameraKind final : public ReceiverKind {
 public:
     CameraKind(const CameraDesc& camera, const CameraAntialias& aa, const SceneDesc& scene)
         : camera_(camera), aa_(aa), smooth_(scene.smoothShading), lights_(lightDirections(scene.lights)),
-          lightCount_(scene.lights.size()), exr_(scene.exr) {
+          lightCount_(scene.lights.size()), exr_(scene.exr), classes_(scene.receiverClasses) {
         validateCamera(camera);
     }
     uint64_t outputBytes(uint64_t receivers) const override {
@@ -77,18 +77,19 @@ public:
             // The z-buffer (plus the triangle id per pixel for smooth shading) and, at the end of
             // the pass, the receiver set made from it (32 bytes per covered pixel) and the ids
             // moved to the receivers' order (8).
-            uint64_t perPixel = CameraRasterizer::kBytesPerPixel + (smooth_ ? 2 * sizeof(uint64_t) : 0) + 32;
+            // Per-object receiver classes: a byte per pixel and one per receiver.
+            uint64_t perPixel = CameraRasterizer::kBytesPerPixel + (smooth_ ? 2 * sizeof(uint64_t) : 0) + 32 + classBytes();
             return uint64_t(camera_.width) * camera_.height * camera_.layers * perPixel;
         }
         if (pass == StreamPass::Refine)
-            return refinedPixels_ * uint64_t(aa_.samples) * (CameraRasterizer::kBytesPerPixel + (smooth_ ? 36 : 0) + 32) +
+            return refinedPixels_ * uint64_t(aa_.samples) * (CameraRasterizer::kBytesPerPixel + (smooth_ ? 36 : 0) + 32 + classBytes()) +
                    uint64_t(camera_.width) * camera_.height * 4;
         return 0;
     }
     ReceiverSet receivers() override {
         ReceiverSet set = raster().finish();
         if (smooth_) bend_.emplace(lights_), bend_->expectTriangleIds(raster_->takeTriangleIds());
-        raster_.reset();
+        takeClasses(set);
         return set;
     }
     uint64_t residentBytes() const override { return bend_ ? bend_->bytes() : 0; }
@@ -100,13 +101,14 @@ public:
         const int n = int(std::lround(std::sqrt(double(aa_.samples))));
         raster_.emplace(camera_, n, pixels);
         if (smooth_) raster_->recordTriangles();
+        if (classes_.size() > 1) raster_->recordClasses();
         return true;
     }
     bool mayRefine() const override { return aa_.samples > 0; }
     ReceiverSet refinedReceivers() override {
         ReceiverSet set = raster_->finish();
         if (bend_) bend_->addTriangles(raster_->takeTriangles(), set.normal);
-        raster_.reset();
+        takeClasses(set);
         addedReceivers_ = set.size();
         return set;
     }
@@ -131,8 +133,16 @@ private:
         if (!raster_) {
             raster_.emplace(camera_);
             if (smooth_) raster_->recordTriangleIds();
+            if (classes_.size() > 1) raster_->recordClasses();
         }
         return *raster_;
+    }
+    uint64_t classBytes() const { return classes_.size() > 1 ? 2 : 0; }
+    /// The entries' receive_shadows and receiver_offset on the receivers the rasterizer made
+    /// (after smooth shading took the normals it needs), and the rasterizer's end.
+    void takeClasses(ReceiverSet& set) {
+        applyReceiverClasses(set, 0, raster_->takeClasses(), classes_);
+        raster_.reset();
     }
     CameraDesc camera_;
     CameraAntialias aa_;
@@ -140,6 +150,7 @@ private:
     std::vector<LightDirection> lights_;
     size_t lightCount_;
     ExrSettings exr_;
+    std::vector<ReceiverClass> classes_;  ///< SceneDesc::receiverClasses
     std::optional<CameraRasterizer> raster_;
     std::optional<VertexBend> bend_;
     uint64_t refinedPixels_ = 0, addedReceivers_ = 0;

@@ -55,7 +55,26 @@ struct Lightmap {
     int width = 0, height = 0;
     size_t first = 0;    ///< index of its first receiver in the kind's ReceiverSet
     LightmapLayout layout;
+    /// The entry's receive_shadows and receiver_offset; the atlas's come per mesh (classEnds).
+    ReceiverClass receiverClass;
+    /// The atlas: mesh m's triangles end at classEnds[m] in the concatenated mesh, and take classes[m].
+    std::vector<size_t> classEnds;
+    std::vector<ReceiverClass> classes;
 };
+
+/// The receiver classes of @p map on its layout's receivers (before they join the kind's set).
+void applyClasses(Lightmap& map) {
+    ReceiverSet& set = map.layout.receivers;
+    for (size_t r = 0; r < set.size(); ++r) {
+        if (map.classEnds.empty()) {
+            applyReceiverClass(set, r, map.receiverClass);
+            continue;
+        }
+        const size_t m = size_t(std::upper_bound(map.classEnds.begin(), map.classEnds.end(), size_t(map.layout.triangle[r])) -
+                                map.classEnds.begin());
+        applyReceiverClass(set, r, map.classes[std::min(m, map.classes.size() - 1)]);
+    }
+}
 
 /// A name safe in a file name: letters, digits, '-', '_' and '.' are kept, the rest become '_'.
 std::string fileSafe(const std::string& name) {
@@ -105,7 +124,13 @@ public:
                 fmt::print(stderr, "penumbra: warning: {}: {} texels covered by more than one triangle (overlapping UVs; \"uv\": \"generate\" makes new ones)\n",
                            map.label, map.layout.overlapping);
             map.first = all.size();
+            applyClasses(map);
             ReceiverSet& set = map.layout.receivers;
+            if (!set.unshadowed.empty() || !all.unshadowed.empty()) {
+                all.unshadowed.resize(all.size(), 0);
+                if (set.unshadowed.empty()) set.unshadowed.assign(set.size(), 0);
+                all.unshadowed.insert(all.unshadowed.end(), set.unshadowed.begin(), set.unshadowed.end());
+            }
             all.position.insert(all.position.end(), set.position.begin(), set.position.end());
             all.normal.insert(all.normal.end(), set.normal.begin(), set.normal.end());
             set = ReceiverSet{};
@@ -202,7 +227,9 @@ private:
     Lightmap makeAtlas() {
         std::vector<IndexedMesh> meshes;
         std::string sources, labels;
+        Lightmap map;
         for (Lightmap& part : parts_) {
+            map.classes.push_back(part.receiverClass);
             meshes.push_back(std::move(part.mesh));
             sources += (sources.empty() ? "" : ", ") + part.source;
             labels += (labels.empty() ? "" : ", ") + part.label;
@@ -227,9 +254,10 @@ private:
                        {"texels_per_unit", atlas.texelsPerUnit}, {"density_lowered", atlas.densityLowered},
                        {"padding", settings_.padding}, {"meshes", parts_.size()}, {"build_time_s", seconds},
                        {"mean_stretch", atlas.meanStretch}, {"max_stretch", atlas.maxStretch}};
-        Lightmap map;
         map.source = sources, map.label = "lightmap atlas (" + labels + ")", map.name = kAtlasName;
         map.width = atlas.width, map.height = atlas.height;
+        for (const IndexedMesh& mesh : atlas.meshes)  // the atlas's meshes are the parts, in order
+            map.classEnds.push_back((map.classEnds.empty() ? 0 : map.classEnds.back()) + mesh.triangleCount());
         map.mesh = concatenate(atlas.meshes);
         atlasMeshes_ = std::move(atlas.meshes);
         for (size_t m = 0; m < atlasMeshes_.size(); ++m) atlasMeshes_[m].name = parts_[m].name;
@@ -354,7 +382,7 @@ std::string mapsKey(const SceneDesc& scene, const std::vector<size_t>& meshes, c
     std::string key = scene.baseDir.string() + '\n' + scene.receivers.dump();
     for (size_t slot = 0; slot < meshes.size(); ++slot) {
         const GeometryDesc& g = scene.geometry[meshes[slot]];
-        key += '\n' + g.params.dump();
+        key += '\n' + g.params.dump() + fmt::format(" {} {}", g.receiveShadows, g.receiverOffset);
         const glm::mat4 m = g.transform.matrix();
         for (int c = 0; c < 4; ++c)
             for (int r = 0; r < 4; ++r) key += fmt::format(" {}", m[c][r]);
@@ -410,6 +438,7 @@ LightmapMaps makeMaps(const JsonParams& j, const SceneDesc& scene, const std::ve
         if (loaded.empty()) fail(j.where(key), "{} has no triangle meshes", file);
         for (size_t m = 0; m < loaded.size(); ++m) {
             Lightmap map;
+            map.receiverClass = scene.receiverClasses[geometry.receiverClass];
             map.source = file;
             map.label = loaded.size() == 1 ? file : fmt::format("{} (mesh \"{}\")", file, loaded[m].name);
             if (settings.uv == UvSource::Mesh && !lightmapUvs(loaded[m]))

@@ -51,6 +51,7 @@ struct VertexFile {
     std::string input, output, where;
     glm::dmat4 sceneMatrix{1.0};
     bool colourUnorm16 = false;  ///< "color_format": "unorm16": COLOR_0 as normalized unsigned shorts
+    ReceiverClass receiverClass;  ///< the entry's receive_shadows and receiver_offset
     uint64_t fileBytes = 0;
     std::vector<PrimitiveRange> primitives;
     std::map<std::pair<int, int>, size_t> owners;                ///< (mesh, POSITION accessor) -> owner range
@@ -286,9 +287,11 @@ public:
     ReceiverSet receivers() override {
         ReceiverSet set;
         for (VertexFile& file : files_) {
+            const size_t begin = set.size();
             walkPrimitives(file, [&](GltfPrimitiveReader& reader, const glm::dmat4& world) { addPrimitive(file, reader, world, set); });
             finishNormals(file, set);
             file.fileBytes = std::filesystem::file_size(file.input);
+            for (size_t r = begin; r < set.size(); ++r) applyReceiverClass(set, r, file.receiverClass);
         }
         return set;
     }
@@ -347,6 +350,7 @@ const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, con
                 fail(where, "{} is a \"{}\" entry; vertices receivers need a .gltf or .glb file", g.path, g.type);
             file.sceneMatrix = glm::dmat4(g.transform.matrix());
             file.colourUnorm16 = colourFormat == "unorm16";
+            file.receiverClass = scene.receiverClasses[g.receiverClass];
             file.output = scene.output;
             if (meshes.size() > 1) {
                 std::filesystem::path out(scene.output);

@@ -196,7 +196,8 @@ VisibilityMasks castHeckbertHerf(const LightSamples& samples, const ReceiverSet&
     tbb::parallel_for(size_t(0), prepared.size(), [&](size_t i) { behindPolygon(prepared[i], c); });
     blockers.rewind();
     std::vector<Triangle> chunk(kTriangleChunk);
-    while (size_t n = blockers.read(chunk)) {
+    while (size_t read = blockers.read(chunk)) {
+        const size_t n = dropNonCasting(std::span<Triangle>(chunk.data(), read));
         // Polygons own disjoint receivers, so their masks never share a row.
         tbb::parallel_for(size_t(0), prepared.size(), [&](size_t i) {
             HeckbertHerfStats counts;
@@ -252,7 +253,10 @@ const CasterRegistration kHeckbertHerf{
     {"hh",
      {.exact = false, .sortedBlockers = false, .needsPolygons = true,
       .summary = "Heckbert & Herf 1997 hard shadows accumulated into lightmap textures: approximate at texel edges"},
-     [](const CastContext& c) { return std::make_unique<HeckbertHerfCaster>(c); },
+     [](const CastContext& c) {
+         refuseMaxDistance(c, "hh");
+         return std::make_unique<HeckbertHerfCaster>(c);
+     },
      [](uint64_t, uint64_t receivers, const LightSamples& samples, const nlohmann::json&) {
          // Every receiver's masks, its place in its polygon's member list and texel grid (a
          // triangle's texel box is at most twice its texels), and the kind's polygon and texel of

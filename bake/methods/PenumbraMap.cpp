@@ -220,7 +220,7 @@ void forEachChunk(TriangleSource& blockers, PenumbraMapStats& stats, const std::
     blockers.rewind();
     std::vector<Triangle> chunk(kTriangleChunk);
     while (size_t n = blockers.read(chunk)) {
-        f(std::span<const Triangle>(chunk.data(), n));
+        f(std::span<const Triangle>(chunk.data(), dropNonCasting(std::span<Triangle>(chunk.data(), n))));
         stats.trianglesRead += n;
         if (progress) progress(n);
     }
@@ -385,7 +385,10 @@ const CasterRegistration kPenumbraMap{
     {"penumbra-map",
      {.exact = false, .masks = false, .sortedBlockers = false,
       .summary = "penumbra maps (Wyman & Hansen 2003): an approximate preview, visible fractions only"},
-     [](const CastContext& c) { return std::make_unique<PenumbraMapCaster>(c); },
+     [](const CastContext& c) {
+         refuseMaxDistance(c, "penumbra-map");
+         return std::make_unique<PenumbraMapCaster>(c);
+     },
      [](uint64_t, uint64_t receivers, const LightSamples& samples, const nlohmann::json& bake) {
          // One light's maps at a time, and every receiver's visible fraction of every light.
          return optionsOf(bake).mapBytes() + receivers * uint64_t(samples.lightCount()) * sizeof(float);

@@ -15,7 +15,7 @@ VisibilityMasks castReference(const LightSamples& samples, const ReceiverSet& re
     blockers.reserve(triangles.size());
     for (const Triangle& t : triangles) {
         BlockerTriangle b = BlockerTriangle::from(t);
-        if (b.valid) blockers.push_back(b);
+        if (b.valid && !(t.flags & kTriangleNoCast)) blockers.push_back(b);  // "cast_shadows": false blocks nothing
     }
     VisibilityMasks masks(receivers.size(), samples.groupCount());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, receivers.size(), 16), [&](const tbb::blocked_range<size_t>& range) {

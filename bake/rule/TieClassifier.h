@@ -23,7 +23,10 @@
 /// mismatch, and the verdict names the triangle that decides it.
 ///
 ///  - Alpha: for an alpha triangle the rule blocks geometrically, the alpha test at the hit
-///    (bake/rule/AlphaRule.h); fragile when the hit is within roundoff of a texel edge or outline.
+///    (bake/rule/AlphaRule.h); fragile when the hit is within roundoff of a texel edge or outline,
+///    or, for a geometry entry's "max_distance", when the hit's distance from the receiver is
+///    within 2^-40 (relative to the coordinates) of the limit.
+/// Triangles of "cast_shadows": false entries (kTriangleNoCast) block nothing here either.
 /// Memory: the scene's valid triangles (as BlockerTriangle, 112 bytes each) and a BVH over them.
 /// This is a checking tool for scenes that fit in memory, not a part of the bake.
 
