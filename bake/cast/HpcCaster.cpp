@@ -7,6 +7,7 @@
 #include "bake/cast/SampleMaskTable.h"
 #include "stream/util/Memory.h"
 #include "stream/util/Progress.h"
+#include "stream/util/StopRequest.h"
 
 #include <numeric>
 
@@ -50,6 +51,8 @@ public:
                 if (c_.observeChunk && !observed_) c_.observeChunk(part);
                 caster.cast(part);
                 progress.update(n);
+                testPoint("cast");
+                throwIfStopRequested("cast");  // the finished tiles are checkpointed; this one is cast again
             }
             observed_ = true;
             caster.finish(sink.masks);
