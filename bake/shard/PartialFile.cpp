@@ -2,9 +2,9 @@
 
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
+#include "stream/util/RegularFile.h"
 
 #include <cstring>
-#include <fstream>
 
 namespace penumbra {
 namespace {
@@ -39,6 +39,7 @@ public:
         at_ += n;
     }
     size_t at() const { return at_; }
+    size_t remaining() const { return data_.size() - at_; }
 
 private:
     const std::string& path_;
@@ -78,16 +79,21 @@ PartialHeader getHeader(Reader& r, const std::string& path) {
     if (lights > 1u << 20 || h.groups > 1u << 24 || h.receivers > (uint64_t(1) << 40) || h.part >= h.parts)
         fail(path, "corrupt partial file header (part {} of {}, {} receivers, {} groups, {} lights)", h.part, h.parts,
              h.receivers, h.groups, lights);
+    if (size_t(lights) * sizeof(uint32_t) > r.remaining()) fail(path, "truncated partial file header ({} lights)", lights);
     h.lightFirstGroup.resize(lights);
     for (uint32_t& f : h.lightFirstGroup) f = r.get<uint32_t>();
+    // Light i's groups are [f[i], f[i+1]): ascending, within the groups.
+    for (size_t i = 0; i < lights; ++i)
+        if (h.lightFirstGroup[i] > h.groups || (i > 0 && h.lightFirstGroup[i] < h.lightFirstGroup[i - 1]))
+            fail(path, "corrupt partial file header (light {} starts at group {} of {})", i, h.lightFirstGroup[i], h.groups);
     return h;
 }
 
+/// The whole file; a FIFO or a device (which might never end) is refused, not read.
 std::vector<uint8_t> readWhole(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) fail(path, "cannot open partial file: {}", std::strerror(errno));
-    std::vector<uint8_t> data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (in.bad()) fail(path, "read failed: {}", std::strerror(errno));
+    const RegularFile file(path);
+    std::vector<uint8_t> data(size_t(file.size()));
+    file.read(data.data(), data.size(), 0);
     return data;
 }
 
@@ -115,7 +121,8 @@ void writePartialFile(const std::string& path, const PartialHeader& header, cons
     Fnv64 sum;
     sum.add(w.out.data(), w.out.size());
     w.put(sum.value);
-    writeFileAtomically(path, w.out);
+    // A checkpoint or shard file exists to outlive what stops the bake, the machine included.
+    writeFileAtomically(path, w.out, FileSync::Durable);
 }
 
 PartialFile readPartialFile(const std::string& path) {
@@ -125,6 +132,9 @@ PartialFile readPartialFile(const std::string& path) {
     Reader r(path, std::span<const uint8_t>(data.data(), body));
     PartialFile f{path, getHeader(r, path), {}, {}};
     const size_t n = size_t(f.header.receivers);
+    // Sizes come from the file: check them against its length before allocating anything.
+    if ((n + 3) / 4 > r.remaining())
+        fail(path, "truncated partial file ({} bytes; {} receivers need {} bytes of states)", data.size(), n, (n + 3) / 4);
     std::vector<uint8_t> packed((n + 3) / 4);
     r.bytes(packed.data(), packed.size());
     f.state.resize(n);
@@ -133,9 +143,10 @@ PartialFile readPartialFile(const std::string& path) {
         f.state[i] = uint8_t((packed[i / 4] >> (2 * (i % 4))) & 3u);
         partial += f.state[i] == uint8_t(ReceiverState::Partial);
     }
-    const size_t wordBytes = partial * f.header.groups * sizeof(uint64_t);
-    if (body - r.at() != wordBytes)
-        fail(path, "truncated partial file ({} bytes of masks, {} expected)", body - r.at(), wordBytes);
+    size_t wordBytes = 0;
+    if (__builtin_mul_overflow(partial, size_t(f.header.groups) * sizeof(uint64_t), &wordBytes) || r.remaining() != wordBytes)
+        fail(path, "truncated partial file ({} bytes of masks; {} receivers of {} groups in partial shadow need more)",
+             r.remaining(), partial, f.header.groups);
     f.words.resize(partial * f.header.groups);
     r.bytes(f.words.data(), wordBytes);
     uint64_t stored;

@@ -43,7 +43,8 @@ struct PartialHeader {
 enum class ReceiverState : uint8_t { Absent = 0, Clear = 1, Partial = 2, Full = 3 };
 
 /// @brief Writes the masks of the receivers marked in @p present (one byte per receiver, 0 or 1)
-/// to @p path atomically (AtomicFile). A receiver whose words equal its groups' full masks is
+/// to @p path atomically and durably (AtomicFile, fsync of the data before its name is linked and
+/// of the directory after). A receiver whose words equal its groups' full masks is
 /// stored as full umbra, one with no bit as clear.
 /// @throw InputError naming @p path.
 void writePartialFile(const std::string& path, const PartialHeader& header, const LightSamples& samples,
