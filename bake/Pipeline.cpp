@@ -384,8 +384,8 @@ StopRequested stoppedBake(const Bake& b, const StopRequested& stop) {
     const std::string& dir = b.settings.shard.checkpointDir;
     if (!b.sharded)  // before the cast: the checkpoints of an earlier run, if any, are untouched
         return StopRequested(fmt::format("{}; the checkpoints in {} are kept: run the same command to continue", stop.what(), dir));
-    return StopRequested(fmt::format("{}; {} memory tile(s) are checkpointed in {}: run the same command to continue",
-                                     stop.what(), b.sharded->checkpointedTiles(), dir));
+    return StopRequested(fmt::format("{}; {} checkpointed in {}: run the same command to continue", stop.what(),
+                                     b.sharded->checkpointedWork(), dir));
 }
 
 /// Scan, cast (or merge) and refine: the stages a SIGTERM may stop when the bake checkpoints.

@@ -59,7 +59,7 @@ ReceiverState stateOf(const uint64_t* row, const LightSamples& samples) {
 void putHeader(Writer& w, const PartialHeader& h) {
     w.bytes(kMagic, sizeof kMagic);
     w.put(h.version), w.put(h.role), w.put(h.sceneHash), w.put(h.settingsHash), w.put(h.contentHash);
-    w.put(h.cut), w.put(h.part), w.put(h.parts), w.put(h.receivers), w.put(h.groups);
+    w.put(h.cut), w.put(h.part), w.put(h.parts), w.put(h.replayed), w.put(h.replayHash), w.put(h.receivers), w.put(h.groups);
     w.put(uint32_t(h.lightFirstGroup.size()));
     for (uint32_t f : h.lightFirstGroup) w.put(f);
 }
@@ -74,7 +74,8 @@ PartialHeader getHeader(Reader& r, const std::string& path) {
         fail(path, "partial file format version {}, this penumbra reads version {}", h.version, kPartialFormatVersion);
     h.role = r.get<uint32_t>(), h.sceneHash = r.get<uint64_t>(), h.settingsHash = r.get<uint64_t>();
     h.contentHash = r.get<uint64_t>(), h.cut = r.get<uint32_t>(), h.part = r.get<uint32_t>();
-    h.parts = r.get<uint32_t>(), h.receivers = r.get<uint64_t>(), h.groups = r.get<uint32_t>();
+    h.parts = r.get<uint32_t>(), h.replayed = r.get<uint64_t>(), h.replayHash = r.get<uint64_t>();
+    h.receivers = r.get<uint64_t>(), h.groups = r.get<uint32_t>();
     const uint32_t lights = r.get<uint32_t>();
     if (lights > 1u << 20 || h.groups > 1u << 24 || h.receivers > (uint64_t(1) << 40) || h.part >= h.parts)
         fail(path, "corrupt partial file header (part {} of {}, {} receivers, {} groups, {} lights)", h.part, h.parts,

@@ -21,22 +21,25 @@
 
 namespace penumbra {
 
-inline constexpr uint32_t kPartialFormatVersion = 1;
+inline constexpr uint32_t kPartialFormatVersion = 2;  ///< 2: the replay position of a tile in progress
 
 /// @brief What a partial file is a part of.
 struct PartialHeader {
     uint32_t version = kPartialFormatVersion;
-    uint32_t role = 0;          ///< 1: a shard file, 2: a checkpointed memory tile
+    uint32_t role = 0;          ///< 1: a shard file, 2: a checkpointed memory tile, 3: a tile in progress
     uint64_t sceneHash = 0;     ///< the scene file's bytes
     uint64_t settingsHash = 0;  ///< method, cut, shard count and the options that change bits
     uint64_t contentHash = 0;   ///< receivers, sample sets and light samples, after the scan
     uint32_t cut = 0;           ///< ShardCut
     uint32_t part = 0, parts = 0;  ///< shard I of N, or tile T of M
+    /// A tile in progress: its masks hold the first `replayed` blockers of the largest-first
+    /// replay, whose bytes hash to `replayHash` (0 and 0 for the other roles).
+    uint64_t replayed = 0, replayHash = 0;
     uint64_t receivers = 0;
     uint32_t groups = 0;        ///< mask words per receiver
     std::vector<uint32_t> lightFirstGroup;  ///< per-light data: groups of light i are [f[i], f[i+1])
 
-    static constexpr uint32_t kShard = 1, kCheckpoint = 2;
+    static constexpr uint32_t kShard = 1, kCheckpoint = 2, kTileProgress = 3;
 };
 
 /// @brief A receiver's state in a partial file.

@@ -103,12 +103,13 @@ TEST_CASE("SIGTERM stops a checkpointing bake with exit 143; a second signal end
     b.killed("PENUMBRA_TEST_KILL_AFTER_TILES=1");
     REQUIRE(b.checkpoints() == 1);
 
-    // SIGTERM in the middle of the second tile: the first stays on disk, the process says so and
-    // exits 143 without an output or a temporary file.
+    // SIGTERM in the middle of the second tile: the first stays on disk, the second's progress is
+    // written, the process says so and exits 143 without an output or a temporary file.
     CHECK(b.signalled("PENUMBRA_TEST_PAUSE_AT=cast", "TERM") == 143);
-    CHECK_THAT(b.err(), Catch::StartsWith("penumbra: stopped by SIGTERM during the cast; 1 memory tile(s) are checkpointed in"));
+    CHECK_THAT(b.err(), Catch::StartsWith("penumbra: stopped by SIGTERM during the cast; 1 memory tile(s) and the "
+                                          "progress of the tile in hand checkpointed in"));
     CHECK(lineCount(b.err()) == 1);
-    CHECK(b.checkpoints() == 1);
+    CHECK(b.checkpoints() == 2);
     CHECK_FALSE(fs::exists(b.dir / "out/scene.exr"));
     CHECK_FALSE(hasTempFiles(b.dir.path));
 
@@ -117,13 +118,15 @@ TEST_CASE("SIGTERM stops a checkpointing bake with exit 143; a second signal end
     CHECK_THAT(b.err(), Catch::Contains("during the scan; the checkpoints in"));
     CHECK(b.signalled("PENUMBRA_TEST_PAUSE_AT=bucket", "TERM") == 143);
     CHECK_THAT(b.err(), Catch::Contains("during the bucket pass"));
-    CHECK(b.checkpoints() == 1);
+    CHECK(b.checkpoints() == 2);
 
     // A second SIGTERM, or a SIGINT, while the bake stops: the process ends at once, by the signal.
-    CHECK(b.signalled("PENUMBRA_TEST_PAUSE_AT=cast", "TERM", "TERM") == 143);
-    CHECK(b.signalled("PENUMBRA_TEST_PAUSE_AT=cast", "TERM", "INT") == 130);
+    // (Held in the scan: this scene's tiles replay a single chunk, so a resumed tile's progress
+    // is at the end of its replay and casts nothing where it could pause.)
+    CHECK(b.signalled("PENUMBRA_TEST_PAUSE_AT=scan", "TERM", "TERM") == 143);
+    CHECK(b.signalled("PENUMBRA_TEST_PAUSE_AT=scan", "TERM", "INT") == 130);
     CHECK_FALSE(hasTempFiles(b.dir.path));
-    CHECK(b.checkpoints() == 1);
+    CHECK(b.checkpoints() == 2);
     b.resumes();
 
     // Without --checkpoint there is nothing to save: SIGTERM ends the bake at once.
@@ -133,6 +136,63 @@ TEST_CASE("SIGTERM stops a checkpointing bake with exit 143; a second signal end
     CHECK(b.err().empty());
     CHECK_FALSE(fs::exists(b.dir / "out/scene.exr"));
     CHECK_FALSE(hasTempFiles(b.dir.path));
+}
+
+TEST_CASE("a tile killed or stopped in the middle resumes from its progress checkpoint to the same bytes",
+          "[shards][resume]") {
+    ScratchDir dir("resume-progress");
+    std::string scene = kShardScene;  // 24 cells a side: over 12,000 blockers, several chunks of 4,096
+    scene.replace(scene.find("\"cells\": 6"), 10, "\"cells\": 24");
+    writeText(dir / "scene.json", scene);
+    const std::string common = dir / "scene.json" + " --threads 2 --dump " + dir / "dump";
+    bakeOk(common + " --stats " + dir / "whole.json");
+    const uint64_t blockers = nlohmann::json::parse(slurp(dir / "whole.json"))["stream"]["triangles"].get<uint64_t>();
+    REQUIRE(blockers > 3 * 4096);
+    const std::string expected = shardSceneOutputs(dir.path.string(), dir / "dump");
+    fs::remove_all(dir / "out"), fs::remove_all(dir / "dump");
+    // --checkpoint-every 0: the tile's progress is saved after every chunk of the replay.
+    const std::string command = "bake " + common + " --checkpoint " + dir / "ckpt" + " --checkpoint-every 0 --quiet";
+    const std::string progress = dir / "ckpt/tile-0-of-1.progress.pnpart";
+    auto replayed = [&] {  // the replay position in the progress file's header (docs/distributed.md)
+        std::ifstream in(progress, std::ios::binary);
+        in.seekg(52);
+        uint64_t position = 0;
+        in.read(reinterpret_cast<char*>(&position), sizeof position);
+        return position;
+    };
+
+    // Killed after the first chunk, then (resumed there) after the next one.
+    uint64_t last = 0;
+    for (int kill = 0; kill < 2; ++kill) {
+        RunResult r = runPenumbra(command, "PENUMBRA_TEST_KILL_AT=cast");
+        INFO(r.err);
+        REQUIRE(r.exitCode == 137);
+        REQUIRE(filesIn(dir / "ckpt") == std::vector<std::string>{"tile-0-of-1.progress.pnpart"});
+        CHECK(replayed() > last);
+        last = replayed();
+        CHECK_FALSE(hasTempFiles(dir.path));
+    }
+    // SIGTERM: resumed, one chunk further, the progress saved again, exit 143.
+    const std::string ready = dir / "ready";
+    const int stopped = runShell("bash -c 'set -m; exec 2>/dev/null; PENUMBRA_TEST_PAUSE_AT=cast PENUMBRA_TEST_PAUSE_FILE=" +
+                                 ready + " " + PENUMBRA_BINARY + " " + command + " & pid=$!; " +
+                                 "for i in $(seq 1200); do [ -e " + ready + " ] && break; sleep 0.05; done; kill -TERM $pid; wait $pid'");
+    CHECK(stopped == 143);
+    CHECK(replayed() > last);
+    last = replayed();
+    CHECK(last < blockers);
+    CHECK_FALSE(fs::exists(dir / "out/scene.exr"));
+
+    // The rest: the replay up to the saved position is skipped, not cast, and the bytes are the same.
+    RunResult r = runPenumbra(command + " --stats " + dir / "resumed.json");
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    const nlohmann::json shard = nlohmann::json::parse(slurp(dir / "resumed.json"))["shard"];
+    CHECK(shard["tiles_resumed_in_progress"] == 1);
+    CHECK(shard["replay_skipped_triangles"] == last);
+    CHECK(shardSceneOutputs(dir.path.string(), dir / "dump") == expected);
+    CHECK(filesIn(dir / "ckpt").empty());
+    CHECK_FALSE(hasTempFiles(dir.path));
 }
 
 TEST_CASE("a damaged checkpoint or one of another scene is refused under --resume, ignored under --checkpoint",
@@ -171,7 +231,7 @@ TEST_CASE("checkpoints and shard files are synced before they are named, and the
     }
     const std::string trace = dir / "trace";
     const std::string traced = "strace -f -qq -e trace=fsync,linkat,renameat2,rename -o " + trace + " ";
-    for (const std::string args : {" --checkpoint " + dir / "ckpt", " --shard 0/2 --shard-dir " + dir / "shards"}) {
+    for (const std::string& args : {" --checkpoint " + dir / "ckpt", " --shard 0/2 --shard-dir " + dir / "shards"}) {
         RunResult r = runPenumbra("bake " + dir / "scene.json" + args + " --quiet", traced);
         INFO(r.err);
         REQUIRE(r.exitCode == 0);
