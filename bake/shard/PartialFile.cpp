@@ -33,6 +33,7 @@ public:
         return v;
     }
     void bytes(void* to, size_t n) {
+        if (n == 0) return;  // `to` may be an empty vector's null data(), which memcpy must not get
         if (n > data_.size() - at_)
             fail(path_, "truncated partial file ({} bytes; the header or masks need more)", data_.size());
         std::memcpy(to, data_.data() + at_, n);
