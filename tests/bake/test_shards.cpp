@@ -148,6 +148,9 @@ TEST_CASE("bad --shard values are one-line errors", "[shards][cli]") {
     requireCleanError(runPenumbra("bake " + scene + " --shard 3/3 --shard-dir " + dir / "s"), "--shard");
     requireCleanError(runPenumbra("bake " + scene + " --shard x --shard-dir " + dir / "s"), "--shard");
     requireCleanError(runPenumbra("bake " + scene + " --shard 0/2"), "--shard-dir");
+    requireCleanError(runPenumbra("bake " + scene + " --checkpoint-every 5"), "--checkpoint-every: needs --checkpoint DIR");
+    requireCleanError(runPenumbra("bake " + scene + " --checkpoint " + dir / "c" + " --checkpoint-every -1"),
+                      "--checkpoint-every: must be a number of seconds");
     requireCleanError(runPenumbra("bake " + scene + " --shard slurm --shard-dir " + dir / "s", "env -u SLURM_ARRAY_TASK_ID -u SLURM_ARRAY_TASK_COUNT -u SLURM_ARRAY_TASK_MIN"),
                       "is not set (not a task of a Slurm job array)");
     RunResult r = runPenumbra("bake " + scene + " --shard slurm --shard-dir " + dir / "s" + " --quiet",
