@@ -98,7 +98,7 @@ TEST_CASE("a bake killed with SIGKILL at every phase resumes to the same bytes",
     b.resumes();
 }
 
-TEST_CASE("SIGTERM stops a checkpointing bake with exit 143; a second signal ends it at once", "[shards][resume][sigterm]") {
+TEST_CASE("SIGTERM stops a checkpointing bake with exit 143, and a second signal ends it at once", "[shards][resume][sigterm]") {
     ResumeBake b;
     b.killed("PENUMBRA_TEST_KILL_AFTER_TILES=1");
     REQUIRE(b.checkpoints() == 1);
