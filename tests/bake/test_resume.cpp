@@ -195,6 +195,34 @@ TEST_CASE("a tile killed or stopped in the middle resumes from its progress chec
     CHECK_FALSE(hasTempFiles(dir.path));
 }
 
+TEST_CASE("a tile's progress is refused when the replay differs from the blockers it holds", "[shards][resume]") {
+    ScratchDir dir("resume-replay");
+    auto quadAt = [](double y) { return fmt::format("v -1 {0} -1\nv 1 {0} -1\nv 1 {0} 1\nv -1 {0} 1\nf 1 2 3 4\n", y); };
+    writeText(dir / "mesh.obj", quadAt(1.0));
+    writeText(dir / "points.csv", "x,y,z,nx,ny,nz\n0,0,0,0,1,0\n0.5,0,0.2,0,1,0\n1.5,0,0,0,1,0\n");
+    writeText(dir / "scene.json", R"({"geometry": [{"type": "obj", "path": "mesh.obj"}],
+      "lights": [{"type": "rect", "center": [0, 3, 0], "u": [1, 0, 0], "v": [0, 0, 1], "samples": 16}],
+      "receivers": {"type": "points", "path": "points.csv"}, "output": "out/p.npy"})");
+    const std::string bake = "bake " + dir / "scene.json" + " --checkpoint-every 0";
+    REQUIRE(runPenumbra(bake + " --quiet --checkpoint " + dir / "ckpt", "PENUMBRA_TEST_KILL_AT=cast").exitCode == 137);
+    REQUIRE(fs::exists(dir / "ckpt/tile-0-of-1.progress.pnpart"));
+
+    // The same scene file, receivers and light samples, but other blockers: the saved progress is
+    // of another replay, and is never used.
+    writeText(dir / "mesh.obj", quadAt(1.5));
+    requireCleanError(runPenumbra(bake + " --quiet --resume " + dir / "ckpt"), "the blockers replayed differ");
+    RunResult noted = runPenumbra(bake + " --checkpoint " + dir / "ckpt");
+    INFO(noted.err);
+    REQUIRE(noted.exitCode == 0);
+    CHECK_THAT(noted.err, Catch::Contains("ignoring the checkpoint: the blockers replayed differ"));
+    const std::string resumed = slurp(dir / "out/p.npy");
+    fs::remove_all(dir / "out");
+    bakeOk(dir / "scene.json");
+    CHECK(slurp(dir / "out/p.npy") == resumed);
+    CHECK(filesIn(dir / "ckpt").empty());
+    CHECK_FALSE(hasTempFiles(dir.path));
+}
+
 TEST_CASE("a damaged checkpoint or one of another scene is refused under --resume, ignored under --checkpoint",
           "[shards][resume]") {
     ResumeBake b;
