@@ -26,6 +26,7 @@
 #include "stream/BlockCyclicSource.h"
 #include "stream/PrefetchSource.h"
 #include "stream/util/Progress.h"
+#include "stream/util/StopRequest.h"
 
 #include <tbb/global_control.h>
 #include <tbb/info.h>
@@ -33,6 +34,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <optional>
 #include <string_view>
 #include <system_error>
 
@@ -109,6 +111,7 @@ void feedPass(ReceiverKind& kind, StreamPass pass, TriangleSource& source, bool 
     while (size_t n = source.read(chunk)) {
         kind.consume(pass, StreamChunk{std::span<const Triangle>(chunk.data(), n), streamOrder ? source.part() : kAnyGeometryEntry});
         if (progress) progress->update(n);
+        throwIfStopRequested("pass over the geometry");
     }
 }
 
@@ -156,6 +159,8 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
             if (scanPass) kind.consume(StreamPass::Scan, StreamChunk{part, source->part()});
             if (scene.options.closedCasters) solids.scan(part);
             progress.update(n);
+            testPoint("scan");
+            throwIfStopRequested("scan");
         }
         p.receivers = kind.receivers();
         progress.done();
@@ -214,6 +219,8 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
                                                         [&](std::span<const Triangle> c) {
                                                             if (rescan) kind.consume(StreamPass::Rescan, StreamChunk{c, source->part()});
                                                             progress.update(c.size());
+                                                            testPoint("bucket");
+                                                            throwIfStopRequested("bucket pass");
                                                         },
                                                         keep));
     progress.done();
@@ -403,11 +410,30 @@ void writeOutputs(Bake& b) {
     const Prepared& p = b.p;
     ProgressReporter progress("write", 0, b.settings.quiet);  // a phase of its own: large EXRs take seconds
     if (!b.settings.capture || b.settings.capture->writeOutputs) b.kind->write(OutputContext{b.scene, p.receivers, p.samples, b.results, b.scene.output, b.firstPass});
+    testPoint("write");  // the image is finished but not in place: a kill must leave no trace of it
     if (b.dump()) writeBakeDump(b.settings.dumpDir, p.receivers, p.sampleSets, p.samples, b.masks, receiverEpsilonOf(p.options));
     if (!b.settings.visibilityPath.empty()) {
         const uint64_t shape[1] = {p.receivers.size()};
         writeNpy(b.settings.visibilityPath, "<f4", shape, b.results.visibility.data(), b.results.visibility.size() * sizeof(float));
     }
+}
+
+/// What a bake stopped by SIGTERM (@p stop) leaves, and how to go on: the line the CLI prints.
+StopRequested stoppedBake(const Bake& b, const StopRequested& stop) {
+    const std::string& dir = b.settings.shard.checkpointDir;
+    if (!b.sharded)  // before the cast: the checkpoints of an earlier run, if any, are untouched
+        return StopRequested(fmt::format("{}; the checkpoints in {} are kept: run the same command to continue", stop.what(), dir));
+    return StopRequested(fmt::format("{}; {} checkpointed in {}: run the same command to continue", stop.what(),
+                                     b.sharded->checkpointedWork(), dir));
+}
+
+/// Scan, cast (or merge) and refine: the stages a SIGTERM may stop when the bake checkpoints.
+void castStages(Bake& b) {
+    scanScene(b);
+    if (b.settings.shard.merge) mergeShards(b);
+    else castReceivers(b, 0);
+    // A shard writes its masks, the merge the outputs.
+    if (!b.settings.shard.casting() && refineReceivers(b)) castReceivers(b, uint32_t(b.firstPass));
 }
 
 }  // namespace
@@ -474,11 +500,18 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total) {
     const BakeSettings& settings = b.settings;
     setScratchDirectory(settings.tmpDir);  // spilled OBJ vertices go where the buckets go
 
-    scanScene(b);
-    if (settings.shard.merge) mergeShards(b);
-    else castReceivers(b, 0);
-    const bool shard = settings.shard.casting();  // a shard writes its masks, the merge the outputs
-    if (!shard && refineReceivers(b)) castReceivers(b, uint32_t(b.firstPass));
+    // With checkpoints the first SIGTERM (Slurm's notice before a time limit) stops the bake at
+    // its next chunk, every finished tile on disk, and the CLI exits 143 (StopRequest.h). Only hpc
+    // checkpoints (its memory tiles); other methods have nothing to save and keep the immediate exit.
+    std::optional<DeferredTermination> deferred;
+    if (!settings.shard.checkpointDir.empty() && !settings.shard.merge && b.method.name == "hpc") deferred.emplace();
+    try {
+        castStages(b);
+    } catch (const StopRequested& stop) {
+        throw stoppedBake(b, stop);
+    }
+    // Once cast, a SIGTERM no longer stops the bake: writing takes seconds and saves the most.
+    const bool shard = settings.shard.casting();
     OutputSet outputs;  // every output of the bake appears together, or none does
     if (shard) b.sharded->writeShard(b.masks);
     else writeOutputs(b);

@@ -3,6 +3,7 @@
 #include "bake/LibraryErrors.h"
 #include "stream/util/Diagnostics.h"
 #include "stream/util/Error.h"
+#include "stream/util/StopRequest.h"
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -19,6 +20,9 @@ int reportError(std::exception_ptr error, const std::string& context) {
     const std::string prefix = context.empty() ? "penumbra: error: " : "penumbra: error: " + context + ": ";
     try {
         std::rethrow_exception(error);
+    } catch (const StopRequested& e) {  // SIGTERM under --checkpoint: what is saved, and how to go on
+        printDiagnostic(fmt::format("penumbra: {}\n", e.what()));
+        return kStoppedExitCode;
     } catch (const InputError& e) {
         printDiagnostic(fmt::format("penumbra: error: {}\n", e.what()));
     } catch (const std::bad_alloc&) {

@@ -2,7 +2,7 @@
 /// @file CliErrors.h
 /// @brief How a command ends badly: one line on stderr and the documented exit code (README,
 /// "Exit codes"): 1 for errors in the input or the environment, 2 for usage errors, 70 for
-/// penumbra's own bugs.
+/// penumbra's own bugs, 143 for a bake stopped by SIGTERM after writing its checkpoints.
 
 #include <CLI/CLI.hpp>
 

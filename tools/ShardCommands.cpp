@@ -29,6 +29,8 @@ void addShardOptions(CLI::App& bake, ShardCli& cli) {
     bake.add_option("--checkpoint", cli.checkpoint,
                     "write a checkpoint per finished memory tile to this directory, and restore the ones found there");
     bake.add_option("--resume", cli.resume, "like --checkpoint, but a checkpoint that does not match is an error");
+    bake.add_option("--checkpoint-every", cli.checkpointEvery,
+                    "seconds of cast between checkpoints within a memory tile (default 300; 0: after every chunk)");
     bake.add_flag("--merge", cli.merge, "merge the shard files of --shard-dir (what `penumbra merge` runs)");
 }
 
@@ -64,6 +66,12 @@ ShardSettings shardSettings(const ShardCli& cli) {
     s.checkpointDir = cli.resume.empty() ? cli.checkpoint : cli.resume;
     s.resume = !cli.resume.empty();
     if (s.merge && !s.checkpointDir.empty()) fail("--checkpoint", "a merge casts no tiles to checkpoint");
+    if (cli.checkpointEvery) {
+        if (s.checkpointDir.empty()) fail("--checkpoint-every", "needs --checkpoint DIR or --resume DIR");
+        if (!(*cli.checkpointEvery >= 0 && *cli.checkpointEvery <= 1e9))
+            fail("--checkpoint-every", "must be a number of seconds in 0..1e9, got {}", *cli.checkpointEvery);
+        s.checkpointEvery = *cli.checkpointEvery;
+    }
     return s;
 }
 

@@ -19,6 +19,7 @@ struct ShardCli {
     std::string shardBy = "auto";
     std::string shardDir;
     std::string checkpoint, resume;
+    std::optional<double> checkpointEvery;  ///< seconds; unset: ShardSettings' default
     bool merge = false;  ///< set by `penumbra merge`
 };
 

@@ -9,6 +9,7 @@
 /// what they hold in memory. The pipeline (bake/Pipeline.cpp) only ever sees this interface.
 
 #include "bake/cast/CastOptions.h"
+#include "bake/cast/VisibilityMasks.h"
 #include "bake/light/Light.h"
 #include "receivers/ReceiverSet.h"
 #include "stream/util/JsonParams.h"
@@ -20,6 +21,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -37,6 +39,15 @@ struct CastSink {
     std::function<void(uint32_t receiver, const float* lightVisibility)> visibility;
 };
 
+/// @brief A memory tile's cast so far (a checkpoint within a tile): the masks of its receivers
+/// (row i for the tile's i-th receiver) after the first `replayed` blockers of the replay, whose
+/// bytes hash to `replayHash`. Masks are an OR over blockers, so casting the rest of the replay
+/// and ORing it in gives exactly the masks of an uninterrupted cast.
+struct TileProgress {
+    uint64_t replayed = 0, replayHash = 0;
+    VisibilityMasks masks;
+};
+
 /// @brief What a bake asks of a method's memory tiles in its first pass (bake/shard: shards and
 /// checkpoints). A method without tiles ignores them and casts every receiver.
 struct TileHooks {
@@ -46,6 +57,16 @@ struct TileHooks {
     std::function<bool(size_t tile, size_t tiles, std::span<const uint32_t> ids)> restore;
     /// Tile @p tile of @p tiles is cast and every one of its receivers reported to the sink.
     std::function<void(size_t tile, size_t tiles, std::span<const uint32_t> ids)> finished;
+    /// Checkpoints within a tile (all three set, or none):
+    /// the saved progress of tile @p tile, if any, to continue from;
+    std::function<std::optional<TileProgress>(size_t tile, size_t tiles, std::span<const uint32_t> ids)> resume;
+    /// whether the tile in progress should be saved now (`--checkpoint-every`);
+    std::function<bool()> progressDue;
+    /// save it.
+    std::function<void(size_t tile, size_t tiles, std::span<const uint32_t> ids, const TileProgress& progress)> saveProgress;
+    /// The replay does not start with the blockers a resumed progress holds: refuse it (throws
+    /// under `--resume`) or note it; the tile is then cast from the start.
+    std::function<void(size_t tile, size_t tiles)> rejectProgress;
 };
 
 /// @brief Everything a method needs to cast, fixed for the bake.

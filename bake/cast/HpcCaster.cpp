@@ -1,13 +1,17 @@
 // `--method hpc`: hierarchical penumbra casting as the pipeline runs it. Receivers are cut into
 // memory tiles (--memory-budget) cast one after another, each replaying the blockers; within a
-// tile, threads cast disjoint sub-tiles (PenumbraCaster).
+// tile, threads cast disjoint sub-tiles (PenumbraCaster). A tile in progress can be checkpointed
+// and resumed at a position in the replay (TileProgress, docs/distributed.md).
 
 #include "bake/cast/Caster.h"
 #include "bake/cast/PenumbraCaster.h"
 #include "bake/cast/SampleMaskTable.h"
 #include "stream/util/Memory.h"
 #include "stream/util/Progress.h"
+#include "stream/util/StopRequest.h"
 
+#include <algorithm>
+#include <cstring>
 #include <numeric>
 
 namespace penumbra {
@@ -17,6 +21,29 @@ namespace {
 /// out uneven work (measured on GRIDS with a barrier per chunk, 2 threads: 2 per thread cast in
 /// 4.28 s, 4 in 3.86 s, 8 in 3.92 s; docs/performance.md, "Parallelism").
 int subTiles(int threads) { return threads > 1 ? 4 * threads : 1; }
+
+/// How far a tile's cast is in the replay: blockers read, and (when progress is saved) a hash of
+/// their bytes, so that a resumed tile can check that it skips exactly the blockers it restored.
+struct ReplayCursor {
+    uint64_t position = 0, hash = 0xcbf29ce484222325ull;
+    bool hashing = false;
+
+    void add(std::span<const Triangle> part) {
+        position += part.size();
+        if (!hashing) return;
+        // FNV-1a over 64-bit words: a Triangle is 40 bytes, five words, no padding.
+        static_assert(sizeof(Triangle) % sizeof(uint64_t) == 0);
+        const auto* bytes = reinterpret_cast<const unsigned char*>(part.data());
+        for (size_t i = 0; i < part.size_bytes(); i += sizeof(uint64_t)) {
+            uint64_t word;
+            std::memcpy(&word, bytes + i, sizeof word);
+            hash = (hash ^ word) * 0x100000001b3ull;
+        }
+    }
+};
+
+/// The row of receiver @p r among a tile's sorted @p ids.
+size_t rowOf(std::span<const uint32_t> ids, uint32_t r) { return size_t(std::lower_bound(ids.begin(), ids.end(), r) - ids.begin()); }
 
 class HpcCaster final : public Caster {
 public:
@@ -29,43 +56,16 @@ public:
         if (hooks && hooks->select) ids = hooks->select(std::move(ids));
         const auto tiles = partitionReceivers(c_.receivers, ids, std::max(1, c_.memoryTiles));
         ProgressReporter progress("cast", blockers.sizeHint().value_or(0) * tiles.size(), c_.quiet);
-        std::vector<Triangle> chunk(kTriangleChunk);
         for (size_t t = 0; t < tiles.size(); ++t) {
             if (hooks && hooks->restore && hooks->restore(t, tiles.size(), tiles[t])) {
                 progress.update(blockers.sizeHint().value_or(0));  // a tile restored from a checkpoint is done
                 continue;
             }
-            double readSeconds = 0;
-            PenumbraCaster caster(c_.samples, c_.receivers, c_.sampleSets, c_.options, subTiles(c_.threads), tiles[t]);
-            // Triangles are counted as the tiles finish them, with the work they took, so the
-            // share and ETA follow the work rather than the count (ProgressEstimate.h).
-            caster.setProgress([&progress](uint64_t triangles, uint64_t work) { progress.updateMeasured(triangles, work); });
-            // The first tile of the bake reads the replay the bucket pass left ready.
-            if (!fresh_) blockers.rewind();
-            fresh_ = false;
-            for (;;) {
-                size_t n;
-                {
-                    ScopedTimer timer(readSeconds);
-                    n = blockers.read(chunk);
-                }
-                if (n == 0) break;
-                const std::span<const Triangle> part(chunk.data(), n);
-                // A receiver kind's pass over the faces (smooth shading) runs on this thread while
-                // the tiles cast earlier chunks on the others.
-                if (c_.observeChunk && !observed_) c_.observeChunk(part);
-                caster.cast(part);
-                progress.update(0);  // where Ctrl-C (requestCancel) stops the cast
-            }
-            observed_ = true;
-            caster.finish(sink.masks);
+            castTile(blockers, Tile{t, tiles.size(), tiles[t]}, sink, hooks, progress);
             if (hooks && hooks->finished) hooks->finished(t, tiles.size(), tiles[t]);
             // Tile hierarchies are built on worker threads, in their malloc arenas; hand the freed
             // memory back before the next tile, or arenas keep it and RSS creeps past the plan.
             returnFreedMemory();
-            CastStats s = caster.stats();
-            s.replayReadSeconds = readSeconds;
-            addSequential(stats_, s);
         }
         if (c_.observeChunk && !observed_) observeAll(blockers);  // every tile was restored
         progress.done();
@@ -74,18 +74,149 @@ public:
     CastStats stats() const override { return stats_; }
 
 private:
-    /// The receiver kind's pass over the faces, when no tile was cast to carry it.
-    void observeAll(TriangleSource& blockers) {
+    struct Tile {
+        size_t index, count;
+        std::span<const uint32_t> ids;  ///< sorted
+    };
+
+    /// Casts one memory tile against the whole replay, or against the rest of it after a
+    /// checkpoint of its progress, and reports every one of its receivers to @p sink.
+    void castTile(TriangleSource& blockers, const Tile& tile, const CastSink& sink, const TileHooks* hooks,
+                  ProgressReporter& progress) {
+        const bool saves = hooks && hooks->saveProgress;
+        ReplayCursor cursor;
+        cursor.hashing = saves;
+        rewindOnce(blockers);
+        std::optional<TileProgress> prior = saves ? hooks->resume(tile.index, tile.count, tile.ids) : std::nullopt;
+        if (prior && !skipTo(blockers, *prior, cursor)) {
+            hooks->rejectProgress(tile.index, tile.count);
+            prior.reset();
+            blockers.rewind();
+            cursor = ReplayCursor{0, ReplayCursor{}.hash, saves};
+        }
+        // Receivers in full umbra already are final: only the others are cast.
+        std::vector<uint32_t> open;
+        for (size_t i = 0; i < tile.ids.size(); ++i)
+            if (!prior || !fullRow(prior->masks.row(i))) open.push_back(tile.ids[i]);
+        std::optional<PenumbraCaster> caster;
+        if (!open.empty()) caster.emplace(c_.samples, c_.receivers, c_.sampleSets, c_.options, subTiles(c_.threads), open);
+        // Triangles are counted as the sub-tiles finish them, with the work they took, so the
+        // share and ETA follow the work rather than the count (ProgressEstimate.h); what a resumed
+        // tile skipped is done.
+        if (caster) caster->setProgress([&progress](uint64_t triangles, uint64_t work) { progress.updateMeasured(triangles, work); });
+        if (prior) progress.update(prior->replayed);
+        double readSeconds = 0;
+        std::vector<Triangle> chunk(kTriangleChunk);
+        for (;;) {
+            size_t n;
+            {
+                ScopedTimer timer(readSeconds);
+                n = blockers.read(chunk);
+            }
+            if (n == 0) break;
+            const std::span<const Triangle> part(chunk.data(), n);
+            // A receiver kind's pass over the faces (smooth shading) runs on this thread while
+            // the tiles cast earlier chunks on the others.
+            observe(part, cursor.position);
+            cursor.add(part);
+            if (caster) caster->cast(part);
+            progress.update(caster ? 0 : n);  // 0: where Ctrl-C (requestCancel) stops the cast
+            const bool due = saves && hooks->progressDue();
+            if (due) hooks->saveProgress(tile.index, tile.count, tile.ids, snapshot(caster, tile, prior, cursor));
+            testPoint("cast");
+            // A SIGTERM is the last chance to save the tile's progress (StopRequest.h).
+            if (saves && !due && stopRequested())
+                hooks->saveProgress(tile.index, tile.count, tile.ids, snapshot(caster, tile, prior, cursor));
+            throwIfStopRequested("cast");  // the finished tiles and this one's progress are checkpointed
+        }
+        observed_ = true;
+        report(caster, tile, prior, sink);
+        if (!caster) return;
+        CastStats s = caster->stats();
+        s.replayReadSeconds = readSeconds;
+        addSequential(stats_, s);
+    }
+
+    /// Reads the first @p prior.replayed blockers (observing them, casting none) and checks their
+    /// hash. @return false when the replay is not what the progress was saved from.
+    bool skipTo(TriangleSource& blockers, const TileProgress& prior, ReplayCursor& cursor) {
+        std::vector<Triangle> chunk(kTriangleChunk);
+        while (cursor.position < prior.replayed) {
+            const size_t want = size_t(std::min<uint64_t>(chunk.size(), prior.replayed - cursor.position));
+            const size_t n = blockers.read(std::span<Triangle>(chunk.data(), want));
+            if (n == 0) return false;
+            observe(std::span<const Triangle>(chunk.data(), n), cursor.position);
+            cursor.add(std::span<const Triangle>(chunk.data(), n));
+        }
+        return cursor.hash == prior.replayHash;
+    }
+
+    /// The tile's masks now: what the caster found so far ORed into what @p prior restored.
+    TileProgress snapshot(std::optional<PenumbraCaster>& caster, const Tile& tile, const std::optional<TileProgress>& prior,
+                          const ReplayCursor& cursor) const {
+        TileProgress now{cursor.position, cursor.hash,
+                         prior ? prior->masks : VisibilityMasks(tile.ids.size(), c_.samples.groupCount())};
+        // finish() only flushes and reads the tiles, so the cast goes on after it.
+        if (caster) caster->finish([&](uint32_t r, const uint64_t* words, bool full) {
+            uint64_t* row = now.masks.row(rowOf(tile.ids, r));
+            for (int k = 0; k < now.masks.groups; ++k)
+                row[k] = full ? c_.samples.groups[k].fullMask() : row[k] | (words ? words[k] : 0);
+        });
+        return now;
+    }
+
+    /// Every receiver of the tile to @p sink once: cast ones with @p prior ORed in, the ones
+    /// @p prior had in full umbra as such.
+    void report(std::optional<PenumbraCaster>& caster, const Tile& tile, const std::optional<TileProgress>& prior,
+                const CastSink& sink) const {
+        if (prior)
+            for (size_t i = 0; i < tile.ids.size(); ++i)
+                if (fullRow(prior->masks.row(i))) sink.masks(tile.ids[i], nullptr, true);
+        if (!caster) return;
+        if (!prior) return caster->finish(sink.masks);
+        caster->finish([&](uint32_t r, const uint64_t* words, bool full) {
+            if (full) return sink.masks(r, nullptr, true);
+            thread_local std::vector<uint64_t> merged;
+            const uint64_t* before = prior->masks.row(rowOf(tile.ids, r));
+            merged.assign(before, before + prior->masks.groups);
+            if (words)
+                for (size_t k = 0; k < merged.size(); ++k) merged[k] |= words[k];
+            sink.masks(r, merged.data(), false);  // shaded as a merge shades ORed shard masks
+        });
+    }
+
+    bool fullRow(const uint64_t* row) const {
+        for (int k = 0; k < c_.samples.groupCount(); ++k)
+            if (row[k] != c_.samples.groups[k].fullMask()) return false;
+        return c_.samples.groupCount() > 0;
+    }
+
+    /// The first tile of the bake reads the replay the bucket pass left ready; later ones rewind.
+    void rewindOnce(TriangleSource& blockers) {
         if (!fresh_) blockers.rewind();
         fresh_ = false;
+    }
+
+    /// Hands @p part, at replay position @p at, to the kind's pass over the faces, once per
+    /// blocker whatever the tiles and resumes (chunks fall the same way on every read).
+    void observe(std::span<const Triangle> part, uint64_t at) {
+        if (!c_.observeChunk || observed_ || at < observedUpTo_) return;
+        c_.observeChunk(part);
+        observedUpTo_ = at + part.size();
+    }
+
+    /// The receiver kind's pass over the faces, when no tile was cast to carry it.
+    void observeAll(TriangleSource& blockers) {
+        rewindOnce(blockers);
         std::vector<Triangle> chunk(kTriangleChunk);
-        while (size_t n = blockers.read(chunk)) c_.observeChunk(std::span<const Triangle>(chunk.data(), n));
+        for (uint64_t at = 0; size_t n = blockers.read(chunk); at += n) observe(std::span<const Triangle>(chunk.data(), n), at);
         observed_ = true;
     }
 
     const CastContext c_;
     CastStats stats_;
     bool fresh_ = true, observed_ = false;
+    uint64_t observedUpTo_ = 0;  ///< blockers the kind has seen, while observed_ is false
 };
 
 const CasterRegistration kHpc{{"hpc",

@@ -19,9 +19,9 @@ Checkpoints::Checkpoints(const ShardSettings& settings, PartialHeader header, co
     if (const char* kill = std::getenv("PENUMBRA_TEST_KILL_AFTER_TILES"); kill && *kill) killAfter_ = std::atol(kill);
 }
 
-std::string Checkpoints::pathOf(size_t tile, size_t tiles) const {
-    return (fs::path(settings_.checkpointDir) / ("tile-" + std::to_string(tile) + "-of-" + std::to_string(tiles) + ".pnpart"))
-        .string();
+std::string Checkpoints::pathOf(size_t tile, size_t tiles, const char* suffix) const {
+    const std::string name = "tile-" + std::to_string(tile) + "-of-" + std::to_string(tiles) + suffix + ".pnpart";
+    return (fs::path(settings_.checkpointDir) / name).string();
 }
 
 void Checkpoints::reject(const std::string& path, const std::string& why) {
@@ -29,36 +29,83 @@ void Checkpoints::reject(const std::string& path, const std::string& why) {
     if (!quiet_) printNote("{}: ignoring the checkpoint: {}", path, why);
 }
 
-bool Checkpoints::restore(size_t tile, size_t tiles, std::span<const uint32_t> ids, VisibilityMasks& masks) {
-    const std::string path = pathOf(tile, tiles);
+std::optional<PartialFile> Checkpoints::readMatching(const std::string& path, uint32_t role, std::span<const uint32_t> ids) {
     std::error_code ec;
-    if (!fs::exists(path, ec)) return false;
+    if (!fs::exists(path, ec)) return std::nullopt;
     PartialFile f;
     try {
         f = readPartialFile(path);
     } catch (const InputError& e) {
         if (settings_.resume) throw;
         if (!quiet_) printNote("ignoring the checkpoint: {}", e.what());
-        return false;
+        return std::nullopt;
     }
     const PartialHeader& h = f.header;
-    if (h.role != PartialHeader::kCheckpoint) return reject(path, "not a checkpoint"), false;
-    if (h.sceneHash != header_.sceneHash) return reject(path, "a checkpoint of another scene file"), false;
+    if (h.role != role) return reject(path, "not a checkpoint of this kind (a shard file or another role)"), std::nullopt;
+    if (h.sceneHash != header_.sceneHash) return reject(path, "a checkpoint of another scene file"), std::nullopt;
     if (h.settingsHash != header_.settingsHash || h.cut != header_.cut)
-        return reject(path, "a checkpoint of other settings (method, shard or cut)"), false;
+        return reject(path, "a checkpoint of other settings (method, shard or cut)"), std::nullopt;
     if (h.contentHash != header_.contentHash || h.receivers != header_.receivers || h.groups != header_.groups)
-        return reject(path, "a checkpoint of other receivers or light samples"), false;
+        return reject(path, "a checkpoint of other receivers or light samples"), std::nullopt;
     // The tile must hold exactly these receivers: another memory budget tiles differently.
     size_t present = 0;
     for (uint8_t s : f.state) present += s != uint8_t(ReceiverState::Absent);
     bool same = present == ids.size();
     for (size_t i = 0; same && i < ids.size(); ++i) same = f.state[ids[i]] != uint8_t(ReceiverState::Absent);
-    if (!same) return reject(path, "a checkpoint of another tiling (--memory-budget or --threads changed)"), false;
+    if (!same) return reject(path, "a checkpoint of another tiling (--memory-budget or --threads changed)"), std::nullopt;
+    return f;
+}
+
+bool Checkpoints::restore(size_t tile, size_t tiles, std::span<const uint32_t> ids, VisibilityMasks& masks) {
+    const std::string path = pathOf(tile, tiles);
+    const std::optional<PartialFile> f = readMatching(path, PartialHeader::kCheckpoint, ids);
+    if (!f) return false;
     std::vector<uint8_t> covered(masks.receivers(), 0);
-    addPartialMasks(f, samples_, masks, covered);
+    addPartialMasks(*f, samples_, masks, covered);
     written_.push_back(path);
+    written_.push_back(pathOf(tile, tiles, ".progress"));  // left if a kill came between the two
     ++restored_;
     return true;
+}
+
+std::optional<TileProgress> Checkpoints::resumeTile(size_t tile, size_t tiles, std::span<const uint32_t> ids) {
+    progressClock_.reset();
+    const std::string path = pathOf(tile, tiles, ".progress");
+    const std::optional<PartialFile> f = readMatching(path, PartialHeader::kTileProgress, ids);
+    if (!f) return std::nullopt;
+    TileProgress p{f->header.replayed, f->header.replayHash, VisibilityMasks(ids.size(), int(header_.groups))};
+    const uint64_t* words = f->words.data();
+    for (size_t r = 0, i = 0; r < f->state.size(); ++r) {  // the present receivers are ids, in order
+        const auto state = ReceiverState(f->state[r]);
+        if (state == ReceiverState::Absent) continue;
+        uint64_t* row = p.masks.row(i++);
+        for (int k = 0; k < p.masks.groups; ++k)
+            row[k] = state == ReceiverState::Full ? samples_.groups[k].fullMask() : state == ReceiverState::Partial ? words[k] : 0;
+        if (state == ReceiverState::Partial) words += p.masks.groups;
+    }
+    written_.push_back(path);
+    ++resumed_, skipped_ += p.replayed, lastSkipped_ = p.replayed;
+    return p;
+}
+
+void Checkpoints::rejectProgress(size_t tile, size_t tiles) {
+    reject(pathOf(tile, tiles, ".progress"), "the blockers replayed differ from the ones it holds (a geometry file changed?)");
+    --resumed_, skipped_ -= lastSkipped_;
+}
+
+void Checkpoints::saveProgress(size_t tile, size_t tiles, std::span<const uint32_t> ids, const VisibilityMasks& masks,
+                               uint64_t replayed, uint64_t replayHash) {
+    PartialHeader h = header_;
+    h.role = PartialHeader::kTileProgress;
+    h.part = uint32_t(tile), h.parts = uint32_t(tiles), h.replayed = replayed, h.replayHash = replayHash;
+    std::vector<uint8_t> present(size_t(header_.receivers), 0);
+    for (uint32_t r : ids) present[r] = 1;
+    const std::string path = pathOf(tile, tiles, ".progress");
+    writePartialFile(path, h, samples_, masks, present);
+    written_.push_back(path);
+    ++progressSaves_;
+    progressPending_ = true;
+    progressClock_.reset();
 }
 
 void Checkpoints::save(size_t tile, size_t tiles, std::span<const uint32_t> ids, const VisibilityMasks& masks) {
@@ -69,7 +116,11 @@ void Checkpoints::save(size_t tile, size_t tiles, std::span<const uint32_t> ids,
     const std::string path = pathOf(tile, tiles);
     writePartialFile(path, h, samples_, masks, present);
     written_.push_back(path);
+    std::error_code ec;
+    fs::remove(pathOf(tile, tiles, ".progress"), ec);  // the whole tile supersedes its progress
     ++saved_;
+    progressPending_ = false;
+    progressClock_.reset();
     if (killAfter_ >= 0 && long(saved_) >= killAfter_) std::raise(SIGKILL);  // a real kill -9, for the tests
 }
 

@@ -9,9 +9,16 @@
 /// uninterrupted bake. A file of another scene, other settings, another tiling or another format
 /// version is never used: `--checkpoint` ignores it with a note, `--resume` refuses it. The
 /// checkpoints are removed once the bake's outputs are in place.
+///
+/// Within a tile, every `--checkpoint-every` seconds of cast (and on SIGTERM) the tile's masks so
+/// far are saved as `tile-T-of-M.progress.pnpart`, with the position in the replay they hold; a
+/// resume restores them and casts only the rest of the replay (HpcCaster, TileProgress).
 
+#include "bake/cast/Caster.h"
 #include "bake/shard/ShardRun.h"
+#include "stream/util/Timer.h"
 
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -34,23 +41,53 @@ public:
     /// @throw InputError naming the file (a full disk, an unwritable directory).
     void save(size_t tile, size_t tiles, std::span<const uint32_t> ids, const VisibilityMasks& masks);
 
+    /// @brief The saved progress of tile @p tile when it exists and matches, its masks in the
+    /// order of @p ids; restarts the `--checkpoint-every` clock (the tile's cast begins).
+    /// @throw InputError for a mismatched or damaged one under `--resume`.
+    std::optional<TileProgress> resumeTile(size_t tile, size_t tiles, std::span<const uint32_t> ids);
+
+    /// True when `--checkpoint-every` seconds have passed since the tile began or was last saved.
+    bool progressDue() const { return progressClock_.seconds() >= settings_.checkpointEvery; }
+
+    /// @brief Writes tile @p tile's progress (the rows of @p ids in @p masks, after @p replayed
+    /// blockers hashing to @p replayHash), atomically, over the previous one.
+    /// @throw InputError naming the file.
+    void saveProgress(size_t tile, size_t tiles, std::span<const uint32_t> ids, const VisibilityMasks& masks,
+                      uint64_t replayed, uint64_t replayHash);
+
+    /// @brief The replay did not match tile @p tile's progress: an error under `--resume`, else a note.
+    /// @throw InputError under `--resume`.
+    void rejectProgress(size_t tile, size_t tiles);
+
     /// @brief Removes every checkpoint this bake wrote or restored (the bake is complete).
     void removeAll() noexcept;
 
     /// Tiles restored and written so far.
     size_t restored() const { return restored_; }
     size_t saved() const { return saved_; }
+    /// Tiles resumed from a saved progress, the blockers they skipped, and progress saves.
+    size_t resumed() const { return resumed_; }
+    uint64_t skipped() const { return skipped_; }
+    size_t progressSaves() const { return progressSaves_; }
+    /// True when the tile in hand has its progress on disk (saved, and not yet superseded by the whole tile).
+    bool progressPending() const { return progressPending_; }
 
 private:
-    std::string pathOf(size_t tile, size_t tiles) const;
+    std::string pathOf(size_t tile, size_t tiles, const char* suffix = "") const;
     void reject(const std::string& path, const std::string& why);
+    /// @brief Reads @p path if it exists and checks that it is a @p role file of this bake and
+    /// of a tile of exactly @p ids; a mismatch is reject()ed. @return the file, or nullopt.
+    std::optional<PartialFile> readMatching(const std::string& path, uint32_t role, std::span<const uint32_t> ids);
 
     ShardSettings settings_;
     PartialHeader header_;
     const LightSamples& samples_;
     bool quiet_;
     std::vector<std::string> written_;
-    size_t restored_ = 0, saved_ = 0;
+    size_t restored_ = 0, saved_ = 0, resumed_ = 0, progressSaves_ = 0;
+    uint64_t skipped_ = 0, lastSkipped_ = 0;
+    bool progressPending_ = false;
+    Stopwatch progressClock_;
     long killAfter_ = -1;  ///< PENUMBRA_TEST_KILL_AFTER_TILES: SIGKILL itself after that many saves (tests)
 };
 

@@ -2,9 +2,9 @@
 
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
+#include "stream/util/RegularFile.h"
 
 #include <cstring>
-#include <fstream>
 
 namespace penumbra {
 namespace {
@@ -33,12 +33,14 @@ public:
         return v;
     }
     void bytes(void* to, size_t n) {
+        if (n == 0) return;  // `to` may be an empty vector's null data(), which memcpy must not get
         if (n > data_.size() - at_)
             fail(path_, "truncated partial file ({} bytes; the header or masks need more)", data_.size());
         std::memcpy(to, data_.data() + at_, n);
         at_ += n;
     }
     size_t at() const { return at_; }
+    size_t remaining() const { return data_.size() - at_; }
 
 private:
     const std::string& path_;
@@ -58,7 +60,8 @@ ReceiverState stateOf(const uint64_t* row, const LightSamples& samples) {
 void putHeader(Writer& w, const PartialHeader& h) {
     w.bytes(kMagic, sizeof kMagic);
     w.put(h.version), w.put(h.role), w.put(h.sceneHash), w.put(h.settingsHash), w.put(h.contentHash);
-    w.put(h.cut), w.put(h.part), w.put(h.parts), w.put(h.partEnd ? h.partEnd : h.part + 1), w.put(h.receivers), w.put(h.groups);
+    w.put(h.cut), w.put(h.part), w.put(h.parts), w.put(h.partEnd ? h.partEnd : h.part + 1), w.put(h.replayed), w.put(h.replayHash);
+    w.put(h.receivers), w.put(h.groups);
     w.put(uint32_t(h.lightFirstGroup.size()));
     for (uint32_t f : h.lightFirstGroup) w.put(f);
 }
@@ -73,22 +76,28 @@ PartialHeader getHeader(Reader& r, const std::string& path) {
         fail(path, "partial file format version {}, this penumbra reads version {}", h.version, kPartialFormatVersion);
     h.role = r.get<uint32_t>(), h.sceneHash = r.get<uint64_t>(), h.settingsHash = r.get<uint64_t>();
     h.contentHash = r.get<uint64_t>(), h.cut = r.get<uint32_t>(), h.part = r.get<uint32_t>();
-    h.parts = r.get<uint32_t>(), h.partEnd = r.get<uint32_t>(), h.receivers = r.get<uint64_t>(), h.groups = r.get<uint32_t>();
+    h.parts = r.get<uint32_t>(), h.partEnd = r.get<uint32_t>(), h.replayed = r.get<uint64_t>(), h.replayHash = r.get<uint64_t>();
+    h.receivers = r.get<uint64_t>(), h.groups = r.get<uint32_t>();
     const uint32_t lights = r.get<uint32_t>();
     if (lights > 1u << 20 || h.groups > 1u << 24 || h.receivers > (uint64_t(1) << 40) || h.part >= h.partEnd ||
         h.partEnd > h.parts)
         fail(path, "corrupt partial file header (parts {}..{} of {}, {} receivers, {} groups, {} lights)", h.part,
              h.partEnd, h.parts, h.receivers, h.groups, lights);
+    if (size_t(lights) * sizeof(uint32_t) > r.remaining()) fail(path, "truncated partial file header ({} lights)", lights);
     h.lightFirstGroup.resize(lights);
     for (uint32_t& f : h.lightFirstGroup) f = r.get<uint32_t>();
+    // Light i's groups are [f[i], f[i+1]): ascending, within the groups.
+    for (size_t i = 0; i < lights; ++i)
+        if (h.lightFirstGroup[i] > h.groups || (i > 0 && h.lightFirstGroup[i] < h.lightFirstGroup[i - 1]))
+            fail(path, "corrupt partial file header (light {} starts at group {} of {})", i, h.lightFirstGroup[i], h.groups);
     return h;
 }
 
+/// The whole file; a FIFO or a device (which might never end) is refused, not read.
 std::vector<uint8_t> readWhole(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) fail(path, "cannot open partial file: {}", std::strerror(errno));
-    std::vector<uint8_t> data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (in.bad()) fail(path, "read failed: {}", std::strerror(errno));
+    const RegularFile file(path);
+    std::vector<uint8_t> data(size_t(file.size()));
+    file.read(data.data(), data.size(), 0);
     return data;
 }
 
@@ -120,7 +129,8 @@ void writePartialStates(const std::string& path, const PartialHeader& header, st
     Fnv64 sum;
     sum.add(w.out.data(), w.out.size());
     w.put(sum.value);
-    writeFileAtomically(path, w.out);
+    // A checkpoint or shard file exists to outlive what stops the bake, the machine included.
+    writeFileAtomically(path, w.out, FileSync::Durable);
 }
 
 PartialFile readPartialFile(const std::string& path) {
@@ -130,6 +140,9 @@ PartialFile readPartialFile(const std::string& path) {
     Reader r(path, std::span<const uint8_t>(data.data(), body));
     PartialFile f{path, getHeader(r, path), {}, {}};
     const size_t n = size_t(f.header.receivers);
+    // Sizes come from the file: check them against its length before allocating anything.
+    if ((n + 3) / 4 > r.remaining())
+        fail(path, "truncated partial file ({} bytes; {} receivers need {} bytes of states)", data.size(), n, (n + 3) / 4);
     std::vector<uint8_t> packed((n + 3) / 4);
     r.bytes(packed.data(), packed.size());
     f.state.resize(n);
@@ -138,9 +151,10 @@ PartialFile readPartialFile(const std::string& path) {
         f.state[i] = uint8_t((packed[i / 4] >> (2 * (i % 4))) & 3u);
         partial += f.state[i] == uint8_t(ReceiverState::Partial);
     }
-    const size_t wordBytes = partial * f.header.groups * sizeof(uint64_t);
-    if (body - r.at() != wordBytes)
-        fail(path, "truncated partial file ({} bytes of masks, {} expected)", body - r.at(), wordBytes);
+    size_t wordBytes = 0;
+    if (__builtin_mul_overflow(partial, size_t(f.header.groups) * sizeof(uint64_t), &wordBytes) || r.remaining() != wordBytes)
+        fail(path, "truncated partial file ({} bytes of masks; {} receivers of {} groups in partial shadow need more)",
+             r.remaining(), partial, f.header.groups);
     f.words.resize(partial * f.header.groups);
     r.bytes(f.words.data(), wordBytes);
     uint64_t stored;
@@ -152,9 +166,10 @@ PartialFile readPartialFile(const std::string& path) {
 }
 
 PartialHeader readPartialHeader(const std::string& path) {
+    const RegularFile file(path);  // a FIFO or a device is refused, not read
     std::ifstream in(path, std::ios::binary);
     if (!in) fail(path, "cannot open partial file: {}", std::strerror(errno));
-    constexpr size_t kFixedBytes = 72;  // up to and with the light count
+    constexpr size_t kFixedBytes = 88;  // up to and with the light count
     std::vector<uint8_t> head(kFixedBytes);
     in.read(reinterpret_cast<char*>(head.data()), std::streamsize(head.size()));
     head.resize(size_t(in.gcount()));

@@ -21,13 +21,14 @@
 
 namespace penumbra {
 
-/// 2: the header names a range of shards (a combined file of a tree merge covers several).
-inline constexpr uint32_t kPartialFormatVersion = 2;
+/// 3: the header names a range of shards (a combined file of a tree merge covers several) and
+/// the replay position of a tile in progress.
+inline constexpr uint32_t kPartialFormatVersion = 3;
 
 /// @brief What a partial file is a part of.
 struct PartialHeader {
     uint32_t version = kPartialFormatVersion;
-    uint32_t role = 0;          ///< 1: a shard file, 2: a checkpointed memory tile
+    uint32_t role = 0;          ///< 1: a shard file, 2: a checkpointed memory tile, 3: a tile in progress
     uint64_t sceneHash = 0;     ///< the scene file's bytes
     uint64_t settingsHash = 0;  ///< method, cut, shard count and the options that change bits
     uint64_t contentHash = 0;   ///< receivers, sample sets and light samples, after the scan
@@ -36,18 +37,22 @@ struct PartialHeader {
     /// The end (exclusive) of the shards the file covers, [part, partEnd): more than part + 1 for
     /// a combined file (`penumbra combine`); 0 when writing means part + 1. Read back, always set.
     uint32_t partEnd = 0;
+    /// A tile in progress: its masks hold the first `replayed` blockers of the largest-first
+    /// replay, whose bytes hash to `replayHash` (0 and 0 for the other roles).
+    uint64_t replayed = 0, replayHash = 0;
     uint64_t receivers = 0;
     uint32_t groups = 0;        ///< mask words per receiver
     std::vector<uint32_t> lightFirstGroup;  ///< per-light data: groups of light i are [f[i], f[i+1])
 
-    static constexpr uint32_t kShard = 1, kCheckpoint = 2;
+    static constexpr uint32_t kShard = 1, kCheckpoint = 2, kTileProgress = 3;
 };
 
 /// @brief A receiver's state in a partial file.
 enum class ReceiverState : uint8_t { Absent = 0, Clear = 1, Partial = 2, Full = 3 };
 
 /// @brief Writes the masks of the receivers marked in @p present (one byte per receiver, 0 or 1)
-/// to @p path atomically (AtomicFile). A receiver whose words equal its groups' full masks is
+/// to @p path atomically and durably (AtomicFile, fsync of the data before its name is linked and
+/// of the directory after). A receiver whose words equal its groups' full masks is
 /// stored as full umbra, one with no bit as clear.
 /// @throw InputError naming @p path.
 void writePartialFile(const std::string& path, const PartialHeader& header, const LightSamples& samples,

@@ -25,6 +25,7 @@ struct ShardSettings {
     bool merge = false;         ///< combine the shard files of `dir` into the normal outputs
     std::string checkpointDir;  ///< one file per finished memory tile; empty: no checkpoints
     bool resume = false;        ///< `--resume`: a checkpoint that does not match is an error, not a note
+    double checkpointEvery = 300;  ///< `--checkpoint-every`: seconds of cast between checkpoints within a tile
 
     /// True when this bake casts one shard and writes a shard file instead of the outputs.
     bool casting() const { return count > 0 && !merge; }

@@ -3,6 +3,8 @@
 #include "bake/shard/ShardFiles.h"
 #include "stream/util/Error.h"
 
+#include <algorithm>
+
 namespace penumbra {
 
 ShardedCast::ShardedCast(const ShardSettings& settings, const std::string& sceneFile, const std::string& methodKey,
@@ -45,6 +47,17 @@ TileHooks ShardedCast::tileHooks(VisibilityMasks& masks, std::function<void(uint
         for (uint32_t r : ids) present_[r] = 1;
         if (checkpoints_) checkpoints_->save(tile, tiles, ids, masks);
     };
+    if (!checkpoints_) return hooks;
+    Checkpoints& c = *checkpoints_;
+    hooks.resume = [&c](size_t tile, size_t tiles, std::span<const uint32_t> ids) { return c.resumeTile(tile, tiles, ids); };
+    hooks.progressDue = [&c] { return c.progressDue(); };
+    // The tile's rows of the bake's masks hold its progress while it is written; the tile's
+    // finish overwrites them with its final masks.
+    hooks.saveProgress = [&c, &masks](size_t tile, size_t tiles, std::span<const uint32_t> ids, const TileProgress& p) {
+        for (size_t i = 0; i < ids.size(); ++i) std::copy_n(p.masks.row(i), masks.groups, masks.row(ids[i]));
+        c.saveProgress(tile, tiles, ids, masks, p.replayed, p.replayHash);
+    };
+    hooks.rejectProgress = [&c](size_t tile, size_t tiles) { c.rejectProgress(tile, tiles); };
     return hooks;
 }
 
@@ -64,7 +77,17 @@ nlohmann::json ShardedCast::stats() const {
     s["receivers_in_shard"] = settings_.merge ? receivers_.size() : cast;
     s["tiles_restored"] = checkpoints_ ? checkpoints_->restored() : 0;
     s["tiles_checkpointed"] = checkpoints_ ? checkpoints_->saved() : 0;
+    s["tiles_resumed_in_progress"] = checkpoints_ ? checkpoints_->resumed() : 0;
+    s["replay_skipped_triangles"] = checkpoints_ ? checkpoints_->skipped() : 0;
+    s["progress_checkpoints"] = checkpoints_ ? checkpoints_->progressSaves() : 0;
     return s;
+}
+
+std::string ShardedCast::checkpointedWork() const {
+    if (!checkpoints_) return "0 memory tiles";
+    std::string work = fmt::format("{} memory tile(s)", checkpoints_->restored() + checkpoints_->saved());
+    if (checkpoints_->progressPending()) work += " and the progress of the tile in hand";
+    return work;
 }
 
 void ShardedCast::complete() noexcept {

@@ -44,6 +44,10 @@ public:
     /// @brief The bake's outputs are in place: its checkpoints are no longer needed.
     void complete() noexcept;
 
+    /// @brief What is checkpointed on disk now, for the line of a stopped bake: "N memory
+    /// tile(s)", and the progress of the tile in hand when it was saved.
+    std::string checkpointedWork() const;
+
     /// @brief For the stats JSON (`"shard"`): the shard and cut, receivers cast, checkpointed
     /// tiles restored and written.
     nlohmann::json stats() const;

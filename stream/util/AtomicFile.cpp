@@ -31,6 +31,7 @@ struct AtomicFile::Finished {
     int fd = -1;
     std::string tempName;  ///< the named temporary (fallback), if any
     std::string staged;    ///< a registered link name while an OutputSet commits
+    bool sync = false;     ///< fsync the directory once the file has its name (syncOnCommit)
 
     Finished() = default;
     Finished(const Finished&) = delete;
@@ -153,10 +154,24 @@ void placeRegular(AtomicFile::Finished& f) {
     renameOver(f, f.staged);
 }
 
+/// Makes @p f's new name durable: fsync of the directory that holds it (the data was synced
+/// before it was linked). A device needs none.
+void syncDirectoryOf(const AtomicFile::Finished& f) {
+    if (!f.sync || f.target != AtomicFile::Target::Regular) return;
+    std::string dir = std::filesystem::path(f.targetPath).parent_path().string();
+    if (dir.empty()) dir = ".";
+    const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    const int err = fd < 0 || ::fsync(fd) != 0 ? errno : 0;
+    if (fd >= 0) ::close(fd);
+    // EINVAL: a file system that cannot sync directories; the rename is as durable as it gets there.
+    if (err != 0 && err != EINVAL) fail(f.finalPath, "cannot sync its directory {}: {}", dir, errnoText(err));
+}
+
 void place(AtomicFile::Finished& f) {
     SignalsHeld held;
     if (f.target == AtomicFile::Target::Special) writeSpecial(f);
     else placeRegular(f);
+    syncDirectoryOf(f);
 }
 
 /// What AtomicFile does with @p path: the file to replace (symbolic links followed) and how.
@@ -305,8 +320,11 @@ void AtomicFile::commit() {
     if (failed_) fail(finalPath_, "cannot commit: an earlier write to this file failed");
     try {
         if (used_ > 0) flushBuffer(0);
+        // Data before name: a crash after the link must not find the name with missing bytes.
+        if (sync_ && target_ == Target::Regular && ::fsync(fd_) != 0)
+            fail(finalPath_, "write failed: cannot sync the file: {}", errnoText(errno));
         auto f = std::make_unique<Finished>();
-        f->finalPath = finalPath_, f->targetPath = targetPath_, f->target = target_;
+        f->finalPath = finalPath_, f->targetPath = targetPath_, f->target = target_, f->sync = sync_;
         if (!tempName_.empty()) {
             // A library writing by name may have failed and removed it without our knowing.
             struct stat st {};
@@ -374,6 +392,7 @@ void OutputSet::commit() {
             if (f->target == AtomicFile::Target::Special) writeSpecial(*f);
         for (auto& f : files_)
             if (f->target == AtomicFile::Target::Regular) placeRegular(*f);
+        for (auto& f : files_) syncDirectoryOf(*f);
     } catch (...) {
         files_.clear();  // discards what is not in place, staged names included
         throw;
@@ -383,8 +402,9 @@ void OutputSet::commit() {
 
 // ---------------------------------------------------------------------------------------------
 
-void writeFileAtomically(const std::string& path, std::span<const uint8_t> bytes) {
+void writeFileAtomically(const std::string& path, std::span<const uint8_t> bytes, FileSync sync) {
     AtomicFile file(path);
+    if (sync == FileSync::Durable) file.syncOnCommit();
     if (!bytes.empty()) file.write(bytes.data(), bytes.size());
     file.commit();
 }

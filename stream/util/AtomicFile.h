@@ -71,9 +71,14 @@ public:
     ///        such as a full disk. After a failure the object only accepts destruction.
     void write(const void* data, size_t bytes);
 
+    /// @brief Asks commit() to make the file durable: its data is fsync()ed before it gets its
+    /// name, and its directory after, so that a crash of the machine (not only of the process)
+    /// leaves the old file or the complete new one. For checkpoints and shard files, whose whole
+    /// point is to survive what kills the bake; outputs skip it (atomicity is what they need).
+    void syncOnCommit() { sync_ = true; }
+
     /// @brief Flushes the file and puts it in place (or, while an OutputSet is open, hands it to
-    /// the set). There is deliberately no fsync: atomicity against other readers and against our
-    /// own crashes is what matters, not durability across power loss.
+    /// the set). There is no fsync unless syncOnCommit() asked for it.
     /// @throw InputError naming the final path on any failure; nothing is left behind.
     void commit();
 
@@ -100,6 +105,7 @@ private:
     int fd_ = -1;
     bool failed_ = false;
     bool committed_ = false;
+    bool sync_ = false;
 };
 
 /// @brief The outputs of one job, committed together: while the set is open, AtomicFile::commit()
@@ -130,9 +136,12 @@ private:
     bool open_ = true;
 };
 
-/// @brief Writes @p bytes to @p path atomically (see AtomicFile).
+/// @brief Whether writeFileAtomically() makes the file durable (AtomicFile::syncOnCommit).
+enum class FileSync { None, Durable };
+
+/// @brief Writes @p bytes to @p path atomically (see AtomicFile), with fsync when @p sync asks.
 /// @throw InputError naming @p path on failure.
-void writeFileAtomically(const std::string& path, std::span<const uint8_t> bytes);
+void writeFileAtomically(const std::string& path, std::span<const uint8_t> bytes, FileSync sync = FileSync::None);
 
 /// @brief Creates the parent directory of @p path (and its parents) if missing.
 /// @throw InputError "PATH: cannot create directory DIR: REASON" on failure.
