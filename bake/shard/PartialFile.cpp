@@ -5,6 +5,7 @@
 #include "stream/util/RegularFile.h"
 
 #include <cstring>
+#include <fstream>
 
 namespace penumbra {
 namespace {
