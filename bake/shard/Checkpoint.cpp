@@ -69,7 +69,7 @@ bool Checkpoints::restore(size_t tile, size_t tiles, std::span<const uint32_t> i
 }
 
 std::optional<TileProgress> Checkpoints::resumeTile(size_t tile, size_t tiles, std::span<const uint32_t> ids) {
-    progressClock_.reset();
+    progressClock_.reset(), chunksSinceSave_ = 0;
     const std::string path = pathOf(tile, tiles, ".progress");
     const std::optional<PartialFile> f = readMatching(path, PartialHeader::kTileProgress, ids);
     if (!f) return std::nullopt;
@@ -105,7 +105,7 @@ void Checkpoints::saveProgress(size_t tile, size_t tiles, std::span<const uint32
     written_.push_back(path);
     ++progressSaves_;
     progressPending_ = true;
-    progressClock_.reset();
+    progressClock_.reset(), chunksSinceSave_ = 0;
 }
 
 void Checkpoints::save(size_t tile, size_t tiles, std::span<const uint32_t> ids, const VisibilityMasks& masks) {
@@ -120,7 +120,7 @@ void Checkpoints::save(size_t tile, size_t tiles, std::span<const uint32_t> ids,
     fs::remove(pathOf(tile, tiles, ".progress"), ec);  // the whole tile supersedes its progress
     ++saved_;
     progressPending_ = false;
-    progressClock_.reset();
+    progressClock_.reset(), chunksSinceSave_ = 0;
     if (killAfter_ >= 0 && long(saved_) >= killAfter_) std::raise(SIGKILL);  // a real kill -9, for the tests
 }
 

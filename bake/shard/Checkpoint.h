@@ -46,8 +46,13 @@ public:
     /// @throw InputError for a mismatched or damaged one under `--resume`.
     std::optional<TileProgress> resumeTile(size_t tile, size_t tiles, std::span<const uint32_t> ids);
 
-    /// True when `--checkpoint-every` seconds have passed since the tile began or was last saved.
-    bool progressDue() const { return progressClock_.seconds() >= settings_.checkpointEvery; }
+    /// Chunks of the replay after which a tile's progress is saved whatever the clock says, so a
+    /// fast machine with a long `--checkpoint-every` still saves every 64M blockers or so.
+    static constexpr uint64_t kChunksPerCheckpoint = 16384;
+
+    /// @brief Asked once per chunk cast: true when `--checkpoint-every` seconds or
+    /// kChunksPerCheckpoint chunks have passed since the tile began or was last saved.
+    bool progressDue() { return ++chunksSinceSave_ >= kChunksPerCheckpoint || progressClock_.seconds() >= settings_.checkpointEvery; }
 
     /// @brief Writes tile @p tile's progress (the rows of @p ids in @p masks, after @p replayed
     /// blockers hashing to @p replayHash), atomically, over the previous one.
@@ -88,6 +93,7 @@ private:
     uint64_t skipped_ = 0, lastSkipped_ = 0;
     bool progressPending_ = false;
     Stopwatch progressClock_;
+    uint64_t chunksSinceSave_ = 0;  ///< chunks cast since the tile began or was last saved
     long killAfter_ = -1;  ///< PENUMBRA_TEST_KILL_AFTER_TILES: SIGKILL itself after that many saves (tests)
 };
 
