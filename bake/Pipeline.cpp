@@ -142,7 +142,9 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     TriangleSourcePtr source = std::move(prefetch);
     // Before any triangle is read: the bucket files must fit on disk, and hours of work are announced.
     checkBucketDisk(settings.tmpDir, source->sizeHint(), scene.options.sortBlockers);
-    noteLongBake(source->sizeHint().value_or(0), 1,
+    uint64_t samples = 0;
+    for (const LightDesc& light : scene.lights) samples += uint64_t(std::max(light.samples, 0));
+    noteLongBake(source->sizeHint().value_or(0), kind.receiverBound().value_or(0), samples, 1,
                  int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)), settings.quiet);
     AreaHistogram histogram;
     {

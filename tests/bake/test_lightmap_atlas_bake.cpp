@@ -199,3 +199,36 @@ TEST_CASE("lightmap: an OBJ entry's parts pick the o/g groups that get lightmaps
     CHECK(meshes[0].name == "upper");
     CHECK(stats["lightmap"]["atlas"]["charts"] == 6);
 }
+
+TEST_CASE("lightmap: the memory plan counts the texels, before the scan and under a budget", "[lightmap][memory][cli]") {
+    // The example at 16384² (268M texels) cannot fit this machine: refused before any work, in
+    // one line. At 1024² and the smallest budget the plan names, the peak RSS stays within it
+    // (the layout was not counted, and a 4096² bake overran its budget by two thirds).
+    ScratchDir dir("lightmap-plan");
+    std::string scene = slurp(std::string(PENUMBRA_SOURCE_DIR) + "/examples/lightmap.json");
+    const std::string size = "\"resolution\": 512";
+    REQUIRE(scene.find(size) != std::string::npos);
+    auto withResolution = [&](int r) {
+        std::string s = scene;
+        s.replace(s.find(size), size.size(), "\"resolution\": " + std::to_string(r));
+        const std::string path = (std::filesystem::path(PENUMBRA_SOURCE_DIR) / "examples").string();
+        for (const char* obj : {"room.obj", "room-blockers.obj"})
+            std::filesystem::copy_file(path + "/" + obj, dir / obj, std::filesystem::copy_options::skip_existing);
+        std::ofstream(dir / ("lm" + std::to_string(r) + ".json")) << s;
+        return dir / ("lm" + std::to_string(r) + ".json");
+    };
+    RunResult huge = runPenumbra("bake " + withResolution(16384) + " -o " + dir / "huge.exr");
+    requireCleanError(huge, "at least");
+    CHECK(huge.err.find("[scan]") == std::string::npos);
+    const std::string small = withResolution(1024);
+    RunResult plan = runPenumbra("bake " + small + " -q -o " + dir / "a.exr --stats " + dir / "a.json");
+    REQUIRE(plan.exitCode == 0);
+    const uint64_t minimum = nlohmann::json::parse(slurp(dir / "a.json"))["memory_plan"]["minimum_budget_bytes"].get<uint64_t>();
+    RunResult budgeted = runPenumbra("bake " + small + " -q -o " + dir / "b.exr --stats " + dir / "b.json --memory-budget " +
+                                     std::to_string(minimum));
+    INFO(budgeted.err);
+    REQUIRE(budgeted.exitCode == 0);
+    const nlohmann::json stats = nlohmann::json::parse(slurp(dir / "b.json"));
+    CHECK(stats["counters"]["peak_rss_bytes"].get<uint64_t>() <= minimum);
+    CHECK(slurp(dir / "a.exr") == slurp(dir / "b.exr"));
+}
