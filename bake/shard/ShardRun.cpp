@@ -2,6 +2,7 @@
 
 #include "bake/cast/PenumbraCaster.h"
 #include "stream/util/Error.h"
+#include "stream/util/InputFile.h"
 
 #include <algorithm>
 #include <charconv>
@@ -58,6 +59,9 @@ BakeIdentity bakeIdentity(const std::string& sceneFile, const std::string& metho
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     Fnv64 scene;
     scene.add(bytes.data(), bytes.size());
+    // The files the scene names are part of it: a geometry file changed under the same scene
+    // file makes another scene.
+    scene.addValue(recordedInputsFingerprint());
     id.sceneHash = scene.value;
     Fnv64 method;
     method.add(methodKey.data(), methodKey.size());

@@ -6,9 +6,12 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <array>
 #include <cerrno>
 #include <map>
 #include <mutex>
+#include <vector>
 #include <system_error>
 #include <utility>
 
@@ -87,6 +90,24 @@ std::optional<std::string> recordedInput(dev_t device, ino_t inode) {
     auto it = inputs().find(std::pair(device, inode));
     if (it == inputs().end()) return std::nullopt;
     return it->second;
+}
+
+uint64_t recordedInputsFingerprint() {
+    std::vector<std::array<int64_t, 3>> files;
+    {
+        std::lock_guard lock(inputsMutex);
+        for (const auto& [id, path] : inputs()) {
+            struct stat st {};
+            if (::stat(path.c_str(), &st) != 0) continue;  // gone: whoever needs it says so
+            files.push_back({int64_t(st.st_size), int64_t(st.st_mtim.tv_sec), int64_t(st.st_mtim.tv_nsec)});
+        }
+    }
+    std::sort(files.begin(), files.end());
+    uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a 64
+    for (const auto& f : files)
+        for (int64_t v : f)
+            for (int b = 0; b < 8; ++b) h = (h ^ uint8_t(uint64_t(v) >> (8 * b))) * 0x100000001b3ull;
+    return h;
 }
 
 InputScope::InputScope() {

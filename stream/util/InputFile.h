@@ -47,4 +47,10 @@ public:
 /// @brief The path of the input recorded with this device and inode in the current scope, if any.
 std::optional<std::string> recordedInput(dev_t device, ino_t inode);
 
+/// @brief A 64-bit fingerprint of the inputs recorded so far in the current scope: their sizes
+/// and modification times, in a sorted order, not their paths (a shard and its merge may name
+/// the same files differently). Partial files carry it, so that a checkpoint or a shard made
+/// before a geometry file changed is refused, not merged. 0 outside a scope.
+uint64_t recordedInputsFingerprint();
+
 }  // namespace penumbra

@@ -207,14 +207,15 @@ TEST_CASE("a tile's progress is refused when the replay differs from the blocker
     REQUIRE(runPenumbra(bake + " --quiet --checkpoint " + dir / "ckpt", "PENUMBRA_TEST_KILL_AT=cast").exitCode == 137);
     REQUIRE(fs::exists(dir / "ckpt/tile-0-of-1.progress.pnpart"));
 
-    // The same scene file, receivers and light samples, but other blockers: the saved progress is
-    // of another replay, and is never used.
+    // The same scene file, receivers and light samples, but other blockers: the changed file makes
+    // another scene (its size and time are in the scene hash), and the saved progress is of
+    // another replay besides; it is never used.
     writeText(dir / "mesh.obj", quadAt(1.5));
-    requireCleanError(runPenumbra(bake + " --quiet --resume " + dir / "ckpt"), "the blockers replayed differ");
+    requireCleanError(runPenumbra(bake + " --quiet --resume " + dir / "ckpt"), "a checkpoint of another scene file");
     RunResult noted = runPenumbra(bake + " --checkpoint " + dir / "ckpt");
     INFO(noted.err);
     REQUIRE(noted.exitCode == 0);
-    CHECK_THAT(noted.err, Catch::Contains("ignoring the checkpoint: the blockers replayed differ"));
+    CHECK_THAT(noted.err, Catch::Contains("ignoring the checkpoint: a checkpoint of another scene file"));
     const std::string resumed = slurp(dir / "out/p.npy");
     fs::remove_all(dir / "out");
     bakeOk(dir / "scene.json");
