@@ -177,6 +177,7 @@ std::string combineShardFiles(const std::vector<std::string>& inputs, std::optio
     std::string firstPath;
     std::vector<uint8_t> states, covered;
     VisibilityMasks masks;
+    Expected expected;  ///< the first file's bake, which every other must be
     for (const std::string& path : files) {
         PartialFile f = readPartialFile(path);
         if (firstPath.empty()) {
@@ -184,10 +185,10 @@ std::string combineShardFiles(const std::vector<std::string>& inputs, std::optio
             states.assign(size_t(first.receivers), uint8_t(ReceiverState::Absent));
             covered.assign(size_t(first.receivers), 0);
             masks = VisibilityMasks(size_t(first.receivers), int(first.groups));
+            expected = Expected{first.sceneHash, first.contentHash, first.receivers, first.groups,
+                                [&first](const PartialHeader&) { return first.settingsHash; }, firstPath};
         }
-        const Expected e{first.sceneHash, first.contentHash, first.receivers, first.groups,
-                         [&first](const PartialHeader&) { return first.settingsHash; }, firstPath};
-        checkShard(f, first, firstPath, e);
+        checkShard(f, first, firstPath, expected);
         if (range && (f.header.part < range->first || f.header.partEnd > range->end))
             fail(path, "covers shards {}-{}, across the edge of the range {}-{}", f.header.part, f.header.partEnd - 1,
                  range->first, range->end - 1);

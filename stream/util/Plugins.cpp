@@ -1,9 +1,9 @@
 #include "stream/util/Plugins.h"
 
 #include "stream/util/Error.h"
+#include "stream/util/Memory.h"
 
 #include <dlfcn.h>
-#include <sys/mman.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -36,15 +36,6 @@ std::string pluginPath(const std::string& name) {
     return {};
 }
 
-/// Fails unless @p bytes of address space can still be reserved.
-void requireHeadroom(const std::string& path) {
-    void* probe = ::mmap(nullptr, kPluginHeadroom, PROT_NONE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
-    if (probe == MAP_FAILED)
-        fail(path, "cannot load: it needs at least {} MiB more address space than the limit (prlimit --as, ulimit -v) leaves",
-             kPluginHeadroom >> 20);
-    ::munmap(probe, kPluginHeadroom);
-}
-
 }  // namespace
 
 bool loadPlugin(const std::string& name) {
@@ -54,7 +45,9 @@ bool loadPlugin(const std::string& name) {
     if (auto it = loaded.find(name); it != loaded.end()) return it->second;
     const std::string path = pluginPath(name);
     if (path.empty()) return loaded[name] = false;
-    requireHeadroom(path);
+    if (!addressSpaceAvailable(kPluginHeadroom))
+        fail(path, "cannot load: it needs at least {} MiB more address space than the limit (prlimit --as, ulimit -v) leaves",
+             kPluginHeadroom >> 20);
     // RTLD_GLOBAL: the plugin's libraries serve later plugins too; symbols of penumbra itself
     // come from the executable, which exports them.
     if (!::dlopen(path.c_str(), RTLD_NOW | RTLD_GLOBAL)) {
