@@ -3,6 +3,7 @@
 #include "bake/cast/PenumbraCaster.h"
 #include "bake/cast/SampleMaskTable.h"
 #include "bake/light/SunLight.h"
+#include "bake/SceneAlpha.h"
 #include "bucket/BucketOptions.h"
 #include "stream/util/Error.h"
 #include "stream/util/Memory.h"
@@ -60,6 +61,7 @@ MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, 
     d.sourceBytes = geometry.residentBytes() + 6 * kTriangleChunk * sizeof(Triangle);
     d.sourceDetail = geometry.residentDetail();
     d.sourceDuringCast = !scene.options.sortBlockers;
+    if (const GltfAlphaState* alpha = planSceneAlpha(scene)) d.alphaBytes = alpha->tableBytes, d.alphaBuildBytes = alpha->buildBytes;
     addSampleDemand(d, generateLightSamples(scene.lights, scene.options.groupSize, scene.seed), scene);
     // Bucket buffers, the replay's read-ahead queue and the caster's ring of prepared chunks.
     const BucketOptions buckets;

@@ -9,7 +9,10 @@ namespace penumbra {
 
 std::string budgetText(uint64_t bytes) { return fmt::format("{}M", (bytes + (1u << 20) - 1) >> 20); }
 
-uint64_t scanPhaseBytes(const MemoryDemand& d) { return kBaselineBytes + d.bufferBytes + d.scanBytes + d.sourceBytes; }
+uint64_t scanPhaseBytes(const MemoryDemand& d) {
+    // The alpha table is built just before the scan reads anything: its build peak comes first.
+    return kBaselineBytes + d.alphaBytes + std::max(d.alphaBuildBytes, d.bufferBytes + d.scanBytes + d.sourceBytes);
+}
 
 MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string& label, uint64_t overhead) {
     MemoryPlan plan;
@@ -19,7 +22,7 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string&
     // the id list and the tile partition (8).
     const uint64_t residentPerReceiver = 32 + 4 + 16 + 8 + (d.dumpMasks ? 8ull * d.groups : 0);
     plan.residentBytes =
-        kBaselineBytes + d.bufferBytes + d.sampleBytes + d.kindBytes + d.methodBytes + d.receivers * residentPerReceiver;
+        kBaselineBytes + d.bufferBytes + d.sampleBytes + d.kindBytes + d.methodBytes + d.alphaBytes + d.receivers * residentPerReceiver;
     // The scan pass holds what the receiver kind needs (a camera's z-buffer and the receiver set
     // it makes, as the kind reports) and the sources; that is freed before casting starts. The
     // bucket pass reads the sources again with everything resident.

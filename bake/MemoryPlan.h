@@ -30,6 +30,8 @@ struct MemoryDemand {
     uint64_t sourceBytes = 0;    ///< the geometry sources' working set while they stream (TriangleSource::residentBytes)
     std::string sourceDetail;    ///< what dominates sourceBytes, for the message (a large compressed primitive)
     bool sourceDuringCast = false;  ///< the sources are replayed by the cast (no bucket files)
+    uint64_t alphaBytes = 0;       ///< the alpha table of glTF cut-outs (1-bit maps, entries, ids), held for the whole bake
+    uint64_t alphaBuildBytes = 0;  ///< held while it is built before the scan (a texture's decode, the deduplication index)
 };
 
 struct MemoryPlan {

@@ -7,6 +7,7 @@
 #include "bake/BakeOutputs.h"
 #include "bake/BakeStats.h"
 #include "bake/MemoryPlan.h"
+#include "bake/SceneAlpha.h"
 #include "bake/kinds/ReceiverKind.h"
 #include "bake/shading/ReceiverShading.h"
 #include "bake/WorkPlan.h"
@@ -298,6 +299,8 @@ void scanScene(Bake& b) {
         fail(b.settings.shard.count ? "--shard" : "--checkpoint", "--method {} gives visible fractions, not per-sample masks to merge",
              b.method.name);
     if (b.settings.shard.casting() && b.dump()) fail("--dump", "a shard writes no outputs; give --dump to penumbra merge");
+    // A texture that alone does not fit is refused before it is decoded (opening builds the table).
+    checkSceneAlphaBudget(scene, b.budget.bytes, b.budget.label);
     TriangleSourcePtr geometry = openSceneGeometry(scene);
     b.demand = demandBeforeScan(scene, *b.kind, *geometry, b.keepMasks());
     checkBeforeScan(b.demand, b.budget);

@@ -2,6 +2,7 @@
 
 #include "bake/cast/Caster.h"
 #include "bake/kinds/ReceiverKind.h"
+#include "bake/SceneAlpha.h"
 #include "bake/shading/ReceiverShading.h"
 #include "bake/light/SunLight.h"
 #include "stream/util/CheckedMath.h"
@@ -132,25 +133,27 @@ void parseObjectControls(const JsonParams& g, GeometryDesc& desc, SceneDesc& sce
 }
 
 /// A table with every entry's max_distance ids (AlphaTable::withDistance), when one has it.
-void addDistanceIds(SceneDesc& scene) {
+std::shared_ptr<AlphaTable> addDistanceIds(SceneDesc& scene) {
     std::shared_ptr<AlphaTable> table;
     for (GeometryDesc& g : scene.geometry) {
         if (!g.maxDistance) continue;
         if (!table) table = std::make_shared<AlphaTable>();
         for (uint32_t a = 0; a < kBuiltinAlphaCount; ++a) g.distanceIds[a] = table->withDistance(a, *g.maxDistance);
     }
-    if (table) scene.options.alphaTable = std::move(table);
+    return table;
 }
 
 /// Gives an entry's triangles its max_distance ids: alpha id a becomes GeometryDesc::distanceIds[a].
+/// A glTF file's own alpha ids already hold the distance (SceneAlpha.h) and pass unchanged.
 class DistanceIdSource final : public DecoratedSource {
 public:
-    DistanceIdSource(TriangleSourcePtr inner, const std::array<uint32_t, kBuiltinAlphaCount>& ids, std::string where)
-        : DecoratedSource(std::move(inner)), ids_(ids), where_(std::move(where)) {}
+    DistanceIdSource(TriangleSourcePtr inner, const std::array<uint32_t, kBuiltinAlphaCount>& ids, std::string where, bool ownIds)
+        : DecoratedSource(std::move(inner)), ids_(ids), where_(std::move(where)), ownIds_(ownIds) {}
     size_t read(std::span<Triangle> out) override {
         const size_t n = inner_->read(out);
         for (size_t i = 0; i < n; ++i) {
             const uint32_t id = alphaIdOf(out[i].flags);
+            if (id >= kBuiltinAlphaCount && ownIds_) continue;
             if (id >= kBuiltinAlphaCount) fail(where_, "is not supported on triangles with an alpha texture of their own");
             out[i].flags = withAlphaId(out[i].flags, ids_[id]);
         }
@@ -162,17 +165,19 @@ public:
 private:
     std::array<uint32_t, kBuiltinAlphaCount> ids_;
     std::string where_;
+    bool ownIds_;
 };
 
 /// The entry's source with its controls' marks: kTriangleNoCast, the receiver class, the
 /// max_distance ids; for an export only the first, as the others mean something only with this
 /// scene's receiver classes and alpha table.
-TriangleSourcePtr withObjectControls(TriangleSourcePtr source, const GeometryDesc& g, const std::string& file, bool exporting) {
+TriangleSourcePtr withObjectControls(TriangleSourcePtr source, const GeometryDesc& g, const std::string& file, bool exporting,
+                                     bool ownIds) {
     const uint32_t cls = exporting ? 0u : g.receiverClass << kTriangleClassShift;
     const uint32_t set = (g.castShadows ? 0u : uint32_t(kTriangleNoCast)) | cls;
     // A .ptri keeps the receiver classes of the scene that wrote it, which mean nothing here.
     if (set || g.type == "ptri" || g.type == "file") source = std::make_unique<FlagSource>(std::move(source), set, kTriangleClassMax << kTriangleClassShift);
-    if (g.maxDistance && !exporting) source = std::make_unique<DistanceIdSource>(std::move(source), g.distanceIds, file + ": " + g.path + ".max_distance");
+    if (g.maxDistance && !exporting) source = std::make_unique<DistanceIdSource>(std::move(source), g.distanceIds, file + ": " + g.path + ".max_distance", ownIds);
     return source;
 }
 
@@ -214,6 +219,8 @@ void registerFileSourceTypes() {
             std::string path = resolveScenePath(r.baseDir, j.string("path"), j.where("path"));
             const std::vector<std::string> parts = geometryParts(j);
             j.finish();
+            if (type == "file" && geometryFormatOf(path) == GeometryFormat::Gltf)
+                return openGeometryFile(path, GeometryFormat::Gltf, parts, r.gltfAlpha);
             if (type == "file") return openGeometryFile(path, parts);
             // The entry's type decides the reader; an extension that names another format is a
             // mistake worth stopping for, not a hint to follow.
@@ -223,7 +230,7 @@ void registerFileSourceTypes() {
             if (std::optional<GeometryFormat> named = geometryFormatOf(path); named && *named != format)
                 fail(r.where() + ".type", "\"{}\" does not match the file {} (use the type of its format, or \"file\")",
                      type, path);
-            return openGeometryFile(path, format, parts);
+            return openGeometryFile(path, format, parts, r.gltfAlpha);
         });
 }
 
@@ -249,7 +256,7 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
             desc.params.erase(key);
         scene.geometry.push_back(std::move(desc));
     }
-    addDistanceIds(scene);
+    initSceneAlpha(scene, addDistanceIds(scene));
 
     const nlohmann::json* lights = j.raw("lights");
     if (!lights) j.missing("lights");
@@ -294,14 +301,17 @@ namespace {
 
 TriangleSourcePtr openGeometry(const SceneDesc& scene, bool exporting) {
     std::vector<TriangleSourcePtr> parts;
-    for (const GeometryDesc& g : scene.geometry) {
-        TriangleSourcePtr source = openSource(g.type, SourceRequest{g.params, scene.file, g.path, scene.baseDir});
+    for (size_t i = 0; i < scene.geometry.size(); ++i) {
+        const GeometryDesc& g = scene.geometry[i];
+        // An export keeps no alpha ids: they mean something only with this scene's table.
+        std::shared_ptr<const GltfAlphaIds> alpha = exporting ? nullptr : sceneAlphaIds(scene, i);
+        TriangleSourcePtr source = openSource(g.type, SourceRequest{g.params, scene.file, g.path, scene.baseDir, alpha});
         if (!g.transform.isIdentity())
             source = std::make_unique<TransformedSource>(std::move(source), g.transform.matrix());
         if (g.closed)
             source = std::make_unique<FlagSource>(std::move(source), *g.closed ? kTriangleClosed : 0u,
                                                   *g.closed ? 0u : kTriangleClosed | kTriangleSolidStart);
-        source = withObjectControls(std::move(source), g, scene.file, exporting);
+        source = withObjectControls(std::move(source), g, scene.file, exporting, alpha != nullptr);
         parts.push_back(std::move(source));
     }
     return std::make_unique<ConcatSource>(std::move(parts));

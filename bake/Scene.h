@@ -23,6 +23,8 @@
 
 namespace penumbra {
 
+struct GltfAlphaState;  // bake/SceneAlpha.h
+
 /// Largest bake.epsilon: the receiver-end margin is epsilon * max(1, |r|), and a tenth of the
 /// scene's scale already removes almost every shadow.
 inline constexpr double kMaxEpsilon = 0.1;
@@ -79,6 +81,9 @@ struct SceneDesc {
     /// plain irradiance). On by default: it costs 8 bytes per pixel during the scan (the visible
     /// triangle's stream position) and a vertex table found again in the bucket pass.
     bool smoothShading = true;
+    /// The glTF entries' alpha-tested (MASK) materials, planned and built into options.alphaTable
+    /// on demand (SceneAlpha.h); shared by copies of the scene. Null without glTF entries.
+    std::shared_ptr<GltfAlphaState> gltfAlpha;
 };
 
 /// @brief Reads and validates a scene file.

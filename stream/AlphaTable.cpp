@@ -87,6 +87,7 @@ uint32_t AlphaTable::addMap(AlphaMap map) {
 uint32_t AlphaTable::addEntry(const AlphaEntry& entry) {
     if (entries_.size() > kTriangleAlphaIdMax)
         fail("alpha", "more than {} alpha-tested triangles with distinct texture coordinates", kTriangleAlphaIdMax);
+    if (std::isfinite(entry.maxDistance)) distances_ = true;
     entries_.push_back(entry);
     return uint32_t(entries_.size() - 1);
 }

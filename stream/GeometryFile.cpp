@@ -143,7 +143,8 @@ TriangleSourcePtr openGeometryFile(const std::string& path, const std::vector<st
     return openGeometryFile(path, *format, parts);
 }
 
-TriangleSourcePtr openGeometryFile(const std::string& path, GeometryFormat format, const std::vector<std::string>& parts) {
+TriangleSourcePtr openGeometryFile(const std::string& path, GeometryFormat format, const std::vector<std::string>& parts,
+                                   std::shared_ptr<const GltfAlphaIds> gltfAlpha) {
     checkInputFile(path);
     if (format != GeometryFormat::Obj && !parts.empty()) fail(path, "\"parts\" selects o/g groups of OBJ files only");
     switch (format) {
@@ -153,7 +154,7 @@ TriangleSourcePtr openGeometryFile(const std::string& path, GeometryFormat forma
             warnIfNoFaces(path, source->sizeHint().value_or(1));
             return source;
         }
-        case GeometryFormat::Gltf: return openGltf(path);
+        case GeometryFormat::Gltf: return openGltf(path, std::move(gltfAlpha));
         case GeometryFormat::Ptri: return openPtri(path);
     }
     fail(path, "unknown geometry format");

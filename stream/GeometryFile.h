@@ -3,11 +3,13 @@
 /// @brief Geometry files by name: opening any supported format, summarising a source, and
 /// converting between formats.
 
+#include "stream/GltfAlpha.h"
 #include "stream/TriangleSource.h"
 
 #include <glm/vec3.hpp>
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -30,8 +32,10 @@ TriangleSourcePtr openGeometryFile(const std::string& path, const std::vector<st
 /// files are opened (InputFile.h: a FIFO or device is refused before any reader sees it), and an
 /// OBJ must be text (ObjText.h); a non-empty OBJ without faces gets a warning.
 /// @param parts as above.
+/// @param gltfAlpha a glTF file's alpha ids (GltfAlpha.h); ignored for other formats.
 /// @throw InputError naming @p path, or whatever the reader throws.
-TriangleSourcePtr openGeometryFile(const std::string& path, GeometryFormat format, const std::vector<std::string>& parts = {});
+TriangleSourcePtr openGeometryFile(const std::string& path, GeometryFormat format, const std::vector<std::string>& parts = {},
+                                   std::shared_ptr<const GltfAlphaIds> gltfAlpha = nullptr);
 
 /// What a pass over a source found.
 struct GeometryInfo {

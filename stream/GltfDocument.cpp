@@ -1,6 +1,8 @@
 #include "stream/GltfDocument.h"
 
 #include "stream/util/Error.h"
+#include "stream/GltfJson.h"
+#include "stream/GltfMaterials.h"
 #include "stream/util/InputFile.h"
 #include "stream/util/JsonText.h"
 #include "stream/util/RegularFile.h"
@@ -22,7 +24,8 @@
 namespace penumbra {
 namespace {
 
-using Json = nlohmann::json;
+using Json = GltfJson;
+using Members = GltfMembers;
 
 constexpr uint32_t kGlbMagic = 0x46546C67u, kJsonChunk = 0x4E4F534Au, kBinChunk = 0x004E4942u;
 
@@ -64,69 +67,6 @@ std::string readJsonText(const std::string& path, std::optional<std::pair<uint64
     return text;
 }
 
-/// Reads typed members with messages naming the object ("accessor 3: count must be ...").
-struct Members {
-    const std::string& path;
-    const Json& object;
-    std::string what;
-
-    const Json* find(const char* key) const {
-        auto it = object.find(key);
-        return it == object.end() ? nullptr : &*it;
-    }
-    uint64_t unsignedOr(const char* key, uint64_t fallback) const {
-        const Json* v = find(key);
-        if (!v) return fallback;
-        if (!v->is_number_unsigned() && !(v->is_number_integer() && v->get<int64_t>() >= 0))
-            fail(path, "{} {} must be a non-negative integer, got {}", what, key, v->dump());
-        return v->get<uint64_t>();
-    }
-    uint64_t required(const char* key) const {
-        if (!find(key)) fail(path, "{} has no {}", what, key);
-        return unsignedOr(key, 0);
-    }
-    int index(const char* key, int fallback = -1) const {
-        const uint64_t v = unsignedOr(key, uint64_t(int64_t(fallback)));
-        if (find(key) && v > uint64_t(std::numeric_limits<int>::max())) fail(path, "{} {} {} is out of range", what, key, v);
-        return int(v);
-    }
-    std::string string(const char* key) const {
-        const Json* v = find(key);
-        if (!v) return {};
-        if (!v->is_string()) fail(path, "{} {} must be a string", what, key);
-        return v->get<std::string>();
-    }
-    const Json& objectAt(const char* key) const {
-        static const Json empty = Json::object();
-        const Json* v = find(key);
-        if (!v) return empty;
-        if (!v->is_object()) fail(path, "{} {} must be an object", what, key);
-        return *v;
-    }
-    std::vector<double> numbers(const char* key) const {
-        const Json* v = find(key);
-        std::vector<double> out;
-        if (!v) return out;
-        if (!v->is_array()) fail(path, "{} {} must be an array of numbers", what, key);
-        for (const Json& x : *v) {
-            if (!x.is_number()) fail(path, "{} {} must be an array of numbers", what, key);
-            out.push_back(x.get<double>());
-        }
-        return out;
-    }
-};
-
-/// The array member @p key of the root (empty when absent).
-const Json& arrayOf(const std::string& path, const Json& root, const char* key) {
-    static const Json empty = Json::array();
-    auto it = root.find(key);
-    if (it == root.end()) return empty;
-    if (!it->is_array()) fail(path, "\"{}\" must be an array", key);
-    for (const Json& e : *it)
-        if (!e.is_object()) fail(path, "\"{}\" must be an array of objects", key);
-    return *it;
-}
-
 int componentsOf(const std::string& type) {
     if (type == "SCALAR") return 1;
     if (type == "VEC2") return 2;
@@ -135,41 +75,6 @@ int componentsOf(const std::string& type) {
     if (type == "MAT3") return 9;
     if (type == "MAT4") return 16;
     return 0;
-}
-
-std::string percentDecoded(const std::string& uri) {
-    std::string out;
-    for (size_t i = 0; i < uri.size(); ++i) {
-        if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(uint8_t(uri[i + 1])) && std::isxdigit(uint8_t(uri[i + 2]))) {
-            out.push_back(char(std::stoi(uri.substr(i + 1, 2), nullptr, 16)));
-            i += 2;
-        } else {
-            out.push_back(uri[i]);
-        }
-    }
-    return out;
-}
-
-/// Decodes the base64 payload of a data URI; false for malformed text.
-bool decodeBase64(std::string_view text, std::vector<uint8_t>& out) {
-    auto value = [](char c) -> int {
-        if (c >= 'A' && c <= 'Z') return c - 'A';
-        if (c >= 'a' && c <= 'z') return c - 'a' + 26;
-        if (c >= '0' && c <= '9') return c - '0' + 52;
-        if (c == '+' || c == '-') return 62;
-        if (c == '/' || c == '_') return 63;
-        return -1;
-    };
-    uint32_t acc = 0;
-    int bits = 0;
-    for (char c : text) {
-        if (c == '=') break;
-        const int v = value(c);
-        if (v < 0) return false;
-        acc = (acc << 6) | uint32_t(v), bits += 6;
-        if (bits >= 8) bits -= 8, out.push_back(uint8_t(acc >> bits));
-    }
-    return true;
 }
 
 GltfBuffer parseBuffer(const std::string& path, const Json& j, size_t i, const std::optional<std::pair<uint64_t, uint64_t>>& bin) {
@@ -192,7 +97,7 @@ GltfBuffer parseBuffer(const std::string& path, const Json& j, size_t i, const s
         if (b.byteLength > kMaxDataUriBytes || (uri.size() - comma) / 4 * 3 > kMaxDataUriBytes + 3)
             fail(path, "buffer {}: an embedded data: URI of {} bytes is above the {} MiB limit for embedded buffers (they "
                  "cannot be read in windows); store it as a .bin file or write a .glb", i, b.byteLength, kMaxDataUriBytes >> 20);
-        if (!decodeBase64(std::string_view(uri).substr(comma + 1), b.bytes))
+        if (!decodeGltfBase64(std::string_view(uri).substr(comma + 1), b.bytes))
             fail(path, "buffer {}: malformed base64 in its data: URI", i);
         if (b.bytes.size() < b.byteLength)
             fail(path, "buffer {}: its data: URI holds {} bytes, byteLength says {}", i, b.bytes.size(), b.byteLength);
@@ -204,7 +109,7 @@ GltfBuffer parseBuffer(const std::string& path, const Json& j, size_t i, const s
     std::filesystem::path base = std::filesystem::path(path).parent_path();
     // The URI must stay in the model's directory (SafePath.h), and is recorded as an input so
     // that no output of the bake replaces it.
-    b.file = containedPath(base, percentDecoded(uri), fmt::format("{}: buffers[{}].uri", path, i), "the model's directory");
+    b.file = containedPath(base, gltfPercentDecoded(uri), fmt::format("{}: buffers[{}].uri", path, i), "the model's directory");
     checkInputFile(b.file);
     RegularFile file(b.file);  // a regular file, or an error naming it
     if (file.size() < b.byteLength)
@@ -340,6 +245,9 @@ GltfMeshDesc parseMesh(const GltfDocument& doc, const Json& j, size_t i) {
         if (prim.indices >= int(doc.accessors.size()))
             fail(path, "{}: indices refer to accessor {} (file has {})", where, prim.indices, doc.accessors.size());
         prim.mode = int(pm.unsignedOr("mode", kGltfTriangles));
+        prim.material = pm.index("material");
+        if (prim.material >= int(doc.materials.materials.size()))
+            fail(path, "{}: refers to material {} (file has {})", where, prim.material, doc.materials.materials.size());
         if (prim.mode > kGltfTriangleFan) fail(path, "{}: invalid mode {}", where, prim.mode);
         const Json& extensions = pm.objectAt("extensions");
         if (auto it = extensions.find("KHR_draco_mesh_compression"); it != extensions.end()) {
@@ -410,7 +318,7 @@ GltfNodeDesc parseNode(const GltfDocument& doc, const Json& j, size_t i, size_t 
 
 void findRoots(const Json& root, GltfDocument& doc) {
     const std::string& path = doc.path;
-    const Json& scenes = arrayOf(path, root, "scenes");
+    const Json& scenes = gltfArrayOf(path, root, "scenes");
     int scene = -1;
     if (auto it = root.find("scene"); it != root.end()) {
         if (!it->is_number_integer() || it->get<int64_t>() < 0) fail(path, "\"scene\" must be a scene index");
@@ -499,15 +407,16 @@ GltfDocument loadGltfDocument(const std::string& path) {
     }
     if (!root.is_object()) fail(path, "the glTF JSON is not an object");
     checkRequiredExtensions(path, root);
-    const Json& buffers = arrayOf(path, root, "buffers");
+    const Json& buffers = gltfArrayOf(path, root, "buffers");
     for (size_t i = 0; i < buffers.size(); ++i) doc.buffers.push_back(parseBuffer(path, buffers[i], i, bin));
-    const Json& views = arrayOf(path, root, "bufferViews");
+    const Json& views = gltfArrayOf(path, root, "bufferViews");
     for (size_t i = 0; i < views.size(); ++i) doc.views.push_back(parseView(path, views[i], i, doc.buffers));
-    const Json& accessors = arrayOf(path, root, "accessors");
+    const Json& accessors = gltfArrayOf(path, root, "accessors");
     for (size_t i = 0; i < accessors.size(); ++i) doc.accessors.push_back(parseAccessor(path, accessors[i], i, doc.views));
-    const Json& meshes = arrayOf(path, root, "meshes");
+    doc.materials = parseGltfMaterials(path, root, doc.views.size());
+    const Json& meshes = gltfArrayOf(path, root, "meshes");
     for (size_t i = 0; i < meshes.size(); ++i) doc.meshes.push_back(parseMesh(doc, meshes[i], i));
-    const Json& nodes = arrayOf(path, root, "nodes");
+    const Json& nodes = gltfArrayOf(path, root, "nodes");
     for (size_t i = 0; i < nodes.size(); ++i) doc.nodes.push_back(parseNode(doc, nodes[i], i, nodes.size()));
     findRoots(root, doc);
     return doc;

@@ -21,6 +21,8 @@
 /// EXT_meshopt_compression and KHR_draco_mesh_compression. Any other extension in
 /// `extensionsRequired` is an error naming it.
 
+#include "stream/GltfMaterials.h"
+
 #include <glm/mat4x4.hpp>
 
 #include <cstdint>
@@ -90,6 +92,7 @@ struct GltfPrimitiveDesc {
     std::vector<std::pair<std::string, int>> attributes;  ///< name -> accessor
     int indices = -1;
     int mode = kGltfTriangles;
+    int material = -1;  ///< -1: the default material (opaque)
     std::optional<GltfDraco> draco;
 
     /// The accessor of attribute @p name, or -1.
@@ -120,6 +123,7 @@ struct GltfDocument {
     std::vector<GltfAccessor> accessors;
     std::vector<GltfMeshDesc> meshes;
     std::vector<GltfNodeDesc> nodes;
+    GltfMaterialTables materials;  ///< materials, textures, images, samplers (GltfMaterials.h)
     std::vector<int> roots;  ///< root nodes of the scene to draw (default, else 0, else every root)
 
     /// Heap bytes this document holds (compact tables and decoded data URIs), for memory plans.

@@ -46,7 +46,7 @@ struct Instance {
 
 class GltfSource final : public TriangleSource {
 public:
-    explicit GltfSource(std::string path);
+    GltfSource(std::string path, std::shared_ptr<const GltfAlphaIds> alpha);
 
     size_t read(std::span<Triangle> out) override;
     void rewind() override;
@@ -63,6 +63,8 @@ private:
     void advance();
 
     GltfDocument doc_;
+    std::shared_ptr<const GltfAlphaIds> alpha_;
+    const GltfPrimitiveAlpha* blockAlpha_ = nullptr;  ///< the current draw's, or null: opaque
     std::unique_ptr<GltfBytes> bytes_;
     std::vector<GltfPrimitiveLayout> layouts_;
     std::vector<Draw> draws_;
@@ -83,7 +85,8 @@ private:
     std::unique_ptr<GltfPrimitiveReader> reader_;
 };
 
-GltfSource::GltfSource(std::string path) : doc_(loadGltfDocument(path)) {
+GltfSource::GltfSource(std::string path, std::shared_ptr<const GltfAlphaIds> alpha)
+    : doc_(loadGltfDocument(path)), alpha_(std::move(alpha)) {
     placeScene();
     bytes_ = std::make_unique<GltfBytes>(doc_, decodeBudget_);
     block_.reserve(kBlockTriangles);
@@ -164,13 +167,17 @@ void GltfSource::loadBlock() {
     const Draw& d = draws_[draw_];
     const GltfPrimitiveLayout& layout = layouts_[d.layout];
     if (!reader_) reader_ = std::make_unique<GltfPrimitiveReader>(doc_, *bytes_, layout);
+    blockAlpha_ = nullptr;
+    if (alpha_)
+        if (auto it = alpha_->primitives.find({layout.mesh, layout.primitive}); it != alpha_->primitives.end()) blockAlpha_ = &it->second;
     const uint64_t end = std::min(layout.triangles, blockStart_ + kBlockTriangles);
     block_.resize(size_t(end - blockStart_));
     for (uint64_t t = blockStart_; t < end; ++t) {
         const std::array<uint32_t, 3> v = reader_->triangle(t);
         Triangle& tri = block_[size_t(t - blockStart_)];
         for (int c = 0; c < 3; ++c) tri.v[size_t(c)] = reader_->position(v[size_t(c)]);
-        tri.flags = 0;
+        const uint32_t alpha = blockAlpha_ ? blockAlpha_->at(t) : 0u;
+        tri.flags = alpha == kGltfAlphaNoCast ? uint32_t(kTriangleNoCast) : withAlphaId(0, alpha);
     }
     blockLoaded_ = true;
 }
@@ -230,7 +237,7 @@ size_t GltfSource::read(std::span<Triangle> out) {
             Triangle tri = block_[next_ + i];
             if (!current_.identity) {
                 for (glm::vec3& v : tri.v) v = glm::vec3(current_.matrix * glm::dvec4(v, 1.0));
-                if (current_.mirrored) std::swap(tri.v[1], tri.v[2]);
+                if (current_.mirrored && !alphaIdOf(tri.flags)) std::swap(tri.v[1], tri.v[2]);
                 if (!isFinite(tri)) {
                     const GltfPrimitiveLayout& l = layouts_[draws_[draw_].layout];
                     fail(doc_.path, "node {} transforms mesh {} primitive {} to a non-finite position", current_.node, l.mesh,
@@ -247,6 +254,8 @@ size_t GltfSource::read(std::span<Triangle> out) {
 
 }  // namespace
 
-TriangleSourcePtr openGltf(const std::string& path) { return std::make_unique<GltfSource>(path); }
+TriangleSourcePtr openGltf(const std::string& path, std::shared_ptr<const GltfAlphaIds> alpha) {
+    return std::make_unique<GltfSource>(path, std::move(alpha));
+}
 
 }  // namespace penumbra

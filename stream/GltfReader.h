@@ -24,20 +24,26 @@
 /// EXT_mesh_gpu_instancing (TRANSLATION, ROTATION, SCALE; instance T * R * S, then the node's
 /// world matrix), places the same primitive. A primitive's triangles are decoded block by block
 /// (1024 at a time) and each block is emitted once per placement and instance, so the mesh is
-/// read once per pass and memory does not depend on the instance count.
+/// read once per pass and memory does not depend on the instance count. Alpha-tested triangles
+/// keep their corner order under mirroring transforms (their UVs follow the corners).
 
+#include "stream/GltfAlpha.h"
 #include "stream/TriangleSource.h"
 
+#include <memory>
 #include <string>
 
 namespace penumbra {
 
 /// @brief Opens a .gltf or .glb file (told apart by content) as a triangle source.
 /// @param path the file; messages name it as given.
+/// @param alpha the file's alpha ids (GltfAlpha.h, buildGltfAlpha()): a MASK primitive's triangles
+///        get their alpha id (or kTriangleNoCast when fully transparent). Null: every triangle is
+///        opaque, as for an export.
 /// @return a source whose sizeHint() is the exact triangle count of the scene.
 /// @throw InputError naming the file and the offending object, e.g. `box.gltf: accessor 3 reads
 ///        past the end of bufferView 1 (needs 480 bytes, has 240)`. read() throws for indices
 ///        out of range, non-finite positions and compressed data that does not decode.
-TriangleSourcePtr openGltf(const std::string& path);
+TriangleSourcePtr openGltf(const std::string& path, std::shared_ptr<const GltfAlphaIds> alpha = nullptr);
 
 }  // namespace penumbra

@@ -3,12 +3,14 @@
 /// @brief Geometry types by name: the scene's "geometry" entries are opened through here, so that
 /// later stages (procedural generators) add types without the scene parser knowing them.
 
+#include "stream/GltfAlpha.h"
 #include "stream/TriangleSource.h"
 
 #include <nlohmann/json_fwd.hpp>
 
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -22,6 +24,8 @@ struct SourceRequest {
     std::string file;
     std::string path;
     std::filesystem::path baseDir;
+    /// A glTF file's alpha ids (GltfAlpha.h), made before the bake; null: MASK materials cast as opaque.
+    std::shared_ptr<const GltfAlphaIds> gltfAlpha = nullptr;
 
     std::string where() const { return path.empty() ? file : file + ": " + path; }
 };

@@ -6,6 +6,7 @@
 #include "BakeCommand.h"
 #include "CliErrors.h"
 #include "FileCommands.h"
+#include "MakeExample.h"
 #include "Generate.h"
 #include "GeneratorBench.h"
 #include "MethodsBench.h"
@@ -40,6 +41,8 @@ struct Commands {
     FileCommands files;
     GenerateOptions generate;
     CLI::App* generateCommand = nullptr;
+    MakeExampleOptions makeExample;
+    CLI::App* makeExampleCommand = nullptr;
     BenchGeneratorsOptions benchGenerators;
     BenchTableOptions benchTable;
     BenchMethodsOptions benchMethods;
@@ -55,6 +58,7 @@ void addCommands(CLI::App& app, Commands& c) {
         ->allow_extras();
     addFileCommands(app, c.files);
     c.generateCommand = addGenerateCommand(app, c.generate);
+    c.makeExampleCommand = addMakeExampleCommand(app, c.makeExample);
     for (CLI::App* command : {c.bakeCommand, c.generateCommand, c.files.infoCommand, c.files.convertCommand})
         command->add_flag("--allow-outside-uris", c.allowOutside, "let scenes and glTF files name files outside their own directory");
     CLI::App* bench = app.add_subcommand("bench", "benchmarks");
@@ -70,6 +74,7 @@ int runCommand(const Commands& c, int argc, char** argv, std::string& context) {
     if (*c.slurmCommand) return context = c.slurm.scene, runSlurm(c.slurm), 0;
     if (*c.combineCommand) return context = c.combine.shardDir, runCombine(c.combine), 0;
     if (*c.generateCommand) return context = c.generate.scene, runGenerate(c.generate), 0;
+    if (*c.makeExampleCommand) return context = c.makeExample.output, runMakeExample(c.makeExample), 0;
     if (*c.benchGeneratorsCommand) return runBenchGenerators(c.benchGenerators), 0;
     if (*c.benchTableCommand || *c.benchMethodsCommand) {
         std::string commandLine = "penumbra";  // recorded in the benchmark's outputs

@@ -1,0 +1,51 @@
+#pragma once
+/// @file SceneAlpha.h
+/// @brief A scene's alpha-tested glTF blockers (stream/GltfAlpha.h): planned from the images'
+/// headers when the bake checks its memory, then built once, in scene order, into the scene's
+/// alpha table before the first pass reads the geometry. The table is complete and read-only
+/// before any method casts, and the same scene gives the same ids in every process (shards,
+/// resume, rescans), because the build reads the same files in the same order.
+
+#include "bake/Scene.h"
+#include "stream/GltfAlpha.h"
+
+#include <memory>
+#include <mutex>
+#include <vector>
+
+namespace penumbra {
+
+/// One glTF geometry entry with MASK materials.
+struct SceneAlphaEntry {
+    size_t geometry = 0;  ///< index into SceneDesc::geometry
+    std::string path;     ///< the resolved file
+    GltfAlphaPlan plan;
+    std::shared_ptr<const GltfAlphaIds> ids;  ///< after the build
+};
+
+/// @brief The state SceneDesc::gltfAlpha shares between copies of a scene.
+struct GltfAlphaState {
+    std::mutex mutex;
+    bool planned = false, built = false;
+    std::shared_ptr<AlphaTable> table;  ///< the scene's table (SceneDesc::options.alphaTable)
+    std::vector<SceneAlphaEntry> entries;
+    uint64_t tableBytes = 0, buildBytes = 0;  ///< sums of the entries' plans
+};
+
+/// @brief Gives @p scene its alpha state when an entry may be a glTF file, using @p table (the
+/// max_distance table, or null: a new one) as the scene's alpha table.
+void initSceneAlpha(SceneDesc& scene, std::shared_ptr<AlphaTable> table);
+
+/// @brief Step 1 (once per scene): loads the glTF entries' documents and image headers.
+/// @throw InputError as planGltfAlpha().
+const GltfAlphaState* planSceneAlpha(const SceneDesc& scene);
+
+/// @brief Refuses, before any work, an image that alone does not fit in @p budgetBytes (0:
+/// unlimited) when it is decoded. @throw InputError "FILE: material M ("name"): image I: ...".
+void checkSceneAlphaBudget(const SceneDesc& scene, uint64_t budgetBytes, const std::string& label);
+
+/// @brief Step 2 (once per scene): decodes the textures and gives the triangles their ids.
+/// @return the ids of geometry entry @p geometry, or null when it has none.
+std::shared_ptr<const GltfAlphaIds> sceneAlphaIds(const SceneDesc& scene, size_t geometry);
+
+}  // namespace penumbra
