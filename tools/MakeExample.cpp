@@ -101,7 +101,7 @@ void writeGltfTree(const std::string& path, int cards) {
         glm::dvec4 q(rng.in(-1, 1), rng.in(-1, 1), rng.in(-1, 1), rng.in(-1, 1));
         q /= std::sqrt(glm::dot(q, q));
         roots.push_back(b.append("nodes", {{"mesh", card},
-                                           {"translation", {1.5 * d.x, 2.9 + 1.0 * d.y, 1.5 * d.z}},
+                                           {"translation", {1.8 * d.x, 3.0 + 1.1 * d.y, 1.8 * d.z}},
                                            {"rotation", {q.x, q.y, q.z, q.w}}}));
     }
     b.json["scenes"] = nlohmann::json::array({{{"nodes", roots}}});

@@ -23,6 +23,6 @@ void runMakeExample(const MakeExampleOptions& options);
 
 /// @brief The glTF tree: an opaque trunk and @p cards instances of one leaf card (a MASK quad with a
 /// 128 x 128 texture of five leaves, alphaCutoff 0.5) around a crown, written to @p path.
-void writeGltfTree(const std::string& path, int cards = 260);
+void writeGltfTree(const std::string& path, int cards = 140);
 
 }  // namespace penumbra
