@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include <array>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,7 @@ struct GltfQuad {
     std::array<glm::vec2, 4> uv{glm::vec2(0, 0), glm::vec2(1, 0), glm::vec2(1, 1), glm::vec2(0, 1)};
     int material = -1;
     int set = 0;
+    bool normalizedShort = false;  ///< UVs (in [0, 1]) as normalized UNSIGNED_SHORT
 };
 
 /// Adds @p q as a mesh of two indexed triangles (0, 1, 2) and (0, 2, 3); @return the mesh index.
@@ -44,7 +46,10 @@ inline int addQuadMesh(GlbBuilder& b, const GltfQuad& q) {
         std::array<glm::vec2, 4> uv = q.uv;
         if (s != q.set)
             for (auto& t : uv) t = glm::vec2(0.37f, 0.61f);
-        attributes["TEXCOORD_" + std::to_string(s)] = b.addAccessor(uv.data(), 4, 5126, "VEC2");
+        std::array<uint16_t, 8> quantized{};
+        for (size_t k = 0; k < 8; ++k) quantized[k] = uint16_t(std::lround(uv[k / 2][int(k % 2)] * 65535.0f));
+        attributes["TEXCOORD_" + std::to_string(s)] =
+            q.normalizedShort ? b.addAccessor(quantized.data(), 4, 5123, "VEC2", true) : b.addAccessor(uv.data(), 4, 5126, "VEC2");
     }
     json primitive = {{"attributes", attributes}, {"indices", b.addAccessor(indices, 6, 5123, "SCALAR")}};
     if (q.material >= 0) primitive["material"] = q.material;

@@ -165,7 +165,7 @@ int expectedOpaque(const RandomMaterial& m, glm::dvec2 uv) {
 
 }  // namespace
 
-TEST_CASE("glTF alpha: random MASK quads (cutoffs, factors, wraps, TEXCOORD_1, KHR_texture_transform) agree in every method",
+TEST_CASE("glTF alpha: random MASK quads (cutoffs, factors, wraps, TEXCOORD_1, normalized UVs, KHR_texture_transform) agree in every method",
           "[alpha][gltf][embree]") {
     ScratchDir dir("gltf-alpha-soup");
     Rng rng(21);
@@ -182,7 +182,11 @@ TEST_CASE("glTF alpha: random MASK quads (cutoffs, factors, wraps, TEXCOORD_1, K
         m.transform = rng.uniform() < 0.6;
         m.offset[0] = rng.uniform(-1, 1), m.offset[1] = rng.uniform(-1, 1), m.rotation = rng.uniform(-3, 3);
         m.scale[0] = rng.uniform(0.5, 2), m.scale[1] = rng.uniform(0.5, 2);
+        // A third of the quads store their UVs (then in [0, 1]) as normalized unsigned shorts.
+        const bool quantized = q % 3 == 2;
         for (auto& t : m.uv) t = glm::vec2(float(rng.uniform(-1.5, 2.5)), float(rng.uniform(-1.5, 2.5)));
+        if (quantized)
+            for (auto& t : m.uv) t = glm::vec2(float(std::lround(rng.uniform() * 65535)) / 65535.0f, float(std::lround(rng.uniform() * 65535)) / 65535.0f);
         const int set = rng.uniform() < 0.5 ? 1 : 0;
         const int image = b.addImage(encodePngRgba(m.w, m.h, m.rgba), "image/png");
         b.append("samplers", {{"wrapS", m.wrapS}, {"wrapT", m.wrapT}});
@@ -197,7 +201,7 @@ TEST_CASE("glTF alpha: random MASK quads (cutoffs, factors, wraps, TEXCOORD_1, K
         b.append("materials", material);
         const glm::vec3 c = randomIn(rng, {-1, 1, -1}, {1, 2, 1});
         const glm::vec3 e1 = randomIn(rng, glm::vec3(-0.6f), glm::vec3(0.6f)), e2 = randomIn(rng, glm::vec3(-0.6f), glm::vec3(0.6f));
-        GltfQuad quad{{c - e1 - e2, c + e1 - e2, c + e1 + e2, c - e1 + e2}, m.uv, q, set};
+        GltfQuad quad{{c - e1 - e2, c + e1 - e2, c + e1 + e2, c - e1 + e2}, m.uv, q, set, quantized};
         addNode(b, addQuadMesh(b, quad));
         materials.push_back(m);
     }

@@ -10,6 +10,7 @@
 #include "stream/util/Npy.h"
 
 #include <catch2/catch.hpp>
+#include <stb/stb_image_write.h>
 
 #include <cstring>
 #include <fstream>
@@ -132,11 +133,31 @@ TEST_CASE("glTF alpha input: missing, corrupt, truncated, oversized and unsuppor
     }
 }
 
-TEST_CASE("glTF alpha input: a fully transparent MASK material casts nothing, an opaque one everything", "[alpha][gltf][cli]") {
+/// A 4 x 4 grey image without alpha channel: a JPEG or an RGB PNG.
+std::vector<uint8_t> opaqueImage(bool jpeg) {
+    const std::vector<uint8_t> rgb(4 * 4 * 3, 128);
+    std::vector<uint8_t> out;
+    auto sink = [](void* context, void* data, int size) {
+        auto* o = static_cast<std::vector<uint8_t>*>(context);
+        o->insert(o->end(), static_cast<uint8_t*>(data), static_cast<uint8_t*>(data) + size);
+    };
+    if (jpeg) stbi_write_jpg_to_func(sink, &out, 4, 4, 3, rgb.data(), 90);
+    else stbi_write_png_to_func(sink, &out, 4, 4, 3, rgb.data(), 12);
+    return out;
+}
+
+TEST_CASE("glTF alpha input: the factor alone, or a JPEG or RGB PNG (alpha 1), makes a MASK quad opaque or casting nothing",
+          "[alpha][gltf][cli]") {
+    for (const std::string image : {"none", "jpeg", "rgb png"})
     for (double factor : {0.2, 0.9}) {
         ScratchDir dir("gltf-alpha-factor");
         GlbBuilder b;
-        b.append("materials", maskMaterial("leaf", -1, 0.5, factor));
+        int texture = -1;
+        if (image != "none") {
+            b.addImage(opaqueImage(image == "jpeg"), image == "jpeg" ? "image/jpeg" : "image/png");
+            texture = b.append("textures", {{"source", 0}});
+        }
+        b.append("materials", maskMaterial("leaf", texture, 0.5, factor));
         GltfQuad q{{glm::vec3(-1, 1, -1), glm::vec3(1, 1, -1), glm::vec3(1, 1, 1), glm::vec3(-1, 1, 1)}};
         q.material = 0;
         addNode(b, addQuadMesh(b, q));
@@ -144,7 +165,7 @@ TEST_CASE("glTF alpha input: a fully transparent MASK material casts nothing, an
         const RunResult r = runPenumbra("bake " + writeScene(dir) + " -q");
         REQUIRE(r.exitCode == 0);
         const NpyArray out = readNpy(dir / "out.npy");
-        INFO("factor " << factor);
+        INFO("image " << image << ", factor " << factor);
         REQUIRE(out.data.size() == 2 * sizeof(float));
         float v[2];
         std::memcpy(v, out.data.data(), sizeof(v));
