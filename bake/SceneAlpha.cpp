@@ -7,6 +7,8 @@
 #include "stream/util/Memory.h"
 
 #include <cmath>
+#include <filesystem>
+#include <optional>
 
 namespace penumbra {
 namespace {
@@ -17,7 +19,9 @@ std::string gltfPathOf(const SceneDesc& scene, const GeometryDesc& g) {
     auto it = g.params.find("path");
     if (it == g.params.end() || !it->is_string()) return {};
     const std::string path = resolveScenePath(scene.baseDir, it->get<std::string>(), scene.file + ": " + g.path + ".path");
-    if (g.type == "file" && geometryFormatOf(path) != GeometryFormat::Gltf) return {};
+    // Another format's file is left to the entry's reader, which says what is wrong with it.
+    const std::optional<GeometryFormat> format = geometryFormatOf(path);
+    if (g.type == "file" ? format != GeometryFormat::Gltf : format && format != GeometryFormat::Gltf) return {};
     return path;
 }
 
@@ -25,7 +29,8 @@ void plan(const SceneDesc& scene, GltfAlphaState& state) {
     if (state.planned) return;
     for (size_t i = 0; i < scene.geometry.size(); ++i) {
         const std::string path = gltfPathOf(scene, scene.geometry[i]);
-        if (path.empty()) continue;
+        std::error_code ec;
+        if (path.empty() || !std::filesystem::is_regular_file(path, ec)) continue;  // the reader says what is wrong
         SceneAlphaEntry e{i, path, planGltfAlpha(loadGltfDocument(path)), nullptr};
         if (e.plan.empty()) continue;
         state.tableBytes += e.plan.tableBytes;
