@@ -30,6 +30,9 @@ struct MemoryDemand {
     uint64_t sourceBytes = 0;    ///< the geometry sources' working set while they stream (TriangleSource::residentBytes)
     std::string sourceDetail;    ///< what dominates sourceBytes, for the message (a large compressed primitive)
     bool sourceDuringCast = false;  ///< the sources are replayed by the cast (no bucket files)
+    /// Translucent blockers held for the bake (bake/cast/TranslucentBlockers.h), at worst every
+    /// alpha-matte triangle, and each thread's row of per-sample depths.
+    uint64_t translucentBytes = 0;
 };
 
 struct MemoryPlan {

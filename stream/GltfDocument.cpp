@@ -1,4 +1,5 @@
 #include "stream/GltfDocument.h"
+#include "stream/GltfMaterials.h"
 
 #include "stream/util/Error.h"
 #include "stream/util/InputFile.h"
@@ -340,6 +341,9 @@ GltfMeshDesc parseMesh(const GltfDocument& doc, const Json& j, size_t i) {
         if (prim.indices >= int(doc.accessors.size()))
             fail(path, "{}: indices refer to accessor {} (file has {})", where, prim.indices, doc.accessors.size());
         prim.mode = int(pm.unsignedOr("mode", kGltfTriangles));
+        prim.material = pm.index("material");
+        if (prim.material >= int(doc.materialAlphaIds.size()))
+            fail(path, "{}: material {} does not exist (file has {})", where, prim.material, doc.materialAlphaIds.size());
         if (prim.mode > kGltfTriangleFan) fail(path, "{}: invalid mode {}", where, prim.mode);
         const Json& extensions = pm.objectAt("extensions");
         if (auto it = extensions.find("KHR_draco_mesh_compression"); it != extensions.end()) {
@@ -442,6 +446,7 @@ void findRoots(const Json& root, GltfDocument& doc) {
 void checkRequiredExtensions(const std::string& path, const Json& root) {
     static const char* known[] = {"KHR_mesh_quantization", "EXT_mesh_gpu_instancing", "EXT_meshopt_compression",
                                   "KHR_draco_mesh_compression", "KHR_materials_unlit", "KHR_texture_transform",
+                                  "KHR_materials_transmission",
                                   "KHR_texture_basisu", "EXT_texture_webp"};
     auto it = root.find("extensionsRequired");
     if (it == root.end() || !it->is_array()) return;
@@ -475,7 +480,8 @@ int gltfComponentBytes(int componentType) {
 
 uint64_t GltfDocument::residentBytes() const {
     uint64_t bytes = sizeof(*this) + buffers.size() * sizeof(GltfBuffer) + views.size() * sizeof(GltfBufferView) +
-                     accessors.size() * sizeof(GltfAccessor) + nodes.size() * (sizeof(GltfNodeDesc) + 16) + roots.size() * 4;
+                     accessors.size() * sizeof(GltfAccessor) + nodes.size() * (sizeof(GltfNodeDesc) + 16) + roots.size() * 4 +
+                     materialAlphaIds.size() * sizeof(uint32_t);
     for (const GltfBuffer& b : buffers) bytes += b.bytes.capacity() + b.file.capacity();
     for (const GltfMeshDesc& m : meshes)
         bytes += sizeof(GltfMeshDesc) + m.primitives.size() * (sizeof(GltfPrimitiveDesc) + 4 * 48);
@@ -505,6 +511,7 @@ GltfDocument loadGltfDocument(const std::string& path) {
     for (size_t i = 0; i < views.size(); ++i) doc.views.push_back(parseView(path, views[i], i, doc.buffers));
     const Json& accessors = arrayOf(path, root, "accessors");
     for (size_t i = 0; i < accessors.size(); ++i) doc.accessors.push_back(parseAccessor(path, accessors[i], i, doc.views));
+    doc.materialAlphaIds = gltfMaterialAlphaIds(path, root);
     const Json& meshes = arrayOf(path, root, "meshes");
     for (size_t i = 0; i < meshes.size(); ++i) doc.meshes.push_back(parseMesh(doc, meshes[i], i));
     const Json& nodes = arrayOf(path, root, "nodes");

@@ -90,6 +90,7 @@ struct GltfPrimitiveDesc {
     std::vector<std::pair<std::string, int>> attributes;  ///< name -> accessor
     int indices = -1;
     int mode = kGltfTriangles;
+    int material = -1;  ///< -1: the default material (opaque)
     std::optional<GltfDraco> draco;
 
     /// The accessor of attribute @p name, or -1.
@@ -121,6 +122,14 @@ struct GltfDocument {
     std::vector<GltfMeshDesc> meshes;
     std::vector<GltfNodeDesc> nodes;
     std::vector<int> roots;  ///< root nodes of the scene to draw (default, else 0, else every root)
+    /// Per material: the alpha id its triangles carry (0: opaque; translucent ids: GltfMaterials.h).
+    std::vector<uint32_t> materialAlphaIds;
+
+    /// The alpha id of primitive @p primitive of mesh @p mesh's triangles.
+    uint32_t alphaIdOf(int mesh, int primitive) const {
+        const int m = meshes[size_t(mesh)].primitives[size_t(primitive)].material;
+        return m < 0 ? 0u : materialAlphaIds[size_t(m)];
+    }
 
     /// Heap bytes this document holds (compact tables and decoded data URIs), for memory plans.
     uint64_t residentBytes() const;

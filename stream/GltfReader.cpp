@@ -170,7 +170,7 @@ void GltfSource::loadBlock() {
         const std::array<uint32_t, 3> v = reader_->triangle(t);
         Triangle& tri = block_[size_t(t - blockStart_)];
         for (int c = 0; c < 3; ++c) tri.v[size_t(c)] = reader_->position(v[size_t(c)]);
-        tri.flags = 0;
+        tri.flags = withAlphaId(0, doc_.alphaIdOf(layout.mesh, layout.primitive));
     }
     blockLoaded_ = true;
 }

@@ -31,6 +31,7 @@
 #include "bake/rule/AlphaRule.h"
 #include "bake/cast/SceneCaster.h"
 #include "stream/util/Error.h"
+#include "stream/Translucency.h"
 
 #include <embree3/rtcore.h>
 #include <tbb/parallel_for.h>
@@ -146,7 +147,7 @@ std::vector<const Triangle*> validTriangles(std::span<const Triangle> triangles)
     std::vector<const Triangle*> kept;
     kept.reserve(triangles.size());
     for (const Triangle& t : triangles)
-        if (isFinite(t) && !(t.flags & kTriangleNoCast) && BlockerTriangle::from(t).valid) kept.push_back(&t);
+        if (isFinite(t) && blocksAsOpaque(t.flags) && BlockerTriangle::from(t).valid) kept.push_back(&t);
     if (kept.size() > size_t(std::numeric_limits<uint32_t>::max()) / 3)
         fail("embree", "{} triangles exceed the 32-bit vertex index range of one Embree geometry", kept.size());
     return kept;
