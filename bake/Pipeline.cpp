@@ -364,9 +364,16 @@ const TranslucentBlockers* translucentBlockers(Bake& b) {
                  "transmittance is not in partial files)");
         if (!b.method.traits.masks)
             fail("--method " + b.method.name, "does not support translucent blockers (use hpc, reference or embree)");
-        b.translucent = std::make_unique<TranslucentBlockers>(b.opaqueView->translucent(), b.p.samples);
+        // A method that weighs them itself needs only the refusals above.
+        if (!b.method.traits.translucency) b.translucent = std::make_unique<TranslucentBlockers>(b.opaqueView->translucent(), b.p.samples);
     });
     return b.translucent.get();
+}
+
+/// Keeps receiver @p r's mask when the bake keeps masks (Bake::keepMasks).
+void keepMasks(Bake& b, uint32_t r, const uint64_t* words, bool full) {
+    if (!b.keepMasks()) return;
+    for (int k = 0; k < b.masks.groups; ++k) b.masks.row(r)[k] = full ? b.p.samples.groups[k].fullMask() : (words ? words[k] : 0);
 }
 
 /// Casts receivers [first, end) with the bake's method, shading each as its result arrives.
@@ -380,10 +387,17 @@ void castReceivers(Bake& b, uint32_t first) {
     // A merge's first cast read no blockers, so the caster takes the replay as ready; the
     // refinement's scan has read it to the end.
     if (first > 0 && b.settings.shard.merge) p.blockers->rewind();
-    if (!b.opaqueView) b.opaqueView = std::make_unique<OpaqueOnlySource>(*p.blockers);
+    if (!b.opaqueView) b.opaqueView = std::make_unique<OpaqueOnlySource>(*p.blockers, !b.method.traits.translucency);
     const ReceiverEpsilon epsilon = receiverEpsilonOf(p.options);
     const AlphaTable& alpha = alphaTableOf(p.options);
     CastSink sink;
+    sink.masksWithDepth = [&](uint32_t r, const uint64_t* words, bool full, const uint32_t* depth) {
+        // A receiver on a "receive_shadows": false entry is unshadowed, whatever the method found.
+        if (p.receivers.isUnshadowed(r)) words = nullptr, full = false, depth = nullptr;
+        translucentBlockers(b);  // the refusals
+        shader.shade(r, words, full, b.results, depth);
+        keepMasks(b, r, words, full);
+    };
     sink.masks = [&](uint32_t r, const uint64_t* words, bool full) {
         // A receiver on a "receive_shadows": false entry is unshadowed, whatever the method found.
         if (p.receivers.isUnshadowed(r)) words = nullptr, full = false;
@@ -394,9 +408,7 @@ void castReceivers(Bake& b, uint32_t first) {
             if (t->depthAt(glm::dvec3(p.receivers.position[r]), int(p.sampleSets[r]), words, full, epsilon, alpha, row)) depth = row.data();
         }
         shader.shade(r, words, full, b.results, depth);
-        if (b.keepMasks())
-            for (int k = 0; k < b.masks.groups; ++k)
-                b.masks.row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
+        keepMasks(b, r, words, full);
     };
     const std::vector<float> lit(p.lights.size(), 1.0f);
     sink.visibility = [&](uint32_t r, const float* lightVisibility) {
@@ -567,9 +579,11 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total) {
         for (auto& [key, value] : extra.items()) stats[key] = value;
     if (nlohmann::json extra = b.caster->methodStats(); !extra.is_null()) stats[settings.method] = extra;
     if (b.sharded) stats["shard"] = b.sharded->stats(), stats["shard"]["blockers_cast"] = b.p.blockersCast;
-    if (b.translucent)
-        stats["translucent"] = {{"triangles", b.translucent->size()}, {"bytes", b.translucent->bytes() + b.opaqueView->translucent().size() * sizeof(Triangle)},
-                                {"relations_tested", b.translucent->tests.load()}, {"crossings", b.translucent->crossings.load()}};
+    if (b.opaqueView && !b.opaqueView->translucent().empty()) {
+        const size_t collected = b.opaqueView->translucent().size() * sizeof(Triangle);
+        stats["translucent"] = {{"triangles", b.opaqueView->translucent().size()}, {"bytes", collected + (b.translucent ? b.translucent->bytes() : 0)}};
+        if (b.translucent) stats["translucent"]["relations_tested"] = b.translucent->tests.load(), stats["translucent"]["crossings"] = b.translucent->crossings.load();
+    }
     stats["outputs_written"] = outputs.paths();  // every file of the bake but the stats themselves
     if (!b.p.warnings.empty()) stats["warnings"] = b.p.warnings;
     if (const auto& u = b.p.receivers.unshadowed; !u.empty())  // "receive_shadows": false

@@ -202,23 +202,6 @@ private:
     std::string where_;
 };
 
-/// An export (`penumbra generate`) of an entry: translucent ids (a glTF material's) belong to
-/// this process's table (stream/Translucency.h), so they are refused rather than written.
-class NoTranslucentSource final : public DecoratedSource {
-public:
-    NoTranslucentSource(TriangleSourcePtr inner, std::string where) : DecoratedSource(std::move(inner)), where_(std::move(where)) {}
-    size_t read(std::span<Triangle> out) override {
-        const size_t n = inner_->read(out);
-        for (size_t i = 0; i < n; ++i)
-            if (isTranslucentId(alphaIdOf(out[i].flags))) fail(where_, "has translucent materials, which .ptri files do not hold");
-        return n;
-    }
-    uint64_t skip(uint64_t count) override { return inner_->skip(count); }
-
-private:
-    std::string where_;
-};
-
 /// The entry's source with its controls' marks: kTriangleNoCast, the receiver class, the
 /// max_distance ids; for an export only the first, as the others mean something only with this
 /// scene's receiver classes and alpha table.
@@ -228,7 +211,6 @@ TriangleSourcePtr withObjectControls(TriangleSourcePtr source, const GeometryDes
     // A .ptri keeps the receiver classes of the scene that wrote it, which mean nothing here.
     if (set || g.type == "ptri" || g.type == "file") source = std::make_unique<FlagSource>(std::move(source), set, kTriangleClassMax << kTriangleClassShift);
     if (g.maxDistance && !exporting) source = std::make_unique<DistanceIdSource>(std::move(source), g.distanceIds, file + ": " + g.path + ".max_distance");
-    if (exporting) source = std::make_unique<NoTranslucentSource>(std::move(source), file + ": " + g.path);
     if (g.translucentId && !exporting)
         source = std::make_unique<TranslucentIdSource>(std::move(source), *g.translucentId, file + ": " + g.path + ".translucent");
     return source;

@@ -30,7 +30,7 @@ uint32_t translucentId(const glm::dvec3& t, const std::string& where) {
     const OpticalDepth depth{quantizeDepth(t.r), quantizeDepth(t.g), quantizeDepth(t.b)};
     TranslucencyTable& tt = table();
     std::lock_guard lock(tt.mutex);
-    if (auto it = tt.ids.find(depth); it != tt.ids.end()) return it->second;
+    if (auto it = tt.ids.find(depth); it != tt.ids.end()) return kTranslucentIdBase + it->second;
     if (tt.ids.size() >= kTranslucentCapacity)
         fail(where, "more than {} different translucent colours in one process", kTranslucentCapacity);
     const uint32_t index = uint32_t(tt.ids.size());

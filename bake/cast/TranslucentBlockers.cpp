@@ -113,7 +113,7 @@ size_t OpaqueOnlySource::read(std::span<Triangle> out) {
         if (!isTranslucentId(alphaIdOf(out[i].flags))) continue;
         // Collected once, whatever the rewinds (tiles read the replay again).
         if (!complete_ && position_ + i >= collectedUpTo_ && !(out[i].flags & kTriangleNoCast)) translucent_.push_back(out[i]);
-        out[i].flags |= kTriangleNoCast;
+        out[i].flags |= mark_;
     }
     position_ += n;
     collectedUpTo_ = std::max(collectedUpTo_, position_);

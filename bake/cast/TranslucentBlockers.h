@@ -77,7 +77,9 @@ private:
 /// read of its own to find them: every method reads the whole replay before it reports a receiver.
 class OpaqueOnlySource final : public TriangleSource {
 public:
-    explicit OpaqueOnlySource(TriangleSource& inner) : inner_(inner) {}
+    /// @param markNoCast false for a method that casts translucent triangles itself: they are
+    /// collected but reach it unmarked.
+    OpaqueOnlySource(TriangleSource& inner, bool markNoCast) : inner_(inner), mark_(markNoCast ? kTriangleNoCast : 0u) {}
     size_t read(std::span<Triangle> out) override;
     void rewind() override { inner_.rewind(), position_ = 0; }
     /// Skipped triangles are not collected: sharded bakes refuse translucent scenes (Pipeline.cpp).
@@ -97,6 +99,7 @@ private:
     TriangleSource& inner_;
     std::vector<Triangle> translucent_;
     uint64_t position_ = 0, collectedUpTo_ = 0;  ///< replay position; triangles looked at so far
+    uint32_t mark_;
     bool complete_ = false;
 };
 
