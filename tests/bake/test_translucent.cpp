@@ -34,20 +34,21 @@ std::string paneObj(double y, double half) {
 
 void writeText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
-/// A 12 x 12 grid of upward point receivers on the floor within |x|, |z| <= 1.5.
-void writeFloorPoints(const std::string& path) {
+/// An n x n grid of upward point receivers on the floor within |x|, |z| <= 1.5.
+void writeFloorPoints(const std::string& path, int n) {
     std::vector<float> rows;
-    for (int i = 0; i < 12; ++i)
-        for (int j = 0; j < 12; ++j) rows.insert(rows.end(), {-1.5f + 3.f * float(i) / 11.f, 0.f, -1.5f + 3.f * float(j) / 11.f, 0.f, 1.f, 0.f});
-    const uint64_t shape[2] = {144, 6};
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j)
+            rows.insert(rows.end(), {-1.5f + 3.f * float(i) / float(n - 1), 0.f, -1.5f + 3.f * float(j) / float(n - 1), 0.f, 1.f, 0.f});
+    const uint64_t shape[2] = {uint64_t(n) * uint64_t(n), 6};
     writeNpy(path, "<f4", shape, rows.data(), rows.size() * sizeof(float));
 }
 
 /// A scene of @p geometry over the floor points, lit by a square light at height 4.
-SceneDesc sceneOf(const ScratchDir& dir, nlohmann::json geometry) {
+SceneDesc sceneOf(const ScratchDir& dir, nlohmann::json geometry, int receiversPerSide = 12) {
     registerFileSourceTypes();
     registerProceduralGenerators();
-    writeFloorPoints(dir / "floor.npy");
+    writeFloorPoints(dir / "floor.npy", receiversPerSide);
     if (geometry.empty()) geometry.push_back({{"type", "obj"}, {"path", "far.obj"}});  // one pane out of every light's way
     writeText(dir / "far.obj", paneObj(-50, 0.1));
     nlohmann::json scene = {{"geometry", geometry},
@@ -63,12 +64,15 @@ nlohmann::json paneEntry(const std::string& file, const glm::dvec3& color, doubl
     return {{"type", "obj"}, {"path", file}, {"translucent", {{"color", {color.r, color.g, color.b}}, {"opacity", opacity}}}};
 }
 
-BakeCapture bake(const SceneDesc& scene, const std::string& method = "hpc", int threads = 2) {
+BakeCapture bake(const SceneDesc& scene, const std::string& method = "hpc", int threads = 2, uint64_t budget = 0,
+                 nlohmann::json* stats = nullptr) {
     BakeCapture capture;
     capture.wantMasks = true;
     BakeSettings settings;
     settings.quiet = true, settings.threads = threads, settings.method = method, settings.capture = &capture;
-    runBake(scene, settings);
+    settings.memoryBudget = budget;
+    nlohmann::json s = runBake(scene, settings);
+    if (stats) *stats = s;
     return capture;
 }
 
@@ -150,6 +154,13 @@ TEST_CASE("translucency: stacked panes give the product in any order, thread cou
     CHECK(sameResults(first, bake(sceneOf(dir, {red, blue}), "reference", 2)));
     CHECK(sameResults(first, bake(sceneOf(dir, {blue, red}), "embree", 2)));
     CHECK(sameResults(first, bake(sceneOf(dir, {red, blue}), "ssv", 2)));
+    // hpc's memory tiles: 10,000 receivers at the smallest budget are cast in several tiles.
+    nlohmann::json stats;
+    const BakeCapture whole = bake(sceneOf(dir, {red, blue}, 100), "hpc", 2, 0, &stats);
+    const uint64_t smallest = stats["memory_plan"]["minimum_budget_bytes"].get<uint64_t>();
+    const BakeCapture tiled = bake(sceneOf(dir, {blue, red}, 100), "hpc", 2, smallest, &stats);
+    CHECK(stats["memory_plan"]["tiles"].get<int>() >= 2);
+    CHECK(sameResults(whole, tiled));
 }
 
 TEST_CASE("translucency: a pane never makes umbra, an opaque blocker behind it still does", "[translucent]") {
