@@ -351,21 +351,12 @@ void makeCaster(Bake& b) {
     b.caster = b.method.make(context);
 }
 
-/// The translucent blockers the replay held, once a method has read it whole (every method does
-/// before it reports a receiver); refuses what cannot carry them. Null: none.
+/// The translucent blockers the replay held, once a method has read it whole; refuses what
+/// cannot carry them (translucentPass()). Null: none, or the method weighs them itself.
 const TranslucentBlockers* translucentBlockers(Bake& b) {
     std::call_once(b.translucentOnce, [&b] {
-        if (!b.opaqueView->complete())
-            throw std::logic_error("--method " + b.method.name + " reported a receiver before reading every blocker");
-        if (b.opaqueView->translucent().empty()) return;
-        if (b.sharded)
-            fail(b.settings.shard.count ? "--shard" : "--checkpoint",
-                 "scenes with translucent blockers cannot be sharded or checkpointed yet (their per-sample "
-                 "transmittance is not in partial files)");
-        if (!b.method.traits.masks)
-            fail("--method " + b.method.name, "does not support translucent blockers (use hpc, reference or embree)");
-        // A method that weighs them itself needs only the refusals above.
-        if (!b.method.traits.translucency) b.translucent = std::make_unique<TranslucentBlockers>(b.opaqueView->translucent(), b.p.samples);
+        const char* partialFiles = !b.sharded ? nullptr : b.settings.shard.count ? "--shard" : "--checkpoint";
+        b.translucent = translucentPass(*b.opaqueView, b.p.samples, b.method.name, b.method.traits, partialFiles);
     });
     return b.translucent.get();
 }

@@ -1,11 +1,13 @@
 #include "bake/cast/TranslucentBlockers.h"
 
 #include "bake/rule/AlphaRule.h"
+#include "stream/util/Error.h"
 
 #include <glm/geometric.hpp>
 
 #include <algorithm>
 #include <bit>
+#include <stdexcept>
 
 namespace penumbra {
 namespace {
@@ -125,6 +127,19 @@ uint64_t OpaqueOnlySource::skip(uint64_t count) {
     position_ += n;
     collectedUpTo_ = std::max(collectedUpTo_, position_);
     return n;
+}
+
+std::unique_ptr<TranslucentBlockers> translucentPass(const OpaqueOnlySource& view, const LightSamples& samples,
+                                                     const std::string& method, const CasterTraits& traits,
+                                                     const char* partialFiles) {
+    if (!view.complete()) throw std::logic_error("--method " + method + " reported a receiver before reading every blocker");
+    if (view.translucent().empty()) return nullptr;
+    if (partialFiles)
+        fail(partialFiles, "scenes with translucent blockers cannot be sharded or checkpointed yet (their per-sample "
+                           "transmittance is not in partial files)");
+    if (!traits.masks) fail("--method " + method, "does not support translucent blockers (use hpc, reference or embree)");
+    if (traits.translucency) return nullptr;  // Embree's filter weighs them
+    return std::make_unique<TranslucentBlockers>(view.translucent(), samples);
 }
 
 }  // namespace penumbra

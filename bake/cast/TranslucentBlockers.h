@@ -16,6 +16,7 @@
 /// Memory: the translucent triangles (BlockerTriangle, their bounding spheres and depths), held
 /// for the bake, and one scratch row of samples x 3 depths per thread.
 
+#include "bake/cast/Caster.h"
 #include "bake/light/Light.h"
 #include "bake/rule/BlockingRule.h"
 #include "stream/AlphaTable.h"
@@ -23,6 +24,7 @@
 #include "stream/TriangleSource.h"
 
 #include <atomic>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -102,5 +104,14 @@ private:
     uint32_t mark_;
     bool complete_ = false;
 };
+
+/// @brief What a bake casts translucent blockers with, once @p view has read the whole replay:
+/// null when it held none or when method @p method weighs them itself (traits.translucency).
+/// @param partialFiles the flag of a sharded or checkpointed bake ("--shard", "--checkpoint"), or null
+/// @throw InputError for a method without masks, or partial files (they do not carry depths)
+/// @throw std::logic_error when the method reported a receiver before reading every blocker
+std::unique_ptr<TranslucentBlockers> translucentPass(const OpaqueOnlySource& view, const LightSamples& samples,
+                                                     const std::string& method, const CasterTraits& traits,
+                                                     const char* partialFiles);
 
 }  // namespace penumbra
