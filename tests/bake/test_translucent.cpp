@@ -2,6 +2,7 @@
 // panes' product in any order, thread count and method, umbra safety, glTF BLEND and
 // KHR_materials_transmission materials, and one-line errors for bad declarations.
 
+#include "CliRunner.h"
 #include "MethodChecks.h"
 #include "TestSupport.h"
 
@@ -319,4 +320,18 @@ TEST_CASE("translucency: .ptri files refuse translucent triangles", "[translucen
               (dir / "x.ptri") + ": triangle 0 is translucent (a glTF BLEND or transmission material), which .ptri files do not hold");
     }
     CHECK_FALSE(std::filesystem::exists(dir / "x.ptri"));  // nothing half-written
+}
+
+TEST_CASE("translucency: examples/glass.json bakes coloured shadows", "[translucent][cli]") {
+    ScratchDir dir("translucent-example");
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/examples/glass.json";
+    const RunResult r = runPenumbra("bake " + scene + " -q --threads 2 -o " + (dir / "glass.exr") + " --stats " + (dir / "stats.json"));
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    CHECK(std::filesystem::exists(dir / "glass.png"));
+    const nlohmann::json stats = nlohmann::json::parse(slurp(dir / "stats.json"));
+    CHECK(stats["translucent"]["triangles"] == 8);  // four panes
+    CHECK(stats["translucent"]["crossings"].get<uint64_t>() > 0);
+    // The panes never block: the blocked relations are the floor's bar's and nothing else.
+    CHECK(stats["blocked_relations"].get<uint64_t>() < stats["translucent"]["crossings"].get<uint64_t>());
 }
