@@ -22,7 +22,8 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string&
     // the id list and the tile partition (8).
     const uint64_t residentPerReceiver = 32 + 4 + 16 + 8 + (d.dumpMasks ? 8ull * d.groups : 0);
     plan.residentBytes =
-        kBaselineBytes + d.bufferBytes + d.sampleBytes + d.kindBytes + d.methodBytes + d.alphaBytes + d.receivers * residentPerReceiver;
+        kBaselineBytes + d.bufferBytes + d.sampleBytes + d.kindBytes + d.methodBytes + d.alphaBytes + d.translucentBytes +
+        d.receivers * residentPerReceiver;
     // The scan pass holds what the receiver kind needs (a camera's z-buffer and the receiver set
     // it makes, as the kind reports) and the sources; that is freed before casting starts. The
     // bucket pass reads the sources again with everything resident.

@@ -32,6 +32,9 @@ struct MemoryDemand {
     bool sourceDuringCast = false;  ///< the sources are replayed by the cast (no bucket files)
     uint64_t alphaBytes = 0;       ///< the alpha table of glTF cut-outs (1-bit maps, entries, ids), held for the whole bake
     uint64_t alphaBuildBytes = 0;  ///< held while it is built before the scan (a texture's decode, the deduplication index)
+    /// Translucent blockers held for the bake (bake/cast/TranslucentBlockers.h), at worst every
+    /// alpha-matte triangle, and each thread's row of per-sample depths.
+    uint64_t translucentBytes = 0;
 };
 
 struct MemoryPlan {

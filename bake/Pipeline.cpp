@@ -14,6 +14,7 @@
 #include "bake/cast/Caster.h"
 #include "bake/cast/ClosedSolids.h"
 #include "bake/cast/ReachCull.h"
+#include "bake/cast/TranslucentBlockers.h"
 #include "bake/cast/VisibilityMasks.h"
 #include "bake/light/SunLight.h"
 #include "bake/shard/ShardedCast.h"
@@ -35,6 +36,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <mutex>
 #include <optional>
 #include <string_view>
 #include <system_error>
@@ -264,6 +266,11 @@ struct Bake {
     std::unique_ptr<Caster> caster;
     std::unique_ptr<ShardedCast> sharded;  ///< shards, merges and checkpoints, else null
     TileHooks tileHooks;
+    /// Coloured translucent blockers (TranslucentBlockers.h): the replay as methods see it, and
+    /// its translucent triangles once the first cast has read them all.
+    std::unique_ptr<OpaqueOnlySource> opaqueView;
+    std::unique_ptr<TranslucentBlockers> translucent;
+    std::once_flag translucentOnce;
     size_t firstPass = 0;  ///< receivers of the first pass; later ones are a refinement's
     double streamSeconds = 0, castSeconds = 0, refineSeconds = 0;
 
@@ -318,6 +325,10 @@ void scanScene(Bake& b) {
     };
     b.p = prepare(scene, b.settings, *b.kind, std::move(geometry), afterScan, b.streamSeconds, b.buckets);
     b.demand.kindBytes = b.kind->residentBytes();
+    // Translucent triangles are alpha-matte ones: at worst all of them, kept twice (the copy the
+    // replay view collects and the cast form), and a row of depths per thread.
+    b.demand.translucentBytes = b.buckets.alphaMatteTriangles * (sizeof(Triangle) + TranslucentBlockers::bytesFor(1)) +
+                                uint64_t(b.threads) * uint64_t(b.p.samples.sampleCount) * 3 * sizeof(uint32_t);
     b.replan();
     checkMemoryFits(scene.file, "casting", b.plan.minimumBudget);
     b.results.resize(b.p.receivers.size(), int(b.p.lights.size()));
@@ -343,6 +354,22 @@ void makeCaster(Bake& b) {
     b.caster = b.method.make(context);
 }
 
+/// The translucent blockers the replay held, once a method has read it whole; refuses what
+/// cannot carry them (translucentPass()). Null: none, or the method weighs them itself.
+const TranslucentBlockers* translucentBlockers(Bake& b) {
+    std::call_once(b.translucentOnce, [&b] {
+        const char* partialFiles = !b.sharded ? nullptr : b.settings.shard.count ? "--shard" : "--checkpoint";
+        b.translucent = translucentPass(*b.opaqueView, b.p.samples, b.method.name, b.method.traits, partialFiles);
+    });
+    return b.translucent.get();
+}
+
+/// Keeps receiver @p r's mask when the bake keeps masks (Bake::keepMasks).
+void keepMasks(Bake& b, uint32_t r, const uint64_t* words, bool full) {
+    if (!b.keepMasks()) return;
+    for (int k = 0; k < b.masks.groups; ++k) b.masks.row(r)[k] = full ? b.p.samples.groups[k].fullMask() : (words ? words[k] : 0);
+}
+
 /// Casts receivers [first, end) with the bake's method, shading each as its result arrives.
 void castReceivers(Bake& b, uint32_t first) {
     ScopedTimer timer(b.castSeconds);
@@ -354,20 +381,35 @@ void castReceivers(Bake& b, uint32_t first) {
     // A merge's first cast read no blockers, so the caster takes the replay as ready; the
     // refinement's scan has read it to the end.
     if (first > 0 && b.settings.shard.merge) p.blockers->rewind();
+    if (!b.opaqueView) b.opaqueView = std::make_unique<OpaqueOnlySource>(*p.blockers, !b.method.traits.translucency);
+    const ReceiverEpsilon epsilon = receiverEpsilonOf(p.options);
+    const AlphaTable& alpha = alphaTableOf(p.options);
     CastSink sink;
+    sink.masksWithDepth = [&](uint32_t r, const uint64_t* words, bool full, const uint32_t* depth) {
+        // A receiver on a "receive_shadows": false entry is unshadowed, whatever the method found.
+        if (p.receivers.isUnshadowed(r)) words = nullptr, full = false, depth = nullptr;
+        translucentBlockers(b);  // the refusals
+        shader.shade(r, words, full, b.results, depth);
+        keepMasks(b, r, words, full);
+    };
     sink.masks = [&](uint32_t r, const uint64_t* words, bool full) {
         // A receiver on a "receive_shadows": false entry is unshadowed, whatever the method found.
         if (p.receivers.isUnshadowed(r)) words = nullptr, full = false;
-        shader.shade(r, words, full, b.results);
-        if (b.keepMasks())
-            for (int k = 0; k < b.masks.groups; ++k)
-                b.masks.row(r)[k] = full ? p.samples.groups[k].fullMask() : (words ? words[k] : 0);
+        const uint32_t* depth = nullptr;
+        if (const TranslucentBlockers* t = translucentBlockers(b)) {
+            thread_local std::vector<uint32_t> row;
+            row.resize(size_t(p.samples.sampleCount) * 3);
+            if (t->depthAt(glm::dvec3(p.receivers.position[r]), int(p.sampleSets[r]), words, full, epsilon, alpha, row)) depth = row.data();
+        }
+        shader.shade(r, words, full, b.results, depth);
+        keepMasks(b, r, words, full);
     };
     const std::vector<float> lit(p.lights.size(), 1.0f);
     sink.visibility = [&](uint32_t r, const float* lightVisibility) {
+        translucentBlockers(b);  // refuses a scene with translucent blockers
         shader.shadeVisibleFraction(r, p.receivers.isUnshadowed(r) ? lit.data() : lightVisibility, b.results);
     };
-    b.caster->cast(*p.blockers, first, sink);
+    b.caster->cast(*b.opaqueView, first, sink);
 }
 
 /// `penumbra merge`: the first pass's masks come from the shard files, shaded as a cast would.
@@ -531,6 +573,11 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total) {
         for (auto& [key, value] : extra.items()) stats[key] = value;
     if (nlohmann::json extra = b.caster->methodStats(); !extra.is_null()) stats[settings.method] = extra;
     if (b.sharded) stats["shard"] = b.sharded->stats(), stats["shard"]["blockers_cast"] = b.p.blockersCast;
+    if (b.opaqueView && !b.opaqueView->translucent().empty()) {
+        const size_t collected = b.opaqueView->translucent().size() * sizeof(Triangle);
+        stats["translucent"] = {{"triangles", b.opaqueView->translucent().size()}, {"bytes", collected + (b.translucent ? b.translucent->bytes() : 0)}};
+        if (b.translucent) stats["translucent"]["relations_tested"] = b.translucent->tests.load(), stats["translucent"]["crossings"] = b.translucent->crossings.load();
+    }
     stats["outputs_written"] = outputs.paths();  // every file of the bake but the stats themselves
     if (!b.p.warnings.empty()) stats["warnings"] = b.p.warnings;
     if (const auto& u = b.p.receivers.unshadowed; !u.empty())  // "receive_shadows": false

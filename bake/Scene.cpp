@@ -10,6 +10,7 @@
 #include "stream/GeometryFile.h"
 #include "stream/util/JsonParams.h"
 #include "stream/SourceRegistry.h"
+#include "stream/Translucency.h"
 
 #include <algorithm>
 #include <utility>
@@ -118,6 +119,22 @@ uint32_t receiverClassIndex(SceneDesc& scene, const ReceiverClass& c, const std:
     return uint32_t(scene.receiverClasses.size() - 1);
 }
 
+/// An entry's "translucent": {"color": [r, g, b], "opacity": a}: a stained filter covering the
+/// fraction a, t = (1 - a) + a color (stream/Translucency.h, surfaceTransmittance).
+void parseTranslucent(const JsonParams& g, GeometryDesc& desc) {
+    if (!g.has("translucent")) return;
+    const nlohmann::json* raw = g.raw("translucent");
+    if (!raw->is_object()) fail(g.where("translucent"), "expected an object with \"color\" and \"opacity\"");
+    JsonParams t(*raw, g.file(), g.path("translucent"));
+    const glm::dvec3 color = t.vec3("color", glm::dvec3(1.0));
+    for (int c = 0; c < 3; ++c) checkUnitInterval(color[c], t.where("color") + "[" + std::to_string(c) + "]");
+    const double opacity = t.number("opacity", 1.0);
+    checkUnitInterval(opacity, t.where("opacity"));
+    t.finish();
+    if (desc.maxDistance) fail(g.where("translucent"), "cannot be combined with max_distance");
+    desc.translucentId = translucentId(surfaceTransmittance(color, opacity, 1.0), g.where("translucent"));
+}
+
 /// The per-object controls of a geometry entry (docs/scene-format.md, "Per-object controls").
 void parseObjectControls(const JsonParams& g, GeometryDesc& desc, SceneDesc& scene) {
     desc.castShadows = g.boolean("cast_shadows", true);
@@ -130,6 +147,7 @@ void parseObjectControls(const JsonParams& g, GeometryDesc& desc, SceneDesc& sce
         desc.maxDistance = d;
     }
     desc.receiverClass = receiverClassIndex(scene, {desc.receiveShadows, desc.receiverOffset}, g.where("receiver_offset"));
+    parseTranslucent(g, desc);
 }
 
 /// A table with every entry's max_distance ids (AlphaTable::withDistance), when one has it.
@@ -168,6 +186,26 @@ private:
     bool ownIds_;
 };
 
+/// Gives an entry's triangles its translucent id; a cut-out triangle cannot also be translucent.
+class TranslucentIdSource final : public DecoratedSource {
+public:
+    TranslucentIdSource(TriangleSourcePtr inner, uint32_t id, std::string where)
+        : DecoratedSource(std::move(inner)), id_(id), where_(std::move(where)) {}
+    size_t read(std::span<Triangle> out) override {
+        const size_t n = inner_->read(out);
+        for (size_t i = 0; i < n; ++i) {
+            if (alphaIdOf(out[i].flags)) fail(where_, "is not supported on cut-out (alpha-tested) triangles");
+            out[i].flags = withAlphaId(out[i].flags, id_);
+        }
+        return n;
+    }
+    uint64_t skip(uint64_t count) override { return inner_->skip(count); }
+
+private:
+    uint32_t id_;
+    std::string where_;
+};
+
 /// The entry's source with its controls' marks: kTriangleNoCast, the receiver class, the
 /// max_distance ids; for an export only the first, as the others mean something only with this
 /// scene's receiver classes and alpha table.
@@ -178,6 +216,8 @@ TriangleSourcePtr withObjectControls(TriangleSourcePtr source, const GeometryDes
     // A .ptri keeps the receiver classes of the scene that wrote it, which mean nothing here.
     if (set || g.type == "ptri" || g.type == "file") source = std::make_unique<FlagSource>(std::move(source), set, kTriangleClassMax << kTriangleClassShift);
     if (g.maxDistance && !exporting) source = std::make_unique<DistanceIdSource>(std::move(source), g.distanceIds, file + ": " + g.path + ".max_distance", ownIds);
+    if (g.translucentId && !exporting)
+        source = std::make_unique<TranslucentIdSource>(std::move(source), *g.translucentId, file + ": " + g.path + ".translucent");
     return source;
 }
 
@@ -252,7 +292,7 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
         if (g.raw("closed")) desc.closed = g.boolean("closed", false);
         parseObjectControls(g, desc, scene);
         desc.params = (*geometry)[i];
-        for (const char* key : {"type", "transform", "closed", "cast_shadows", "receive_shadows", "receiver_offset", "max_distance"})
+        for (const char* key : {"type", "transform", "closed", "cast_shadows", "receive_shadows", "receiver_offset", "max_distance", "translucent"})
             desc.params.erase(key);
         scene.geometry.push_back(std::move(desc));
     }

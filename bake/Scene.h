@@ -57,6 +57,9 @@ struct GeometryDesc {
     uint32_t receiverClass = 0;
     /// With maxDistance: the alpha id its triangles take for alpha id a < kBuiltinAlphaCount.
     std::array<uint32_t, kBuiltinAlphaCount> distanceIds{};
+    /// "translucent": {"color", "opacity"}: the translucent id (stream/Translucency.h) every
+    /// triangle of the entry takes; they attenuate instead of blocking.
+    std::optional<uint32_t> translucentId;
 };
 
 

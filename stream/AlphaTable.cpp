@@ -1,6 +1,7 @@
 #include "stream/AlphaTable.h"
 
 #include "stream/util/Error.h"
+#include "stream/Translucency.h"
 #include "stream/Triangle.h"
 
 #include <cmath>
@@ -85,8 +86,9 @@ uint32_t AlphaTable::addMap(AlphaMap map) {
 }
 
 uint32_t AlphaTable::addEntry(const AlphaEntry& entry) {
-    if (entries_.size() > kTriangleAlphaIdMax)
-        fail("alpha", "more than {} alpha-tested triangles with distinct texture coordinates", kTriangleAlphaIdMax);
+    // Ids from kTranslucentIdBase up name translucent surfaces (Translucency.h).
+    if (entries_.size() >= kTranslucentIdBase)
+        fail("alpha", "more than {} alpha-tested triangles with distinct texture coordinates", kTranslucentIdBase - 1);
     if (std::isfinite(entry.maxDistance)) distances_ = true;
     entries_.push_back(entry);
     return uint32_t(entries_.size() - 1);

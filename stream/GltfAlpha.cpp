@@ -3,6 +3,7 @@
 #include "stream/GltfBytes.h"
 #include "stream/GltfJson.h"
 #include "stream/GltfPrimitive.h"
+#include "stream/Translucency.h"
 #include "stream/Triangle.h"
 #include "stream/util/Error.h"
 #include "stream/util/InputFile.h"
@@ -235,9 +236,9 @@ private:
     uint32_t entry(const AlphaEntry& e) {
         const auto key = std::tuple{e.map, e.uv[0].x, e.uv[0].y, e.uv[1].x, e.uv[1].y, e.uv[2].x, e.uv[2].y, e.maxDistance};
         if (auto it = entries_.find(key); it != entries_.end()) return it->second;
-        if (table_.entries() > kTriangleAlphaIdMax)
+        if (table_.entries() >= kTranslucentIdBase)  // higher ids are translucent surfaces' (Translucency.h)
             fail(doc_.path, "more than {} alpha-tested triangles with distinct texture coordinates (the alpha id space of a bake)",
-                 kTriangleAlphaIdMax);
+                 kTranslucentIdBase - 1);
         const uint32_t id = table_.addEntry(e);
         entries_.emplace(key, id);
         return id;

@@ -3,6 +3,7 @@
 #include "stream/util/Error.h"
 #include "stream/GltfJson.h"
 #include "stream/GltfMaterials.h"
+#include "stream/GltfTranslucency.h"
 #include "stream/util/InputFile.h"
 #include "stream/util/JsonText.h"
 #include "stream/util/RegularFile.h"
@@ -350,6 +351,7 @@ void findRoots(const Json& root, GltfDocument& doc) {
 void checkRequiredExtensions(const std::string& path, const Json& root) {
     static const char* known[] = {"KHR_mesh_quantization", "EXT_mesh_gpu_instancing", "EXT_meshopt_compression",
                                   "KHR_draco_mesh_compression", "KHR_materials_unlit", "KHR_texture_transform",
+                                  "KHR_materials_transmission",
                                   "KHR_texture_basisu", "EXT_texture_webp"};
     auto it = root.find("extensionsRequired");
     if (it == root.end() || !it->is_array()) return;
@@ -383,7 +385,8 @@ int gltfComponentBytes(int componentType) {
 
 uint64_t GltfDocument::residentBytes() const {
     uint64_t bytes = sizeof(*this) + buffers.size() * sizeof(GltfBuffer) + views.size() * sizeof(GltfBufferView) +
-                     accessors.size() * sizeof(GltfAccessor) + nodes.size() * (sizeof(GltfNodeDesc) + 16) + roots.size() * 4;
+                     accessors.size() * sizeof(GltfAccessor) + nodes.size() * (sizeof(GltfNodeDesc) + 16) + roots.size() * 4 +
+                     materialAlphaIds.size() * sizeof(uint32_t);
     for (const GltfBuffer& b : buffers) bytes += b.bytes.capacity() + b.file.capacity();
     for (const GltfMeshDesc& m : meshes)
         bytes += sizeof(GltfMeshDesc) + m.primitives.size() * (sizeof(GltfPrimitiveDesc) + 4 * 48);
@@ -414,6 +417,7 @@ GltfDocument loadGltfDocument(const std::string& path) {
     const Json& accessors = gltfArrayOf(path, root, "accessors");
     for (size_t i = 0; i < accessors.size(); ++i) doc.accessors.push_back(parseAccessor(path, accessors[i], i, doc.views));
     doc.materials = parseGltfMaterials(path, root, doc.views.size());
+    doc.materialAlphaIds = gltfMaterialAlphaIds(path, root);
     const Json& meshes = gltfArrayOf(path, root, "meshes");
     for (size_t i = 0; i < meshes.size(); ++i) doc.meshes.push_back(parseMesh(doc, meshes[i], i));
     const Json& nodes = gltfArrayOf(path, root, "nodes");

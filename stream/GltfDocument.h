@@ -125,6 +125,14 @@ struct GltfDocument {
     std::vector<GltfNodeDesc> nodes;
     GltfMaterialTables materials;  ///< materials, textures, images, samplers (GltfMaterials.h)
     std::vector<int> roots;  ///< root nodes of the scene to draw (default, else 0, else every root)
+    /// Per material: the alpha id its triangles carry (0: opaque; translucent ids: GltfMaterials.h).
+    std::vector<uint32_t> materialAlphaIds;
+
+    /// The alpha id of primitive @p primitive of mesh @p mesh's triangles.
+    uint32_t alphaIdOf(int mesh, int primitive) const {
+        const int m = meshes[size_t(mesh)].primitives[size_t(primitive)].material;
+        return m < 0 ? 0u : materialAlphaIds[size_t(m)];
+    }
 
     /// Heap bytes this document holds (compact tables and decoded data URIs), for memory plans.
     uint64_t residentBytes() const;

@@ -176,7 +176,8 @@ void GltfSource::loadBlock() {
         const std::array<uint32_t, 3> v = reader_->triangle(t);
         Triangle& tri = block_[size_t(t - blockStart_)];
         for (int c = 0; c < 3; ++c) tri.v[size_t(c)] = reader_->position(v[size_t(c)]);
-        const uint32_t alpha = blockAlpha_ ? blockAlpha_->at(t) : 0u;
+        // A MASK material's cut-out ids (GltfAlpha.h), else the material's translucent id or 0.
+        const uint32_t alpha = blockAlpha_ ? blockAlpha_->at(t) : doc_.alphaIdOf(layout.mesh, layout.primitive);
         tri.flags = alpha == kGltfAlphaNoCast ? uint32_t(kTriangleNoCast) : withAlphaId(0, alpha);
     }
     blockLoaded_ = true;

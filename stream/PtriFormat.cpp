@@ -1,4 +1,5 @@
 #include "stream/PtriFormat.h"
+#include "stream/Translucency.h"
 
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
@@ -288,6 +289,9 @@ void PtriWriter::write(std::span<const Triangle> triangles) {
     if (finished_) fail(path_, "write after finish()");
     for (const Triangle& t : triangles) {
         if (!isFinite(t)) fail(path_, "triangle {} has a non-finite coordinate", count_);
+        // Translucent ids name this process's table (Translucency.h): meaningless in a file.
+        if (isTranslucentId(alphaIdOf(t.flags)))
+            fail(path_, "triangle {} is translucent (a glTF BLEND or transmission material), which .ptri files do not hold", count_);
         if (count_ == 0) lo_ = hi_ = t.v[0];
         for (const glm::vec3& p : t.v) {
             lo_ = glm::min(lo_, p);

@@ -1,5 +1,7 @@
 #include "bake/cast/BlockerBatch.h"
 
+#include "stream/Translucency.h"
+
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -49,7 +51,7 @@ uint64_t BlockerCulls::prepare(BlockerBatch& batch, std::span<const Triangle> bl
             BlockerTriangle& prepared = batch.prepared[i];
             prepared.valid = false;
             for (size_t l = 0; l < lights; ++l) active[l] = 1;
-            if (tri.flags & kTriangleNoCast) continue;  // "cast_shadows": false
+            if (!blocksAsOpaque(tri.flags)) continue;  // "cast_shadows": false, or translucent
             if (!keepLights([&](size_t l) { return !reach_[l].boxMeets(box); })) continue;  // out of every reach box
             // Beside the light: T's ball misses the hull of the light's and the receivers' balls.
             const glm::dvec3 v[3] = {glm::dvec3(tri.v[0]), glm::dvec3(tri.v[1]), glm::dvec3(tri.v[2])};

@@ -35,6 +35,10 @@ struct CastSink {
     /// Exact methods: @p groupWords holds one word per light sample group (nullptr: nothing
     /// blocked), @p fullUmbra means every sample is blocked.
     std::function<void(uint32_t receiver, const uint64_t* groupWords, bool fullUmbra)> masks;
+    /// Methods that weigh translucent blockers themselves (CasterTraits::translucency): the
+    /// masks as above and @p depth, the receiver's per-sample R, G, B optical depths
+    /// (stream/Translucency.h; sampleCount x 3), or nullptr where none was crossed.
+    std::function<void(uint32_t receiver, const uint64_t* groupWords, bool fullUmbra, const uint32_t* depth)> masksWithDepth;
     /// Methods without per-sample masks: the visible fraction of each light, lightCount() floats.
     std::function<void(uint32_t receiver, const float* lightVisibility)> visibility;
 };
@@ -105,6 +109,10 @@ struct CasterTraits {
     bool sortedBlockers = true; ///< wants the largest-first replay of the bucket pass
     bool holdsScene = false;    ///< reads every blocker into memory (ray casters)
     bool needsPolygons = false; ///< needs the receiver kind's polygons (lightmaps)
+    /// Casts translucent triangles itself (Embree's filter) and reports through
+    /// CastSink::masksWithDepth; otherwise they reach the method as non-casting and the pipeline
+    /// weighs them (bake/cast/TranslucentBlockers.h).
+    bool translucency = false;
     const char* summary = "";   ///< one line for --help
 };
 

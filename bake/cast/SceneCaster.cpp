@@ -30,7 +30,11 @@ void SceneCaster::cast(TriangleSource& blockers, uint32_t first, const CastSink&
     const VisibilityMasks masks =
         castAll_(targets, std::span<const uint32_t>(c_.sampleSets).subspan(first), all_, [&](uint64_t n) { progress.update(n); });
     progress.done();
-    for (uint32_t r = 0; r < targets.size(); ++r) sink.masks(first + r, masks.row(r), false);
+    for (uint32_t r = 0; r < targets.size(); ++r) {
+        if (sink.masksWithDepth && r < depths_.size()) sink.masksWithDepth(first + r, masks.row(r), false, depths_[r].get());
+        else sink.masks(first + r, masks.row(r), false);
+    }
+    depths_.clear();
     stats_.castSeconds += watch.seconds();
     stats_.trianglesProcessed += all_.size();
 }

@@ -9,6 +9,8 @@
 #include "bake/cast/VisibilityMasks.h"
 
 #include <functional>
+#include <memory>
+#include <vector>
 
 namespace penumbra {
 
@@ -29,6 +31,9 @@ public:
 
 protected:
     const CastContext c_;
+    /// A method that weighs translucent blockers (CasterTraits::translucency) leaves here, per
+    /// target receiver, its per-sample depths or null; they go to CastSink::masksWithDepth.
+    std::vector<std::unique_ptr<uint32_t[]>> depths_;
 
 private:
     std::string phase_;

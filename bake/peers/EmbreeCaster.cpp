@@ -31,6 +31,7 @@
 #include "bake/rule/AlphaRule.h"
 #include "bake/cast/SceneCaster.h"
 #include "stream/util/Error.h"
+#include "stream/Translucency.h"
 
 #include <embree3/rtcore.h>
 #include <tbb/parallel_for.h>
@@ -41,6 +42,7 @@
 #define PENUMBRA_HAVE_MXCSR 1
 #endif
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -141,12 +143,14 @@ constexpr float kTfarPoint = 1.0f + 1e-5f;
 /// Without the filter, rays end just before the sample, so the sample itself is excluded.
 constexpr float kTfarNative = 1.0f - 1e-6f;
 
-/// The triangles Embree gets: finite, with non-zero area (the rule's BlockerTriangle::valid).
-std::vector<const Triangle*> validTriangles(std::span<const Triangle> triangles) {
+/// The triangles Embree gets: finite, with non-zero area (the rule's BlockerTriangle::valid),
+/// casting, and translucent ones only when @p translucent.
+std::vector<const Triangle*> validTriangles(std::span<const Triangle> triangles, bool translucent) {
     std::vector<const Triangle*> kept;
     kept.reserve(triangles.size());
     for (const Triangle& t : triangles)
-        if (isFinite(t) && !(t.flags & kTriangleNoCast) && BlockerTriangle::from(t).valid) kept.push_back(&t);
+        if (isFinite(t) && !(t.flags & kTriangleNoCast) && (translucent || blocksAsOpaque(t.flags)) && BlockerTriangle::from(t).valid)
+            kept.push_back(&t);
     if (kept.size() > size_t(std::numeric_limits<uint32_t>::max()) / 3)
         fail("embree", "{} triangles exceed the 32-bit vertex index range of one Embree geometry", kept.size());
     return kept;
@@ -185,12 +189,17 @@ struct Packet {
     glm::dvec3 receiver{0.0};
     double eps = 0.0;
     int lanes = 0;
+    /// Per lane: the optical depth of the translucent triangles crossed so far, and which.
+    uint32_t depth[kPacket][3];
+    std::vector<uint32_t> crossed[kPacket];
 
     Packet() { reset(); }
     void reset() {
         lanes = 0;
         for (int i = 0; i < kPacket; ++i) {
             valid[i] = 0;
+            depth[i][0] = depth[i][1] = depth[i][2] = 0;
+            crossed[i].clear();
             ray.org_x[i] = ray.org_y[i] = ray.org_z[i] = 0.0f;
             ray.dir_x[i] = ray.dir_y[i] = 0.0f;
             ray.dir_z[i] = 1.0f;
@@ -208,7 +217,7 @@ struct Packet {
 /// (Embree passes the pointer through unchanged; RTCIntersectContext must come first).
 struct FilterContext {
     RTCIntersectContext context;
-    const Packet* packet = nullptr;
+    Packet* packet = nullptr;
     const float* vertices = nullptr;  ///< the geometry's vertex buffer: 9 floats per triangle
     const uint32_t* alphaIds = nullptr;  ///< per primitive: its alpha id (0: opaque)
     const AlphaTable* alpha = nullptr;
@@ -237,10 +246,21 @@ bool certainlyBlocks(const RTCFilterFunctionNArguments* args, unsigned i, const 
     return packet.w[lane] == 0.0 || (1.0 - t) * dLength * cosine >= roundoff;  // before the sample
 }
 
-/// Accepts a candidate hit only when the blocking rule blocks the relation with that triangle.
+/// A hit on translucent primitive @p prim of lane @p lane that the rule counts: its depth is
+/// added once per ray, whatever times Embree reports it.
+void crossTranslucent(Packet& packet, unsigned lane, uint32_t prim, uint32_t alphaId) {
+    std::vector<uint32_t>& seen = packet.crossed[lane];
+    if (std::find(seen.begin(), seen.end(), prim) != seen.end()) return;
+    seen.push_back(prim);
+    const OpticalDepth& d = opticalDepthOf(alphaId);
+    for (int c = 0; c < 3; ++c) packet.depth[lane][c] = addDepth(packet.depth[lane][c], d[c]);
+}
+
+/// Accepts a candidate hit only when the blocking rule blocks the relation with that triangle;
+/// a translucent triangle's hit is never accepted (the ray goes on), its depth is added.
 void ruleFilter(const RTCFilterFunctionNArguments* args) {
     auto* fc = reinterpret_cast<FilterContext*>(args->context);
-    const Packet& packet = *fc->packet;
+    Packet& packet = *fc->packet;
     for (unsigned i = 0; i < args->N; ++i) {
         if (args->valid[i] == 0) continue;
         const unsigned lane = RTCRayN_id(args->ray, args->N, i);
@@ -255,10 +275,13 @@ void ruleFilter(const RTCFilterFunctionNArguments* args) {
                      withAlphaId(0, alphaId)};
         const BlockerTriangle t = BlockerTriangle::from(tri);
         bool blocked = false;
+        const bool translucent = isTranslucentId(alphaId);
         if (t.valid) {
             const HardShadowVolume h = makeHardShadowVolume(packet.sample[lane], packet.w[lane], t);
-            blocked = blocksWithAlpha(h, t, packet.receiver, distanceBehind(t, packet.receiver), packet.eps, *fc->alpha);
+            blocked = translucent ? blocks(h, t, packet.receiver, distanceBehind(t, packet.receiver), packet.eps)
+                                  : blocksWithAlpha(h, t, packet.receiver, distanceBehind(t, packet.receiver), packet.eps, *fc->alpha);
         }
+        if (translucent && blocked) crossTranslucent(packet, lane, prim, alphaId), blocked = false;
         if (!blocked) args->valid[i] = 0, ++fc->rejected;
     }
 }
@@ -282,7 +305,7 @@ struct EmbreeBvh {
 
 /// Builds @p bvh (device, scene and BVH) over the valid triangles of @p triangles.
 /// @throw InputError "embree: ..." when Embree reports an error or culls back faces.
-void buildBvh(EmbreeBvh& bvh, std::span<const Triangle> triangles, bool ruleFilter) {
+void buildBvh(EmbreeBvh& bvh, std::span<const Triangle> triangles, bool ruleFilter, bool translucent) {
     bvh.device.device = rtcNewDevice(nullptr);
     if (!bvh.device.device) fail("embree", "{} creating the device", errorName(rtcGetDeviceError(nullptr)));
     RTCDevice device = bvh.device.device;
@@ -298,7 +321,7 @@ void buildBvh(EmbreeBvh& bvh, std::span<const Triangle> triangles, bool ruleFilt
     rtcSetSceneBuildQuality(bvh.scene.scene, RTC_BUILD_QUALITY_HIGH);
     bool anyAlpha = false;
     {
-        const std::vector<const Triangle*> kept = validTriangles(triangles);  // freed before tracing
+        const std::vector<const Triangle*> kept = validTriangles(triangles, translucent);  // freed before tracing
         bvh.alphaIds.reserve(kept.size());
         for (const Triangle* t : kept) bvh.alphaIds.push_back(alphaIdOf(t->flags)), anyAlpha = anyAlpha || bvh.alphaIds.back();
         bvh.sceneBytes = uint64_t(kept.size()) * (9 * sizeof(float) + 4 * sizeof(uint32_t));
@@ -323,15 +346,23 @@ void buildBvh(EmbreeBvh& bvh, std::span<const Triangle> triangles, bool ruleFilt
 /// One receiver's shadow rays, 16 at a time (packets never span receivers: the row being
 /// written is @p row's), into its mask words. @return the rays traced.
 uint64_t traceReceiver(RTCScene scene, FilterContext& fc, Packet& packet, const LightSamples& samples, int set,
-                       const glm::vec3& p, double eps, bool ruleFilter, uint64_t* row) {
+                       const glm::vec3& p, double eps, bool ruleFilter, uint64_t* row, std::unique_ptr<uint32_t[]>* depths) {
     const glm::dvec3 pd(p);
     packet.receiver = pd, packet.eps = eps;
     auto flush = [&] {
         if (packet.lanes == 0) return;
         rtcOccluded16(packet.valid, scene, &fc.context, &packet.ray);
-        for (int i = 0; i < packet.lanes; ++i)
-            if (packet.valid[i] && packet.ray.tfar[i] == -std::numeric_limits<float>::infinity())
+        for (int i = 0; i < packet.lanes; ++i) {
+            if (packet.valid[i] && packet.ray.tfar[i] == -std::numeric_limits<float>::infinity()) {
                 row[packet.laneWord[i]] |= 1ull << packet.laneBit[i];
+                continue;  // blocked: what it crossed before does not matter
+            }
+            const uint32_t* d = packet.depth[i];
+            if (!depths || !(d[0] | d[1] | d[2])) continue;
+            if (!*depths) *depths = std::make_unique<uint32_t[]>(size_t(samples.sampleCount) * 3);  // zeroed
+            const size_t sample = samples.groups[size_t(packet.laneWord[i])].first + uint32_t(packet.laneBit[i]);
+            std::copy(d, d + 3, depths->get() + 3 * sample);
+        }
         packet.reset();
     };
     uint64_t traced = 0;
@@ -373,13 +404,15 @@ uint64_t traceReceiver(RTCScene scene, FilterContext& fc, Packet& packet, const 
 VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& receivers,
                            std::span<const uint32_t> sampleSetOf, std::span<const Triangle> triangles,
                            const ReceiverEpsilon& epsilon, EmbreeStats* stats,
-                           const std::function<void(uint64_t)>& progress, bool ruleFilter, const AlphaTable* alpha) {
+                           const std::function<void(uint64_t)>& progress, bool ruleFilter, const AlphaTable* alpha,
+                           std::vector<std::unique_ptr<uint32_t[]>>* depths) {
     EmbreeStats local;
     if (!alpha) alpha = AlphaTable::builtin().get();
     const Stopwatch buildWatch;
     DenormalsOff denormals;  // the calling thread takes part in the build and in parallel_for
     EmbreeBvh bvh;
-    buildBvh(bvh, triangles, ruleFilter);
+    buildBvh(bvh, triangles, ruleFilter, depths != nullptr);
+    if (depths) depths->clear(), depths->resize(receivers.size());
     local.sceneBytes = bvh.sceneBytes;
     local.buildSeconds = buildWatch.seconds();
 
@@ -403,7 +436,7 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
             const glm::dvec3 pd(p);
             if (!std::isfinite(pd.x) || !std::isfinite(pd.y) || !std::isfinite(pd.z)) continue;
             traced += traceReceiver(bvh.scene.scene, fc, packet, samples, int(sampleSetOf[r]), p, epsilon.at(pd), ruleFilter,
-                                    masks.row(r));
+                                    masks.row(r), depths ? &(*depths)[r] : nullptr);
         }
         rays.fetch_add(traced, std::memory_order_relaxed);
         filterCalls.fetch_add(fc.calls, std::memory_order_relaxed);
@@ -434,7 +467,7 @@ public:
                                           std::span<const Triangle> all, const std::function<void(uint64_t)>& progress) {
               EmbreeStats s;
               VisibilityMasks m = castEmbree(c_.samples, targets, sets, all, receiverEpsilonOf(c_.options), &s, progress,
-                                             c_.options.embreeRuleFilter, &alphaTableOf(c_.options));
+                                             c_.options.embreeRuleFilter, &alphaTableOf(c_.options), &depths_);
               stats_.buildSeconds += s.buildSeconds, stats_.traceSeconds += s.traceSeconds, stats_.rays += s.rays;
               stats_.sceneBytes = s.sceneBytes, stats_.filterCalls += s.filterCalls;
               stats_.filterExact += s.filterExact, stats_.filterRejected += s.filterRejected;
@@ -453,7 +486,8 @@ private:
 };
 
 const CasterRegistration kEmbree{{"embree",
-                                  {.holdsScene = true, .summary = "Intel Embree 3 shadow rays over the same receivers and samples"},
+                                  {.holdsScene = true, .translucency = true,
+                                   .summary = "Intel Embree 3 shadow rays over the same receivers and samples"},
                                   [](const CastContext& c) { return std::make_unique<EmbreeSceneCaster>(c); },
                                   [](uint64_t triangles, uint64_t, const LightSamples&, const nlohmann::json&) {
                                       // The scene read once, Embree's buffers and an estimate of its BVH

@@ -18,6 +18,8 @@
 #include "stream/Triangle.h"
 
 #include <functional>
+#include <memory>
+#include <vector>
 #include <span>
 
 namespace penumbra {
@@ -43,12 +45,18 @@ struct EmbreeStats {
 /// Hits on alpha triangles (alphaIdOf() != 0) always go through the filter, which applies the
 /// rule and the alpha test of @p alpha (AlphaRule.h; null: the built-in outlines), so Embree
 /// looks further along the ray past a transparent texel, with or without @p ruleFilter.
+/// Translucent triangles (stream/Translucency.h) go into the BVH only when @p depths is given:
+/// the filter then runs the rule on every hit on one, adds its optical depth to the ray's once
+/// per primitive (Embree may report a primitive more than once) and rejects the hit, so the ray
+/// goes on; an opaque hit ends the ray as before. Without @p depths they block nothing.
 /// @param progress optional, called with the number of receivers finished.
+/// @param depths when given: per receiver, its samples' R, G, B depths (sampleCount x 3), or
+///        null where no unblocked sample crossed a translucent triangle (allocated lazily).
 /// @throw InputError when Embree reports an error (the message carries Embree's error code).
 VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& receivers,
                            std::span<const uint32_t> sampleSetOf, std::span<const Triangle> triangles,
                            const ReceiverEpsilon& epsilon, EmbreeStats* stats = nullptr,
                            const std::function<void(uint64_t)>& progress = {}, bool ruleFilter = true,
-                           const AlphaTable* alpha = nullptr);
+                           const AlphaTable* alpha = nullptr, std::vector<std::unique_ptr<uint32_t[]>>* depths = nullptr);
 
 }  // namespace penumbra

@@ -2,6 +2,7 @@
 
 #include "bake/rule/AlphaRule.h"
 #include "bake/cast/SceneCaster.h"
+#include "stream/Translucency.h"
 
 #include <tbb/parallel_for.h>
 
@@ -15,7 +16,8 @@ VisibilityMasks castReference(const LightSamples& samples, const ReceiverSet& re
     blockers.reserve(triangles.size());
     for (const Triangle& t : triangles) {
         BlockerTriangle b = BlockerTriangle::from(t);
-        if (b.valid && !(t.flags & kTriangleNoCast)) blockers.push_back(b);  // "cast_shadows": false blocks nothing
+        // "cast_shadows": false and translucent triangles block nothing.
+        if (b.valid && blocksAsOpaque(t.flags)) blockers.push_back(b);
     }
     VisibilityMasks masks(receivers.size(), samples.groupCount());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, receivers.size(), 16), [&](const tbb::blocked_range<size_t>& range) {

@@ -1,5 +1,7 @@
 #include "bake/rule/TieClassifier.h"
 
+#include "stream/Translucency.h"
+
 #include "bake/rule/AlphaRule.h"
 
 #include <fmt/format.h>
@@ -86,7 +88,8 @@ TieClassifier::TieClassifier(std::span<const Triangle> triangles, const Receiver
     : epsilon_(epsilon), ulps_(ulps), alpha_(alpha ? std::move(alpha) : AlphaTable::builtin()) {
     for (size_t i = 0; i < triangles.size(); ++i) {
         const BlockerTriangle bt = BlockerTriangle::from(triangles[i]);
-        if (!bt.valid || (triangles[i].flags & kTriangleNoCast)) continue;  // "cast_shadows": false blocks nothing
+        // "cast_shadows": false and translucent triangles (stream/Translucency.h) block nothing.
+        if (!bt.valid || (triangles[i].flags & kTriangleNoCast) || isTranslucentId(bt.alpha)) continue;
         triangles_.push_back(bt);
         streamIndex_.push_back(i);
         maxAbs_.push_back(std::max({maxAbs(bt.v[0]), maxAbs(bt.v[1]), maxAbs(bt.v[2])}));

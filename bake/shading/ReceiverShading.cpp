@@ -1,5 +1,6 @@
 #include "bake/shading/ReceiverShading.h"
 
+#include "stream/Translucency.h"
 #include "stream/util/Error.h"
 
 #include <glm/geometric.hpp>
@@ -11,6 +12,13 @@
 #include <cmath>
 
 namespace penumbra {
+namespace {
+
+/// The per-channel transmittance of one sample's optical depths @p d (R, G, B).
+glm::dvec3 transmittance(const uint32_t* d) { return {transmittanceOf(d[0]), transmittanceOf(d[1]), transmittanceOf(d[2])}; }
+
+}  // namespace
+
 glm::dvec3 radianceFromPower(const LightDesc& l, const glm::dvec3& power) {
     const double pi = glm::pi<double>();
     switch (l.type) {
@@ -40,7 +48,7 @@ ReceiverShader::ReceiverShader(const std::vector<LightDesc>& lights, const Light
 }
 
 glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* groupWords, bool fullUmbra,
-                                           uint64_t& blocked) const {
+                                           uint64_t& blocked, const uint32_t* depth) const {
     const glm::dvec3 p(receivers_.position[r]), n(receivers_.normal[r]);
     const int set = int(sets_[r]);
     const PerLight& light = lights_[li];
@@ -52,8 +60,11 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
         const uint64_t word = fullUmbra ? g.fullMask() : (groupWords ? groupWords[k] : 0);
         blocked += uint64_t(std::popcount(word));
         for (uint64_t visible = ~word & g.fullMask(); visible; visible &= visible - 1) {
+            const int sample = int(g.first) + std::countr_zero(visible);
+            // Translucent blockers crossed: the sample's weight per channel.
+            const glm::dvec3 weight = depth ? light.weight * transmittance(&depth[size_t(sample) * 3]) : light.weight;
             // A sun's sample is a direction (w = 0): the receiver's position does not matter.
-            const glm::dvec3 l(samples_.position(set, int(g.first) + std::countr_zero(visible)));
+            const glm::dvec3 l(samples_.position(set, sample));
             glm::dvec3 d = light.sun ? l : l - p;
             double dist2 = glm::dot(d, d);
             if (!(dist2 > 0)) continue;
@@ -61,11 +72,11 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
             // A zero normal (volume receivers) means no receiver cosine: fluence-like irradiance.
             double cosReceiver = n == glm::dvec3(0.0) ? 1.0 : std::max(0.0, glm::dot(n, w));
             if (light.sun) {
-                e += light.weight * cosReceiver;
+                e += weight * cosReceiver;
                 continue;
             }
             double cosEmitter = planar ? std::max(0.0, -glm::dot(light.normal, w)) : 1.0;
-            e += light.weight * (cosReceiver * cosEmitter / dist2);
+            e += weight * (cosReceiver * cosEmitter / dist2);
         }
     }
     return e;
@@ -151,13 +162,14 @@ glm::dvec3 ReceiverShader::unoccludedIrradiance(uint32_t r, int li) const {
     return lightIrradiance(r, li, nullptr, false, none);
 }
 
-void ReceiverShader::shade(uint32_t r, const uint64_t* groupWords, bool fullUmbra, ReceiverResults& out) const {
+void ReceiverShader::shade(uint32_t r, const uint64_t* groupWords, bool fullUmbra, ReceiverResults& out,
+                           const uint32_t* depth) const {
     const bool perLight = out.lights > 1;
     uint64_t blocked = 0;
     glm::dvec3 total(0.0);
     for (int li = 0; li < samples_.lightCount(); ++li) {
         uint64_t lightBlocked = 0;
-        const glm::dvec3 e = lightIrradiance(r, li, groupWords, fullUmbra, lightBlocked);
+        const glm::dvec3 e = lightIrradiance(r, li, groupWords, fullUmbra, lightBlocked, depth);
         blocked += lightBlocked;
         total += e;
         if (perLight) {

@@ -59,7 +59,11 @@ public:
     /// @brief Visible fraction and irradiance of receiver @p r, in total and per light.
     /// @param groupWords one word per group (bit set = blocked), or nullptr when nothing is blocked
     /// @param fullUmbra every sample blocked (groupWords is ignored)
-    void shade(uint32_t r, const uint64_t* groupWords, bool fullUmbra, ReceiverResults& out) const;
+    /// @param depth per sample, R, G, B optical depth of the translucent blockers crossed
+    /// (stream/Translucency.h; sampleCount x 3), or nullptr: none. It scales each visible sample's
+    /// irradiance by T = 2^(-d / 2^16) per channel; the visible fraction does not change.
+    void shade(uint32_t r, const uint64_t* groupWords, bool fullUmbra, ReceiverResults& out,
+               const uint32_t* depth = nullptr) const;
 
     /// @brief For methods that give a visible fraction per light instead of masks (penumbra-map):
     /// each light's irradiance is its unoccluded irradiance times that fraction.
@@ -69,7 +73,8 @@ public:
 private:
     /// Light @p li's irradiance at receiver @p r from its unblocked samples; @p blocked gets how
     /// many of its samples are blocked.
-    glm::dvec3 lightIrradiance(uint32_t r, int li, const uint64_t* groupWords, bool fullUmbra, uint64_t& blocked) const;
+    glm::dvec3 lightIrradiance(uint32_t r, int li, const uint64_t* groupWords, bool fullUmbra, uint64_t& blocked,
+                               const uint32_t* depth = nullptr) const;
     /// The same with every sample visible, summed in a loop the compiler vectorizes (the order of
     /// the sum differs from lightIrradiance's, so the last bits may differ).
     glm::dvec3 unoccludedIrradiance(uint32_t r, int li) const;

@@ -1,0 +1,145 @@
+#include "bake/cast/TranslucentBlockers.h"
+
+#include "bake/rule/AlphaRule.h"
+#include "stream/util/Error.h"
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <bit>
+#include <stdexcept>
+
+namespace penumbra {
+namespace {
+
+/// Distance from @p p to the segment [a, b].
+double distanceToSegment(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b) {
+    const glm::dvec3 ab = b - a;
+    const double len2 = glm::dot(ab, ab);
+    const double s = len2 > 0 ? std::clamp(glm::dot(p - a, ab) / len2, 0.0, 1.0) : 0.0;
+    return glm::length(p - (a + s * ab));
+}
+
+}  // namespace
+
+TranslucentBlockers::TranslucentBlockers(TriangleSource& blockers, const LightSamples& samples) : samples_(&samples) {
+    blockers.rewind();
+    std::vector<Triangle> chunk(kTriangleChunk);
+    while (const size_t n = blockers.read(chunk))
+        for (size_t i = 0; i < n; ++i) add(chunk[i]);
+    blockers.rewind();
+    prepareGroups();
+}
+
+TranslucentBlockers::TranslucentBlockers(std::span<const Triangle> triangles, const LightSamples& samples) : samples_(&samples) {
+    for (const Triangle& t : triangles) add(t);
+    prepareGroups();
+}
+
+void TranslucentBlockers::add(const Triangle& t) {
+    const uint32_t id = alphaIdOf(t.flags);
+    if (!isTranslucentId(id) || (t.flags & kTriangleNoCast)) return;
+    const BlockerTriangle b = BlockerTriangle::from(t);
+    if (!b.valid) return;
+    Sphere s;
+    s.centre = (b.v[0] + b.v[1] + b.v[2]) / 3.0;
+    for (const glm::dvec3& v : b.v) s.radius = std::max(s.radius, glm::length(v - s.centre));
+    tris_.push_back(b), spheres_.push_back(s), depths_.push_back(opticalDepthOf(id));
+}
+
+void TranslucentBlockers::prepareGroups() {
+    const LightSamples& ls = *samples_;
+    groups_.assign(ls.groups.size(), Sphere{});
+    for (size_t k = 0; k < ls.groups.size(); ++k) {
+        const LightSampleGroup& g = ls.groups[k];
+        if (ls.w(g.light) == 0.0) continue;  // directions: no sphere, every sample is tested
+        glm::dvec3 lo(INFINITY), hi(-INFINITY);
+        for (int set = 0; set < ls.sets; ++set)
+            for (uint32_t j = 0; j < g.count; ++j) {
+                const glm::dvec3 p(ls.position(set, int(g.first + j)));
+                lo = glm::min(lo, p), hi = glm::max(hi, p);
+            }
+        groups_[k].centre = 0.5 * (lo + hi);
+        groups_[k].radius = 0.5 * glm::length(hi - lo);
+    }
+}
+
+size_t TranslucentBlockers::bytes() const { return bytesFor(tris_.size()) + groups_.size() * sizeof(Sphere); }
+
+uint64_t TranslucentBlockers::bytesFor(uint64_t triangles) {
+    return triangles * (sizeof(BlockerTriangle) + sizeof(Sphere) + sizeof(OpticalDepth));
+}
+
+bool TranslucentBlockers::depthAt(const glm::dvec3& r, int set, const uint64_t* groupWords, bool fullUmbra,
+                                  const ReceiverEpsilon& epsilon, const AlphaTable& alpha, std::span<uint32_t> depth) const {
+    std::fill(depth.begin(), depth.end(), 0u);
+    if (fullUmbra || tris_.empty()) return false;
+    const LightSamples& ls = *samples_;
+    const double eps = epsilon.at(r);
+    uint64_t tested = 0, crossed = 0;
+    for (size_t i = 0; i < tris_.size(); ++i) {
+        const BlockerTriangle& t = tris_[i];
+        const double dist = distanceBehind(t, r);
+        if (!(std::abs(dist) > eps)) continue;  // the rule blocks nothing within eps of the plane
+        for (size_t k = 0; k < ls.groups.size(); ++k) {
+            const LightSampleGroup& g = ls.groups[k];
+            const uint64_t open = ~(groupWords ? groupWords[k] : 0ull) & g.fullMask();
+            if (!open) continue;
+            const double w = ls.w(g.light);
+            if (w != 0.0) {  // no segment of the group comes near the triangle: a generous margin
+                const double reach = groups_[k].radius + spheres_[i].radius;
+                const double d = distanceToSegment(spheres_[i].centre, r, groups_[k].centre);
+                if (d > reach * (1.0 + 1e-6) + 1e-9 * (glm::length(r - groups_[k].centre) + reach)) continue;
+            }
+            for (uint64_t bits = open; bits; bits &= bits - 1) {
+                const int j = std::countr_zero(bits);
+                const int sample = int(g.first) + j;
+                const glm::dvec3 l(ls.position(set, sample));
+                ++tested;
+                const HardShadowVolume h = makeHardShadowVolume(l, w, t);
+                if (!blocks(h, t, r, dist, eps)) continue;  // no max_distance on translucent entries (Scene.cpp)
+                ++crossed;
+                uint32_t* d = &depth[size_t(sample) * 3];
+                for (int c = 0; c < 3; ++c) d[c] = addDepth(d[c], depths_[i][c]);
+            }
+        }
+    }
+    tests.fetch_add(tested, std::memory_order_relaxed), crossings.fetch_add(crossed, std::memory_order_relaxed);
+    return crossed > 0;
+}
+
+size_t OpaqueOnlySource::read(std::span<Triangle> out) {
+    const size_t n = inner_.read(out);
+    if (n == 0 && position_ >= collectedUpTo_) complete_ = true;
+    for (size_t i = 0; i < n; ++i) {
+        if (!isTranslucentId(alphaIdOf(out[i].flags))) continue;
+        // Collected once, whatever the rewinds (tiles read the replay again).
+        if (!complete_ && position_ + i >= collectedUpTo_ && !(out[i].flags & kTriangleNoCast)) translucent_.push_back(out[i]);
+        out[i].flags |= mark_;
+    }
+    position_ += n;
+    collectedUpTo_ = std::max(collectedUpTo_, position_);
+    return n;
+}
+
+uint64_t OpaqueOnlySource::skip(uint64_t count) {
+    const uint64_t n = inner_.skip(count);
+    position_ += n;
+    collectedUpTo_ = std::max(collectedUpTo_, position_);
+    return n;
+}
+
+std::unique_ptr<TranslucentBlockers> translucentPass(const OpaqueOnlySource& view, const LightSamples& samples,
+                                                     const std::string& method, const CasterTraits& traits,
+                                                     const char* partialFiles) {
+    if (!view.complete()) throw std::logic_error("--method " + method + " reported a receiver before reading every blocker");
+    if (view.translucent().empty()) return nullptr;
+    if (partialFiles)
+        fail(partialFiles, "scenes with translucent blockers cannot be sharded or checkpointed yet (their per-sample "
+                           "transmittance is not in partial files)");
+    if (!traits.masks) fail("--method " + method, "does not support translucent blockers (use hpc, reference or embree)");
+    if (traits.translucency) return nullptr;  // Embree's filter weighs them
+    return std::make_unique<TranslucentBlockers>(view.translucent(), samples);
+}
+
+}  // namespace penumbra

@@ -1,0 +1,337 @@
+// Coloured translucent blockers (issue #15): a pane's transmittance in the irradiance, stacked
+// panes' product in any order, thread count and method, umbra safety, glTF BLEND and
+// KHR_materials_transmission materials, and one-line errors for bad declarations.
+
+#include "CliRunner.h"
+#include "MethodChecks.h"
+#include "TestSupport.h"
+
+#include "bake/Pipeline.h"
+#include "bake/Scene.h"
+#include "bake/cast/Caster.h"
+#include "procedural/Generators.h"
+#include "stream/GltfTranslucency.h"
+#include "stream/PtriFormat.h"
+#include "stream/Translucency.h"
+#include "stream/util/Npy.h"
+#include "stream/util/Random.h"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+
+using namespace penumbra;
+using namespace penumbra::test;
+
+namespace {
+
+/// A horizontal square of half-size @p half at height @p y, as OBJ text (two triangles).
+std::string paneObj(double y, double half) {
+    return fmt::format("v {0} {2} {0}\nv {1} {2} {0}\nv {1} {2} {1}\nv {0} {2} {1}\nf 1 2 3\nf 1 3 4\n", -half, half, y);
+}
+
+void writeText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+
+/// An n x n grid of upward point receivers on the floor within |x|, |z| <= 1.5.
+void writeFloorPoints(const std::string& path, int n) {
+    std::vector<float> rows;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j)
+            rows.insert(rows.end(), {-1.5f + 3.f * float(i) / float(n - 1), 0.f, -1.5f + 3.f * float(j) / float(n - 1), 0.f, 1.f, 0.f});
+    const uint64_t shape[2] = {uint64_t(n) * uint64_t(n), 6};
+    writeNpy(path, "<f4", shape, rows.data(), rows.size() * sizeof(float));
+}
+
+/// A scene of @p geometry over the floor points, lit by a square light at height 4.
+SceneDesc sceneOf(const ScratchDir& dir, nlohmann::json geometry, int receiversPerSide = 12) {
+    registerFileSourceTypes();
+    registerProceduralGenerators();
+    writeFloorPoints(dir / "floor.npy", receiversPerSide);
+    if (geometry.empty()) geometry.push_back({{"type", "obj"}, {"path", "far.obj"}});  // one pane out of every light's way
+    writeText(dir / "far.obj", paneObj(-50, 0.1));
+    nlohmann::json scene = {{"geometry", geometry},
+                            {"lights", {{{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {0.5, 0, 0}}, {"v", {0, 0, 0.5}},
+                                         {"radiance", {10, 10, 10}}, {"samples", 64}, {"sample_sets", 2}}}},
+                            {"receivers", {{"type", "points"}, {"path", "floor.npy"}}},
+                            {"output", "out.npy"}};
+    writeText(dir / "scene.json", scene.dump());  // sharded bakes hash the scene file
+    return parseScene(scene, dir / "scene.json");
+}
+
+nlohmann::json paneEntry(const std::string& file, const glm::dvec3& color, double opacity) {
+    return {{"type", "obj"}, {"path", file}, {"translucent", {{"color", {color.r, color.g, color.b}}, {"opacity", opacity}}}};
+}
+
+BakeCapture bake(const SceneDesc& scene, const std::string& method = "hpc", int threads = 2, uint64_t budget = 0,
+                 nlohmann::json* stats = nullptr) {
+    BakeCapture capture;
+    capture.wantMasks = true;
+    BakeSettings settings;
+    settings.quiet = true, settings.threads = threads, settings.method = method, settings.capture = &capture;
+    settings.memoryBudget = budget;
+    nlohmann::json s = runBake(scene, settings);
+    if (stats) *stats = s;
+    return capture;
+}
+
+/// The transmittance the bake applies for a surface of transmittance @p t (its quantized depth).
+glm::dvec3 quantized(const glm::dvec3& t) {
+    return {transmittanceOf(quantizeDepth(t.r)), transmittanceOf(quantizeDepth(t.g)), transmittanceOf(quantizeDepth(t.b))};
+}
+
+/// Every receiver's irradiance is @p reference's times @p t, to the last few bits of the sum.
+void requireScaled(const BakeCapture& got, const BakeCapture& reference, const glm::dvec3& t) {
+    REQUIRE(got.results.irradiance.size() == reference.results.irradiance.size());
+    for (size_t r = 0; r < got.results.irradiance.size(); ++r)
+        for (int c = 0; c < 3; ++c) {
+            INFO("receiver " << r << " channel " << c);
+            const double want = double(reference.results.irradiance[r][c]) * t[c];
+            CHECK(double(got.results.irradiance[r][c]) == Approx(want).epsilon(1e-6));
+        }
+}
+
+bool sameResults(const BakeCapture& a, const BakeCapture& b) {
+    return a.results.visibility == b.results.visibility && a.results.irradiance == b.results.irradiance;
+}
+
+}  // namespace
+
+TEST_CASE("translucency: optical depths are exact integers, saturating, associative", "[translucent]") {
+    CHECK(quantizeDepth(1.0) == 0);
+    CHECK(quantizeDepth(0.5) == 65536);
+    CHECK(quantizeDepth(0.25) == 2 * 65536);
+    CHECK(quantizeDepth(0.0) == kMaxOpticalDepth);
+    CHECK(quantizeDepth(std::numeric_limits<double>::quiet_NaN()) == kMaxOpticalDepth);
+    CHECK(transmittanceOf(65536) == 0.5);
+    CHECK(transmittanceOf(kMaxOpticalDepth) == 0x1p-64);  // saturated: dark, never opaque
+    CHECK(addDepth(kMaxOpticalDepth - 1, 5) == kMaxOpticalDepth);
+    Rng rng(3);
+    for (int i = 0; i < 1000; ++i) {
+        const double t = rng.uniform();
+        CHECK(std::abs(std::log2(transmittanceOf(quantizeDepth(t))) - std::log2(t)) <= 0x1p-17 + 1e-15);
+        const uint32_t a = uint32_t(rng.next() % kMaxOpticalDepth), b = uint32_t(rng.next() % kMaxOpticalDepth),
+                       c = uint32_t(rng.next() % kMaxOpticalDepth);
+        CHECK(addDepth(addDepth(a, b), c) == addDepth(a, addDepth(b, c)));
+        CHECK(addDepth(a, b) == addDepth(b, a));
+    }
+    CHECK(surfaceTransmittance({0.2, 0.5, 1.0}, 0.5, 1.0) == glm::dvec3(0.6, 0.75, 1.0));
+    CHECK(translucentId({0.6, 0.75, 1.0}, "t") == translucentId({0.6, 0.75, 1.0}, "t"));
+    CHECK(opticalDepthOf(translucentId({0.5, 1.0, 0.25}, "t")) == OpticalDepth{65536, 0, 131072});
+}
+
+TEST_CASE("translucency: one coloured pane gives its transmittance in E and leaves V at 1", "[translucent]") {
+    ScratchDir dir("translucent-one");
+    writeText(dir / "pane.obj", paneObj(2.0, 3.0));  // covers every segment of every receiver
+    const BakeCapture open = bake(sceneOf(dir, {}));
+    const glm::dvec3 color(0.9, 0.5, 0.2);
+    const double opacity = 0.8;
+    for (const char* method : {"hpc", "reference", "embree"}) {
+        INFO(method);
+        const BakeCapture pane = bake(sceneOf(dir, {paneEntry("pane.obj", color, opacity)}), method);
+        for (float v : pane.results.visibility) REQUIRE(v == 1.0f);
+        const glm::dvec3 t = surfaceTransmittance(color, opacity, 1.0);  // (0.92, 0.6, 0.36)
+        const glm::dvec3 applied = quantized(t);
+        for (int c = 0; c < 3; ++c) CHECK(std::abs(applied[c] / t[c] - 1.0) < 6e-6);
+        requireScaled(pane, open, applied);
+    }
+}
+
+TEST_CASE("translucency: stacked panes give the product in any order, thread count and method",
+          "[translucent][embree]") {
+    ScratchDir dir("translucent-stack");
+    writeText(dir / "low.obj", paneObj(1.5, 3.0));
+    writeText(dir / "high.obj", paneObj(2.5, 3.0));
+    const nlohmann::json red = paneEntry("low.obj", {1.0, 0.3, 0.3}, 0.7), blue = paneEntry("high.obj", {0.2, 0.4, 1.0}, 0.6);
+    const BakeCapture open = bake(sceneOf(dir, {}));
+    const BakeCapture first = bake(sceneOf(dir, {red, blue}), "hpc", 1);
+    requireScaled(first, open,
+                  quantized(surfaceTransmittance({1.0, 0.3, 0.3}, 0.7, 1.0)) * quantized(surfaceTransmittance({0.2, 0.4, 1.0}, 0.6, 1.0)));
+    // The bake's transmittance is that of the summed depths: bit for bit the same every way.
+    CHECK(sameResults(first, bake(sceneOf(dir, {blue, red}), "hpc", 1)));
+    CHECK(sameResults(first, bake(sceneOf(dir, {blue, red}), "hpc", 3)));
+    CHECK(sameResults(first, bake(sceneOf(dir, {red, blue}), "reference", 2)));
+    CHECK(sameResults(first, bake(sceneOf(dir, {blue, red}), "embree", 2)));
+    CHECK(sameResults(first, bake(sceneOf(dir, {red, blue}), "ssv", 2)));
+    // hpc's memory tiles: 10,000 receivers at the smallest budget are cast in several tiles.
+    nlohmann::json stats;
+    const BakeCapture whole = bake(sceneOf(dir, {red, blue}, 100), "hpc", 2, 0, &stats);
+    const uint64_t smallest = stats["memory_plan"]["minimum_budget_bytes"].get<uint64_t>();
+    const BakeCapture tiled = bake(sceneOf(dir, {blue, red}, 100), "hpc", 2, smallest, &stats);
+    CHECK(stats["memory_plan"]["tiles"].get<int>() >= 2);
+    CHECK(sameResults(whole, tiled));
+}
+
+TEST_CASE("translucency: a pane never makes umbra, an opaque blocker behind it still does", "[translucent]") {
+    ScratchDir dir("translucent-umbra");
+    writeText(dir / "pane.obj", paneObj(2.0, 3.0));
+    writeText(dir / "card.obj", paneObj(1.0, 1.0));
+    // The darkest pane there is: saturated depth, still no umbra.
+    const BakeCapture alone = bake(sceneOf(dir, {paneEntry("pane.obj", {0, 0, 0}, 1.0)}));
+    for (size_t r = 0; r < alone.receivers.size(); ++r) {
+        CHECK(alone.results.visibility[r] == 1.0f);
+        CHECK(alone.results.irradiance[r].g > 0.0f);
+    }
+    for (const char* method : {"hpc", "reference"}) {
+        const BakeCapture both = bake(sceneOf(dir, {paneEntry("pane.obj", {0.5, 0.5, 0.5}, 1.0), {{"type", "obj"}, {"path", "card.obj"}}}), method);
+        const BakeCapture card = bake(sceneOf(dir, {{{"type", "obj"}, {"path", "card.obj"}}}), method);
+        CHECK(both.results.visibility == card.results.visibility);
+        CHECK(both.masks.words == card.masks.words);
+        size_t umbra = 0;
+        for (size_t r = 0; r < both.receivers.size(); ++r)
+            if (card.results.visibility[r] == 0.0f) {
+                ++umbra;
+                CHECK(both.results.irradiance[r] == glm::vec3(0.0f));
+            }
+        CHECK(umbra > 0);
+    }
+}
+
+TEST_CASE("translucency: random soups of translucent, opaque and cut-out blockers agree in every method",
+          "[translucent][embree]") {
+    ScratchDir dir("translucent-soup");
+    Rng rng(15);
+    std::string soups[3];
+    for (int s = 0; s < 3; ++s) {
+        for (int i = 0; i < 25; ++i) {
+            const glm::dvec3 c(rng.uniform(-1.5, 1.5), rng.uniform(0.5, 3.0), rng.uniform(-1.5, 1.5));
+            for (int k = 0; k < 3; ++k)
+                soups[s] += fmt::format("v {} {} {}\n", c.x + rng.uniform(-0.5, 0.5), c.y + rng.uniform(-0.3, 0.3), c.z + rng.uniform(-0.5, 0.5));
+            soups[s] += fmt::format("f {} {} {}\n", 3 * i + 1, 3 * i + 2, 3 * i + 3);
+        }
+        writeText(dir / fmt::format("soup{}.obj", s), soups[s]);
+    }
+    const SceneDesc scene = sceneOf(dir, {paneEntry("soup0.obj", {0.9, 0.2, 0.1}, 0.5), paneEntry("soup1.obj", {0.1, 0.8, 0.7}, 0.9),
+                                          {{"type", "obj"}, {"path", "soup2.obj"}},
+                                          {{"type", "flowers"}, {"density", 6}, {"area", {{-1.5, -1.5}, {1.5, 1.5}}}, {"height", {0.3, 0.6}}, {"seed", 4}}});
+    const BakeCapture reference = bake(scene, "reference");
+    REQUIRE(reference.masks.blockedCount() > 0);
+    const BakeCapture hpc1 = bake(scene, "hpc", 1), hpc3 = bake(scene, "hpc", 3);
+    CHECK(sameResults(reference, hpc1));
+    CHECK(sameResults(reference, hpc3));
+    CHECK(reference.masks.words == hpc1.masks.words);
+    // Embree sums the depths in its own filter: masks equal up to classified ties, and where they
+    // are equal, so is everything (a translucent edge tie would show here).
+    const BakeCapture embree = bake(scene, "embree");
+    TriangleSourcePtr geometry = openSceneGeometry(scene);
+    const std::vector<Triangle> triangles = readAll(*geometry);
+    const TieCount ties = classifyMismatches(reference.samples, reference.receivers, reference.sampleSets, triangles, reference.masks,
+                                             embree.masks, receiverEpsilonOf(scene.options));
+    CHECK(ties.mismatches == ties.ties);
+    size_t attenuated = 0;
+    for (size_t r = 0; r < reference.receivers.size(); ++r) {
+        const bool same = std::equal(reference.masks.row(r), reference.masks.row(r) + reference.masks.groups, embree.masks.row(r));
+        if (same) CHECK(reference.results.irradiance[r] == embree.results.irradiance[r]);
+        if (reference.results.irradiance[r].r != reference.results.irradiance[r].g) ++attenuated;
+    }
+    CHECK(attenuated > 0);  // the soups did colour some receivers
+}
+
+TEST_CASE("translucency: glTF BLEND and KHR_materials_transmission materials", "[translucent][gltf]") {
+    ScratchDir dir("translucent-gltf");
+    // One quad at y = 2, half-size 3, embedded: 4 float3 positions then 6 uint16 indices.
+    std::vector<uint8_t> bin;
+    auto put = [&](const void* p, size_t n) { bin.insert(bin.end(), (const uint8_t*)p, (const uint8_t*)p + n); };
+    const float pos[12] = {-3, 2, -3, 3, 2, -3, 3, 2, 3, -3, 2, 3};
+    const uint16_t idx[6] = {0, 1, 2, 0, 2, 3};
+    put(pos, sizeof pos), put(idx, sizeof idx);
+    static const char* b64 = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    std::string uri = "data:application/octet-stream;base64,";
+    REQUIRE(bin.size() % 3 == 0);  // 60 bytes: no padding
+    for (size_t i = 0; i < bin.size(); i += 3) {
+        const uint32_t v = uint32_t(bin[i]) << 16 | uint32_t(bin[i + 1]) << 8 | bin[i + 2];
+        for (int k = 0; k < 4; ++k) uri += b64[(v >> (18 - 6 * k)) & 63];
+    }
+    auto gltf = [&](const nlohmann::json& material) {
+        return nlohmann::json{
+            {"asset", {{"version", "2.0"}}},
+            {"buffers", {{{"byteLength", bin.size()}, {"uri", uri}}}},
+            {"bufferViews", {{{"buffer", 0}, {"byteOffset", 0}, {"byteLength", 48}}, {{"buffer", 0}, {"byteOffset", 48}, {"byteLength", 12}}}},
+            {"accessors", {{{"bufferView", 0}, {"componentType", 5126}, {"count", 4}, {"type", "VEC3"}, {"min", {-3, 2, -3}}, {"max", {3, 2, 3}}},
+                           {{"bufferView", 1}, {"componentType", 5123}, {"count", 6}, {"type", "SCALAR"}}}},
+            {"materials", {material}},
+            {"meshes", {{{"primitives", {{{"attributes", {{"POSITION", 0}}}, {"indices", 1}, {"material", 0}}}}}}},
+            {"nodes", {{{"mesh", 0}}}},
+            {"scenes", {{{"nodes", {0}}}}}};
+    };
+    const nlohmann::json blend = {{"alphaMode", "BLEND"}, {"pbrMetallicRoughness", {{"baseColorFactor", {0.2, 0.6, 1.0, 0.5}}}}};
+    const nlohmann::json glass = {{"pbrMetallicRoughness", {{"baseColorFactor", {1.0, 0.8, 0.4, 1.0}}}},
+                                  {"extensions", {{"KHR_materials_transmission", {{"transmissionFactor", 0.9}}}}}};
+    const BakeCapture open = bake(sceneOf(dir, {}));
+    const std::pair<nlohmann::json, glm::dvec3> cases[] = {{blend, surfaceTransmittance({0.2, 0.6, 1.0}, 0.5, 1.0)},
+                                                          {glass, surfaceTransmittance({1.0, 0.8, 0.4}, 1.0, 0.9)}};
+    for (const auto& [material, t] : cases) {
+        writeText(dir / "pane.gltf", gltf(material).dump());
+        const BakeCapture pane = bake(sceneOf(dir, {{{"type", "gltf"}, {"path", "pane.gltf"}}}));
+        for (float v : pane.results.visibility) REQUIRE(v == 1.0f);
+        requireScaled(pane, open, quantized(t));
+    }
+    // MASK and plain OPAQUE materials stay opaque.
+    writeText(dir / "pane.gltf", gltf({{"alphaMode", "OPAQUE"}}).dump());
+    for (float v : bake(sceneOf(dir, {{{"type", "gltf"}, {"path", "pane.gltf"}}})).results.visibility) CHECK(v == 0.0f);
+    // Bad factors: one line naming the file and the material.
+    const std::string bad = errorOf([&] {
+        gltfMaterialAlphaIds("x.gltf", {{"materials", {{{"alphaMode", "BLEND"}, {"pbrMetallicRoughness", {{"baseColorFactor", {2, 0, 0, 1}}}}}}}});
+    });
+    CHECK(bad == "x.gltf: material 0 baseColorFactor must be a number in [0, 1], got 2");
+    CHECK(errorOf([&] { gltfMaterialAlphaIds("x.gltf", {{"materials", {{{"alphaMode", "BLENDED"}}}}}); }) ==
+          "x.gltf: material 0 has an unknown alphaMode \"BLENDED\"");
+    CHECK(errorOf([&] {
+              gltfMaterialAlphaIds("x.gltf", {{"materials", {{{"extensions", {{"KHR_materials_transmission", {{"transmissionFactor", -1}}}}}}}}});
+          }) == "x.gltf: material 0 KHR_materials_transmission transmissionFactor must be a number in [0, 1], got -1");
+}
+
+TEST_CASE("translucency: bad declarations and unsupported bakes give one line", "[translucent]") {
+    ScratchDir dir("translucent-bad");
+    writeText(dir / "pane.obj", paneObj(2.0, 3.0));
+    auto errorFor = [&](const nlohmann::json& translucent) {
+        return errorOf([&] { sceneOf(dir, {{{"type", "obj"}, {"path", "pane.obj"}, {"translucent", translucent}}}); });
+    };
+    const std::string scene = dir / "scene.json";
+    CHECK(errorFor({{"color", {1.5, 0, 0}}, {"opacity", 0.5}}) == scene + ": geometry[0].translucent.color[0]: must be a number in [0, 1], got 1.5");
+    CHECK(errorFor({{"color", {1, 1, 1}}, {"opacity", std::nan("")}}) ==
+          scene + ": geometry[0].translucent.opacity: expected a finite number");
+    CHECK(errorFor({{"color", {1, 1, 1}}, {"opacity", -0.1}}) == scene + ": geometry[0].translucent.opacity: must be a number in [0, 1], got -0.1");
+    CHECK(errorFor({{"color", {1, 1}}}).find("geometry[0].translucent.color") != std::string::npos);
+    CHECK(errorFor({{"colour", {1, 1, 1}}}).find("colour") != std::string::npos);
+    CHECK(errorFor(0.5) == scene + ": geometry[0].translucent: expected an object with \"color\" and \"opacity\"");
+    // A method without per-sample masks cannot weigh samples: refused, nothing written.
+    const SceneDesc pane = sceneOf(dir, {paneEntry("pane.obj", {0.5, 0.5, 0.5}, 1.0)});
+    CHECK(errorOf([&] { bake(pane, "penumbra-map"); }) ==
+          "--method penumbra-map: does not support translucent blockers (use hpc, reference or embree)");
+    BakeSettings sharded;
+    sharded.quiet = true, sharded.shard.count = 2, sharded.shard.index = 0, sharded.shard.dir = dir / "shards";
+    const std::string shardError = errorOf([&] { runBake(pane, sharded); });
+    INFO(shardError);
+    CHECK(shardError.find("--shard: scenes with translucent blockers cannot be sharded") == 0);
+    CHECK((!std::filesystem::exists(dir / "shards") || std::filesystem::is_empty(dir / "shards")));  // no partial file
+}
+
+TEST_CASE("translucency: .ptri files refuse translucent triangles", "[translucent]") {
+    ScratchDir dir("translucent-ptri");
+    Triangle t;
+    t.v = {glm::vec3(0, 0, 0), glm::vec3(1, 0, 0), glm::vec3(0, 0, 1)};
+    t.flags = withAlphaId(0, translucentId({0.5, 0.5, 0.5}, "test"));
+    {
+        PtriWriter writer(dir / "x.ptri");
+        CHECK(errorOf([&] { writer.write(std::span<const Triangle>(&t, 1)); }) ==
+              (dir / "x.ptri") + ": triangle 0 is translucent (a glTF BLEND or transmission material), which .ptri files do not hold");
+    }
+    CHECK_FALSE(std::filesystem::exists(dir / "x.ptri"));  // nothing half-written
+}
+
+TEST_CASE("translucency: examples/glass.json bakes coloured shadows", "[translucent][cli]") {
+    ScratchDir dir("translucent-example");
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/examples/glass.json";
+    const RunResult r = runPenumbra("bake " + scene + " -q --threads 2 -o " + (dir / "glass.exr") + " --stats " + (dir / "stats.json"));
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    CHECK(std::filesystem::exists(dir / "glass.png"));
+    const nlohmann::json stats = nlohmann::json::parse(slurp(dir / "stats.json"));
+    CHECK(stats["translucent"]["triangles"] == 8);  // four panes
+    CHECK(stats["translucent"]["crossings"].get<uint64_t>() > 0);
+    // The panes never block: the blocked relations are the floor's bar's and nothing else.
+    CHECK(stats["blocked_relations"].get<uint64_t>() < stats["translucent"]["crossings"].get<uint64_t>());
+}
