@@ -37,16 +37,23 @@
 
 namespace penumbra {
 
-/// @brief Scene keys bake.penumbra_map_resolution, bake.penumbra_map_bias (and the flags of the
-/// same names).
+/// @brief Scene keys bake.penumbra_map_resolution, bake.penumbra_map_bias,
+/// bake.penumbra_map_lookup (and the flags of the same names).
 struct PenumbraMapOptions {
+    /// How a receiver's visible fraction is read from the maps.
+    enum class Lookup {
+        Backprojection,  ///< the shadow map backprojected onto the light (Backprojection.h): inner and outer penumbrae
+        WymanHansen,     ///< the paper's penumbra map: the hard shadow from the centre and outer penumbrae only
+    };
     int resolution = 1024;      ///< texels per side of a fitted view; cube faces get half
     double bias = 1.5;          ///< depth bias in texels of the shadow map, scaled by the receiver's slope
+    Lookup lookup = Lookup::Backprojection;
     /// Bytes of one light's maps (depth and penumbra, float, at most six cube faces).
     uint64_t mapBytes() const;
 };
 
-/// @brief Reads bake.penumbra_map_resolution and bake.penumbra_map_bias (defaults when absent).
+/// @brief Reads bake.penumbra_map_resolution, bake.penumbra_map_bias and bake.penumbra_map_lookup
+/// ("backprojection" or "wyman-hansen"; defaults when absent).
 /// @throw InputError naming the key for a value out of range
 PenumbraMapOptions penumbraMapOptions(const JsonParams& bake);
 
@@ -54,7 +61,7 @@ struct PenumbraMapStats {
     int views = 0;
     uint64_t mapBytes = 0;        ///< the largest light's maps
     double shadowSeconds = 0;     ///< pass 1: shadow maps
-    double penumbraSeconds = 0;   ///< pass 2: silhouettes, cones and sheets
+    double penumbraSeconds = 0;   ///< pass 2 (wyman-hansen): silhouettes, cones and sheets; backprojection: the depth pyramid
     double lookupSeconds = 0;
     uint64_t silhouetteRuns = 0;  ///< runs of silhouette edge drawn as sheets
     uint64_t trianglesRead = 0;

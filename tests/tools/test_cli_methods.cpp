@@ -114,4 +114,6 @@ TEST_CASE("a method's own scene keys are read by the method whichever method bak
     requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_bias\": -1") + " -q --method penumbra-map"),
                       "bake.penumbra_map_bias: must be finite and non-negative");
     requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_resolutions\": 64") + " -q"), "penumbra_map_resolutions");
+    requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_lookup\": \"pcss\"") + " -q --method penumbra-map"),
+                      "bake.penumbra_map_lookup: must be \"backprojection\" or \"wyman-hansen\"");
 }
