@@ -63,6 +63,10 @@ void addCastOptions(CLI::App& bake, BakeCommand& c) {
         ->check(CLI::Range(16, 16384));
     bake.add_option("--penumbra-map-bias", c.mapBias, "penumbra-map: depth bias in texels (overrides bake.penumbra_map_bias)")
         ->check(CLI::Range(0.0, 1e6));
+    bake.add_option("--penumbra-map-lookup", c.mapLookup,
+                    "penumbra-map: backprojection (default: inner and outer penumbrae) or wyman-hansen (the paper's outer penumbrae; "
+                    "overrides bake.penumbra_map_lookup)")
+        ->check(CLI::IsMember({"backprojection", "wyman-hansen"}));
 }
 
 /// The files a bake wrote, for its summary line: each one, up to a few, then how many more.
@@ -91,6 +95,7 @@ SceneDesc sceneOf(const BakeCommand& c) {
     if (!c.embreeFilter.empty()) scene.options.embreeRuleFilter = c.embreeFilter == "on";
     if (c.mapResolution > 0) scene.bakeOptions["penumbra_map_resolution"] = c.mapResolution;
     if (c.mapBias >= 0) scene.bakeOptions["penumbra_map_bias"] = c.mapBias;
+    if (!c.mapLookup.empty()) scene.bakeOptions["penumbra_map_lookup"] = c.mapLookup;
     return scene;
 }
 

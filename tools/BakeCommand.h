@@ -22,6 +22,7 @@ struct BakeCommand {
     std::string simd, sampleTable, closedCasters, embreeFilter, memoryBudget, tmpDir;
     int mapResolution = 0;
     double mapBias = -1;
+    std::string mapLookup;  ///< empty: the scene's
     ShardCli shard;
     CLI::Option *outputOption = nullptr, *statsOption = nullptr, *dumpOption = nullptr, *tmpOption = nullptr,
                 *budgetOption = nullptr;

@@ -177,10 +177,22 @@ CLI::App* addBenchMethodsCommand(CLI::App& bench, BenchMethodsOptions& o) {
     cmd->add_option("--tmp", o.tmpDir, "directory for scenes, dumps and bucket files (default: the system temp dir)");
     cmd->add_flag("--no-compare", o.noCompare, "skip the --dump runs that count mismatches against hpc");
     cmd->add_flag("-q,--quiet", o.quiet, "no progress lines on stderr");
+    cmd->add_option("--render", o.renderPath,
+                    "bake nothing: print (and with --markdown splice) the Markdown of a JSON result written by an earlier run");
     return cmd;
 }
 
 void runBenchMethods(const BenchMethodsOptions& o, const std::string& commandLine) {
+    if (!o.renderPath.empty()) {
+        json result;
+        try {
+            result = json::parse(slurpFile(o.renderPath));
+            writeMethodsMarkdown(result, o.markdownPath);
+        } catch (const json::exception& e) {
+            fail("--render", "{}: not a result of bench methods ({})", o.renderPath, e.what());
+        }
+        return;
+    }
     if (!(o.scale > 0.0 && o.scale <= 4.0)) fail("--scale", "must be in (0, 4], got {}", o.scale);
     if (o.repeat < 1 || o.repeat > 100) fail("--repeat", "must be in 1..100, got {}", o.repeat);
     if (o.threads < 0 || o.threads > 1024) fail("--threads", "must be in 0..1024, got {}", o.threads);
@@ -255,9 +267,12 @@ void runBenchMethods(const BenchMethodsOptions& o, const std::string& commandLin
     result["load_average_end"] = loadAverage();
     result["bench_process_peak_rss_bytes"] = peakRssBytes();
     save();
+    writeMethodsMarkdown(result, o.markdownPath);
+}
+
+void writeMethodsMarkdown(const json& result, const std::string& markdownPath) {
     const std::string md = methodsMarkdown(result);
-    if (!o.markdownPath.empty())
-        writeText(o.markdownPath, replaceMethodsSection(fs::exists(o.markdownPath) ? slurpFile(o.markdownPath) : "", md));
+    if (!markdownPath.empty()) writeText(markdownPath, replaceMethodsSection(fs::exists(markdownPath) ? slurpFile(markdownPath) : "", md));
     fmt::print("{}", md);
 }
 

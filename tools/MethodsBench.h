@@ -27,6 +27,7 @@ struct BenchMethodsOptions {
     int repeat = 1;
     double referenceLimit = 2e10;            ///< relation-triangle tests beyond which the reference is skipped
     std::string jsonPath, markdownPath;
+    std::string renderPath;                  ///< --render: only the Markdown of this earlier JSON result
     std::string examplesDir = "examples";
     std::string tmpDir;
     bool noCompare = false;                  ///< skip the --dump runs and the mismatch counts
@@ -40,6 +41,10 @@ CLI::App* addBenchMethodsCommand(CLI::App& bench, BenchMethodsOptions& options);
 /// asked, and prints the Markdown. @throw InputError for bad options or missing scenes; a failing
 /// bake is recorded in its row and does not stop the run.
 void runBenchMethods(const BenchMethodsOptions& options, const std::string& commandLine);
+
+/// @brief Prints the Markdown of @p result and, unless @p markdownPath is empty, splices it into
+/// that file's generated "Methods" section.
+void writeMethodsMarkdown(const nlohmann::json& result, const std::string& markdownPath);
 
 /// @brief The generated Markdown for a result document.
 std::string methodsMarkdown(const nlohmann::json& result);

@@ -41,8 +41,12 @@ void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1
             }
             if (b[0] < 0 || b[1] < 0 || b[2] < 0) continue;
             const float z = float(view.fromLinear(b[0] * lin[0] + b[1] * lin[1] + b[2] * lin[2]));
-            float& d = map.depth[size_t(y) * map.res + x];
-            d = std::min(d, z);
+            if (map.layers == 1) {
+                float& d = map.depth[size_t(y) * map.res + x];
+                d = std::min(d, z);
+            } else {
+                map.insert(size_t(y) * map.res + x, z, float(view.layerGap(z)));
+            }
         }
 }
 
@@ -73,6 +77,25 @@ void drawClipped(const LightView& view, const Triangle& t, int y0, int y1, Depth
 }
 
 }  // namespace
+
+void DepthMap::reset(int resolution, int layerCount) {
+    res = resolution, layers = layerCount;
+    depth.assign(size_t(layers) * res * res, INFINITY);
+}
+
+void DepthMap::insert(size_t index, float z, float gap) {
+    const size_t plane = size_t(res) * res;
+    float* d = &depth[index];
+    int i = 0;
+    while (i < layers && !(z <= d[i * plane] + gap)) ++i;  // the first layer z is not beyond
+    if (i == layers) return;
+    if (z >= d[i * plane] - gap) {  // the same layer: the nearer depth stays
+        d[i * plane] = std::min(d[i * plane], z);
+        return;
+    }
+    for (int j = layers - 1; j > i; --j) d[j * plane] = d[(j - 1) * plane];
+    d[i * plane] = z;
+}
 
 double LightView::depth(const glm::dvec3& p) const { return glm::dot(p - origin, axis); }
 

@@ -49,6 +49,9 @@ public:
     /// The value interpolated linearly across the image: 1/z (perspective) or z (orthographic).
     double linearDepth(double z) const { return ortho ? z : 1.0 / z; }
     double fromLinear(double v) const { return ortho ? v : 1.0 / v; }
+    /// Depths closer than this at depth @p z are one layer of a DepthMap: 3 % of the depth
+    /// (perspective) or 1 % of the view's width (orthographic).
+    double layerGap(double z) const { return ortho ? 0.02 * halfExtent : 0.03 * z; }
 };
 
 /// @brief The views of light @p light: one perspective view fitted to the receivers' directions
@@ -62,16 +65,23 @@ std::vector<LightView> makeLightViews(const LightSamples& samples, int light, co
 /// bound's vertices.
 glm::dvec3 lightCentre(const LightSamples& samples, int light);
 
-/// @brief A depth map: the nearest depth per texel (+infinity where nothing was drawn).
+/// @brief A layered depth map: per texel the nearest depths of up to `layers` surfaces, ascending
+/// (+infinity where fewer were drawn). Layer 0 is the classic shadow map. Depths closer than the
+/// view's layer gap to a kept one merge into it (the nearer wins), so the two faces of a thin
+/// solid take one layer and the next layers hold the surfaces hidden behind it from the centre.
 struct DepthMap {
     int res = 0;
-    std::vector<float> depth;
-    float at(int x, int y) const { return depth[size_t(y) * res + x]; }
+    int layers = 1;
+    std::vector<float> depth;  ///< layer-major: layer * res * res + y * res + x
+    void reset(int resolution, int layerCount);
+    float at(int x, int y, int layer = 0) const { return depth[(size_t(layer) * res + y) * res + x]; }
+    /// Inserts depth @p z at texel @p index (y * res + x) with merge gap @p gap.
+    void insert(size_t index, float z, float gap);
 };
 
-/// @brief Scan-converts @p chunk into @p map (nearest depth wins), texel centres inside or on a
-/// triangle's edges; triangles are clipped at the near plane. Rows are split between threads;
-/// the minimum does not depend on the order, so the map does not depend on the thread count.
+/// @brief Scan-converts @p chunk into @p map, texel centres inside or on a triangle's edges;
+/// triangles are clipped at the near plane. Rows are split between threads and every band draws
+/// the chunk's triangles in stream order, so the map does not depend on the thread count.
 void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, DepthMap& map);
 
 /// @brief Projects @p t's vertices, or returns false when one is nearer than zNear.

@@ -1,5 +1,6 @@
 #include "bake/methods/PenumbraMap.h"
 
+#include "bake/methods/Backprojection.h"
 #include "bake/methods/LightView.h"
 #include "bake/methods/TexelIndex.h"
 #include "bake/cast/SceneCaster.h"
@@ -12,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace penumbra {
 namespace {
@@ -26,11 +28,14 @@ struct ViewMaps {
     std::vector<glm::dvec2> outline;    ///< the light bound's vertices in image axes (world or tangent units)
     std::vector<float> tileFar;         ///< per kTile x kTile texels: the farthest surface (0: none)
     int tiles = 0;                      ///< tiles per side
+    std::vector<DepthPyramid> pyramids;   ///< the backprojection lookup's coarse levels, per layer
+    std::optional<LightGrid> grid;        ///< the light's outline as cells (backprojection)
     /// The farthest surface in the texel box [lo, hi] (conservative: whole tiles).
     float farthest(glm::dvec2 lo, glm::dvec2 hi) const;
 };
 
 constexpr int kTile = 16;
+constexpr int kLayers = 4;  ///< depth layers of the backprojection lookup's shadow map
 
 float ViewMaps::farthest(glm::dvec2 lo, glm::dvec2 hi) const {
     const int x0 = clampedTexel(std::floor(lo.x / kTile), 0, tiles - 1), x1 = clampedTexel(std::floor(hi.x / kTile), 0, tiles - 1);
@@ -234,9 +239,8 @@ std::vector<ViewMaps> prepareViews(const LightSamples& samples, int li, const Re
     for (const LightView& view : makeLightViews(samples, li, receivers, options.resolution, options.resolution / 2)) {
         ViewMaps m;
         m.view = view;
-        m.shadow.res = view.res;
-        m.shadow.depth.assign(size_t(view.res) * view.res, INFINITY);
-        m.penumbra.assign(size_t(view.res) * view.res, 1.0f);
+        m.shadow.reset(view.res, options.lookup == PenumbraMapOptions::Lookup::Backprojection ? kLayers : 1);
+        if (options.lookup == PenumbraMapOptions::Lookup::WymanHansen) m.penumbra.assign(size_t(view.res) * view.res, 1.0f);
         for (const glm::dvec3& p : bound.vertices) {
             if (bound.directional()) {  // tangent offsets of the sun's directions from its axis
                 const double along = glm::dot(p, -view.axis);
@@ -245,6 +249,7 @@ std::vector<ViewMaps> prepareViews(const LightSamples& samples, int li, const Re
                 m.outline.push_back({glm::dot(p - c, view.e1), glm::dot(p - c, view.e2)});
             }
         }
+        if (options.lookup == PenumbraMapOptions::Lookup::Backprojection) m.grid.emplace(m.outline);
         maps.push_back(std::move(m));
     }
     return maps;
@@ -260,19 +265,23 @@ float lookup(const std::vector<ViewMaps>& maps, const glm::dvec3& r, const glm::
     const ViewPoint p = view.project(r);
     const int x = int(std::floor(p.x)), y = int(std::floor(p.y));
     if (!(p.z >= view.zNear) || x < 0 || y < 0 || x >= view.res || y >= view.res) return 1.0f;
+    if (best->grid && best->grid->hasArea()) return backprojectedVisibility(view, best->pyramids, *best->grid, r, normal, bias, eps);
     const glm::dvec3 towards = view.ortho ? -view.axis : glm::normalize(view.origin - r);
     const double cosine = std::abs(glm::dot(normal, towards));
     const double slope = glm::length(normal) > 0 ? std::min(8.0, std::sqrt(std::max(0.0, 1 - cosine * cosine)) / std::max(cosine, 1e-3)) : 0.0;
     const double b = bias * view.texelWorld(p.z) * (1.0 + slope) + eps;
     if (double(best->shadow.at(x, y)) < p.z - b) return 0.0f;
-    return best->penumbra[size_t(y) * view.res + x];
+    return best->penumbra.empty() ? 1.0f : best->penumbra[size_t(y) * view.res + x];
 }
 
 }  // namespace
 
 uint64_t PenumbraMapOptions::mapBytes() const {
     const uint64_t fitted = uint64_t(resolution) * resolution, cube = 6 * uint64_t(resolution / 2) * (resolution / 2);
-    return 2 * sizeof(float) * std::max(fitted, cube);
+    const uint64_t texels = std::max(fitted, cube);
+    if (lookup == Lookup::WymanHansen) return 2 * sizeof(float) * texels;
+    // The layers of the shadow map and their pyramids (a third of the texels, 20 bytes each).
+    return kLayers * (sizeof(float) * texels + std::max(DepthPyramid::plannedBytes(resolution), 6 * DepthPyramid::plannedBytes(resolution / 2)));
 }
 
 std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSet& receivers,
@@ -287,7 +296,6 @@ std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSe
         local.views += int(maps.size());
         uint64_t bytes = 0;
         for (const ViewMaps& m : maps) bytes += (m.shadow.depth.size() + m.penumbra.size()) * sizeof(float);
-        local.mapBytes = std::max(local.mapBytes, bytes);
         {
             ScopedTimer timer(local.shadowSeconds);
             forEachChunk(blockers, local, progress, [&](std::span<const Triangle> chunk) {
@@ -295,7 +303,13 @@ std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSe
             });
             for (ViewMaps& m : maps) buildTiles(m);
         }
-        {
+        if (options.lookup == PenumbraMapOptions::Lookup::Backprojection) {
+            ScopedTimer timer(local.penumbraSeconds);
+            for (ViewMaps& m : maps) m.pyramids.reserve(size_t(m.shadow.layers));
+            for (ViewMaps& m : maps)
+                for (int layer = 0; layer < m.shadow.layers; ++layer) m.pyramids.emplace_back(m.shadow, layer);
+            for (const ViewMaps& m : maps) bytes += m.shadow.layers * DepthPyramid::plannedBytes(m.view.res);
+        } else {
             ScopedTimer timer(local.penumbraSeconds);
             std::vector<std::vector<Run>> perTriangle;
             std::vector<Run> runs;
@@ -316,6 +330,7 @@ std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSe
                 }
             });
         }
+        local.mapBytes = std::max(local.mapBytes, bytes);
         ScopedTimer timer(local.lookupSeconds);
         tbb::parallel_for(size_t(0), receivers.size(), [&](size_t r) {
             const glm::dvec3 p(receivers.position[r]);
@@ -328,6 +343,7 @@ std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSe
 
 nlohmann::json penumbraMapStatsJson(const PenumbraMapStats& s, const PenumbraMapOptions& o) {
     return {{"resolution", o.resolution},
+            {"lookup", o.lookup == PenumbraMapOptions::Lookup::WymanHansen ? "wyman-hansen" : "backprojection"},
             {"bias_texels", o.bias},
             {"views", s.views},
             {"map_bytes", s.mapBytes},
@@ -348,6 +364,10 @@ PenumbraMapOptions penumbraMapOptions(const JsonParams& bake) {
     o.bias = bake.number("penumbra_map_bias", o.bias);
     if (!(o.bias >= 0) || !std::isfinite(o.bias))
         fail(bake.where("penumbra_map_bias"), "must be finite and non-negative, got {}", o.bias);
+    const std::string lookup = bake.string("penumbra_map_lookup", "backprojection");
+    if (lookup == "wyman-hansen") o.lookup = PenumbraMapOptions::Lookup::WymanHansen;
+    else if (lookup != "backprojection")
+        fail(bake.where("penumbra_map_lookup"), "must be \"backprojection\" or \"wyman-hansen\", got \"{}\"", lookup);
     return o;
 }
 

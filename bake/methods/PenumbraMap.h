@@ -4,21 +4,29 @@
 ///
 /// Per light, from its centre (a sun: along its central direction), over the streamed geometry
 /// and in memory bounded by the maps (never by the triangle count):
-///  1. a shadow map: the nearest depth per texel (LightView.h);
-///  2. a penumbra map, built in a second pass from the silhouette edges seen from the light's
-///     centre: an edge is a silhouette where the shadow map, 1.5 texels beyond the edge on the
-///     side away from its triangle, holds a surface farther than the edge by more than the bias,
-///     while the edge itself is the nearest surface. This needs no adjacency, so triangle soups
-///     work and nothing but the maps is held. Along each silhouette run a sheet, closed by cones
-///     at its ends, is drawn: at angular distance a from the edge, the cone of a vertex at depth
-///     Z_v reaches depth Z_F = Z_v / (1 - a Z_v / L_r) (orthographic: Z_v + a / tan r), and the
-///     texel, whose nearest surface is at Z_P, gets the paper's intensity
-///     I = (Z_F - Z_v) / (Z_P - Z_v), smoothed to 3 I^2 - 2 I^3; the darkest value wins.
-///     L_r is the light's half-width across the edge, seen from the centre.
-///  3. A receiver is in full shadow when the shadow map holds a surface nearer than it by more
-///     than the bias (slope-scaled); otherwise its visible fraction is its penumbra-map texel.
-/// Umbrae are the hard shadow from the centre and only outer penumbrae exist, so shadows come out
-/// larger and darker than the exact ones; overlapping penumbrae take the darkest, not the product.
+///  1. a shadow map (LightView.h): per texel the nearest depth, and with the default lookup the
+///     nearest four surfaces (layers), so blockers hidden from the centre behind nearer ones count;
+///  2. the lookup, one of two (bake.penumbra_map_lookup):
+///     - "backprojection" (default, Backprojection.h): per-layer depth pyramids, and per receiver
+///       the shadow-map texels around it backprojected onto a grid over the light's outline; the
+///       visible fraction is the share of the light left. It gives inner and outer penumbrae and
+///       combines overlapping blockers, at a cost per receiver bounded by the pyramid, whatever
+///       the light's sample count;
+///     - "wyman-hansen", the paper's: a penumbra map, built in a second pass from the silhouette
+///       edges seen from the light's centre: an edge is a silhouette where the shadow map, 1.5
+///       texels beyond the edge on the side away from its triangle, holds a surface farther than
+///       the edge by more than the bias, while the edge itself is the nearest surface. This needs
+///       no adjacency, so triangle soups work and nothing but the maps is held. Along each
+///       silhouette run a sheet, closed by cones at its ends, is drawn: at angular distance a
+///       from the edge, the cone of a vertex at depth Z_v reaches depth
+///       Z_F = Z_v / (1 - a Z_v / L_r) (orthographic: Z_v + a / tan r), and the texel, whose
+///       nearest surface is at Z_P, gets the paper's intensity I = (Z_F - Z_v) / (Z_P - Z_v),
+///       smoothed to 3 I^2 - 2 I^3; the darkest value wins. L_r is the light's half-width across
+///       the edge, seen from the centre. A receiver is in full shadow when the shadow map holds a
+///       surface nearer than it by more than the bias (slope-scaled); otherwise its visible
+///       fraction is its penumbra-map texel. Umbrae are the hard shadow from the centre and only
+///       outer penumbrae exist, so shadows come out larger and darker than the exact ones;
+///       overlapping penumbrae take the darkest, not the product.
 ///
 /// The result is a visible fraction per receiver and light, not per-sample masks; irradiance is
 /// the unoccluded irradiance scaled by it (ReceiverShader::shadeVisibleFraction).
@@ -37,16 +45,23 @@
 
 namespace penumbra {
 
-/// @brief Scene keys bake.penumbra_map_resolution, bake.penumbra_map_bias (and the flags of the
-/// same names).
+/// @brief Scene keys bake.penumbra_map_resolution, bake.penumbra_map_bias,
+/// bake.penumbra_map_lookup (and the flags of the same names).
 struct PenumbraMapOptions {
+    /// How a receiver's visible fraction is read from the maps.
+    enum class Lookup {
+        Backprojection,  ///< the shadow map backprojected onto the light (Backprojection.h): inner and outer penumbrae
+        WymanHansen,     ///< the paper's penumbra map: the hard shadow from the centre and outer penumbrae only
+    };
     int resolution = 1024;      ///< texels per side of a fitted view; cube faces get half
     double bias = 1.5;          ///< depth bias in texels of the shadow map, scaled by the receiver's slope
+    Lookup lookup = Lookup::Backprojection;
     /// Bytes of one light's maps (depth and penumbra, float, at most six cube faces).
     uint64_t mapBytes() const;
 };
 
-/// @brief Reads bake.penumbra_map_resolution and bake.penumbra_map_bias (defaults when absent).
+/// @brief Reads bake.penumbra_map_resolution, bake.penumbra_map_bias and bake.penumbra_map_lookup
+/// ("backprojection" or "wyman-hansen"; defaults when absent).
 /// @throw InputError naming the key for a value out of range
 PenumbraMapOptions penumbraMapOptions(const JsonParams& bake);
 
@@ -54,7 +69,7 @@ struct PenumbraMapStats {
     int views = 0;
     uint64_t mapBytes = 0;        ///< the largest light's maps
     double shadowSeconds = 0;     ///< pass 1: shadow maps
-    double penumbraSeconds = 0;   ///< pass 2: silhouettes, cones and sheets
+    double penumbraSeconds = 0;   ///< pass 2 (wyman-hansen): silhouettes, cones and sheets; backprojection: the depth pyramid
     double lookupSeconds = 0;
     uint64_t silhouetteRuns = 0;  ///< runs of silhouette edge drawn as sheets
     uint64_t trianglesRead = 0;

@@ -114,4 +114,32 @@ TEST_CASE("a method's own scene keys are read by the method whichever method bak
     requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_bias\": -1") + " -q --method penumbra-map"),
                       "bake.penumbra_map_bias: must be finite and non-negative");
     requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_resolutions\": 64") + " -q"), "penumbra_map_resolutions");
+    requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_lookup\": \"pcss\"") + " -q --method penumbra-map"),
+                      "bake.penumbra_map_lookup: must be \"backprojection\" or \"wyman-hansen\"");
+}
+
+TEST_CASE("bench methods --render writes the Markdown of an earlier result, with whole-bake and CPU ratios", "[cli][methods]") {
+    ScratchDir dir("methods");
+    auto method = [](double time, double bake, double cpu) {
+        return fmt::format(R"({{"time_s": {}, "bake_total_s": {}, "process_cpu_s": {}, "peak_rss_bytes": 1048576{}}})", time, bake, cpu,
+                           time == 40 ? "" : R"(, "speedup_vs_hpc": 8, "error_vs_hpc": {"mean_abs_dv": 0.02, "max_abs_dv": 0.5, "fraction_above_0_1": 0.01})");
+    };
+    write(dir / "result.json",
+          fmt::format(R"({{"command": "penumbra bench methods", "date": "2026-12-02 03:00 UTC", "scale": 1, "threads": 1, "repeat": 1,
+            "load_average_start": 1, "load_average_end": 1, "elapsed_s": 10,
+            "machine": {{"cpu": "cpu", "cores": 2, "ram_bytes": 1073741824, "os": "os", "compiler": "cc", "commit": "abc"}},
+            "rows": [{{"scene": "grids", "nominal": "1280x960", "width": 1280, "height": 960,
+                       "methods": {{"hpc": {}, "penumbra-map": {}}}}}], "hh": []}})",
+                      method(40, 50, 20), method(5, 10, 4)));
+    write(dir / "BENCH.md", "# Benchmarks\n");
+    RunResult r = runPenumbra("bench methods --render " + (dir / "result.json") + " --markdown " + (dir / "BENCH.md"));
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    // Cast 40 / 5, whole bake 50 / 10, CPU 20 / 4: the target needs both wall-time ratios.
+    CHECK_THAT(r.out, Catch::Contains("| grids | 1280×960 | penumbra-map | 5.00 | 8.00× | 10.00 | 5.00× | 4.00 | 5.00× |"));
+    CHECK_THAT(r.out, Catch::Contains("| 8.0× / 5.0× / 5.0× | **not met** |"));
+    CHECK_THAT(r.out, Catch::Contains("| penumbra-map mean abs dV < 0.05 on grids 1280x960 | 0.0200 | met |"));
+    CHECK_THAT(slurp(dir / "BENCH.md"), Catch::Contains("# Benchmarks") && Catch::Contains("penumbra bench methods: begin"));
+    write(dir / "bad.json", "{\"rows\": 3}");
+    requireCleanError(runPenumbra("bench methods --render " + (dir / "bad.json")), "--render");
 }

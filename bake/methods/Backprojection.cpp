@@ -1,0 +1,237 @@
+#include "bake/methods/Backprojection.h"
+
+#include "bake/methods/TexelIndex.h"
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace penumbra {
+namespace {
+
+constexpr int kTapRadius = 3;     ///< texels each side of the receiver at the level read
+constexpr int kSearchRadius = 2;  ///< the same, for the nearest-blocker search that sizes the region
+
+/// The convex hull of @p points, counter-clockwise (Andrew's monotone chain).
+std::vector<glm::dvec2> convexHull(std::vector<glm::dvec2> points) {
+    std::sort(points.begin(), points.end(), [](const glm::dvec2& a, const glm::dvec2& b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
+    auto cross = [](const glm::dvec2& o, const glm::dvec2& a, const glm::dvec2& b) {
+        return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+    };
+    std::vector<glm::dvec2> hull(2 * points.size());
+    size_t k = 0;
+    for (size_t i = 0; i < points.size(); ++i) {  // lower chain
+        while (k >= 2 && cross(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
+        hull[k++] = points[i];
+    }
+    for (size_t i = points.size(), lower = k + 1; i-- > 1;) {  // upper chain
+        while (k >= lower && cross(hull[k - 2], hull[k - 1], points[i - 1]) <= 0) --k;
+        hull[k++] = points[i - 1];
+    }
+    hull.resize(k > 1 ? k - 1 : k);
+    return hull;
+}
+
+using Transmission = std::array<float, LightGrid::kCells * LightGrid::kCells>;
+
+/// The first index of a cell whose centre is at or past @p value, along one axis.
+int firstCell(double value, double lo, double cell) {
+    return clampedTexel(std::ceil((value - lo) / cell - 0.5), 0, LightGrid::kCells);
+}
+
+/// Hides the light points in the box [@p a, @p b) (light units) to the extent @p opacity: the
+/// cells whose centres it holds keep 1 - opacity of their light. Boxes of neighbouring texels at
+/// one depth share edges, so each cell is counted once.
+void hide(const LightGrid& grid, glm::dvec2 a, glm::dvec2 b, double opacity, Transmission& transmitted) {
+    const int i0 = firstCell(a.x, grid.lo.x, grid.cell.x), i1 = firstCell(b.x, grid.lo.x, grid.cell.x);
+    const int j0 = firstCell(a.y, grid.lo.y, grid.cell.y), j1 = firstCell(b.y, grid.lo.y, grid.cell.y);
+    const float keep = float(1.0 - opacity);
+    for (int j = j0; j < j1; ++j)
+        for (int i = i0; i < i1; ++i) transmitted[size_t(j * LightGrid::kCells + i)] *= keep;
+}
+
+/// Blocks the cells of @p grid whose light points lie behind the plane through @p r with normal
+/// @p n; the distance from the plane is linear across the light, so the corners decide at once.
+void blockBehindPlane(const LightView& view, const LightGrid& grid, const glm::dvec3& r, const glm::dvec3& n,
+                      Transmission& transmitted) {
+    const double c0 = glm::dot(view.ortho ? -view.axis : view.origin - r, n), cx = glm::dot(view.e1, n), cy = glm::dot(view.e2, n);
+    const glm::dvec2 hi = grid.lo + double(LightGrid::kCells) * grid.cell;
+    if (c0 + std::min(grid.lo.x * cx, hi.x * cx) + std::min(grid.lo.y * cy, hi.y * cy) >= 0) return;  // all in front
+    for (int j = 0; j < LightGrid::kCells; ++j)
+        for (int i = 0; i < LightGrid::kCells; ++i) {
+            const glm::dvec2 l = grid.lo + (glm::dvec2(i, j) + 0.5) * grid.cell;
+            if (c0 + l.x * cx + l.y * cy < 0) transmitted[size_t(j * LightGrid::kCells + i)] = 0.0f;
+        }
+}
+
+}  // namespace
+
+DepthPyramid::DepthPyramid(const DepthMap& shadow, int layer) : shadow_(&shadow), layer_(layer) {
+    int fine = shadow.res;
+    while (fine > 1) {
+        const int coarse = (fine + 1) / 2;
+        std::vector<Texel> level(size_t(coarse) * coarse);
+        const int l = levels();
+        for (int y = 0; y < coarse; ++y)
+            for (int x = 0; x < coarse; ++x) {
+                // Four quantiles of the children's sixteen (a fine texel counts four times).
+                std::array<float, 4 * kQuantiles> all;
+                Texel& t = level[size_t(y) * coarse + x];
+                t.nearest = INFINITY;
+                for (int c = 0; c < 4; ++c) {
+                    const int cx = 2 * x + c % 2, cy = 2 * y + c / 2;
+                    const Texel child = cx < fine && cy < fine ? at(l - 1, cx, cy) : Texel{INFINITY, {INFINITY, INFINITY, INFINITY, INFINITY}};
+                    t.nearest = std::min(t.nearest, child.nearest);
+                    std::copy(child.quantile.begin(), child.quantile.end(), all.begin() + c * kQuantiles);
+                }
+                std::sort(all.begin(), all.end());
+                for (int q = 0; q < kQuantiles; ++q) t.quantile[size_t(q)] = all[size_t(4 * q + 2)];
+            }
+        res_.push_back(coarse);
+        levels_.push_back(std::move(level));
+        fine = coarse;
+    }
+}
+
+DepthPyramid::Texel DepthPyramid::at(int level, int x, int y) const {
+    if (level > 0) return levels_[size_t(level - 1)][size_t(y) * res_[size_t(level - 1)] + x];
+    const float z = shadow_->at(x, y, layer_);
+    return {z, {z, z, z, z}};
+}
+
+float DepthPyramid::nearest() const { return levels_.empty() ? at(0, 0, 0).nearest : levels_.back()[0].nearest; }
+
+float DepthPyramid::nearestIn(int level, glm::dvec2 lo, glm::dvec2 hi) const {
+    const int res = resolution(level);
+    const double s = std::ldexp(1.0, level);
+    const int x0 = clampedTexel(std::floor(lo.x / s), 0, res - 1), x1 = clampedTexel(std::floor(hi.x / s), 0, res - 1);
+    const int y0 = clampedTexel(std::floor(lo.y / s), 0, res - 1), y1 = clampedTexel(std::floor(hi.y / s), 0, res - 1);
+    float z = INFINITY;
+    for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x) z = std::min(z, at(level, x, y).nearest);
+    return z;
+}
+
+uint64_t DepthPyramid::plannedBytes(int resolution) {
+    uint64_t bytes = 0;
+    for (uint64_t r = (uint64_t(resolution) + 1) / 2; r >= 1; r = (r + 1) / 2) {
+        bytes += r * r * sizeof(Texel);
+        if (r == 1) break;
+    }
+    return bytes;
+}
+
+LightGrid::LightGrid(const std::vector<glm::dvec2>& outline) {
+    const std::vector<glm::dvec2> hull = convexHull(outline);
+    glm::dvec2 hi(-INFINITY);
+    lo = glm::dvec2(INFINITY);
+    for (const glm::dvec2& p : hull) lo = glm::min(lo, p), hi = glm::max(hi, p), radius = std::max(radius, glm::length(p));
+    if (hull.size() < 3 || !(hi.x - lo.x > 1e-12 * radius) || !(hi.y - lo.y > 1e-12 * radius)) return;  // no area
+    cell = (hi - lo) / double(kCells);
+    for (int j = 0; j < kCells; ++j)
+        for (int i = 0; i < kCells; ++i) {
+            const glm::dvec2 q = lo + (glm::dvec2(i, j) + 0.5) * cell;
+            bool in = true;
+            for (size_t e = 0; e < hull.size() && in; ++e) {
+                const glm::dvec2 &a = hull[e], &b = hull[(e + 1) % hull.size()];
+                in = (b.x - a.x) * (q.y - a.y) - (b.y - a.y) * (q.x - a.x) >= 0;
+            }
+            if (in) inside_.push_back(uint16_t(j * kCells + i));
+        }
+}
+
+namespace {
+
+/// One receiver's backprojection in @p view: the receiver's depth and image position, and the
+/// transformation from a blocker's depth to the scale k of its footprint on the light.
+struct Backprojector {
+    const LightView& view;
+    const LightGrid& grid;
+    ViewPoint p;
+    glm::dvec3 r, n;  ///< the receiver and its normal towards the light's centre (zero: none)
+    double bias, eps;
+    Transmission transmitted;
+
+    /// Where the segment to the light meets depth @p z: image offset per unit of light offset.
+    double kOf(double z) const { return view.ortho ? p.z - z : 1.0 / z - 1.0 / p.z; }
+    /// The search radius in fine texels for blockers as near as depth @p z.
+    double radiusFor(double z) const { return std::clamp(grid.radius * kOf(z) / view.texel(), 0.0, double(view.res)); }
+
+    /// Hides the light behind texel (@p tx, @p ty) of @p layer at @p level, for the share of its
+    /// quantiles that lie in front of the receiver's plane.
+    void addTexel(const DepthPyramid& layer, int level, int tx, int ty) {
+        const DepthPyramid::Texel t = layer.at(level, tx, ty);
+        const double s = std::ldexp(1.0, level), texel = view.texel();
+        const glm::dvec2 centre((tx + 0.5) * s, (ty + 0.5) * s);
+        const glm::dvec2 image = centre * texel - view.halfExtent;  // tangent (perspective) or world units
+        // The point at depth q on the texel's central ray is base + q along (perspective: q times) ray.
+        const glm::dvec3 lateral = image.x * view.e1 + image.y * view.e2;
+        const double base = glm::dot(view.ortho ? view.origin + lateral - r : view.origin - r, n);
+        const double along = glm::dot(view.ortho ? view.axis : view.axis + lateral, n);
+        const bool hasPlane = glm::dot(n, n) > 0;
+        int blocking = 0;
+        double depthSum = 0;
+        for (const float q : t.quantile) {
+            if (!(q < p.z)) break;
+            // A quantile's depth seen at the texel's centre is within 0.71 s texels of a surface point.
+            const double margin = eps + (bias + 0.71 * s) * view.texelWorld(q);
+            const bool inFront = hasPlane ? base + q * along > margin : q < p.z - margin;
+            if (inFront) ++blocking, depthSum += q;
+        }
+        const double k = blocking > 0 ? kOf(depthSum / blocking) : 0.0;
+        if (!(k > 0)) return;
+        const glm::dvec2 offset = (centre - glm::dvec2(p.x, p.y)) * texel, half(0.5 * s * texel);
+        hide(grid, (offset - half) / k, (offset + half) / k, double(blocking) / DepthPyramid::kQuantiles, transmitted);
+    }
+
+    float visibleFraction() const {
+        double sum = 0;
+        for (const uint16_t c : grid.insideCells()) sum += transmitted[c];
+        return float(sum / double(grid.insideCells().size()));
+    }
+};
+
+}  // namespace
+
+float backprojectedVisibility(const LightView& view, std::span<const DepthPyramid> pyramids, const LightGrid& grid,
+                              const glm::dvec3& r, const glm::dvec3& normal, double bias, double eps) {
+    Backprojector b{view, grid, view.project(r), r, glm::dvec3(0.0), bias, eps, {}};
+    b.transmitted.fill(1.0f);
+    if (glm::length(normal) > 0) {
+        // Surfaces are taken as the sides of solids, as the exact rule finds them for closed
+        // meshes: the light behind the receiver's own plane is blocked by the solid. (For an open
+        // surface that light would reach it from behind, where it carries no irradiance.)
+        b.n = glm::normalize(normal);
+        blockBehindPlane(view, grid, r, b.n, b.transmitted);
+        if (glm::dot(b.n, view.ortho ? -view.axis : view.origin - r) < 0) b.n = -b.n;  // the side facing the centre
+    }
+    const DepthPyramid& nearestLayer = pyramids[0];
+    auto levelFor = [&](double radius, int taps) {
+        int level = 0;
+        while (level + 1 < nearestLayer.levels() && radius > taps * std::ldexp(1.0, level)) ++level;
+        return level;
+    };
+    // Size the search region by the nearest blocker around, twice refined.
+    double nearest = nearestLayer.nearest();
+    for (int pass = 0; pass < 2 && nearest < b.p.z; ++pass) {
+        const double radius = b.radiusFor(nearest);
+        const glm::dvec2 lo(b.p.x - radius, b.p.y - radius), hi(b.p.x + radius, b.p.y + radius);
+        nearest = std::max(nearest, double(nearestLayer.nearestIn(levelFor(radius, kSearchRadius), lo, hi)));
+    }
+    if (!(nearest < b.p.z)) return b.visibleFraction();
+    const double radius = b.radiusFor(nearest);
+    const int level = levelFor(radius, kTapRadius), res = nearestLayer.resolution(level);
+    const double s = std::ldexp(1.0, level);
+    const int x0 = clampedTexel(std::floor((b.p.x - radius) / s), 0, res - 1), x1 = clampedTexel(std::floor((b.p.x + radius) / s), 0, res - 1);
+    const int y0 = clampedTexel(std::floor((b.p.y - radius) / s), 0, res - 1), y1 = clampedTexel(std::floor((b.p.y + radius) / s), 0, res - 1);
+    for (int ty = y0; ty <= y1; ++ty)
+        for (int tx = x0; tx <= x1; ++tx)
+            for (const DepthPyramid& layer : pyramids) {
+                if (!(layer.at(level, tx, ty).nearest < b.p.z)) break;  // nor any layer behind
+                b.addTexel(layer, level, tx, ty);
+            }
+    return b.visibleFraction();
+}
+
+}  // namespace penumbra

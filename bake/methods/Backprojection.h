@@ -1,0 +1,101 @@
+#pragma once
+/// @file Backprojection.h
+/// @brief The default lookup of `--method penumbra-map`: the visible fraction of a receiver from
+/// the light's shadow map by backprojection (in the manner of Guennebaud, Barthe & Paulin 2006),
+/// which gives inner as well as outer penumbrae and combines overlapping blockers, where Wyman &
+/// Hansen's penumbra map gives only the outer half and the darkest of overlapping penumbrae.
+///
+/// Seen from the light's centre, the point at depth z on the segment from a receiver r (depth
+/// z_r, image position t_r) to a light point at lateral offset l lies at image position
+/// t_r + k l, with k = 1/z - 1/z_r (perspective; t in tangent units, l in world units) or
+/// k = z_r - z (orthographic, a sun; t in world units, l in tangent units). So a shadow-map texel
+/// at depth z in front of r hides the light points l = (t - t_r) / k under its footprint. The
+/// lookup marks those points on a grid of cells over the light's outline, one texel of a depth
+/// pyramid at a time, and returns the share of the light left unmarked.
+///
+/// The shadow map keeps the nearest few surfaces per texel (DepthMap's layers), so blockers hidden
+/// from the centre behind nearer ones (stacked grids) still count. Each layer's pyramid keeps, per
+/// coarse texel, its nearest depth and four quantiles of its fine texels'
+/// depths, so a coarse texel hides a quarter of the light points under it per quantile in front of
+/// the receiver. The level is chosen per receiver so that the search region (the light's outline
+/// scaled by k of the nearest blocker around) spans at most a few texels: the cost per receiver
+/// is bounded and does not depend on the light's sample count.
+///
+/// Approximations: only the nearest few surfaces seen from the centre are known (blockers hidden
+/// behind them from the centre are missed, so overlapped blockers let a little too much light
+/// through);
+/// overlapping blockers of partial coverage combine as independent (transmissions multiply); a
+/// blocker nearer than a few texels to the receiver's own plane is not seen (the bias).
+
+#include "bake/methods/LightView.h"
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace penumbra {
+
+/// @brief Coarse levels of a shadow map: per texel the nearest depth and four quantiles of the
+/// depths of the fine texels under it (+infinity: nothing drawn).
+class DepthPyramid {
+public:
+    static constexpr int kQuantiles = 4;
+    struct Texel {
+        float nearest;
+        std::array<float, kQuantiles> quantile;  ///< ascending
+    };
+
+    /// @brief Builds levels 1, 2, ... down to one texel from layer @p layer of @p shadow (level 0,
+    /// not copied).
+    DepthPyramid(const DepthMap& shadow, int layer);
+
+    int levels() const { return int(levels_.size()) + 1; }
+    int resolution(int level) const { return level == 0 ? shadow_->res : res_[size_t(level - 1)]; }
+    Texel at(int level, int x, int y) const;
+    /// The nearest depth of the whole map.
+    float nearest() const;
+    /// The nearest depth in the fine-texel box [lo, hi], read at @p level (whole texels).
+    float nearestIn(int level, glm::dvec2 lo, glm::dvec2 hi) const;
+    /// Bytes of the coarse levels (the `res²/3` texels of 20 bytes).
+    static uint64_t plannedBytes(int resolution);
+
+private:
+    const DepthMap* shadow_;
+    int layer_;
+    std::vector<int> res_;
+    std::vector<std::vector<Texel>> levels_;
+};
+
+/// @brief The light's outline seen from its centre, as a grid of cells: the cells whose centres
+/// lie inside the convex hull of the outline's points.
+class LightGrid {
+public:
+    static constexpr int kCells = 12;  ///< cells per side
+
+    /// @param outline the light bound's vertices in image axes (world units; a sun: tangents)
+    explicit LightGrid(const std::vector<glm::dvec2>& outline);
+
+    /// False for a light without area (a point): the hard test from the centre applies.
+    bool hasArea() const { return !inside_.empty(); }
+    glm::dvec2 lo, cell;              ///< the grid's corner and cell size
+    double radius = 0;                ///< the largest distance of the outline from the centre
+    /// The cells inside the outline, as j * kCells + i.
+    const std::vector<uint16_t>& insideCells() const { return inside_; }
+
+private:
+    std::vector<uint16_t> inside_;
+};
+
+/// @brief The visible fraction of receiver @p r (normal @p normal, may be zero) from @p view by
+/// backprojection of the layers of its shadow map, read through @p pyramids (one per layer,
+/// nearest first), onto @p grid.
+/// @param bias the depth bias in texels (of the level read), as for the hard test
+/// @param eps the rule's receiver epsilon at r, the smallest distance of a blocker from r's plane
+float backprojectedVisibility(const LightView& view, std::span<const DepthPyramid> pyramids, const LightGrid& grid,
+                              const glm::dvec3& r, const glm::dvec3& normal, double bias, double eps);
+
+}  // namespace penumbra
