@@ -68,6 +68,7 @@ uint64_t BlockerCulls::prepare(BlockerBatch& batch, std::span<const Triangle> bl
                 ++backFaces;
                 continue;
             }
+            prepared.closed = options_.closedCasters && (tri.flags & kTriangleClosed) && !prepared.alpha;
             // V_L is built plane by plane and abandoned as soon as one plane leaves every receiver
             // outside (first the cap: every receiver on the light's side of T's plane), so a
             // blocker culled at the root rarely pays for its whole volume.

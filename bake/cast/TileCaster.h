@@ -67,6 +67,9 @@ private:
     /// few receivers (so a few sets) and a few samples of each group.
     /// @return the group's first block and, in @p which, the blocks holding samples of @p needed.
     const HardShadowBlock* hardShadowBlocks(uint32_t set, uint32_t k, uint64_t needed, uint32_t& which);
+    /// Whether every receiver in @p box is in front of the current closed triangle beyond its
+    /// epsilon, so that castReceiver() would skip each of them (conservative: false when unsure).
+    bool inFrontOfClosed(const Box& box) const;
     /// Lines 34-54: one node and, recursively, its children.
     void visit(uint32_t nodeIndex, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd);
     /// Lines 56-75: one receiver against the active groups.

@@ -41,6 +41,9 @@ struct BlockerTriangle {
     Plane plane;          ///< unit normal through v[0]: eval() is a signed distance (box tests)
     bool valid = false;   ///< false for zero-area or non-finite triangles: they block nothing
     uint32_t alpha = 0;   ///< alpha id (stream/AlphaTable.h); 0: opaque (AlphaRule.h tests the rest)
+    /// HPC only (bake/cast/BlockerBatch.cpp): an opaque face of a closed solid wound outward, cast
+    /// with closed casters on. It may skip every receiver in front of it (TileCaster.cpp).
+    bool closed = false;
 
     static BlockerTriangle from(const Triangle& t) {
         BlockerTriangle b;
