@@ -17,17 +17,21 @@ double unitFactor(const std::string& path, const std::string& what, const Json& 
     return v.get<double>();
 }
 
-uint32_t materialAlphaId(const std::string& path, const Json& m, size_t i) {
-    const std::string what = fmt::format("material {}", i);
-    if (!m.is_object()) fail(path, "{} must be an object", what);
-    glm::dvec3 color(1.0);
-    double alpha = 1.0;
+/// Base colour factor (C, a) of material @p m: read only for a translucent material, since the
+/// MASK reader (GltfMaterials.h) and opaque materials use their own part of it, or none.
+void baseColor(const std::string& path, const std::string& what, const Json& m, glm::dvec3& color, double& alpha) {
+    color = glm::dvec3(1.0), alpha = 1.0;
     if (auto pbr = m.find("pbrMetallicRoughness"); pbr != m.end() && pbr->is_object())
         if (auto f = pbr->find("baseColorFactor"); f != pbr->end()) {
             if (!f->is_array() || f->size() != 4) fail(path, "{} baseColorFactor must hold 4 numbers in [0, 1]", what);
             for (int c = 0; c < 3; ++c) color[c] = unitFactor(path, what + " baseColorFactor", (*f)[size_t(c)]);
             alpha = unitFactor(path, what + " baseColorFactor", (*f)[3]);
         }
+}
+
+uint32_t materialAlphaId(const std::string& path, const Json& m, size_t i) {
+    const std::string what = fmt::format("material {}", i);
+    if (!m.is_object()) fail(path, "{} must be an object", what);
     std::string mode = "OPAQUE";
     if (auto a = m.find("alphaMode"); a != m.end()) {
         if (!a->is_string()) fail(path, "{} alphaMode must be a string", what);
@@ -43,10 +47,14 @@ uint32_t materialAlphaId(const std::string& path, const Json& m, size_t i) {
             if (auto f = t->find("transmissionFactor"); f != t->end())
                 transmission = unitFactor(path, what + " KHR_materials_transmission transmissionFactor", *f);
         }
+    const bool blend = mode == "BLEND", transmissive = mode == "OPAQUE" && transmission > 0.0;
+    if (!blend && !transmissive) return 0;
+    glm::dvec3 color;
+    double alpha;
+    baseColor(path, what, m, color, alpha);
     const std::string where = path + ": " + what;
-    if (mode == "BLEND") return translucentId(surfaceTransmittance(color, alpha, transmits ? transmission : 1.0), where);
-    if (mode == "OPAQUE" && transmission > 0.0) return translucentId(surfaceTransmittance(color, 1.0, transmission), where);
-    return 0;
+    if (blend) return translucentId(surfaceTransmittance(color, alpha, transmits ? transmission : 1.0), where);
+    return translucentId(surfaceTransmittance(color, 1.0, transmission), where);
 }
 
 }  // namespace
