@@ -140,7 +140,7 @@ void groupStrata(std::vector<int>& order, const std::vector<glm::dvec3>& centers
 double LightDesc::area() const {
     switch (type) {
         case LightType::Rect: return glm::length(glm::cross(u, v));
-        case LightType::Disk:
+        case LightType::Disk: return glm::pi<double>() * radius * radius;
         case LightType::Sun: return 0.0;  // a cone of directions: no emitting area
         case LightType::Sphere: return 4.0 * glm::pi<double>() * radius * radius;
         case LightType::Polygon: return 0.5 * glm::length(polygonNormal(polygon));

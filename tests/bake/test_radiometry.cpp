@@ -77,6 +77,32 @@ TEST_CASE("unoccluded irradiance from a rect light matches Lambert's form factor
     }
 }
 
+TEST_CASE("unoccluded irradiance from a disk light matches the on-axis closed form", "[radiometry]") {
+    // A disk of radius a and radiance L, facing a receiver on its axis at distance h that faces
+    // it: E = pi L a^2 / (a^2 + h^2). (A disk's area once read 0, so disks lit nothing.)
+    LightDesc disk;
+    disk.type = LightType::Disk, disk.center = {0, 3, 0}, disk.normal = {0, -1, 0}, disk.radius = 0.8;
+    disk.radiance = {2.0, 1.0, 0.5}, disk.samples = 1024, disk.sampleSets = 1, disk.where = "disk";
+    CHECK(disk.area() == Approx(glm::pi<double>() * 0.64));
+    ReceiverSet receivers;
+    for (double y : {0.0, 1.0, 2.5}) {
+        receivers.position.push_back(glm::vec3(0, float(y), 0));
+        receivers.normal.push_back(glm::vec3(0, 1, 0));
+    }
+    ReceiverResults out = shadeUnoccluded({disk}, receivers);
+    for (size_t i = 0; i < receivers.size(); ++i) {
+        const double h = 3.0 - double(receivers.position[i].y), a2 = disk.radius * disk.radius;
+        for (int c = 0; c < 3; ++c) {
+            const double expected = glm::pi<double>() * disk.radiance[c] * a2 / (a2 + h * h);
+            INFO("receiver " << i << " channel " << c << ": " << out.irradiance[i][c] << " vs " << expected);
+            CHECK(std::abs(out.irradiance[i][c] - expected) <= 0.01 * expected);
+        }
+    }
+    // "power" on a disk: radiance = P / (pi area), finite.
+    const glm::dvec3 radiance = radianceFromPower(disk, glm::dvec3(100.0));
+    CHECK(radiance.x == Approx(100.0 / (glm::pi<double>() * disk.area())));
+}
+
 TEST_CASE("a straight occluder edge gives the analytic penumbra profile", "[radiometry]") {
     // Light spans x in [-0.5, 0.5] at height H; a half-plane blocker covers x < 0 at height h.
     const double H = 4, h = 2, w = 1;
