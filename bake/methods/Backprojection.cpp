@@ -104,7 +104,7 @@ float DepthPyramid::nearest() const { return levels_.empty() ? at(0, 0, 0).neare
 
 float DepthPyramid::nearestIn(int level, glm::dvec2 lo, glm::dvec2 hi) const {
     const int res = resolution(level);
-    const double s = std::ldexp(1.0, level);
+    const double s = double(1 << level);
     const int x0 = clampedTexel(std::floor(lo.x / s), 0, res - 1), x1 = clampedTexel(std::floor(hi.x / s), 0, res - 1);
     const int y0 = clampedTexel(std::floor(lo.y / s), 0, res - 1), y1 = clampedTexel(std::floor(hi.y / s), 0, res - 1);
     float z = INFINITY;
@@ -162,7 +162,7 @@ struct Backprojector {
     /// quantiles that lie in front of the receiver's plane.
     void addTexel(const DepthPyramid& layer, int level, int tx, int ty) {
         const DepthPyramid::Texel t = layer.at(level, tx, ty);
-        const double s = std::ldexp(1.0, level), texel = view.texel();
+        const double s = double(1 << level), texel = view.texel();
         const glm::dvec2 centre((tx + 0.5) * s, (ty + 0.5) * s);
         const glm::dvec2 image = centre * texel - view.halfExtent;  // tangent (perspective) or world units
         // The point at depth q on the texel's central ray is base + q along (perspective: q times) ray.
@@ -209,7 +209,7 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
     const DepthPyramid& nearestLayer = pyramids[0];
     auto levelFor = [&](double radius, int taps) {
         int level = 0;
-        while (level + 1 < nearestLayer.levels() && radius > taps * std::ldexp(1.0, level)) ++level;
+        while (level + 1 < nearestLayer.levels() && radius > taps * double(1 << level)) ++level;
         return level;
     };
     // Size the search region by the nearest blocker around, twice refined.
@@ -222,7 +222,7 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
     if (!(nearest < b.p.z)) return b.visibleFraction();
     const double radius = b.radiusFor(nearest);
     const int level = levelFor(radius, kTapRadius), res = nearestLayer.resolution(level);
-    const double s = std::ldexp(1.0, level);
+    const double s = double(1 << level);
     const int x0 = clampedTexel(std::floor((b.p.x - radius) / s), 0, res - 1), x1 = clampedTexel(std::floor((b.p.x + radius) / s), 0, res - 1);
     const int y0 = clampedTexel(std::floor((b.p.y - radius) / s), 0, res - 1), y1 = clampedTexel(std::floor((b.p.y + radius) / s), 0, res - 1);
     for (int ty = y0; ty <= y1; ++ty)

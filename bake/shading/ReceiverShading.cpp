@@ -42,6 +42,12 @@ ReceiverShader::ReceiverShader(const std::vector<LightDesc>& lights, const Light
             // A sphere is seen as a disk of its radius from every direction.
             double area = l.type == LightType::Sphere ? M_PI * l.radius * l.radius : l.area();
             p.normal = l.emitterNormal(), p.weight = l.radiance * (area / l.samples);
+            p.radiance = l.radiance;
+            if (l.type == LightType::Rect)
+                p.corners = {l.center - 0.5 * l.u - 0.5 * l.v, l.center + 0.5 * l.u - 0.5 * l.v, l.center + 0.5 * l.u + 0.5 * l.v,
+                             l.center - 0.5 * l.u + 0.5 * l.v};
+            else if (l.type == LightType::Polygon)
+                p.corners = l.polygon;
         }
         lights_.push_back(p);
     }
@@ -141,6 +147,33 @@ double sampleSum(const double* x, const double* y, const double* z, size_t n, gl
     return avx2 ? sampleSumAvx2(x, y, z, n, p, normal, emitter) : sampleSumScalar(x, y, z, n, p, normal, emitter);
 }
 
+/// The integral over a planar emitter with outline @p corners and emitting side @p emitter of
+/// cos(receiver) cos(emitter) / d^2, seen from @p p with unit normal @p n: the limit of the sample
+/// sum. Lambert's formula, half the sum over the outline's edges of the angle each subtends times
+/// the cosine between @p n and the normal of the plane through @p p and the edge, over the outline
+/// clipped to the hemisphere above @p p (where the sampled cosine is clamped to 0).
+double emitterIntegral(const std::vector<glm::dvec3>& corners, const glm::dvec3& emitter, const glm::dvec3& p, const glm::dvec3& n) {
+    if (!(glm::dot(emitter, p - corners[0]) > 0)) return 0.0;  // behind a one-sided emitter
+    thread_local std::vector<glm::dvec3> clipped;
+    clipped.clear();
+    for (size_t i = 0; i < corners.size(); ++i) {  // Sutherland-Hodgman against n . (q - p) >= 0
+        const glm::dvec3 a = corners[i] - p, b = corners[(i + 1) % corners.size()] - p;
+        const double da = glm::dot(n, a), db = glm::dot(n, b);
+        if (da >= 0) clipped.push_back(a);
+        if ((da >= 0) != (db >= 0)) clipped.push_back(a + (b - a) * (da / (da - db)));
+    }
+    double sum = 0;
+    for (size_t i = 0; i < clipped.size(); ++i) {
+        const double la = glm::length(clipped[i]), lb = glm::length(clipped[(i + 1) % clipped.size()]);
+        if (!(la > 0 && lb > 0)) continue;
+        const glm::dvec3 a = clipped[i] / la, b = clipped[(i + 1) % clipped.size()] / lb;
+        const glm::dvec3 g = glm::cross(a, b);
+        const double s = glm::length(g);
+        if (s > 0) sum += std::atan2(s, glm::dot(a, b)) * glm::dot(n, g) / s;
+    }
+    return 0.5 * std::abs(sum);
+}
+
 }  // namespace
 
 glm::dvec3 ReceiverShader::unoccludedIrradiance(uint32_t r, int li) const {
@@ -152,6 +185,8 @@ glm::dvec3 ReceiverShader::unoccludedIrradiance(uint32_t r, int li) const {
     });
     const PerLight& light = lights_[li];
     const glm::dvec3 p(receivers_.position[r]), n(receivers_.normal[r]);
+    if (!light.corners.empty() && n != glm::dvec3(0.0))
+        return light.radiance * emitterIntegral(light.corners, light.normal, p, glm::normalize(n));
     const size_t total = samples_.positions.size();
     const size_t first = size_t(sets_[r]) * samples_.sampleCount + samples_.groups[samples_.lightFirstGroup[li]].first;
     // The vectorized sum covers planar emitters seen by oriented receivers, the common case.

@@ -66,7 +66,9 @@ public:
                const uint32_t* depth = nullptr) const;
 
     /// @brief For methods that give a visible fraction per light instead of masks (penumbra-map):
-    /// each light's irradiance is its unoccluded irradiance times that fraction.
+    /// each light's irradiance is its unoccluded irradiance times that fraction. For a rect or
+    /// polygon light seen by an oriented receiver the unoccluded irradiance is the exact integral
+    /// over the emitter (unoccludedIrradiance), the limit of the sample sum the exact methods take.
     /// @param lightVisibility one value in [0, 1] per light
     void shadeVisibleFraction(uint32_t r, const float* lightVisibility, ReceiverResults& out) const;
 
@@ -75,8 +77,9 @@ private:
     /// many of its samples are blocked.
     glm::dvec3 lightIrradiance(uint32_t r, int li, const uint64_t* groupWords, bool fullUmbra, uint64_t& blocked,
                                const uint32_t* depth = nullptr) const;
-    /// The same with every sample visible, summed in a loop the compiler vectorizes (the order of
-    /// the sum differs from lightIrradiance's, so the last bits may differ).
+    /// The same with every sample visible: for a rect or polygon light and an oriented receiver the
+    /// exact integral (Lambert's formula over the emitter clipped to the receiver's hemisphere,
+    /// a few operations per corner instead of per sample); otherwise the sample sum, vectorized.
     glm::dvec3 unoccludedIrradiance(uint32_t r, int li) const;
 
     struct PerLight {
@@ -84,6 +87,8 @@ private:
         glm::dvec3 weight;  ///< radiance x area per sample; for a sun, irradiance per sample
         bool sun = false;   ///< directional: weight x cos(receiver) only, no 1/r^2
         int samples = 1;
+        glm::dvec3 radiance{0.0};         ///< planar emitters: the radiance, for the exact integral
+        std::vector<glm::dvec3> corners;  ///< rect and polygon lights: the emitter's outline, in order
     };
     const LightSamples& samples_;
     const ReceiverSet& receivers_;
