@@ -53,7 +53,7 @@ json treeEntry() {
 }
 
 json flowersEntry() {
-    return {{"type", "flowers"}, {"count", 40}, {"area", {-1.5, -1.5, 1.5, 1.5}}, {"petal_length", {0.3, 0.45}}};
+    return {{"type", "flowers"}, {"count", 40}, {"area", {{-1.5, -1.5}, {1.5, 1.5}}}, {"petal_length", {0.3, 0.45}}};
 }
 
 SceneDesc foliageScene(const ScratchDir& dir, const json& entry) {
