@@ -159,3 +159,26 @@ TEST_CASE("outline textures: bad input is a one-line error naming the scene file
     // No output and no temp file is left by a failed bake.
     CHECK(!std::filesystem::exists(dir.path / "out.npy"));
 }
+
+TEST_CASE("outline textures: the memory plan counts them, and one that alone exceeds the budget is refused",
+          "[alpha][procedural]") {
+    ScratchDir dir("outline-texture-budget");
+    // 4096 x 4096 RGBA: 128 MiB to decode (twice the pixels), 2 MiB of bits.
+    writeOutlinePng((dir.path / "big.png").string(), 4096, leafOutline);
+    json tree = treeEntry();
+    tree["leaf_texture"] = "big.png";
+    const SceneDesc scene = foliageScene(dir, tree);
+    BakeCapture capture;
+    BakeSettings settings;
+    settings.quiet = true, settings.threads = 1, settings.capture = &capture, settings.memoryBudget = 64ull << 20;
+    try {
+        runBake(scene, settings);
+        FAIL("a 4096^2 texture baked within 64 MiB");
+    } catch (const InputError& e) {
+        const std::string message = e.what();
+        INFO(message);
+        CHECK(message.find("geometry[0].leaf_texture") != std::string::npos);
+        CHECK(message.find("4096 x 4096") != std::string::npos);
+    }
+    CHECK(!std::filesystem::exists(dir.path / "out.npy"));
+}
