@@ -150,6 +150,27 @@ void parseObjectControls(const JsonParams& g, GeometryDesc& desc, SceneDesc& sce
     parseTranslucent(g, desc);
 }
 
+/// A generator's "leaf_texture" (tree, forest) or "petal_texture" (flowers) and "alpha_cutoff".
+void parseOutlineTexture(const JsonParams& g, const GeometryDesc& desc, size_t index, SceneDesc& scene,
+                         std::vector<SceneOutlineTexture>& textures) {
+    const bool trees = desc.type == "tree" || desc.type == "forest", flowers = desc.type == "flowers";
+    for (const char* key : {"leaf_texture", "petal_texture", "alpha_cutoff"})
+        if (g.has(key) && !(trees && std::string(key) != "petal_texture") && !(flowers && std::string(key) != "leaf_texture"))
+            fail(g.where(key), "is not an option of a \"{}\" entry (leaf_texture: tree, forest; petal_texture: flowers)", desc.type);
+    const char* key = trees ? "leaf_texture" : "petal_texture";
+    if (!g.has(key)) {
+        if (g.has("alpha_cutoff")) fail(g.where("alpha_cutoff"), "needs \"{}\"", key);
+        return;
+    }
+    if (desc.maxDistance) fail(g.where(key), "cannot be combined with max_distance");
+    SceneOutlineTexture t;
+    t.geometry = index, t.key = g.where(key), t.petal = flowers;
+    t.path = resolveScenePath(scene.baseDir, g.string(key), t.key);
+    t.cutoff = g.number("alpha_cutoff", t.cutoff);
+    checkUnitInterval(t.cutoff, g.where("alpha_cutoff"));
+    textures.push_back(std::move(t));
+}
+
 /// A table with every entry's max_distance ids (AlphaTable::withDistance), when one has it.
 std::shared_ptr<AlphaTable> addDistanceIds(SceneDesc& scene) {
     std::shared_ptr<AlphaTable> table;
@@ -161,11 +182,12 @@ std::shared_ptr<AlphaTable> addDistanceIds(SceneDesc& scene) {
     return table;
 }
 
-/// Gives an entry's triangles its max_distance ids: alpha id a becomes GeometryDesc::distanceIds[a].
+/// Replaces the built-in alpha ids of an entry's triangles: alpha id a becomes ids[a] (its
+/// max_distance ids, GeometryDesc::distanceIds, or a generator's texture ids, sceneOutlineIds()).
 /// A glTF file's own alpha ids already hold the distance (SceneAlpha.h) and pass unchanged.
-class DistanceIdSource final : public DecoratedSource {
+class BuiltinIdSource final : public DecoratedSource {
 public:
-    DistanceIdSource(TriangleSourcePtr inner, const std::array<uint32_t, kBuiltinAlphaCount>& ids, std::string where, bool ownIds)
+    BuiltinIdSource(TriangleSourcePtr inner, const std::array<uint32_t, kBuiltinAlphaCount>& ids, std::string where, bool ownIds)
         : DecoratedSource(std::move(inner)), ids_(ids), where_(std::move(where)), ownIds_(ownIds) {}
     size_t read(std::span<Triangle> out) override {
         const size_t n = inner_->read(out);
@@ -215,7 +237,7 @@ TriangleSourcePtr withObjectControls(TriangleSourcePtr source, const GeometryDes
     const uint32_t set = (g.castShadows ? 0u : uint32_t(kTriangleNoCast)) | cls;
     // A .ptri keeps the receiver classes of the scene that wrote it, which mean nothing here.
     if (set || g.type == "ptri" || g.type == "file") source = std::make_unique<FlagSource>(std::move(source), set, kTriangleClassMax << kTriangleClassShift);
-    if (g.maxDistance && !exporting) source = std::make_unique<DistanceIdSource>(std::move(source), g.distanceIds, file + ": " + g.path + ".max_distance", ownIds);
+    if (g.maxDistance && !exporting) source = std::make_unique<BuiltinIdSource>(std::move(source), g.distanceIds, file + ": " + g.path + ".max_distance", ownIds);
     if (g.translucentId && !exporting)
         source = std::make_unique<TranslucentIdSource>(std::move(source), *g.translucentId, file + ": " + g.path + ".translucent");
     return source;
@@ -283,6 +305,7 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
     const nlohmann::json* geometry = j.raw("geometry");
     if (!geometry) j.missing("geometry");
     if (!geometry->is_array()) fail(j.where("geometry"), "expected an array of geometry entries");
+    std::vector<SceneOutlineTexture> textures;
     for (size_t i = 0; i < geometry->size(); ++i) {
         JsonParams g((*geometry)[i], file, indexed("geometry", i));
         GeometryDesc desc;
@@ -291,12 +314,14 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
         desc.transform = parseTransform(g);
         if (g.raw("closed")) desc.closed = g.boolean("closed", false);
         parseObjectControls(g, desc, scene);
+        parseOutlineTexture(g, desc, i, scene, textures);
         desc.params = (*geometry)[i];
-        for (const char* key : {"type", "transform", "closed", "cast_shadows", "receive_shadows", "receiver_offset", "max_distance", "translucent"})
+        for (const char* key : {"type", "transform", "closed", "cast_shadows", "receive_shadows", "receiver_offset", "max_distance",
+                                "translucent", "leaf_texture", "petal_texture", "alpha_cutoff"})
             desc.params.erase(key);
         scene.geometry.push_back(std::move(desc));
     }
-    initSceneAlpha(scene, addDistanceIds(scene));
+    initSceneAlpha(scene, addDistanceIds(scene), std::move(textures));
 
     const nlohmann::json* lights = j.raw("lights");
     if (!lights) j.missing("lights");
@@ -352,6 +377,9 @@ TriangleSourcePtr openGeometry(const SceneDesc& scene, bool exporting) {
             source = std::make_unique<FlagSource>(std::move(source), *g.closed ? kTriangleClosed : 0u,
                                                   *g.closed ? 0u : kTriangleClosed | kTriangleSolidStart);
         source = withObjectControls(std::move(source), g, scene.file, exporting, alpha != nullptr);
+        // An export keeps the built-in outline, which means the same in every scene.
+        if (const SceneOutlineTexture* t = exporting ? nullptr : sceneOutlineTexture(scene, i))
+            source = std::make_unique<BuiltinIdSource>(std::move(source), t->ids, t->key, false);
         parts.push_back(std::move(source));
     }
     return std::make_unique<ConcatSource>(std::move(parts));

@@ -81,6 +81,20 @@ glm::dvec3 CameraRasterizer::direction(int x, int y) const {
     return directionThrough(CameraBasis{right_, up_, forward_, tanHalf_, aspect_}, camera_.width, camera_.height, x, y);
 }
 
+bool CameraRasterizer::opaqueAlong(const Triangle& tri, const glm::dvec3& d) const {
+    const uint32_t id = alphaIdOf(tri.flags);
+    if (!alpha_ || id == 0) return true;
+    // The ray's signed volume with edge e (from vertex e + 1 to e + 2) is proportional to the
+    // barycentric of vertex e; inside the triangle all three share one sign.
+    const glm::dvec3 a[3] = {glm::dvec3(tri.v[0]) - camera_.eye, glm::dvec3(tri.v[1]) - camera_.eye,
+                             glm::dvec3(tri.v[2]) - camera_.eye};
+    double e[3];
+    for (int i = 0; i < 3; ++i) e[i] = glm::dot(d, glm::cross(a[(i + 1) % 3], a[(i + 2) % 3]));
+    const double sum = (e[0] + e[1]) + e[2];
+    if (!(sum != 0.0)) return alpha_->lookup(id, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0).opaque;
+    return alpha_->lookup(id, e[0] / sum, e[1] / sum, e[2] / sum).opaque;
+}
+
 void CameraRasterizer::add(std::span<const Triangle> chunk) {
     const int W = camera_.width, H = camera_.height;
     const double nearZ = 1e-6;
@@ -143,6 +157,7 @@ void CameraRasterizer::add(std::span<const Triangle> chunk) {
                 size_t k = 0;
                 while (k < L && !(ft < depth_[base + k])) ++k;
                 if (k == L || (k > 0 && depth_[base + k - 1] == ft)) continue;
+                if (!opaqueAlong(tri, d)) continue;  // a clear texel: the camera sees what is behind
                 for (size_t j = L - 1; j > k; --j) {
                     depth_[base + j] = depth_[base + j - 1], normal_[base + j] = normal_[base + j - 1];
                     if (!triangle_.empty()) triangle_[base + j] = triangle_[base + j - 1];
@@ -204,8 +219,10 @@ ReceiverSet CameraRasterizer::finish() {
 }
 
 ReceiverSet rasterizeCamera(TriangleSource& source, const CameraDesc& camera,
-                            const std::function<void(std::span<const Triangle>)>& onChunk) {
+                            const std::function<void(std::span<const Triangle>)>& onChunk,
+                            std::shared_ptr<const AlphaTable> alpha) {
     CameraRasterizer raster(camera);
+    raster.seeThroughCutOuts(std::move(alpha));
     std::vector<Triangle> chunk(kTriangleChunk);
     while (size_t count = source.read(chunk)) {
         std::span<const Triangle> part(chunk.data(), count);

@@ -4,12 +4,14 @@
 /// every covered pixel into a receiver at the visible surface point.
 
 #include "receivers/ReceiverSet.h"
+#include "stream/AlphaTable.h"
 #include "stream/TriangleSource.h"
 
 #include <glm/vec3.hpp>
 
 #include <array>
 #include <functional>
+#include <memory>
 #include <span>
 #include <string>
 
@@ -55,6 +57,12 @@ public:
     CameraRasterizer(const CameraDesc& camera, int subdivision, std::span<const uint32_t> pixels);
     /// Rasterizes the chunk; triangles are depth-tested in the order given.
     void add(std::span<const Triangle> chunk);
+    /// The camera sees through cut-outs: a fragment of a triangle with an alpha id is kept only
+    /// where @p table's test (AlphaTable::lookup()) at the pixel ray's hit is opaque, exactly as
+    /// a shadow segment through that point would be blocked. The hit's barycentrics come from
+    /// the ray's signed volumes with the triangle's edges (as bake/rule/AlphaRule.h does for
+    /// segments). Without a table (null), alpha ids are ignored. Call before add().
+    void seeThroughCutOuts(std::shared_ptr<const AlphaTable> table) { alpha_ = std::move(table); }
     /// Also keep, per pixel, the vertices of the triangle that wins it (36 more bytes per pixel),
     /// for shading that needs the visible triangle (smooth coherent shading). Call before add().
     void recordTriangles() { triangle_.assign(depth_.size(), {}); }
@@ -81,6 +89,8 @@ public:
 
 private:
     glm::dvec3 direction(int x, int y) const;
+    /// False when the pixel ray along @p d hits a clear texel of @p tri's cut-out.
+    bool opaqueAlong(const Triangle& tri, const glm::dvec3& d) const;
     /// Storage slot of (fine) pixel (x, y) and layer 0, or SIZE_MAX when it is not rasterized.
     size_t slotOf(int x, int y) const;
     CameraDesc camera_;
@@ -96,6 +106,7 @@ private:
     std::vector<float> depth_;
     std::vector<glm::vec3> normal_;
     std::vector<std::array<glm::vec3, 3>> triangle_, winners_;
+    std::shared_ptr<const AlphaTable> alpha_;  ///< seeThroughCutOuts(); null: alpha is ignored
 };
 
 /// @brief Rasterizes every triangle of @p source (one pass, streamed) and returns one receiver per
@@ -104,7 +115,9 @@ private:
 /// Depth ties keep the earlier triangle, so the result depends only on the stream order.
 /// @param onChunk called with the triangles of each chunk after rasterizing it (lets the caller
 /// build an area histogram in the same pass).
+/// @param alpha when not null, the camera sees through cut-outs (CameraRasterizer::seeThroughCutOuts()).
 ReceiverSet rasterizeCamera(TriangleSource& source, const CameraDesc& camera,
-                            const std::function<void(std::span<const Triangle>)>& onChunk = {});
+                            const std::function<void(std::span<const Triangle>)>& onChunk = {},
+                            std::shared_ptr<const AlphaTable> alpha = nullptr);
 
 }  // namespace penumbra

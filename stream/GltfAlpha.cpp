@@ -1,5 +1,7 @@
 #include "stream/GltfAlpha.h"
 
+#include "stream/AlphaImage.h"
+
 #include "stream/GltfBytes.h"
 #include "stream/GltfJson.h"
 #include "stream/GltfPrimitive.h"
@@ -10,8 +12,6 @@
 #include "stream/util/RegularFile.h"
 #include "stream/util/SafePath.h"
 
-#include <stb/stb_image.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -21,10 +21,6 @@
 namespace penumbra {
 namespace {
 
-/// Texels on a side beyond which an image is refused as absurd (stb_image's own limit is 2^24).
-constexpr uint32_t kMaxImageSide = 65536;
-/// Encoded image bytes read at most (a PNG of the largest accepted size compresses below this).
-constexpr uint64_t kMaxEncodedBytes = 1ull << 30;
 /// Bytes of one deduplication index node (key, id, tree links), for the plan.
 constexpr uint64_t kIndexNodeBytes = 112;
 
@@ -69,7 +65,7 @@ std::vector<uint8_t> encodedBytes(const GltfDocument& doc, GltfBytes& bytes, int
     if (desc.bufferView >= 0) {
         const GltfBufferView& view = doc.views[size_t(desc.bufferView)];
         if (view.meshopt) fail(where, "bufferView {} is EXT_meshopt_compression data, not an image", desc.bufferView);
-        if (view.byteLength > kMaxEncodedBytes) fail(where, "bufferView {} holds {} bytes, more than an image may", desc.bufferView, view.byteLength);
+        if (view.byteLength > kMaxEncodedImageBytes) fail(where, "bufferView {} holds {} bytes, more than an image may", desc.bufferView, view.byteLength);
         out.resize(size_t(view.byteLength));
         bytes.copy(view.buffer, view.byteOffset, view.byteLength, out.data());
         return out;
@@ -84,69 +80,7 @@ std::vector<uint8_t> encodedBytes(const GltfDocument& doc, GltfBytes& bytes, int
     if (desc.uri.find("://") != std::string::npos) fail(where, "URI \"{}\" is not a local file", desc.uri);
     const std::filesystem::path base = std::filesystem::path(doc.path).parent_path();
     const std::string file = containedPath(base, gltfPercentDecoded(desc.uri), where, "the model's directory");
-    try {
-        checkInputFile(file);
-        RegularFile f(file);
-        if (f.size() > kMaxEncodedBytes) fail(file, "{} bytes, more than an image may", f.size());
-        out.resize(size_t(f.size()));
-        f.read(out.data(), out.size(), 0);
-    } catch (const InputError& e) {
-        fail(where, "{}", e.what());
-    }
-    return out;
-}
-
-/// What an image's header says.
-struct ImageHeader {
-    int width = 0, height = 0, channels = 0;
-    bool sixteen = false;
-    uint64_t decodeBytes() const { return 2 * uint64_t(width) * uint64_t(height) * uint64_t(channels) * (sixteen ? 2 : 1); }
-};
-
-/// Checks that @p data is a PNG or JPEG of sane size. @throw InputError naming @p where.
-ImageHeader readHeader(const std::vector<uint8_t>& data, const std::string& mimeType, const std::string& where) {
-    static const uint8_t png[] = {0x89, 'P', 'N', 'G'}, jpeg[] = {0xFF, 0xD8, 0xFF};
-    const bool isPng = data.size() >= 4 && std::memcmp(data.data(), png, 4) == 0;
-    const bool isJpeg = data.size() >= 3 && std::memcmp(data.data(), jpeg, 3) == 0;
-    if (data.empty()) fail(where, "is empty");
-    if (!isPng && !isJpeg)
-        fail(where, "is not a PNG or JPEG image{} (penumbra decodes only those)",
-             mimeType.empty() ? "" : fmt::format(" (mimeType \"{}\")", mimeType));
-    ImageHeader h;
-    if (data.size() > size_t(INT32_MAX) ||
-        !stbi_info_from_memory(data.data(), int(data.size()), &h.width, &h.height, &h.channels))
-        fail(where, "is corrupt ({})", stbi_failure_reason() ? stbi_failure_reason() : "unreadable header");
-    if (h.width <= 0 || h.height <= 0 || uint32_t(h.width) > kMaxImageSide || uint32_t(h.height) > kMaxImageSide)
-        fail(where, "is {} x {} texels; penumbra takes 1 to {} texels on a side", h.width, h.height, kMaxImageSide);
-    h.sixteen = stbi_is_16_bit_from_memory(data.data(), int(data.size())) != 0;
-    return h;
-}
-
-uint64_t bitBytes(const ImageHeader& h) { return (uint64_t(h.width) * uint64_t(h.height) + 63) / 64 * 8; }
-
-/// The 1-bit map of @p data: texel opaque when alpha x @p factor >= @p cutoff.
-AlphaMap decodeMap(const std::vector<uint8_t>& data, const ImageHeader& header, double factor, double cutoff,
-                   const std::string& where) {
-    int w = 0, h = 0, channels = 0;
-    void* pixels = header.sixteen ? static_cast<void*>(stbi_load_16_from_memory(data.data(), int(data.size()), &w, &h, &channels, 0))
-                                  : static_cast<void*>(stbi_load_from_memory(data.data(), int(data.size()), &w, &h, &channels, 0));
-    if (!pixels) fail(where, "does not decode ({})", stbi_failure_reason() ? stbi_failure_reason() : "corrupt data");
-    std::unique_ptr<void, void (*)(void*)> owned(pixels, stbi_image_free);
-    if (w != header.width || h != header.height) fail(where, "decodes to {} x {} texels, its header says {} x {}", w, h, header.width, header.height);
-    AlphaMap map;
-    map.width = uint32_t(w), map.height = uint32_t(h);
-    map.bits.assign((size_t(w) * size_t(h) + 63) / 64, 0);
-    const bool hasAlpha = channels == 2 || channels == 4;
-    const double maxValue = header.sixteen ? 65535.0 : 255.0;
-    for (size_t k = 0; k < size_t(w) * size_t(h); ++k) {
-        double alpha = 1.0;
-        if (hasAlpha) {
-            const size_t at = k * size_t(channels) + size_t(channels - 1);
-            alpha = (header.sixteen ? double(static_cast<const uint16_t*>(pixels)[at]) : double(static_cast<const uint8_t*>(pixels)[at])) / maxValue;
-        }
-        if (alpha * factor >= cutoff) map.bits[k >> 6] |= 1ull << (k & 63);
-    }
-    return map;
+    return readAlphaImageFile(file, where);
 }
 
 AlphaWrap wrapOf(int mode) {
@@ -190,8 +124,8 @@ private:
         if (d == decoded_.end()) {
             const std::string where = imageWhere(doc_, material, image);
             const std::vector<uint8_t> data = encodedBytes(doc_, bytes_, image, where);
-            const ImageHeader header = readHeader(data, doc_.materials.images[size_t(image)].mimeType, where);
-            d = decoded_.emplace(decodedKey, decodeMap(data, header, m.baseAlpha, m.alphaCutoff, where)).first;
+            const AlphaImageHeader header = readAlphaImageHeader(data, doc_.materials.images[size_t(image)].mimeType, where);
+            d = decoded_.emplace(decodedKey, decodeAlphaImage(data, header, m.baseAlpha, m.alphaCutoff, where)).first;
         }
         const AlphaMap& bits = d->second;
         const size_t texels = size_t(bits.width) * bits.height;
@@ -275,10 +209,10 @@ GltfAlphaPlan planGltfAlpha(const GltfDocument& doc) {
         if (seen.count(image)) continue;
         GltfAlphaImage info;
         info.where = imageWhere(doc, material, image);
-        const ImageHeader h = readHeader(encodedBytes(doc, bytes, image, info.where), doc.materials.images[size_t(image)].mimeType, info.where);
+        const AlphaImageHeader h = readAlphaImageHeader(encodedBytes(doc, bytes, image, info.where), doc.materials.images[size_t(image)].mimeType, info.where);
         info.width = uint32_t(h.width), info.height = uint32_t(h.height);
         info.decodeBytes = h.decodeBytes();
-        info.bitBytes = bitBytes(h);
+        info.bitBytes = h.bitBytes();
         seen.emplace(image, plan.images.size());
         plan.images.push_back(info);
     }

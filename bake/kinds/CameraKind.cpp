@@ -41,7 +41,8 @@ class CameraKind final : public ReceiverKind {
 public:
     CameraKind(const CameraDesc& camera, const CameraAntialias& aa, const SceneDesc& scene)
         : camera_(camera), aa_(aa), smooth_(scene.smoothShading), lights_(lightDirections(scene.lights)),
-          lightCount_(scene.lights.size()), exr_(scene.exr), classes_(scene.receiverClasses) {
+          lightCount_(scene.lights.size()), exr_(scene.exr), classes_(scene.receiverClasses),
+          alpha_(scene.options.alphaTable ? scene.options.alphaTable : AlphaTable::builtin()) {
         validateCamera(camera);
     }
     uint64_t outputBytes(uint64_t receivers) const override {
@@ -100,6 +101,7 @@ public:
         if (pixels.empty()) return false;
         const int n = int(std::lround(std::sqrt(double(aa_.samples))));
         raster_.emplace(camera_, n, pixels);
+        raster_->seeThroughCutOuts(alpha_);
         if (smooth_) raster_->recordTriangles();
         if (classes_.size() > 1) raster_->recordClasses();
         return true;
@@ -132,6 +134,7 @@ private:
     CameraRasterizer& raster() {
         if (!raster_) {
             raster_.emplace(camera_);
+            raster_->seeThroughCutOuts(alpha_);
             if (smooth_) raster_->recordTriangleIds();
             if (classes_.size() > 1) raster_->recordClasses();
         }
@@ -151,6 +154,8 @@ private:
     size_t lightCount_;
     ExrSettings exr_;
     std::vector<ReceiverClass> classes_;  ///< SceneDesc::receiverClasses
+    /// The scene's cut-outs, which the camera sees through; filled before the scan reads geometry.
+    std::shared_ptr<const AlphaTable> alpha_;
     std::optional<CameraRasterizer> raster_;
     std::optional<VertexBend> bend_;
     uint64_t refinedPixels_ = 0, addedReceivers_ = 0;
