@@ -525,10 +525,7 @@ const CasterRegistration kSsv{
     {"ssv",
      {.holdsScene = true,
       .summary = "soft shadow volumes (Laine et al. 2005) with frustum shooting: exact, holds the scene's edges"},
-     [](const CastContext& c) {
-         refuseMaxDistance(c, "ssv");
-         return std::make_unique<SsvSceneCaster>(c);
-     },
+     [](const CastContext& c) { return std::make_unique<SsvSceneCaster>(c); },
      [](uint64_t triangles, uint64_t receivers, const LightSamples& samples, const nlohmann::json&) {
          // The scene read once, its faces, edges and kd-trees, and the masks of every receiver.
          return triangles * sizeof(Triangle) + SsvScene::plannedBytes(triangles, samples.lightCount()) +
