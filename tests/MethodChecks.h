@@ -21,9 +21,10 @@ struct TieCount {
 
 inline TieCount classifyMismatches(const LightSamples& samples, const ReceiverSet& receivers,
                                    const std::vector<uint32_t>& sets, const std::vector<Triangle>& triangles,
-                                   const VisibilityMasks& a, const VisibilityMasks& b, const ReceiverEpsilon& eps) {
+                                   const VisibilityMasks& a, const VisibilityMasks& b, const ReceiverEpsilon& eps,
+                                   std::shared_ptr<const AlphaTable> alpha = AlphaTable::builtin()) {
     TieCount count;
-    const TieClassifier classifier(triangles, eps);
+    const TieClassifier classifier(triangles, eps, TieClassifier::kDefaultUlps, std::move(alpha));
     for (size_t r = 0; r < receivers.size(); ++r)
         for (int k = 0; k < a.groups; ++k)
             for (uint64_t diff = a.row(r)[k] ^ b.row(r)[k]; diff; diff &= diff - 1) {
@@ -39,22 +40,26 @@ inline TieCount classifyMismatches(const LightSamples& samples, const ReceiverSe
     return count;
 }
 
-/// ssv against the reference: every mismatch a tie of the rule, and ties rare.
+/// ssv against the reference: every mismatch a tie of the rule, and ties rare. Cut-outs name
+/// the alpha maps of @p alpha.
 inline void requireSsvMatchesReference(const std::string& scene, const std::vector<LightDesc>& lights,
                                        const ReceiverSet& receivers, const std::vector<Triangle>& triangles,
-                                       int groupSize = 64, const ReceiverEpsilon& eps = receiverEpsilonOf(CastOptions())) {
+                                       int groupSize = 64, const ReceiverEpsilon& eps = receiverEpsilonOf(CastOptions()),
+                                       std::shared_ptr<const AlphaTable> alpha = AlphaTable::builtin()) {
     LightSamples samples = generateLightSamples(lights, groupSize, 7);
     std::vector<uint32_t> sets = assignSets(receivers, samples.sets);
-    VisibilityMasks reference = castReference(samples, receivers, sets, triangles, eps);
+    VisibilityMasks reference = castReference(samples, receivers, sets, triangles, eps, {}, *alpha);
     INFO(scene << ": " << reference.blockedCount() << " blocked of " << receivers.size() * samples.sampleCount);
     REQUIRE(reference.blockedCount() > 0);
     REQUIRE(reference.blockedCount() < uint64_t(receivers.size()) * samples.sampleCount);
     SsvStats stats;
-    VisibilityMasks ssv = castSsv(samples, receivers, sets, triangles, eps, SsvOptions{}, &stats);
-    const TieCount c = classifyMismatches(samples, receivers, sets, triangles, reference, ssv, eps);
+    SsvOptions options;
+    options.alpha = alpha.get();
+    VisibilityMasks ssv = castSsv(samples, receivers, sets, triangles, eps, options, &stats);
+    const TieCount c = classifyMismatches(samples, receivers, sets, triangles, reference, ssv, eps, alpha);
     INFO("mismatches " << c.mismatches << ", ties " << c.ties << ", silhouette terms " << stats.silhouetteEdges
                        << ", band terms " << stats.bandEdges << ", retries " << stats.referenceRetries << ", fallbacks "
-                       << stats.fallbackFrustums);
+                       << stats.fallbackFrustums << ", alpha tests " << stats.alphaTests);
     CHECK(c.mismatches == c.ties);
     CHECK(double(c.mismatches) <= 1e-4 * double(receivers.size()) * samples.sampleCount);
 }

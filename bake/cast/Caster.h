@@ -142,7 +142,7 @@ struct CasterRegistration {
 const CasterEntry& casterEntry(const std::string& name);
 
 /// @brief Refuses a scene with "max_distance" blockers for method @p method, which does not
-/// apply the distance test (only hpc, reference and embree do: AlphaRule.h).
+/// apply the distance test (hpc, reference, embree and ssv do: AlphaRule.h).
 /// @throw InputError "--method ssv: ...".
 void refuseMaxDistance(const CastContext& context, const std::string& method);
 

@@ -3,6 +3,7 @@
 #include "bake/methods/SsvKernels.h"
 #include "bake/methods/SsvScene.h"
 #include "bake/cast/SceneCaster.h"
+#include "bake/rule/AlphaRule.h"
 #include "stream/util/Progress.h"
 
 #include <glm/geometric.hpp>
@@ -68,6 +69,7 @@ struct Context {
     std::span<const uint32_t> sets;
     ReceiverEpsilon epsilon;
     SsvOptions options;
+    const AlphaTable& alpha;
     std::vector<double> sx, sy, sz;           ///< every sample of every set, as the rule reads it
     std::vector<std::vector<uint32_t>> refs;  ///< [set * lights + light]: reference candidates
     std::vector<uint32_t> lightFirstSample;
@@ -78,7 +80,7 @@ struct Context {
 /// Counters summed over one thread's receivers.
 struct Local {
     uint64_t frustums = 0, edges = 0, silhouettes = 0, band = 0, straddlers = 0, refTriangles = 0, retries = 0,
-             fallbacks = 0;
+             fallbacks = 0, alphaFaces = 0, alphaTests = 0;
 };
 
 /// One thread's scratch and the per-receiver algorithm.
@@ -88,6 +90,7 @@ public:
         size_t edges = 0;
         for (int li = 0; li < c.samples.lightCount(); ++li) edges = std::max(edges, c.scene.light(li).edges.size());
         edgeIds_.reset(edges), faceIds_.reset(c.scene.faces().size()), straddlerIds_.reset(c.scene.faces().size());
+        alphaIds_.reset(c.scene.alphaFaces().size());
     }
 
     void cast(uint32_t receiver, const glm::dvec3& r, uint64_t* row, Local& local) {
@@ -104,6 +107,7 @@ private:
     void testStraddlers(int li, int set, const glm::dvec3& r);
     bool outsideAnEdge(const BlockerTriangle& t, double s, const ConvexBound& bound, double gMax) const;
     void castPerSample(int li, int set, const glm::dvec3& r);
+    void testCutouts(int li, int set, const glm::dvec3& r, Local& local);
     bool active(uint32_t face, const SsvLight& light, const glm::dvec3& r) const {
         const int8_t side = light.side[face];
         return side != 0 && double(-side) * distanceBehind(c_.scene.faces()[face].t, r) > eps_;
@@ -119,8 +123,8 @@ private:
     glm::dvec3 ref_{0.0}, dref_{0.0};
     int depthRef_ = 0;
     std::vector<KdPlane> planes_;
-    std::vector<uint32_t> edges_, straddlers_, faces_;
-    IdSet edgeIds_, faceIds_, straddlerIds_;
+    std::vector<uint32_t> edges_, straddlers_, faces_, cutouts_;
+    IdSet edgeIds_, faceIds_, straddlerIds_, alphaIds_;
     std::vector<Term> terms_;
     std::vector<int> depth_;     ///< per sample of the light: depth complexity of A
     std::vector<uint8_t> blocked_;
@@ -256,6 +260,34 @@ void ReceiverCaster::testStraddlers(int li, int set, const glm::dvec3& r) {
     }
 }
 
+void ReceiverCaster::testCutouts(int li, int set, const glm::dvec3& r, Local& local) {
+    if (c_.scene.alphaFaces().empty()) return;
+    const LightSamples& s = c_.samples;
+    const uint32_t firstSample = c_.lightFirstSample[size_t(li)];
+    alphaIds_.begin(cutouts_);
+    c_.scene.alphaTree().visitCone(planes_, [&](uint32_t leaf) {
+        for (uint32_t f : c_.scene.alphaTree().items(leaf, kSsvTriangleItem)) alphaIds_.add(f);
+    });
+    local.alphaFaces += cutouts_.size();
+    for (uint32_t f : cutouts_) {
+        const BlockerTriangle& t = c_.scene.alphaFaces()[f];
+        const double dist = distanceBehind(t, r);
+        if (!(std::abs(dist) > eps_)) continue;  // within the band: the rule blocks nothing
+        const double sFar = dist > 0 ? -1.0 : 1.0;  // as for straddlers: the only s that can block
+        for (uint32_t k = s.lightFirstGroup[size_t(li)]; k < s.lightFirstGroup[size_t(li) + 1]; ++k) {
+            const LightSampleGroup& g = s.groups[k];
+            if (outsideAnEdge(t, sFar, g.bound, c_.groupMaxAbs[k])) continue;
+            for (uint32_t j = 0; j < g.count; ++j) {
+                uint8_t& blocked = blocked_[g.first + j - firstSample];
+                if (blocked) continue;
+                ++local.alphaTests;
+                const HardShadowVolume h = makeHardShadowVolume(sample(set, g.first + j), w_, t);
+                blocked = blocksWithAlpha(h, t, r, dist, eps_, c_.alpha);
+            }
+        }
+    }
+}
+
 void ReceiverCaster::castPerSample(int li, int set, const glm::dvec3& r) {
     const SsvLight& light = c_.scene.light(li);
     faceIds_.begin(faces_);
@@ -335,6 +367,7 @@ void ReceiverCaster::castLight(int li, int set, const glm::dvec3& r, uint64_t* r
         for (uint32_t k = 0; k < count; ++k) blocked_[k] = depth_[k] > 0;
         testStraddlers(li, set, r);
     }
+    testCutouts(li, set, r, local);
     for (uint32_t k = s.lightFirstGroup[size_t(li)]; k < s.lightFirstGroup[size_t(li) + 1]; ++k) {
         const LightSampleGroup& g = s.groups[k];
         uint64_t word = 0;
@@ -378,7 +411,8 @@ VisibilityMasks castSsv(const LightSamples& samples, const ReceiverSet& receiver
     const SsvScene scene(triangles, samples, epsilon, receiverBox, options.tree);
 
     Stopwatch castWatch;
-    Context c{samples, scene, sampleSetOf, epsilon, options, {}, {}, {}, {}, {}, {}, 0.0};
+    Context c{samples, scene, sampleSetOf, epsilon, options, options.alpha ? *options.alpha : *AlphaTable::builtin(),
+              {}, {}, {}, {}, {}, {}, 0.0};
     for (const glm::vec3& p : samples.positions) c.sx.push_back(p.x), c.sy.push_back(p.y), c.sz.push_back(p.z);
     c.refs = referenceCandidates(samples, options.referenceCandidates);
     for (const LightSampleGroup& g : samples.groups) {
@@ -394,6 +428,7 @@ VisibilityMasks castSsv(const LightSamples& samples, const ReceiverSet& receiver
     }
     KdBox all = receiverBox;
     for (int li = 0; li < samples.lightCount(); ++li) all.add(scene.light(li).tree.bounds().lo), all.add(scene.light(li).tree.bounds().hi);
+    if (!scene.alphaFaces().empty()) all.add(scene.alphaTree().bounds().lo), all.add(scene.alphaTree().bounds().hi);
     c.margin = all.empty() ? 1e-9 : 1e-7 * std::max({1e-300, maxAbs(all.lo), maxAbs(all.hi)});
 
     VisibilityMasks masks(receivers.size(), samples.groupCount());
@@ -416,7 +451,7 @@ VisibilityMasks castSsv(const LightSamples& samples, const ReceiverSet& receiver
         st.buildSeconds = scene.stats().buildSeconds;
         st.castSeconds = castWatch.seconds();
         st.receivers = receivers.size();
-        st.faces = scene.stats().faces;
+        st.faces = scene.stats().faces, st.alphaFaces = scene.stats().alphaFaces;
         st.sceneBytes = scene.bytes();
         for (int li = 0; li < samples.lightCount(); ++li) {
             const SsvLight& l = scene.light(li);
@@ -428,6 +463,7 @@ VisibilityMasks castSsv(const LightSamples& samples, const ReceiverSet& receiver
             st.frustums += l.frustums, st.edgesInFrustum += l.edges, st.silhouetteEdges += l.silhouettes;
             st.bandEdges += l.band, st.straddlersInFrustum += l.straddlers, st.referenceTriangles += l.refTriangles;
             st.referenceRetries += l.retries, st.fallbackFrustums += l.fallbacks;
+            st.alphaInFrustum += l.alphaFaces, st.alphaTests += l.alphaTests;
         }
     }
     return masks;
@@ -451,7 +487,10 @@ nlohmann::json ssvStatsJson(const SsvStats& s) {
             {"straddlers_per_frustum", double(s.straddlersInFrustum) / frustums},
             {"reference_triangles_per_frustum", double(s.referenceTriangles) / frustums},
             {"reference_retries", s.referenceRetries},
-            {"fallback_frustums", s.fallbackFrustums}};
+            {"fallback_frustums", s.fallbackFrustums},
+            {"alpha_faces", s.alphaFaces},
+            {"alpha_faces_per_frustum", double(s.alphaInFrustum) / frustums},
+            {"alpha_tests", s.alphaTests}};
 }
 
 }  // namespace penumbra
@@ -467,7 +506,9 @@ public:
         : SceneCaster(c, "ssv", [this](const ReceiverSet& targets, std::span<const uint32_t> sets,
                                        std::span<const Triangle> all, const std::function<void(uint64_t)>& progress) {
               SsvStats s;
-              VisibilityMasks m = castSsv(c_.samples, targets, sets, all, receiverEpsilonOf(c_.options), SsvOptions{}, &s, progress);
+              SsvOptions o;
+              o.alpha = &alphaTableOf(c_.options);
+              VisibilityMasks m = castSsv(c_.samples, targets, sets, all, receiverEpsilonOf(c_.options), o, &s, progress);
               if (!cast_) stats_ = s;
               cast_ = true;
               return m;
@@ -484,10 +525,7 @@ const CasterRegistration kSsv{
     {"ssv",
      {.holdsScene = true,
       .summary = "soft shadow volumes (Laine et al. 2005) with frustum shooting: exact, holds the scene's edges"},
-     [](const CastContext& c) {
-         refuseMaxDistance(c, "ssv");
-         return std::make_unique<SsvSceneCaster>(c);
-     },
+     [](const CastContext& c) { return std::make_unique<SsvSceneCaster>(c); },
      [](uint64_t triangles, uint64_t receivers, const LightSamples& samples, const nlohmann::json&) {
          // The scene read once, its faces, edges and kd-trees, and the masks of every receiver.
          return triangles * sizeof(Triangle) + SsvScene::plannedBytes(triangles, samples.lightCount()) +

@@ -27,10 +27,18 @@
 /// can differ from the rule only where two faces' edge tests do not cancel in float: a segment
 /// within roundoff of a shared edge or a vertex, a tie of the rule (bake/TieClassifier.h).
 ///
+/// Cut-outs (bake/rule/AlphaRule.h): an alpha triangle blocks only where the alpha test at the
+/// hit passes, so it has no place in the depth complexity. Alpha triangles are kept apart
+/// (SsvScene::alphaFaces()) and, once a receiver's opaque samples are decided, each sample still
+/// open is tested with the rule and the alpha test (blocksWithAlpha(), as the reference does)
+/// against the alpha triangles its frustum reaches in their own kd-tree. Translucent triangles
+/// never reach the caster: the pipeline weighs them after the opaque mask (TranslucentBlockers.h).
+///
 /// Memory: the whole scene, unlike hpc: triangles in double (SsvFace, 128 bytes), and per light
 /// the potential silhouette edges and the kd-tree (SsvScene::bytes(), in the stats).
 
 #include "bake/rule/BlockingRule.h"
+#include "stream/AlphaTable.h"
 #include "bake/light/Light.h"
 #include "bake/methods/SilhouetteKdTree.h"
 #include "bake/cast/VisibilityMasks.h"
@@ -49,6 +57,7 @@ struct SsvOptions {
     /// below 0.5 % of the scene box.
     KdParams tree{10, 0b110};
     int referenceCandidates = 8;  ///< samples tried as the reference before the per-sample fallback
+    const AlphaTable* alpha = nullptr;  ///< the cut-outs' alpha table; null: the built-in outlines
 };
 
 /// @brief Counters of an ssv cast: the paper's numbers (kd-tree memory, edges per frustum, time
@@ -69,6 +78,9 @@ struct SsvStats {
     uint64_t referenceTriangles = 0;  ///< triangles the reference rays tested
     uint64_t referenceRetries = 0;    ///< reference candidates passed over (ray near an edge)
     uint64_t fallbackFrustums = 0;    ///< receiver-light pairs cast per sample (every candidate too close)
+    uint64_t alphaFaces = 0;          ///< cut-out triangles, tested per open sample
+    uint64_t alphaInFrustum = 0;      ///< cut-out triangles the frustums reached (distinct per frustum)
+    uint64_t alphaTests = 0;          ///< open samples tested against a cut-out (group culls skipped)
 };
 
 /// @brief The stats JSON's "ssv" section: the counters and the paper's per-receiver figures.

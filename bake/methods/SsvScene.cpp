@@ -43,12 +43,22 @@ SsvScene::SsvScene(std::span<const Triangle> triangles, const LightSamples& samp
     for (const Triangle& tri : triangles) {
         BlockerTriangle b = BlockerTriangle::from(tri);
         if (!b.valid) continue;
+        for (const glm::dvec3& v : b.v) scene.add(v);
+        if (b.alpha != 0) {
+            alpha_.push_back(b);
+            continue;
+        }
         SsvFace f;
         f.t = b;
-        for (const glm::dvec3& v : b.v) scene.add(v);
         faces_.push_back(f);
     }
-    stats_.faces = faces_.size();
+    stats_.faces = faces_.size(), stats_.alphaFaces = alpha_.size();
+    std::vector<KdItem> alphaItems(alpha_.size());
+    for (size_t i = 0; i < alpha_.size(); ++i) {
+        for (const glm::dvec3& v : alpha_[i].v) alphaItems[i].box.add(v);
+        alphaItems[i].id = uint32_t(i), alphaItems[i].kind = kSsvTriangleItem;
+    }
+    alphaTree_.build(std::move(alphaItems), params);
     if (!scene.empty()) sceneSize_ = std::max(1e-300, glm::length(scene.hi - scene.lo));
     findAdjacency();
     lights_.resize(size_t(samples.lightCount()));
@@ -187,7 +197,7 @@ void SsvScene::classify(int li, const LightSamples& samples, const ReceiverEpsil
 }
 
 uint64_t SsvScene::bytes() const {
-    uint64_t b = faces_.capacity() * sizeof(SsvFace);
+    uint64_t b = faces_.capacity() * sizeof(SsvFace) + alpha_.capacity() * sizeof(BlockerTriangle) + alphaTree_.bytes();
     for (const SsvLight& l : lights_) b += l.bytes();
     return b;
 }

@@ -23,6 +23,10 @@
 ///   eps_max * max|l - w r| / h, with h the distance of the light's bound from the face's plane.
 /// - Kd-tree items: kind 0 potential silhouette edges (id into SsvLight::edges), kind 1
 ///   straddlers and kind 2 the other triangles (id = face index), both for the reference ray.
+/// - Cut-out triangles (an alpha id, bake/rule/AlphaRule.h) block only where the alpha test at
+///   the hit passes, so they bound no opaque depth complexity: they are not faces (no edges, no
+///   adjacency) but a list of their own with one light-independent kd-tree over their boxes
+///   (kind kSsvTriangleItem), which the caster tests per open sample after the opaque pass.
 
 #include "bake/rule/BlockingRule.h"
 #include "bake/light/Light.h"
@@ -64,7 +68,7 @@ struct SsvLight {
 
 /// @brief Counters of the preprocessing, for the stats.
 struct SsvSceneStats {
-    uint64_t faces = 0, vertices = 0, sharedEdges = 0, boundaryEdges = 0;
+    uint64_t faces = 0, alphaFaces = 0, vertices = 0, sharedEdges = 0, boundaryEdges = 0;
     double buildSeconds = 0;
 };
 
@@ -77,8 +81,11 @@ public:
 
     const std::vector<SsvFace>& faces() const { return faces_; }
     const SsvLight& light(int l) const { return lights_[size_t(l)]; }
+    /// Cut-out triangles (alpha id != 0) and the kd-tree over their boxes.
+    const std::vector<BlockerTriangle>& alphaFaces() const { return alpha_; }
+    const SilhouetteKdTree& alphaTree() const { return alphaTree_; }
     const SsvSceneStats& stats() const { return stats_; }
-    /// Bytes held: faces, per-light arrays and trees.
+    /// Bytes held: faces, cut-outs, per-light arrays and trees.
     uint64_t bytes() const;
     /// @brief What the memory plan reserves for @p triangles triangles and @p lights lights: 128
     /// bytes of face, and per light 340 bytes of edges and kd-tree, the most any Table 2 scene
@@ -92,6 +99,8 @@ private:
 
     std::vector<SsvFace> faces_;
     std::vector<SsvLight> lights_;
+    std::vector<BlockerTriangle> alpha_;
+    SilhouetteKdTree alphaTree_;
     SsvSceneStats stats_;
     double sceneSize_ = 1;
 };

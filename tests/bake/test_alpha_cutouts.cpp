@@ -2,6 +2,7 @@
 // from its edge values, and hpc, reference and Embree agreeing on cut-outs (random textured quad
 // soups, an analytic checkerboard, cut-outs mixed with opaque blockers, umbra safety).
 
+#include "MethodChecks.h"
 #include "TestScenes.h"
 
 #include "bake/peers/EmbreeCaster.h"
@@ -85,6 +86,32 @@ struct AlphaSoup {
         tris.insert(tris.end(), floor.begin(), floor.end());
     }
 };
+
+/// A small tree (leaf cut-outs, kAlphaLeaf*) over 30 flowers (petal cut-outs, kAlphaPetal*).
+std::vector<Triangle> leavesAndPetals() {
+    TreeParams tp;
+    tp.depth = 2, tp.leavesPerBranch = 6, tp.leafSize = 0.4;
+    std::vector<Triangle> tree = buildTree(tp);
+    uint64_t leaves = 0;
+    for (const Triangle& t : tree)
+        if (alphaIdOf(t.flags)) {
+            ++leaves;
+            CHECK((alphaIdOf(t.flags) == kAlphaLeafLower || alphaIdOf(t.flags) == kAlphaLeafUpper));
+            CHECK((t.flags & kTriangleAlphaMatte));
+        }
+    CHECK(leaves == 2 * 9 * 6);
+    FlowerParams fp;
+    fp.placement.count = 30;
+    fp.placement.area = {-1, -1, 1, 1};
+    fp.petalLength = {0.2, 0.3};
+    std::vector<Triangle> scene = readAll(*makeFlowerSource(fp));
+    for (const Triangle& t : scene) CHECK(alphaIdOf(t.flags) <= kAlphaPetalUpper);
+    for (Triangle t : tree) {
+        for (auto& v : t.v) v = v * 0.6f + glm::vec3(0, 0.4f, 0);
+        scene.push_back(t);
+    }
+    return scene;
+}
 
 CastOptions withTable(CastOptions o, std::shared_ptr<const AlphaTable> table) {
     o.alphaTable = std::move(table);
@@ -282,27 +309,7 @@ TEST_CASE("alpha: umbra safety, an opaque blocker behind a cut-out still makes u
 
 TEST_CASE("alpha: tree leaves and flower petals are analytic cut-outs that every method tests the same way",
           "[alpha][procedural][embree]") {
-    TreeParams tp;
-    tp.depth = 2, tp.leavesPerBranch = 6, tp.leafSize = 0.4;
-    std::vector<Triangle> tree = buildTree(tp);
-    uint64_t leaves = 0;
-    for (const Triangle& t : tree)
-        if (alphaIdOf(t.flags)) {
-            ++leaves;
-            CHECK((alphaIdOf(t.flags) == kAlphaLeafLower || alphaIdOf(t.flags) == kAlphaLeafUpper));
-            CHECK((t.flags & kTriangleAlphaMatte));
-        }
-    CHECK(leaves == 2 * 9 * 6);
-    FlowerParams fp;
-    fp.placement.count = 30;
-    fp.placement.area = {-1, -1, 1, 1};
-    fp.petalLength = {0.2, 0.3};
-    std::vector<Triangle> scene = readAll(*makeFlowerSource(fp));
-    for (const Triangle& t : scene) CHECK(alphaIdOf(t.flags) <= kAlphaPetalUpper);
-    for (Triangle t : tree) {
-        for (auto& v : t.v) v = v * 0.6f + glm::vec3(0, 0.4f, 0);
-        scene.push_back(t);
-    }
+    const std::vector<Triangle> scene = leavesAndPetals();
     ReceiverSet receivers = randomReceivers(5, 700, {-1.2f, 0, -1.2f}, {1.2f, 0.05f, 1.2f});
     const std::vector<LightDesc> lights = {rectLight({0.4, 4, 0.1}, {1.0, 0, 0}, {0, 0, 1.0}, 128, 4)};
     requireMatchesReference("tree and flowers with cut-outs", lights, receivers, scene);
@@ -340,4 +347,27 @@ TEST_CASE("alpha: a mirroring transform keeps a cut-out's vertex order, so its o
         opaque += x;
     }
     CHECK(opaque > 100);
+}
+
+TEST_CASE("alpha: ssv tests cut-outs as the reference does, leaves and petals among opaque blockers",
+          "[alpha][ssv][exact]") {
+    // Cut-outs are no silhouette casters: before issue #17's fix ssv cast them as opaque
+    // triangles and blocked every relation through a transparent part of a leaf or a petal.
+    std::vector<Triangle> scene = leavesAndPetals();
+    const std::vector<Triangle> opaque = triangleSoup(21, 30, {-1, 0.3f, -1}, {1, 1.2f, 1}, 0.15f);
+    scene.insert(scene.end(), opaque.begin(), opaque.end());
+    ReceiverSet receivers = randomReceivers(5, 700, {-1.2f, 0, -1.2f}, {1.2f, 0.05f, 1.2f});
+    addReceiversOnTriangles(receivers, opaque, 22, 4);
+    requireSsvMatchesReference("leaves, petals and opaque soup", {rectLight({0.4, 4, 0.1}, {1.0, 0, 0}, {0, 0, 1.0}, 128, 4)},
+                               receivers, scene);
+    requireSsvMatchesReference("leaves, petals and opaque soup under a sun", {sunLight({0.45, -1, 0.3}, 4.0, 64)}, receivers, scene);
+}
+
+TEST_CASE("alpha: ssv tests textured cut-out quad soups as the reference does", "[alpha][ssv][exact]") {
+    for (int opaque : {0, 40}) {
+        INFO("opaque blockers " << opaque);
+        const AlphaSoup soup(11 + opaque, 40, opaque);
+        requireSsvMatchesReference("textured alpha soup", {rectLight({0.3, 4, 0.2}, {1.5, 0, 0}, {0, 0, 1.5}, 128, 4)},
+                                   soup.receivers, soup.tris, 64, receiverEpsilonOf(CastOptions()), soup.table);
+    }
 }

@@ -3,6 +3,7 @@
 // masks bit for bit with it, Embree the same up to classified ties, and bad values are one-line
 // errors naming the key.
 
+#include "MethodChecks.h"
 #include "TestScenes.h"
 #include "TestSupport.h"
 
@@ -252,6 +253,9 @@ TEST_CASE("object controls: max_distance on random soups, hpc equals the referen
                 if (!v.tie) ++nonTies, UNSCOPED_INFO(v.describe());
             }
     CHECK(nonTies == 0);
+    // ssv tests triangles with a max_distance as cut-outs (issue #17), with the same distance test.
+    requireSsvMatchesReference("max_distance soup", {rectLight({0.2, 4, 0.1}, {1.5, 0, 0}, {0, 0, 1.5}, 128, 4)}, receivers, tris,
+                               64, eps, table);
 }
 
 TEST_CASE("object controls: a hit at the max_distance threshold is a classified tie", "[objects]") {
@@ -302,7 +306,7 @@ TEST_CASE("object controls: bad values are one-line errors naming the key", "[ob
 TEST_CASE("object controls: methods without the distance test refuse max_distance", "[objects]") {
     ScratchDir dir("objects");
     const SceneDesc scene = sceneOf(dir, {floorEntry(), boxes({box({-1, 1, -1}, {1, 1.2f, 1})}, {{"max_distance", 2}})}, floorPoints(dir));
-    for (const char* method : {"ssv", "penumbra-map"}) CHECK_THROWS_WITH(bake(scene, method), Catch::Contains("max_distance"));
+    for (const char* method : {"penumbra-map"}) CHECK_THROWS_WITH(bake(scene, method), Catch::Contains("max_distance"));
     // cast_shadows is honoured by every method: the approximate penumbra map sees no occluder, and
     // hpc with points receivers (no pass after the bucket pass) never even writes it to a bucket.
     const SceneDesc hidden = sceneOf(dir, {floorEntry(), boxes({box({-1, 1, -1}, {1, 1.2f, 1})}, {{"cast_shadows", false}})}, floorPoints(dir));
