@@ -29,7 +29,7 @@ std::string mismatchCell(const json& c) {
     const json& m = at(c, "mismatches_vs_hpc");
     if (m.is_null()) return "–";
     if (m.contains("error")) return "error";
-    return fmt::format("{} ({})", m["mismatches"].get<uint64_t>(), m["ties"].get<uint64_t>());
+    return fmt::format("{} ({})", at(m, "mismatches").get<uint64_t>(), at(m, "ties").get<uint64_t>());
 }
 
 /// hpc's value of @p key over @p c's (> 1: faster), or null.
@@ -40,14 +40,14 @@ json ratioToHpc(const json& hpc, const json& c, const char* key) {
 }
 
 std::string methodLine(const std::string& scene, const std::string& size, const std::string& method, const json& c, const json& hpc) {
-    if (c.contains("skipped")) return fmt::format("| {} | {} | {} | {} | | | | | | | | | | |\n", scene, size, method, c["skipped"].get<std::string>());
-    if (c.contains("error")) return fmt::format("| {} | {} | {} | error: {} | | | | | | | | | | |\n", scene, size, method, c["error"].get<std::string>());
+    if (c.contains("skipped")) return fmt::format("| {} | {} | {} | {} | | | | | | | | | | |\n", scene, size, method, at(c, "skipped").get<std::string>());
+    if (c.contains("error")) return fmt::format("| {} | {} | {} | error: {} | | | | | | | | | | |\n", scene, size, method, at(c, "error").get<std::string>());
     const json& e = at(c, "error_vs_hpc");
     const bool isHpc = method == "hpc";
     auto ratio = [&](const char* key) { return isHpc ? std::string("1") : number(ratioToHpc(hpc, c, key), "{:.2f}×"); };
-    return fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", scene, size, method, number(c["time_s"]),
+    return fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", scene, size, method, number(at(c, "time_s")),
                        isHpc ? "1" : number(at(c, "speedup_vs_hpc"), "{:.2f}×"), number(at(c, "bake_total_s")), ratio("bake_total_s"),
-                       number(at(c, "process_cpu_s")), ratio("process_cpu_s"), formatMiB(c["peak_rss_bytes"]), mismatchCell(c),
+                       number(at(c, "process_cpu_s")), ratio("process_cpu_s"), formatMiB(at(c, "peak_rss_bytes")), mismatchCell(c),
                        number(at(e, "mean_abs_dv"), "{:.4f}"), number(at(e, "max_abs_dv"), "{:.3f}"), number(at(e, "fraction_above_0_1"), "{:.4f}"));
 }
 
@@ -55,17 +55,17 @@ std::string ssvTable(const json& result) {
     std::string md = "| scene | size | kd-tree MiB | nodes | leaves | depth | references | scene MiB | potential silhouette edges | "
                      "edges per frustum | silhouette edges per frustum | straddlers per frustum | reference retries | fallbacks | "
                      "time per receiver µs | build s |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
-    for (const json& row : result["rows"]) {
+    for (const json& row : at(result, "rows")) {
         const json& s = at(at(at(row, "methods"), "ssv"), "ssv");
         if (s.is_null()) continue;
         md += fmt::format("| {} | {}×{} | {} | {} | {} | {} | {} | {} | {} | {:.1f} | {:.1f} | {:.1f} | {} | {} | {:.1f} | {:.2f} |\n",
-                          row["scene"].get<std::string>(), row["width"].get<int>(), row["height"].get<int>(),
-                          formatMiB(s["kd_tree"]["bytes"]), s["kd_tree"]["nodes"].get<uint64_t>(), s["kd_tree"]["leaves"].get<uint64_t>(),
-                          s["kd_tree"]["depth"].get<int>(), s["kd_tree"]["references"].get<uint64_t>(), formatMiB(s["scene_bytes"]),
-                          s["potential_silhouette_edges"].get<uint64_t>(), s["edges_per_frustum"].get<double>(),
-                          s["silhouette_edges_per_frustum"].get<double>(), s["straddlers_per_frustum"].get<double>(),
-                          s["reference_retries"].get<uint64_t>(), s["fallback_frustums"].get<uint64_t>(),
-                          s["time_per_receiver_us"].get<double>(), s["build_time_s"].get<double>());
+                          at(row, "scene").get<std::string>(), at(row, "width").get<int>(), at(row, "height").get<int>(),
+                          formatMiB(at(at(s, "kd_tree"), "bytes")), at(at(s, "kd_tree"), "nodes").get<uint64_t>(), at(at(s, "kd_tree"), "leaves").get<uint64_t>(),
+                          at(at(s, "kd_tree"), "depth").get<int>(), at(at(s, "kd_tree"), "references").get<uint64_t>(), formatMiB(at(s, "scene_bytes")),
+                          at(s, "potential_silhouette_edges").get<uint64_t>(), at(s, "edges_per_frustum").get<double>(),
+                          at(s, "silhouette_edges_per_frustum").get<double>(), at(s, "straddlers_per_frustum").get<double>(),
+                          at(s, "reference_retries").get<uint64_t>(), at(s, "fallback_frustums").get<uint64_t>(),
+                          at(s, "time_per_receiver_us").get<double>(), at(s, "build_time_s").get<double>());
     }
     return md;
 }
@@ -73,15 +73,15 @@ std::string ssvTable(const json& result) {
 std::string hhTable(const json& result) {
     std::string md = "| samples | hpc s | hh s | hh vs hpc | hh peak RSS MiB | mismatches vs hpc (ties) | mean abs dV | max abs dV | > 0.1 |\n"
                      "|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
-    for (const json& row : result["hh"]) {
-        const json &hpc = at(row["methods"], "hpc"), &hh = at(row["methods"], "hh");
+    for (const json& row : at(result, "hh")) {
+        const json &hpc = at(at(row, "methods"), "hpc"), &hh = at(at(row, "methods"), "hh");
         if (hpc.contains("error") || hh.is_null() || hh.contains("error")) {
-            md += fmt::format("| {} | error | | | | | | | |\n", row["samples"].get<int>());
+            md += fmt::format("| {} | error | | | | | | | |\n", at(row, "samples").get<int>());
             continue;
         }
         const json& e = at(hh, "error_vs_hpc");
-        md += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", row["samples"].get<int>(), number(hpc["time_s"]),
-                          number(hh["time_s"]), number(at(hh, "speedup_vs_hpc"), "{:.2f}×"), formatMiB(hh["peak_rss_bytes"]),
+        md += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", at(row, "samples").get<int>(), number(at(hpc, "time_s")),
+                          number(at(hh, "time_s")), number(at(hh, "speedup_vs_hpc"), "{:.2f}×"), formatMiB(at(hh, "peak_rss_bytes")),
                           mismatchCell(hh), number(at(e, "mean_abs_dv"), "{:.4f}"), number(at(e, "max_abs_dv"), "{:.3f}"),
                           number(at(e, "fraction_above_0_1"), "{:.4f}"));
     }
@@ -91,31 +91,31 @@ std::string hhTable(const json& result) {
 std::string targets(const json& result) {
     std::string md = "| target | measured | verdict |\n|---|---|---|\n";
     auto verdict = [](bool met) { return met ? "met" : "**not met**"; };
-    for (const json& row : result["rows"]) {
-        const json& pm = at(row["methods"], "penumbra-map");
-        if (pm.is_null() || pm.contains("error") || row["nominal"] != "1280x960") continue;
-        const json& hpc = at(row["methods"], "hpc");
-        const double cast = pm["speedup_vs_hpc"].get<double>();
+    for (const json& row : at(result, "rows")) {
+        const json& pm = at(at(row, "methods"), "penumbra-map");
+        if (pm.is_null() || pm.contains("error") || at(row, "nominal") != "1280x960") continue;
+        const json& hpc = at(at(row, "methods"), "hpc");
+        const double cast = at(pm, "speedup_vs_hpc").get<double>();
         const json bake = ratioToHpc(hpc, pm, "bake_total_s"), cpu = ratioToHpc(hpc, pm, "process_cpu_s");
         // Wall times on a loaded machine can flatter either side, so the CPU time must agree.
         const bool met = cast >= 10 && bake.is_number() && bake.get<double>() >= 10 && cpu.is_number() && cpu.get<double>() >= 10;
         md += fmt::format("| penumbra-map ≥ 10× faster than hpc, {} 1280×960 (cast / whole bake / process CPU) | {:.1f}× / {} / {} | {} |\n",
-                          row["scene"].get<std::string>(), cast, number(bake, "{:.1f}×"), number(cpu, "{:.1f}×"), verdict(met));
+                          at(row, "scene").get<std::string>(), cast, number(bake, "{:.1f}×"), number(cpu, "{:.1f}×"), verdict(met));
     }
-    for (const json& row : result["rows"]) {
-        const json& e = at(at(row["methods"], "penumbra-map"), "error_vs_hpc");
-        if (row["scene"] != "grids" || !e.contains("mean_abs_dv")) continue;
-        const double dv = e["mean_abs_dv"].get<double>();
-        md += fmt::format("| penumbra-map mean abs dV < 0.05 on grids {} | {:.4f} | {} |\n", row["nominal"].get<std::string>(), dv,
+    for (const json& row : at(result, "rows")) {
+        const json& e = at(at(at(row, "methods"), "penumbra-map"), "error_vs_hpc");
+        if (at(row, "scene") != "grids" || !e.contains("mean_abs_dv")) continue;
+        const double dv = at(e, "mean_abs_dv").get<double>();
+        md += fmt::format("| penumbra-map mean abs dV < 0.05 on grids {} | {:.4f} | {} |\n", at(row, "nominal").get<std::string>(), dv,
                           verdict(dv < 0.05));
     }
     for (const char* method : {"ssv", "embree", "reference"}) {
         uint64_t total = 0, nonTies = 0;
         bool any = false;
-        for (const json& row : result["rows"]) {
-            const json& m = at(at(row["methods"], method), "mismatches_vs_hpc");
+        for (const json& row : at(result, "rows")) {
+            const json& m = at(at(at(row, "methods"), method), "mismatches_vs_hpc");
             if (!m.contains("mismatches")) continue;
-            any = true, total += m["mismatches"].get<uint64_t>(), nonTies += m["non_ties"].get<uint64_t>();
+            any = true, total += at(m, "mismatches").get<uint64_t>(), nonTies += at(m, "non_ties").get<uint64_t>();
         }
         if (any)
             md += fmt::format("| {}: every mismatch against hpc a tie of the rule | {} mismatches, {} not ties | {} |\n", method, total,
@@ -132,29 +132,29 @@ std::string replaceMethodsSection(const std::string& document, const std::string
 }
 
 std::string methodsMarkdown(const json& result) {
-    const json& m = result["machine"];
+    const json& m = at(result, "machine");
     std::string md;
-    if (result["scale"].get<double>() != 1.0)
+    if (at(result, "scale").get<double>() != 1.0)
         md += fmt::format("**Reduced-scale run (`--scale {}`): every size below is {:.0f}% of the nominal one in each direction.**\n\n",
-                          result["scale"].get<double>(), 100 * result["scale"].get<double>());
-    md += fmt::format("Run {} with `{}`.\n\n", result["date"].get<std::string>(), result["command"].get<std::string>());
+                          at(result, "scale").get<double>(), 100 * at(result, "scale").get<double>());
+    md += fmt::format("Run {} with `{}`.\n\n", at(result, "date").get<std::string>(), at(result, "command").get<std::string>());
     md += fmt::format("Machine: {}, {} cores, {:.1f} GiB RAM, {}; {}; commit {}. Every bake on {} thread(s), best of {}. "
                       "Load average (1 min) {:.1f} at the start and {:.1f} at the end, over {:.0f} s.\n\n",
-                      m["cpu"].get<std::string>(), m["cores"].get<int>(), m["ram_bytes"].get<double>() / double(1ull << 30),
-                      m["os"].get<std::string>(), m["compiler"].get<std::string>(), m["commit"].get<std::string>(),
-                      result["threads"].get<int>(), result["repeat"].get<int>(), result["load_average_start"].get<double>(),
+                      at(m, "cpu").get<std::string>(), at(m, "cores").get<int>(), at(m, "ram_bytes").get<double>() / double(1ull << 30),
+                      at(m, "os").get<std::string>(), at(m, "compiler").get<std::string>(), at(m, "commit").get<std::string>(),
+                      at(result, "threads").get<int>(), at(result, "repeat").get<int>(), at(result, "load_average_start").get<double>(),
                       result.value("load_average_end", -1.0), result.value("elapsed_s", 0.0));
     md += "| scene | size | method | time s | vs hpc | bake s | bake vs hpc | CPU s | CPU vs hpc | peak RSS MiB | mismatches vs hpc (ties) | "
           "mean abs dV | max abs dV | > 0.1 |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
-    for (const json& row : result["rows"]) {
-        const std::string size = fmt::format("{}×{}", row["width"].get<int>(), row["height"].get<int>());
-        const json& hpc = at(row["methods"], "hpc");
-        if (!hpc.is_null()) md += methodLine(row["scene"], size, "hpc", hpc, hpc);
-        for (const auto& [method, c] : row["methods"].items())
-            if (method != "hpc") md += methodLine(row["scene"], size, method, c, hpc);
+    for (const json& row : at(result, "rows")) {
+        const std::string size = fmt::format("{}×{}", at(row, "width").get<int>(), at(row, "height").get<int>());
+        const json& hpc = at(at(row, "methods"), "hpc");
+        if (!hpc.is_null()) md += methodLine(at(row, "scene"), size, "hpc", hpc, hpc);
+        for (const auto& [method, c] : at(row, "methods").items())
+            if (method != "hpc") md += methodLine(at(row, "scene"), size, method, c, hpc);
     }
     md += "\n### ssv: the numbers of Harter, Osswald & Assarsson\n\n" + ssvTable(result);
-    if (!result["hh"].empty()) md += "\n### hh against hpc on the lightmap example, as the samples grow\n\n" + hhTable(result);
+    if (!at(result, "hh").empty()) md += "\n### hh against hpc on the lightmap example, as the samples grow\n\n" + hhTable(result);
     md += "\n### Targets\n\n" + targets(result);
     return md;
 }
