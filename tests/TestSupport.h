@@ -2,6 +2,7 @@
 // Fixtures shared by the tests: scratch directories, error capture, whole-file reads.
 
 #include "stream/util/Error.h"
+#include "stream/util/Npy.h"
 #include "stream/util/SafePath.h"
 
 #include <catch2/catch.hpp>
@@ -142,6 +143,16 @@ inline int runSelfAsChild(const std::string& tag, const std::string& envName, co
     while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
     }
     return status;
+}
+
+/// @brief Writes @p n x @p n receiver points on the floor y = 0, facing up, from (@p first, 0,
+/// @p first) in steps of @p step, as a float32 N x 6 .npy at @p path (a points kind's input).
+inline void writeFloorPoints(const std::filesystem::path& path, int n, float first, float step) {
+    std::vector<float> rows;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) rows.insert(rows.end(), {first + step * float(i), 0.f, first + step * float(j), 0.f, 1.f, 0.f});
+    const uint64_t shape[2] = {rows.size() / 6, 6};
+    penumbra::writeNpy(path.string(), "<f4", shape, rows.data(), rows.size() * sizeof(float));
 }
 
 }  // namespace penumbra::test

@@ -34,11 +34,7 @@ const json kLight = {{"type", "rect"}, {"center", {0, 3, 0}}, {"u", {0.6, 0, 0}}
 
 /// A 30 x 30 grid of points on the floor y = 0, facing up.
 json floorPoints(const ScratchDir& dir) {
-    std::vector<float> rows;
-    for (int i = 0; i < 30; ++i)
-        for (int j = 0; j < 30; ++j) rows.insert(rows.end(), {-1.45f + 0.1f * float(i), 0.f, -1.45f + 0.1f * float(j), 0.f, 1.f, 0.f});
-    const uint64_t shape[2] = {rows.size() / 6, 6};
-    writeNpy((dir.path / "pts.npy").string(), "<f4", shape, rows.data(), rows.size() * sizeof(float));
+    writeFloorPoints(dir.path / "pts.npy", 30, -1.45f, 0.1f);
     return {{"type", "points"}, {"path", "pts.npy"}};
 }
 

@@ -51,11 +51,7 @@ const json kCamera = {{"type", "camera"}, {"eye", {0.5, 6, 4}}, {"target", {0, 0
 
 /// A grid of points on the floor, facing up (the same receivers whatever the geometry).
 json floorPoints(const ScratchDir& dir) {
-    std::vector<float> rows;
-    for (int i = 0; i < 24; ++i)
-        for (int j = 0; j < 24; ++j) rows.insert(rows.end(), {-2.3f + 0.2f * float(i), 0.f, -2.3f + 0.2f * float(j), 0.f, 1.f, 0.f});
-    const uint64_t shape[2] = {rows.size() / 6, 6};
-    writeNpy((dir.path / "pts.npy").string(), "<f4", shape, rows.data(), rows.size() * sizeof(float));
+    writeFloorPoints(dir.path / "pts.npy", 24, -2.3f, 0.2f);
     return {{"type", "points"}, {"path", "pts.npy"}};
 }
 

@@ -40,11 +40,7 @@ bool petalOutline(double u, double v) { return (2 * u - 1) * (2 * u - 1) + (2 * 
 
 /// A 40 x 40 grid of points on the floor y = 0 under the foliage, facing up.
 json floorPoints(const ScratchDir& dir) {
-    std::vector<float> rows;
-    for (int i = 0; i < 40; ++i)
-        for (int j = 0; j < 40; ++j) rows.insert(rows.end(), {-1.95f + 0.1f * float(i), 0.f, -1.95f + 0.1f * float(j), 0.f, 1.f, 0.f});
-    const uint64_t shape[2] = {rows.size() / 6, 6};
-    writeNpy((dir.path / "pts.npy").string(), "<f4", shape, rows.data(), rows.size() * sizeof(float));
+    writeFloorPoints(dir.path / "pts.npy", 40, -1.95f, 0.1f);
     return {{"type", "points"}, {"path", "pts.npy"}};
 }
 
