@@ -67,6 +67,9 @@ void addCastOptions(CLI::App& bake, BakeCommand& c) {
                     "penumbra-map: backprojection (default: inner and outer penumbrae) or wyman-hansen (the paper's outer penumbrae; "
                     "overrides bake.penumbra_map_lookup)")
         ->check(CLI::IsMember({"backprojection", "wyman-hansen"}));
+    bake.add_option("--penumbra-map-taps", c.mapTaps,
+                    "penumbra-map backprojection: texels read each side of a receiver, 1..8 (default 2; overrides bake.penumbra_map_taps)")
+        ->check(CLI::Range(1, 8));
 }
 
 /// The files a bake wrote, for its summary line: each one, up to a few, then how many more.
@@ -96,6 +99,7 @@ SceneDesc sceneOf(const BakeCommand& c) {
     if (c.mapResolution > 0) scene.bakeOptions["penumbra_map_resolution"] = c.mapResolution;
     if (c.mapBias >= 0) scene.bakeOptions["penumbra_map_bias"] = c.mapBias;
     if (!c.mapLookup.empty()) scene.bakeOptions["penumbra_map_lookup"] = c.mapLookup;
+    if (c.mapTaps > 0) scene.bakeOptions["penumbra_map_taps"] = c.mapTaps;
     return scene;
 }
 

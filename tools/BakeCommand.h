@@ -23,6 +23,7 @@ struct BakeCommand {
     int mapResolution = 0;
     double mapBias = -1;
     std::string mapLookup;  ///< empty: the scene's
+    int mapTaps = 0;        ///< 0: the scene's
     ShardCli shard;
     CLI::Option *outputOption = nullptr, *statsOption = nullptr, *dumpOption = nullptr, *tmpOption = nullptr,
                 *budgetOption = nullptr;

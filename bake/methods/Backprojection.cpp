@@ -10,7 +10,6 @@
 namespace penumbra {
 namespace {
 
-constexpr int kTapRadius = 3;     ///< texels each side of the receiver at the level read
 constexpr int kSearchRadius = 2;  ///< the same, for the nearest-blocker search that sizes the region
 
 /// The convex hull of @p points, counter-clockwise (Andrew's monotone chain).
@@ -34,22 +33,6 @@ std::vector<glm::dvec2> convexHull(std::vector<glm::dvec2> points) {
 }
 
 using Transmission = std::array<float, LightGrid::kCells * LightGrid::kCells>;
-
-/// The first index of a cell whose centre is at or past @p value, along one axis.
-int firstCell(double value, double lo, double cell) {
-    return clampedTexel(std::ceil((value - lo) / cell - 0.5), 0, LightGrid::kCells);
-}
-
-/// Hides the light points in the box [@p a, @p b) (light units) to the extent @p opacity: the
-/// cells whose centres it holds keep 1 - opacity of their light. Boxes of neighbouring texels at
-/// one depth share edges, so each cell is counted once.
-void hide(const LightGrid& grid, glm::dvec2 a, glm::dvec2 b, double opacity, Transmission& transmitted) {
-    const int i0 = firstCell(a.x, grid.lo.x, grid.cell.x), i1 = firstCell(b.x, grid.lo.x, grid.cell.x);
-    const int j0 = firstCell(a.y, grid.lo.y, grid.cell.y), j1 = firstCell(b.y, grid.lo.y, grid.cell.y);
-    const float keep = float(1.0 - opacity);
-    for (int j = j0; j < j1; ++j)
-        for (int i = i0; i < i1; ++i) transmitted[size_t(j * LightGrid::kCells + i)] *= keep;
-}
 
 /// Blocks the cells of @p grid whose light points lie behind the plane through @p r with normal
 /// @p n; the distance from the plane is linear across the light, so the corners decide at once.
@@ -144,7 +127,9 @@ LightGrid::LightGrid(const std::vector<glm::dvec2>& outline) {
 namespace {
 
 /// One receiver's backprojection in @p view: the receiver's depth and image position, and the
-/// transformation from a blocker's depth to the scale k of its footprint on the light.
+/// transformation from a blocker's depth to the scale k of its footprint on the light. Everything
+/// that depends only on the receiver is computed once here, so a texel costs a few products and
+/// one division (per-texel work is most of a lookup).
 struct Backprojector {
     const LightView& view;
     const LightGrid& grid;
@@ -152,37 +137,58 @@ struct Backprojector {
     glm::dvec3 r, n;  ///< the receiver and its normal towards the light's centre (zero: none)
     double bias, eps;
     Transmission transmitted;
+    // Set by prepare(): the texel's size, 1/z_r, the cells' reciprocal sizes, and the plane
+    // distance of the point at depth q on a texel's central ray as base + q * along, with base
+    // and along linear in the texel's image position.
+    double texel = 0, inverseZ = 0;
+    glm::dvec2 inverseCell{0.0};
+    bool hasPlane = false;
+    double base0 = 0, along0 = 0, perX = 0, perY = 0;
 
+    void prepare() {
+        texel = view.texel(), inverseZ = 1.0 / p.z, inverseCell = 1.0 / grid.cell;
+        hasPlane = glm::dot(n, n) > 0;
+        // Perspective: the point is origin + q (axis + lateral); orthographic: origin + lateral + q axis.
+        base0 = glm::dot(view.origin - r, n), along0 = glm::dot(view.axis, n);
+        perX = glm::dot(view.e1, n), perY = glm::dot(view.e2, n);
+    }
     /// Where the segment to the light meets depth @p z: image offset per unit of light offset.
-    double kOf(double z) const { return view.ortho ? p.z - z : 1.0 / z - 1.0 / p.z; }
+    double kOf(double z) const { return view.ortho ? p.z - z : 1.0 / z - inverseZ; }
     /// The search radius in fine texels for blockers as near as depth @p z.
-    double radiusFor(double z) const { return std::clamp(grid.radius * kOf(z) / view.texel(), 0.0, double(view.res)); }
+    double radiusFor(double z) const { return std::clamp(grid.radius * kOf(z) / texel, 0.0, double(view.res)); }
+
+    /// The first index of a cell whose centre is at or past @p value (light units), along x or y.
+    int firstCellX(double value) const { return clampedTexel(std::ceil((value - grid.lo.x) * inverseCell.x - 0.5), 0, LightGrid::kCells); }
+    int firstCellY(double value) const { return clampedTexel(std::ceil((value - grid.lo.y) * inverseCell.y - 0.5), 0, LightGrid::kCells); }
 
     /// Hides the light behind texel (@p tx, @p ty) of @p layer at @p level, for the share of its
     /// quantiles that lie in front of the receiver's plane.
-    void addTexel(const DepthPyramid& layer, int level, int tx, int ty) {
-        const DepthPyramid::Texel t = layer.at(level, tx, ty);
-        const double s = double(1 << level), texel = view.texel();
+    void addTexel(const DepthPyramid::Texel& t, int level, int tx, int ty) {
+        const double s = double(1 << level);
         const glm::dvec2 centre((tx + 0.5) * s, (ty + 0.5) * s);
         const glm::dvec2 image = centre * texel - view.halfExtent;  // tangent (perspective) or world units
-        // The point at depth q on the texel's central ray is base + q along (perspective: q times) ray.
-        const glm::dvec3 lateral = image.x * view.e1 + image.y * view.e2;
-        const double base = glm::dot(view.ortho ? view.origin + lateral - r : view.origin - r, n);
-        const double along = glm::dot(view.ortho ? view.axis : view.axis + lateral, n);
-        const bool hasPlane = glm::dot(n, n) > 0;
+        const double lateral = image.x * perX + image.y * perY;
+        const double base = view.ortho ? base0 + lateral : base0, along = view.ortho ? along0 : along0 + lateral;
+        const double marginPerDepth = (bias + 0.71 * s) * texel;  // a quantile's depth is within 0.71 s texels of a surface point
         int blocking = 0;
         double depthSum = 0;
         for (const float q : t.quantile) {
             if (!(q < p.z)) break;
-            // A quantile's depth seen at the texel's centre is within 0.71 s texels of a surface point.
-            const double margin = eps + (bias + 0.71 * s) * view.texelWorld(q);
+            const double margin = eps + marginPerDepth * (view.ortho ? 1.0 : double(q));
             const bool inFront = hasPlane ? base + q * along > margin : q < p.z - margin;
             if (inFront) ++blocking, depthSum += q;
         }
         const double k = blocking > 0 ? kOf(depthSum / blocking) : 0.0;
         if (!(k > 0)) return;
+        const double inverseK = 1.0 / k;
         const glm::dvec2 offset = (centre - glm::dvec2(p.x, p.y)) * texel, half(0.5 * s * texel);
-        hide(grid, (offset - half) / k, (offset + half) / k, double(blocking) / DepthPyramid::kQuantiles, transmitted);
+        const glm::dvec2 a = (offset - half) * inverseK, b = (offset + half) * inverseK;
+        const int i0 = firstCellX(a.x), i1 = firstCellX(b.x), j0 = firstCellY(a.y), j1 = firstCellY(b.y);
+        if (i0 >= i1 || j0 >= j1) return;
+        // Neighbouring texels at one depth share box edges, so each cell is counted once.
+        const float keep = float(1.0 - double(blocking) / DepthPyramid::kQuantiles);
+        for (int j = j0; j < j1; ++j)
+            for (int i = i0; i < i1; ++i) transmitted[size_t(j * LightGrid::kCells + i)] *= keep;
     }
 
     float visibleFraction() const {
@@ -195,7 +201,7 @@ struct Backprojector {
 }  // namespace
 
 float backprojectedVisibility(const LightView& view, std::span<const DepthPyramid> pyramids, const LightGrid& grid,
-                              const glm::dvec3& r, const glm::dvec3& normal, double bias, double eps) {
+                              const glm::dvec3& r, const glm::dvec3& normal, double bias, double eps, int taps) {
     Backprojector b{view, grid, view.project(r), r, glm::dvec3(0.0), bias, eps, {}};
     b.transmitted.fill(1.0f);
     if (glm::length(normal) > 0) {
@@ -206,6 +212,7 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
         blockBehindPlane(view, grid, r, b.n, b.transmitted);
         if (glm::dot(b.n, view.ortho ? -view.axis : view.origin - r) < 0) b.n = -b.n;  // the side facing the centre
     }
+    b.prepare();
     const DepthPyramid& nearestLayer = pyramids[0];
     auto levelFor = [&](double radius, int taps) {
         int level = 0;
@@ -221,15 +228,16 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
     }
     if (!(nearest < b.p.z)) return b.visibleFraction();
     const double radius = b.radiusFor(nearest);
-    const int level = levelFor(radius, kTapRadius), res = nearestLayer.resolution(level);
+    const int level = levelFor(radius, taps), res = nearestLayer.resolution(level);
     const double s = double(1 << level);
     const int x0 = clampedTexel(std::floor((b.p.x - radius) / s), 0, res - 1), x1 = clampedTexel(std::floor((b.p.x + radius) / s), 0, res - 1);
     const int y0 = clampedTexel(std::floor((b.p.y - radius) / s), 0, res - 1), y1 = clampedTexel(std::floor((b.p.y + radius) / s), 0, res - 1);
     for (int ty = y0; ty <= y1; ++ty)
         for (int tx = x0; tx <= x1; ++tx)
             for (const DepthPyramid& layer : pyramids) {
-                if (!(layer.at(level, tx, ty).nearest < b.p.z)) break;  // nor any layer behind
-                b.addTexel(layer, level, tx, ty);
+                const DepthPyramid::Texel t = layer.at(level, tx, ty);
+                if (!(t.nearest < b.p.z)) break;  // nor any layer behind
+                b.addTexel(t, level, tx, ty);
             }
     return b.visibleFraction();
 }

@@ -95,7 +95,10 @@ private:
 /// nearest first), onto @p grid.
 /// @param bias the depth bias in texels (of the level read), as for the hard test
 /// @param eps the rule's receiver epsilon at r, the smallest distance of a blocker from r's plane
+/// @param taps texels read each side of the receiver, at the pyramid level where the search
+/// region spans at most that many: (2 taps + 1)^2 texels per layer at most. More taps read a finer
+/// level (sharper penumbrae, fewer quantile approximations) at a cost that grows as taps^2.
 float backprojectedVisibility(const LightView& view, std::span<const DepthPyramid> pyramids, const LightGrid& grid,
-                              const glm::dvec3& r, const glm::dvec3& normal, double bias, double eps);
+                              const glm::dvec3& r, const glm::dvec3& normal, double bias, double eps, int taps);
 
 }  // namespace penumbra

@@ -256,7 +256,7 @@ std::vector<ViewMaps> prepareViews(const LightSamples& samples, int li, const Re
 }
 
 /// The visible fraction of receiver @p r from one light's maps.
-float lookup(const std::vector<ViewMaps>& maps, const glm::dvec3& r, const glm::dvec3& normal, double bias, double eps) {
+float lookup(const std::vector<ViewMaps>& maps, const glm::dvec3& r, const glm::dvec3& normal, double bias, double eps, int taps) {
     const ViewMaps* best = &maps[0];
     if (maps.size() > 1)  // a cube: the face the receiver's direction points through
         for (const ViewMaps& m : maps)
@@ -265,7 +265,7 @@ float lookup(const std::vector<ViewMaps>& maps, const glm::dvec3& r, const glm::
     const ViewPoint p = view.project(r);
     const int x = int(std::floor(p.x)), y = int(std::floor(p.y));
     if (!(p.z >= view.zNear) || x < 0 || y < 0 || x >= view.res || y >= view.res) return 1.0f;
-    if (best->grid && best->grid->hasArea()) return backprojectedVisibility(view, best->pyramids, *best->grid, r, normal, bias, eps);
+    if (best->grid && best->grid->hasArea()) return backprojectedVisibility(view, best->pyramids, *best->grid, r, normal, bias, eps, taps);
     const glm::dvec3 towards = view.ortho ? -view.axis : glm::normalize(view.origin - r);
     const double cosine = std::abs(glm::dot(normal, towards));
     const double slope = glm::length(normal) > 0 ? std::min(8.0, std::sqrt(std::max(0.0, 1 - cosine * cosine)) / std::max(cosine, 1e-3)) : 0.0;
@@ -334,7 +334,7 @@ std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSe
         ScopedTimer timer(local.lookupSeconds);
         tbb::parallel_for(size_t(0), receivers.size(), [&](size_t r) {
             const glm::dvec3 p(receivers.position[r]);
-            visibility[r * lights + li] = lookup(maps, p, glm::dvec3(receivers.normal[r]), options.bias, epsilon.at(p));
+            visibility[r * lights + li] = lookup(maps, p, glm::dvec3(receivers.normal[r]), options.bias, epsilon.at(p), options.taps);
         });
     }
     if (stats) *stats = local;
@@ -345,6 +345,7 @@ nlohmann::json penumbraMapStatsJson(const PenumbraMapStats& s, const PenumbraMap
     return {{"resolution", o.resolution},
             {"lookup", o.lookup == PenumbraMapOptions::Lookup::WymanHansen ? "wyman-hansen" : "backprojection"},
             {"bias_texels", o.bias},
+            {"taps", o.taps},
             {"views", s.views},
             {"map_bytes", s.mapBytes},
             {"shadow_map_time_s", s.shadowSeconds},
@@ -364,6 +365,7 @@ PenumbraMapOptions penumbraMapOptions(const JsonParams& bake) {
     o.bias = bake.number("penumbra_map_bias", o.bias);
     if (!(o.bias >= 0) || !std::isfinite(o.bias))
         fail(bake.where("penumbra_map_bias"), "must be finite and non-negative, got {}", o.bias);
+    o.taps = int(bake.integer("penumbra_map_taps", o.taps, 1, 8));
     const std::string lookup = bake.string("penumbra_map_lookup", "backprojection");
     if (lookup == "wyman-hansen") o.lookup = PenumbraMapOptions::Lookup::WymanHansen;
     else if (lookup != "backprojection")
