@@ -23,11 +23,40 @@ CameraBasis cameraBasis(const CameraDesc& c) {
 
 namespace {
 
+/// The image-plane offsets of the centres of column x and row y of a w x h image.
+double columnOffset(const CameraBasis& b, int w, int x) { return (2.0 * (x + 0.5) / w - 1.0) * b.tanHalf * b.aspect; }
+double rowOffset(const CameraBasis& b, int h, int y) { return (1.0 - 2.0 * (y + 0.5) / h) * b.tanHalf; }
+
 /// Unit direction of the ray through the centre of pixel (x, y) of a w x h image.
 glm::dvec3 directionThrough(const CameraBasis& b, int w, int h, int x, int y) {
-    double sx = (2.0 * (x + 0.5) / w - 1.0) * b.tanHalf * b.aspect;
-    double sy = (1.0 - 2.0 * (y + 0.5) / h) * b.tanHalf;
-    return glm::normalize(b.forward + sx * b.right + sy * b.up);
+    return glm::normalize(b.forward + columnOffset(b, w, x) * b.right + rowOffset(b, h, y) * b.up);
+}
+
+/// @p value clamped to [@p lo, @p hi] and converted (NaN gives @p lo), as converting an
+/// infinite or NaN double to int is undefined.
+int clampedIndex(double value, int lo, int hi) {
+    if (!(value >= lo)) return lo;
+    if (!(value <= hi)) return hi;
+    return int(value);
+}
+
+/// The x range [lo, hi] of pixel centres on row centre @p py that can pass the inside test of
+/// CameraRasterizer::add() for the polygon (sx, sy) of @p m vertices and orientation @p orient,
+/// widened by a pixel each side: the test's rounding moves an edge by far less than a pixel
+/// while the coordinates stay below 1e9 (the caller's guard). Empty (lo > hi) when none can.
+void rowSpan(const double* sx, const double* sy, int m, double orient, double py, double& lo, double& hi) {
+    for (int i = 0; i < m; ++i) {
+        const int j = (i + 1) % m;
+        // orient * (a - b (px - sx[i])) >= 0 with a, b below.
+        const double a = (sx[j] - sx[i]) * (py - sy[i]), b = (sy[j] - sy[i]) * orient;
+        if (b == 0) {
+            if (orient * a < -1e-9 * (std::abs(a) + 1)) lo = INFINITY;  // the whole row is outside this edge
+            continue;
+        }
+        const double edge = sx[i] + orient * a / b;  // the test holds for px <= edge when b > 0
+        if (b > 0) hi = std::min(hi, edge + 1.0);
+        else lo = std::max(lo, edge - 1.0);
+    }
 }
 
 }  // namespace
@@ -51,6 +80,7 @@ CameraRasterizer::CameraRasterizer(const CameraDesc& camera) : camera_(camera) {
     validateCamera(camera);
     CameraBasis b = cameraBasis(camera);
     right_ = b.right, up_ = b.up, forward_ = b.forward, tanHalf_ = b.tanHalf, aspect_ = b.aspect;
+    tabulateRays();
     const size_t pixels = size_t(camera.width) * camera.height * camera.layers;
     depth_.assign(pixels, std::numeric_limits<float>::infinity());
     normal_.assign(pixels, glm::vec3(0.0f));
@@ -63,6 +93,7 @@ CameraRasterizer::CameraRasterizer(const CameraDesc& camera, int subdivision, st
     camera_.width *= subdivision, camera_.height *= subdivision;
     CameraBasis b = cameraBasis(camera_);
     right_ = b.right, up_ = b.up, forward_ = b.forward, tanHalf_ = b.tanHalf, aspect_ = b.aspect;
+    tabulateRays();
     lookup_.assign(size_t(camera.width) * camera.height, ~0u);
     for (size_t i = 0; i < refined_.size(); ++i) lookup_[refined_[i]] = uint32_t(i);
     const size_t slots = refined_.size() * size_t(sub_) * sub_;
@@ -77,8 +108,16 @@ size_t CameraRasterizer::slotOf(int x, int y) const {
     return (size_t(i) * sub_ + y % sub_) * sub_ + x % sub_;
 }
 
+void CameraRasterizer::tabulateRays() {
+    const CameraBasis b{right_, up_, forward_, tanHalf_, aspect_};
+    columnRay_.resize(size_t(camera_.width)), rowOffset_.resize(size_t(camera_.height));
+    for (int x = 0; x < camera_.width; ++x) columnRay_[size_t(x)] = b.forward + columnOffset(b, camera_.width, x) * b.right;
+    for (int y = 0; y < camera_.height; ++y) rowOffset_[size_t(y)] = rowOffset(b, camera_.height, y);
+}
+
 glm::dvec3 CameraRasterizer::direction(int x, int y) const {
-    return directionThrough(CameraBasis{right_, up_, forward_, tanHalf_, aspect_}, camera_.width, camera_.height, x, y);
+    // The same sums in the same order as directionThrough(), so the same bits.
+    return glm::normalize(columnRay_[size_t(x)] + rowOffset_[size_t(y)] * up_);
 }
 
 bool CameraRasterizer::opaqueAlong(const Triangle& tri, const glm::dvec3& d) const {
@@ -133,9 +172,18 @@ void CameraRasterizer::add(std::span<const Triangle> chunk) {
         if (area == 0) continue;
         double orient = area > 0 ? 1.0 : -1.0;
         double planeD = glm::dot(n, v[0] - camera_.eye);
+        const bool spans = std::max({std::abs(xLo), std::abs(xHi), std::abs(yLo), std::abs(yHi)}) < 1e9;
         for (int y = y0; y <= y1; ++y) {
             double py = y + 0.5;
-            for (int x = x0; x <= x1; ++x) {
+            int xa = x0, xb = x1;
+            if (spans) {  // only the pixels near the polygon's row span get the exact test
+                double lo = -INFINITY, hi = INFINITY;
+                rowSpan(sx, sy, m, orient, py, lo, hi);
+                if (!(lo <= hi)) continue;
+                xa = std::max(x0, clampedIndex(std::ceil(lo - 0.5), x0, x1 + 1));
+                xb = std::min(x1, clampedIndex(std::floor(hi - 0.5), x0 - 1, x1));
+            }
+            for (int x = xa; x <= xb; ++x) {
                 const size_t base = slotOf(x, y);
                 if (base == SIZE_MAX) continue;
                 double px = x + 0.5;

@@ -89,6 +89,8 @@ public:
 
 private:
     glm::dvec3 direction(int x, int y) const;
+    /// Fills columnRay_ and rowOffset_ from the basis and the (fine) image size.
+    void tabulateRays();
     /// False when the pixel ray along @p d hits a clear texel of @p tri's cut-out.
     bool opaqueAlong(const Triangle& tri, const glm::dvec3& d) const;
     /// Storage slot of (fine) pixel (x, y) and layer 0, or SIZE_MAX when it is not rasterized.
@@ -103,6 +105,8 @@ private:
     std::vector<uint8_t> class_, winnerClasses_;
     glm::dvec3 right_, up_, forward_;
     double tanHalf_, aspect_;
+    std::vector<glm::dvec3> columnRay_;  ///< per column: forward + its offset along right
+    std::vector<double> rowOffset_;      ///< per row: its offset along up
     std::vector<float> depth_;
     std::vector<glm::vec3> normal_;
     std::vector<std::array<glm::vec3, 3>> triangle_, winners_;
