@@ -68,7 +68,7 @@ void addCastOptions(CLI::App& bake, BakeCommand& c) {
                     "overrides bake.penumbra_map_lookup)")
         ->check(CLI::IsMember({"backprojection", "wyman-hansen"}));
     bake.add_option("--penumbra-map-taps", c.mapTaps,
-                    "penumbra-map backprojection: texels read each side of a receiver, 1..8 (default 2; overrides bake.penumbra_map_taps)")
+                    "penumbra-map backprojection: texels read each side of a receiver, 1..8 (default 3; overrides bake.penumbra_map_taps)")
         ->check(CLI::Range(1, 8));
 }
 

@@ -219,12 +219,15 @@ void drawRun(ViewMaps& v, const Run& run, double bias, int y0, int y1) {
     }
 }
 
-/// Reads every chunk of @p blockers from the start, calling @p f with each.
+/// Reads every chunk of @p blockers from the start, calling @p f with each (and @p observe, if
+/// set, with each as read).
 template <class F>
-void forEachChunk(TriangleSource& blockers, PenumbraMapStats& stats, const std::function<void(uint64_t)>& progress, F&& f) {
+void forEachChunk(TriangleSource& blockers, PenumbraMapStats& stats, const std::function<void(uint64_t)>& progress, F&& f,
+                  const std::function<void(std::span<const Triangle>)>& observe = {}) {
     blockers.rewind();
     std::vector<Triangle> chunk(kTriangleChunk);
     while (size_t n = blockers.read(chunk)) {
+        if (observe) observe(std::span<const Triangle>(chunk.data(), n));
         f(std::span<const Triangle>(chunk.data(), dropNonCasting(std::span<Triangle>(chunk.data(), n))));
         stats.trianglesRead += n;
         if (progress) progress(n);
@@ -287,7 +290,8 @@ uint64_t PenumbraMapOptions::mapBytes() const {
 std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSet& receivers,
                                    std::span<const uint32_t>, TriangleSource& blockers, const ReceiverEpsilon& epsilon,
                                    const PenumbraMapOptions& options, PenumbraMapStats* stats,
-                                   const std::function<void(uint64_t)>& progress) {
+                                   const std::function<void(uint64_t)>& progress,
+                                   const std::function<void(std::span<const Triangle>)>& observe) {
     PenumbraMapStats local;
     const int lights = samples.lightCount();
     std::vector<float> visibility(receivers.size() * size_t(lights), 1.0f);
@@ -298,9 +302,11 @@ std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSe
         for (const ViewMaps& m : maps) bytes += (m.shadow.depth.size() + m.penumbra.size()) * sizeof(float);
         {
             ScopedTimer timer(local.shadowSeconds);
-            forEachChunk(blockers, local, progress, [&](std::span<const Triangle> chunk) {
-                for (ViewMaps& m : maps) rasterizeDepth(m.view, chunk, m.shadow);
-            });
+            forEachChunk(
+                blockers, local, progress, [&](std::span<const Triangle> chunk) {
+                    for (ViewMaps& m : maps) rasterizeDepth(m.view, chunk, m.shadow);
+                },
+                li == 0 ? observe : std::function<void(std::span<const Triangle>)>());
             for (ViewMaps& m : maps) buildTiles(m);
         }
         if (options.lookup == PenumbraMapOptions::Lookup::Backprojection) {
@@ -337,6 +343,7 @@ std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSe
             visibility[r * lights + li] = lookup(maps, p, glm::dvec3(receivers.normal[r]), options.bias, epsilon.at(p), options.taps);
         });
     }
+    if (lights == 0 && observe) forEachChunk(blockers, local, {}, [](std::span<const Triangle>) {}, observe);
     if (stats) *stats = local;
     return visibility;
 }
@@ -383,13 +390,14 @@ public:
     explicit PenumbraMapCaster(const CastContext& c) : StreamedCaster(c), options_(optionsOf(c.methodOptions)) {}
 
     void cast(TriangleSource& blockers, uint32_t first, const CastSink& sink) override {
-        observeOnce(blockers);
         const ReceiverSet targets = receiversFrom(c_.receivers, first);
         const int lights = c_.samples.lightCount();
-        ProgressReporter progress("penumbra-map", 2 * blockers.sizeHint().value_or(0) * uint64_t(lights), c_.quiet);
+        const uint64_t reads = options_.lookup == PenumbraMapOptions::Lookup::WymanHansen ? 2 : 1;  // per light
+        ProgressReporter progress("penumbra-map", reads * blockers.sizeHint().value_or(0) * uint64_t(lights), c_.quiet);
         PenumbraMapStats s;
         const std::vector<float> v = castPenumbraMap(c_.samples, targets, std::span<const uint32_t>(c_.sampleSets).subspan(first), blockers,
-                                                     receiverEpsilonOf(c_.options), options_, &s, [&](uint64_t n) { progress.update(n); });
+                                                     receiverEpsilonOf(c_.options), options_, &s, [&](uint64_t n) { progress.update(n); },
+                                                     takeObserver());
         progress.done();
         if (first == 0) stats_ = s;  // the first pass's: a refinement's few receivers would hide them
         reportInParallel(first, uint32_t(c_.receivers.size()),

@@ -56,10 +56,10 @@ struct PenumbraMapOptions {
     int resolution = 1024;      ///< texels per side of a fitted view; cube faces get half
     double bias = 1.5;          ///< depth bias in texels of the shadow map, scaled by the receiver's slope
     Lookup lookup = Lookup::Backprojection;
-    /// Backprojection: texels read each side of a receiver (Backprojection.h). 2 reads at most 25
-    /// texels per layer; 3 reads 49, with mean |dV| about a quarter lower on the examples at 1.5x
-    /// the lookup time (docs/methods.md).
-    int taps = 2;
+    /// Backprojection: texels read each side of a receiver (Backprojection.h). 3 reads at most 49
+    /// texels per layer; 2 reads 25 in about two thirds of the lookup time, for mean |dV| about
+    /// 10 % higher on the examples and twice the error on the analytic edge (docs/BENCHMARKS.md).
+    int taps = 3;
     /// Bytes of one light's maps (depth and penumbra, float, at most six cube faces).
     uint64_t mapBytes() const;
 };
@@ -82,11 +82,14 @@ struct PenumbraMapStats {
 /// @brief The visible fraction of every light for every receiver, receiver-major (r * lights + l).
 /// @param sampleSets unused: the method has no samples (kept for a common caster signature)
 /// @param epsilon the rule's receiver epsilon, the smallest depth bias
-/// @param blockers read twice per light, from the start (rewound)
+/// @param blockers read once or twice per light, from the start (rewound)
+/// @param observe if set, shown every chunk of the first read as read (before non-casting
+/// triangles are dropped), so that a receiver kind that watches the stream needs no read of its own
 std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSet& receivers,
                                    std::span<const uint32_t> sampleSets, TriangleSource& blockers,
                                    const ReceiverEpsilon& epsilon, const PenumbraMapOptions& options,
-                                   PenumbraMapStats* stats = nullptr, const std::function<void(uint64_t)>& progress = {});
+                                   PenumbraMapStats* stats = nullptr, const std::function<void(uint64_t)>& progress = {},
+                                   const std::function<void(std::span<const Triangle>)>& observe = {});
 
 /// @brief The stats JSON's "penumbra_map" section.
 nlohmann::json penumbraMapStatsJson(const PenumbraMapStats& stats, const PenumbraMapOptions& options);

@@ -17,6 +17,9 @@ protected:
 
     /// @brief Shows every blocker chunk to the receiver kind, on the first cast only.
     void observeOnce(TriangleSource& blockers);
+    /// @brief The receiver kind's chunk observer, on the first call only (empty after, or when the
+    /// kind has none), for a method that shows it its own first read instead of observeOnce().
+    std::function<void(std::span<const Triangle>)> takeObserver();
     /// @brief Calls @p report for receivers [@p first, @p end) on the worker threads.
     static void reportInParallel(uint32_t first, uint32_t end, const std::function<void(uint32_t)>& report);
 
