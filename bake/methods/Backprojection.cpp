@@ -33,6 +33,7 @@ std::vector<glm::dvec2> convexHull(std::vector<glm::dvec2> points) {
 }
 
 using Transmission = std::array<float, LightGrid::kCells * LightGrid::kCells>;
+static_assert(LightGrid::kCells * LightGrid::kCells % 8 == 0, "visibleFraction() sums in eight lanes");
 
 /// Blocks the cells of @p grid whose light points lie behind the plane through @p r with normal
 /// @p n; the distance from the plane is linear across the light, so the corners decide at once.
@@ -169,18 +170,31 @@ struct Backprojector {
         const glm::dvec2 image = centre * texel - view.halfExtent;  // tangent (perspective) or world units
         const double lateral = image.x * perX + image.y * perY;
         const double base = view.ortho ? base0 + lateral : base0, along = view.ortho ? along0 : along0 + lateral;
-        const double marginPerDepth = (bias + 0.71 * s) * texel;  // a quantile's depth is within 0.71 s texels of a surface point
+        // A quantile's depth is within 0.71 s texels of a surface point: the margin is
+        // eps + marginPerDepth (orthographic) or eps + marginPerDepth q (perspective).
+        const double marginPerDepth = (bias + 0.71 * s) * texel;
+        const double fixedMargin = eps + (view.ortho ? marginPerDepth : 0.0), marginSlope = view.ortho ? 0.0 : marginPerDepth;
+        // Depth q is in front when c0 + q c1 > 0: beyond the receiver's plane by the margin (or,
+        // without a plane, nearer than the receiver by it). Linear in q, so with c1 <= 0 (the
+        // usual case: depth runs towards the plane) the quantiles in front are a prefix of the
+        // ascending four, and the first one out ends the texel (most texels around a receiver
+        // are its own surface and end at once).
+        const double c0 = hasPlane ? base - fixedMargin : p.z - fixedMargin;
+        const double c1 = hasPlane ? along - marginSlope : -(1.0 + marginSlope);
         int blocking = 0;
         double depthSum = 0;
         for (const float q : t.quantile) {
             if (!(q < p.z)) break;
-            const double margin = eps + marginPerDepth * (view.ortho ? 1.0 : double(q));
-            const bool inFront = hasPlane ? base + q * along > margin : q < p.z - margin;
-            if (inFront) ++blocking, depthSum += q;
+            if (c0 + q * c1 > 0) ++blocking, depthSum += q;
+            else if (c1 <= 0) break;
         }
-        const double k = blocking > 0 ? kOf(depthSum / blocking) : 0.0;
-        if (!(k > 0)) return;
-        const double inverseK = 1.0 / k;
+        if (blocking == 0) return;
+        // 1/k at the quantiles' mean depth z: 1 / (z_r - z) (orthographic) or z z_r / (z_r - z)
+        // (perspective, k = 1/z - 1/z_r), one division where the plain form takes three.
+        static constexpr double kInverseCount[] = {0.0, 1.0, 1.0 / 2, 1.0 / 3, 1.0 / 4};
+        const double z = depthSum * kInverseCount[blocking], gap = p.z - z;
+        if (!(gap > 0)) return;
+        const double inverseK = view.ortho ? 1.0 / gap : z * p.z / gap;
         const glm::dvec2 offset = (centre - glm::dvec2(p.x, p.y)) * texel, half(0.5 * s * texel);
         const glm::dvec2 a = (offset - half) * inverseK, b = (offset + half) * inverseK;
         const int i0 = firstCellX(a.x), i1 = firstCellX(b.x), j0 = firstCellY(a.y), j1 = firstCellY(b.y);
@@ -191,9 +205,14 @@ struct Backprojector {
             for (int i = i0; i < i1; ++i) transmitted[size_t(j * LightGrid::kCells + i)] *= keep;
     }
 
+    /// The mean transmission of the cells inside the outline (the others are held at 0), summed
+    /// in eight independent lanes: one chain of 144 dependent additions cost more than a
+    /// receiver's texels in the profile.
     float visibleFraction() const {
-        double sum = 0;
-        for (const uint16_t c : grid.insideCells()) sum += transmitted[c];
+        std::array<float, 8> lane{};
+        for (size_t c = 0; c < transmitted.size(); c += lane.size())
+            for (size_t l = 0; l < lane.size(); ++l) lane[l] += transmitted[c + l];
+        const double sum = ((double(lane[0]) + lane[1]) + (double(lane[2]) + lane[3])) + ((double(lane[4]) + lane[5]) + (double(lane[6]) + lane[7]));
         return float(sum / double(grid.insideCells().size()));
     }
 };
@@ -203,7 +222,8 @@ struct Backprojector {
 float backprojectedVisibility(const LightView& view, std::span<const DepthPyramid> pyramids, const LightGrid& grid,
                               const glm::dvec3& r, const glm::dvec3& normal, double bias, double eps, int taps) {
     Backprojector b{view, grid, view.project(r), r, glm::dvec3(0.0), bias, eps, {}};
-    b.transmitted.fill(1.0f);
+    b.transmitted.fill(0.0f);
+    for (const uint16_t c : grid.insideCells()) b.transmitted[c] = 1.0f;
     if (glm::length(normal) > 0) {
         // Surfaces are taken as the sides of solids, as the exact rule finds them for closed
         // meshes: the light behind the receiver's own plane is blocked by the solid. (For an open
