@@ -42,11 +42,14 @@ void blockBehindPlane(const LightView& view, const LightGrid& grid, const glm::d
     const double c0 = glm::dot(view.ortho ? -view.axis : view.origin - r, n), cx = glm::dot(view.e1, n), cy = glm::dot(view.e2, n);
     const glm::dvec2 hi = grid.lo + double(LightGrid::kCells) * grid.cell;
     if (c0 + std::min(grid.lo.x * cx, hi.x * cx) + std::min(grid.lo.y * cy, hi.y * cy) >= 0) return;  // all in front
-    for (int j = 0; j < LightGrid::kCells; ++j)
-        for (int i = 0; i < LightGrid::kCells; ++i) {
-            const glm::dvec2 l = grid.lo + (glm::dvec2(i, j) + 0.5) * grid.cell;
-            if (c0 + l.x * cx + l.y * cy < 0) transmitted[size_t(j * LightGrid::kCells + i)] = 0.0f;
-        }
+    // The same sums as c0 + l.x cx + l.y cy at each cell centre l, with the column part shared.
+    std::array<double, LightGrid::kCells> column;
+    for (int i = 0; i < LightGrid::kCells; ++i) column[size_t(i)] = c0 + (grid.lo.x + (i + 0.5) * grid.cell.x) * cx;
+    for (int j = 0; j < LightGrid::kCells; ++j) {
+        const double row = (grid.lo.y + (j + 0.5) * grid.cell.y) * cy;
+        float* cells = &transmitted[size_t(j * LightGrid::kCells)];
+        for (int i = 0; i < LightGrid::kCells; ++i) cells[i] = column[size_t(i)] + row < 0 ? 0.0f : cells[i];
+    }
 }
 
 }  // namespace
@@ -123,6 +126,8 @@ LightGrid::LightGrid(const std::vector<glm::dvec2>& outline) {
             }
             if (in) inside_.push_back(uint16_t(j * kCells + i));
         }
+    open_.fill(0.0f);
+    for (const uint16_t c : inside_) open_[c] = 1.0f;
 }
 
 namespace {
@@ -222,8 +227,7 @@ struct Backprojector {
 float backprojectedVisibility(const LightView& view, std::span<const DepthPyramid> pyramids, const LightGrid& grid,
                               const glm::dvec3& r, const glm::dvec3& normal, double bias, double eps, int taps) {
     Backprojector b{view, grid, view.project(r), r, glm::dvec3(0.0), bias, eps, {}};
-    b.transmitted.fill(0.0f);
-    for (const uint16_t c : grid.insideCells()) b.transmitted[c] = 1.0f;
+    b.transmitted = grid.open();
     if (glm::length(normal) > 0) {
         // Surfaces are taken as the sides of solids, as the exact rule finds them for closed
         // meshes: the light behind the receiver's own plane is blocked by the solid. (For an open

@@ -85,9 +85,12 @@ public:
     double radius = 0;                ///< the largest distance of the outline from the centre
     /// The cells inside the outline, as j * kCells + i.
     const std::vector<uint16_t>& insideCells() const { return inside_; }
+    /// Per cell, as j * kCells + i: 1 inside the outline, 0 outside (a lookup's starting state).
+    const std::array<float, kCells * kCells>& open() const { return open_; }
 
 private:
     std::vector<uint16_t> inside_;
+    std::array<float, kCells * kCells> open_{};
 };
 
 /// @brief The visible fraction of receiver @p r (normal @p normal, may be zero) from @p view by
