@@ -17,6 +17,7 @@ nlohmann::json table2(const BakeStatsInputs& in) {
     const double cast = in.cast.castSeconds > 0 ? in.cast.castSeconds : in.castSeconds;
     return {{"sort_time_s", in.buckets.seconds},
             {"hierarchy_build_time_s", in.cast.hierarchyBuildSeconds},
+            {"hierarchy_build_wall_s", in.cast.hierarchyBuildWallSeconds},
             {"penumbra_cast_time_s", cast},
             {"replay_read_time_s", in.cast.replayReadSeconds},
             {"samples_memory_bytes", in.receivers.bytes() + in.cast.receiverBytes},

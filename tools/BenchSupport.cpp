@@ -245,4 +245,14 @@ std::string replaceGeneratedSection(const std::string& document, const std::stri
     return doc + "\n" + heading + "\n\n" + block;
 }
 
+double hpcBuildWallSeconds(const nlohmann::json& stats) {
+    const nlohmann::json& t = stats.at("table2");
+    return (t.contains("hierarchy_build_wall_s") ? t["hierarchy_build_wall_s"] : t.at("hierarchy_build_time_s")).get<double>();
+}
+
+double hpcPaperSeconds(const nlohmann::json& stats) {
+    const nlohmann::json& t = stats.at("table2");
+    return t.at("sort_time_s").get<double>() + hpcBuildWallSeconds(stats) + t.at("penumbra_cast_time_s").get<double>();
+}
+
 }  // namespace penumbra

@@ -68,6 +68,14 @@ nlohmann::json bestOf(int repeat, Seconds seconds, const std::function<nlohmann:
 /// Parses `penumbra compare` output: its "key value" lines (the listed mismatches are skipped).
 std::map<std::string, uint64_t> parseCompare(const std::string& text);
 
+/// @brief hpc's time in the paper's Table 2 sense from a bake's stats: sort + hierarchy build +
+/// penumbra cast, all wall-clock. The build is the first builds' wall time
+/// (`table2.hierarchy_build_wall_s`; rebuilds run during the cast and are in its wall time);
+/// stats of older binaries without it give their thread-seconds of all builds.
+double hpcPaperSeconds(const nlohmann::json& stats);
+/// @brief The hierarchy build column of hpcPaperSeconds().
+double hpcBuildWallSeconds(const nlohmann::json& stats);
+
 /// @brief A scene name in @p examplesDir ("grids") or a .json path. @throw InputError when missing.
 std::filesystem::path benchSceneFile(const std::string& examplesDir, const std::string& name);
 std::string sceneName(const std::string& name);

@@ -27,8 +27,7 @@ using nlohmann::json;
 /// into memory or streaming it, building, casting).
 double methodSeconds(const json& s, const std::string& method) {
     const json& t = s["table2"];
-    if (method == "hpc")
-        return t["sort_time_s"].get<double>() + t["hierarchy_build_time_s"].get<double>() + t["penumbra_cast_time_s"].get<double>();
+    if (method == "hpc") return hpcPaperSeconds(s);
     if (method == "embree") return s["embree"]["build_time_s"].get<double>() + s["embree"]["trace_time_s"].get<double>();
     return t["penumbra_cast_time_s"].get<double>();
 }

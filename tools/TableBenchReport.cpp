@@ -19,6 +19,21 @@ constexpr const char* kEndMarker = "<!-- penumbra bench table2: end -->";
 
 std::string secs(const json& v) { return fmt::format("{:.2f}", v.get<double>()); }
 
+/// The whole processes' wall times, from start to the written output, and their ratio; "–"
+/// where a result predates them or a bake failed.
+std::string processWallColumns(const json& row) {
+    auto wall = [&](const char* method) -> double {
+        if (!row.contains(method) || row[method].contains("error") || !row[method].contains("process_wall_s")) return -1;
+        const json& w = row[method]["process_wall_s"];
+        return w.is_number() ? w.get<double>() : -1;
+    };
+    const double ours = wall("ours"), embree = wall("embree");
+    std::string md = ours >= 0 ? fmt::format(" {:.2f} |", ours) : std::string(" – |");
+    md += embree >= 0 ? fmt::format(" {:.2f} |", embree) : std::string(" – |");
+    md += ours > 0 && embree >= 0 ? fmt::format(" {:.2f} |", embree / ours) : std::string(" – |");
+    return md;
+}
+
 /// Finds the row of @p scene named @p row with no error, or nullptr.
 const json* findRow(const json& result, const std::string& scene, const std::string& row) {
     for (const json& r : result["rows"])
@@ -34,16 +49,25 @@ std::string targetsMarkdown(const json& result) {
     for (const json& r : result["rows"])
         if (std::find(scenes.begin(), scenes.end(), r["scene"].get<std::string>()) == scenes.end())
             scenes.push_back(r["scene"]);
-    // Faster than Embree at 1280x960 and above; 3x on grids and sponza-like.
+    // Issue #16: Embree/ours at least 1 on every row at 1280x960 and above, at least 2 on flowers
+    // and sponza-like, toward 3 everywhere; by the paper's count and by the processes' wall time.
     for (const std::string& scene : scenes) {
-        double worst = INFINITY;
-        for (const json& r : result["rows"])
-            if (r["scene"] == scene && r.contains("ratio") && r["nominal_width"].get<int>() >= 1280)
-                worst = std::min(worst, r["ratio"].get<double>());
-        if (!std::isfinite(worst)) continue;
-        const bool aim3 = scene == "grids" || scene == "sponza-like";
-        md += fmt::format("| {}: Embree/ours ≥ 1{} at 1280×960 and above | lowest ratio {:.2f} | {} |\n", scene,
-                          aim3 ? " (aim ≥ 3)" : "", worst, worst >= 1.0 ? (aim3 && worst < 3.0 ? "met (aim of 3 not met)" : "met") : "**not met**");
+        double worst = INFINITY, worstWall = INFINITY;
+        for (const json& r : result["rows"]) {
+            if (r["scene"] != scene || r["nominal_width"].get<int>() < 1280) continue;
+            if (r.contains("ratio")) worst = std::min(worst, r["ratio"].get<double>());
+            if (r.contains("ours") && r.contains("embree") && !r["embree"].contains("error") && r["ours"].contains("process_wall_s") &&
+                r["embree"].contains("process_wall_s") && r["ours"]["process_wall_s"].is_number() && r["embree"]["process_wall_s"].is_number())
+                worstWall = std::min(worstWall, r["embree"]["process_wall_s"].get<double>() / r["ours"]["process_wall_s"].get<double>());
+        }
+        const double need = scene == "flowers" || scene == "sponza-like" ? 2.0 : 1.0;
+        auto line = [&](const char* how, double value) {
+            if (!std::isfinite(value)) return;
+            md += fmt::format("| {}: Embree/ours ≥ {:g} (aim ≥ 3) at 1280×960 and above, {} | lowest ratio {:.2f} | {} |\n", scene, need,
+                              how, value, value >= need ? (value < 3.0 ? "met (aim of 3 not met)" : "met") : "**not met**");
+        };
+        line("sort + build + cast", worst);
+        line("whole process wall", worstWall);
     }
     for (const std::string& scene : scenes) {
         auto ratio = [&](const char* a, const char* b) -> std::optional<double> {
@@ -120,13 +144,13 @@ std::string table2Markdown(const json& result) {
                           formatMiB(result["bench_process_peak_rss_bytes"]));
     md += "| scene | resolution | samples | light | sort s | hierarchy build s | penumbra cast s | ours s | samples MiB | "
           "hierarchy MiB | masks MiB | ours peak RSS MiB | Embree s (build + trace) | Embree peak RSS MiB | Embree/ours | "
-          "mismatches (ties) |\n";
-    md += "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+          "ours process wall s | Embree process wall s | Embree/ours, process | mismatches (ties) |\n";
+    md += "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for (const json& r : result["rows"]) {
         md += fmt::format("| {} | {}×{} | {} | {} |", r["scene"].get<std::string>(), r["width"].get<int>(), r["height"].get<int>(),
                           r["samples"].get<int>(), r["light_scale"].get<double>() == 1.0 ? "1×" : "4× area");
         if (r.contains("error")) {
-            md += " error: " + r["error"].get<std::string>() + " ||||||||||||\n";
+            md += " error: " + r["error"].get<std::string>() + " |||||||||||||||\n";
             continue;
         }
         const json& o = r["ours"];
@@ -138,6 +162,7 @@ std::string table2Markdown(const json& result) {
                               secs(r["embree"]["trace_s"]), formatMiB(r["embree"]["peak_rss_bytes"]), r["ratio"].get<double>());
         else
             md += r.contains("embree") ? " error | | |" : " – | – | – |";
+        md += processWallColumns(r);
         if (r.contains("mismatches") && !r["mismatches"].contains("error"))
             md += fmt::format(" {} ({}) |\n", r["mismatches"]["mismatches"].get<uint64_t>(), r["mismatches"]["ties"].get<uint64_t>());
         else

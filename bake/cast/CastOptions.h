@@ -63,6 +63,9 @@ inline ReceiverEpsilon receiverEpsilonOf(const CastOptions& options) { return {o
 /// @brief Counters and timers of one cast, summed over tiles (the paper's Table 2 columns).
 struct CastStats {
     double hierarchyBuildSeconds = 0;  ///< thread-seconds, all builds and rebuilds
+    /// Wall-clock seconds of the first builds of the tiles' hierarchies, before the cast starts
+    /// (rebuilds happen during the cast, so castSeconds holds their wall time).
+    double hierarchyBuildWallSeconds = 0;
     /// Wall-clock seconds from the first cast() to the end of flush(): tiles cast in the background
     /// while the caller reads the next chunk, so this includes the replay read.
     double castSeconds = 0;

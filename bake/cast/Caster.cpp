@@ -32,6 +32,7 @@ int rank(const std::string& name) {
 
 void addSequential(CastStats& total, const CastStats& s) {
     total.hierarchyBuildSeconds += s.hierarchyBuildSeconds;
+    total.hierarchyBuildWallSeconds += s.hierarchyBuildWallSeconds;
     total.castSeconds += s.castSeconds;
     total.replayReadSeconds += s.replayReadSeconds;
     total.trianglesProcessed += s.trianglesProcessed;

@@ -115,7 +115,10 @@ PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& r
     if (m.options.sampleTable)
         for (uint32_t l = 0; l < uint32_t(samples.lightCount()); ++l)
             m.tables.emplace_back(samples, l, m.options.sampleTableAngles, m.options.sampleTableOffsets);
-    m.buildTiles(receivers, sampleSetOf, receiverIds, tiles);
+    {
+        ScopedTimer timer(m.stats.hierarchyBuildWallSeconds);
+        m.buildTiles(receivers, sampleSetOf, receiverIds, tiles);
+    }
     // Rebuilds only drop receivers, so boxes from the first build stay conservative.
     Box receiversBox{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
     for (const auto& tile : m.tiles)

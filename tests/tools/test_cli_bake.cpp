@@ -54,7 +54,7 @@ TEST_CASE("bake writes the EXR, PNG, dump and stats, and hpc matches reference v
     CHECK(msk.shape == std::vector<uint64_t>{rec.shape[0], 1});
 
     nlohmann::json stats = nlohmann::json::parse(slurp(dir / "stats.json"));
-    for (const char* key : {"sort_time_s", "hierarchy_build_time_s", "penumbra_cast_time_s", "samples_memory_bytes",
+    for (const char* key : {"sort_time_s", "hierarchy_build_time_s", "hierarchy_build_wall_s", "penumbra_cast_time_s", "samples_memory_bytes",
                             "peak_hierarchy_memory_bytes", "peak_mask_memory_bytes", "total_time_s"})
         CHECK(stats["table2"].contains(key));
     CHECK(stats["counters"]["triangles_read"].get<uint64_t>() == 2 + 2 * 25 * 12);

@@ -59,6 +59,10 @@ TEST_CASE("bench table2 at a tiny scale: columns, ratio, ties and the Markdown s
     CHECK(ours["time_s"].get<double>() ==
           Approx(ours["sort_s"].get<double>() + ours["hierarchy_build_s"].get<double>() + ours["penumbra_cast_s"].get<double>()));
     CHECK(ours["hierarchy_memory_bytes"].get<double>() > 0.0);
+    // The build column is the first builds' wall time; the thread-seconds of every build stay beside it.
+    CHECK(ours["hierarchy_build_s"].get<double>() > 0.0);
+    CHECK(ours["hierarchy_build_thread_s"].get<double>() > 0.0);
+    CHECK(ours["process_wall_s"].get<double>() >= ours["time_s"].get<double>());
     CHECK(ours["peak_rss_bytes"].get<double>() > 1e6);
     CHECK(ours["threads"] == 2);
 
@@ -68,6 +72,7 @@ TEST_CASE("bench table2 at a tiny scale: columns, ratio, ties and the Markdown s
     CHECK(embree["rays"].get<uint64_t>() > 0);
     CHECK(embree["peak_rss_bytes"].get<double>() > 1e6);
     CHECK(row["ratio"].get<double>() == Approx(embree["time_s"].get<double>() / ours["time_s"].get<double>()));
+    CHECK(embree["process_wall_s"].get<double>() >= embree["time_s"].get<double>());
 
     const nlohmann::json& m = row["mismatches"];
     CHECK(m["relations"].get<uint64_t>() == receivers * 256);
@@ -93,7 +98,8 @@ TEST_CASE("bench table2 at a tiny scale: columns, ratio, ties and the Markdown s
     CHECK(md.rfind(head, 0) == 0);
     CHECK(occurrences(md, kBegin) == 1);
     CHECK_THAT(md, Catch::Contains("Reduced-scale validation run") && Catch::Contains("| grids | 32×24 | 256 |") &&
-                       Catch::Contains("### Targets") && Catch::Contains("### Root-cull throughput"));
+                       Catch::Contains("### Targets") && Catch::Contains("### Root-cull throughput") &&
+                       Catch::Contains("Embree/ours, process"));
     CHECK(r.out.find("| grids | 32×24 | 256 |") != std::string::npos);
 
     // A second run replaces the section in place: text after it survives too.
