@@ -254,8 +254,16 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
     const double radius = b.radiusFor(nearest);
     const int level = levelFor(radius, taps), res = nearestLayer.resolution(level);
     const double s = double(1 << level);
-    const int x0 = clampedTexel(std::floor((b.p.x - radius) / s), 0, res - 1), x1 = clampedTexel(std::floor((b.p.x + radius) / s), 0, res - 1);
-    const int y0 = clampedTexel(std::floor((b.p.y - radius) / s), 0, res - 1), y1 = clampedTexel(std::floor((b.p.y + radius) / s), 0, res - 1);
+    // Only texels over the light's outline scaled by k can hide a cell, and k is largest for the
+    // nearest blocker: the outline's box, t_r + k [lo, hi], within the square of the radius (a
+    // square light's box is half the square around its circumscribed circle). Texels beside it
+    // hide no cell centre, so they are skipped without changing the answer.
+    const double perLight = std::max(0.0, b.kOf(nearest)) / view.texel();  // fine texels per light unit
+    const glm::dvec2 outlineHi = grid.lo + double(LightGrid::kCells) * grid.cell;
+    const double xa = std::max(b.p.x - radius, b.p.x + perLight * grid.lo.x), xb = std::min(b.p.x + radius, b.p.x + perLight * outlineHi.x);
+    const double ya = std::max(b.p.y - radius, b.p.y + perLight * grid.lo.y), yb = std::min(b.p.y + radius, b.p.y + perLight * outlineHi.y);
+    const int x0 = clampedTexel(std::floor(xa / s), 0, res - 1), x1 = clampedTexel(std::floor(xb / s), 0, res - 1);
+    const int y0 = clampedTexel(std::floor(ya / s), 0, res - 1), y1 = clampedTexel(std::floor(yb / s), 0, res - 1);
     for (int ty = y0; ty <= y1; ++ty)
         for (int tx = x0; tx <= x1; ++tx)
             for (const DepthPyramid& layer : pyramids) {
