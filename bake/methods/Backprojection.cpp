@@ -243,11 +243,14 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
         while (level + 1 < nearestLayer.levels() && radius > taps * double(1 << level)) ++level;
         return level;
     };
-    // Size the search region by the nearest blocker around, twice refined.
+    // Size the search region by the nearest blocker around, twice refined; the region is the
+    // outline's box scaled by the blocker's k (see below).
+    const glm::dvec2 outlineLo = grid.lo, outlineHi = grid.lo + double(LightGrid::kCells) * grid.cell;
     double nearest = nearestLayer.nearest();
     for (int pass = 0; pass < 2 && nearest < b.p.z; ++pass) {
-        const double radius = b.radiusFor(nearest);
-        const glm::dvec2 lo(b.p.x - radius, b.p.y - radius), hi(b.p.x + radius, b.p.y + radius);
+        const double radius = b.radiusFor(nearest), perLight = std::max(0.0, b.kOf(nearest)) / view.texel();
+        const glm::dvec2 at(b.p.x, b.p.y);
+        const glm::dvec2 lo = glm::max(at - radius, at + perLight * outlineLo), hi = glm::min(at + radius, at + perLight * outlineHi);
         nearest = std::max(nearest, double(nearestLayer.nearestIn(levelFor(radius, kSearchRadius), lo, hi)));
     }
     if (!(nearest < b.p.z)) return b.visibleFraction();
@@ -259,7 +262,6 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
     // square light's box is half the square around its circumscribed circle). Texels beside it
     // hide no cell centre, so they are skipped without changing the answer.
     const double perLight = std::max(0.0, b.kOf(nearest)) / view.texel();  // fine texels per light unit
-    const glm::dvec2 outlineHi = grid.lo + double(LightGrid::kCells) * grid.cell;
     const double xa = std::max(b.p.x - radius, b.p.x + perLight * grid.lo.x), xb = std::min(b.p.x + radius, b.p.x + perLight * outlineHi.x);
     const double ya = std::max(b.p.y - radius, b.p.y + perLight * grid.lo.y), yb = std::min(b.p.y + radius, b.p.y + perLight * outlineHi.y);
     const int x0 = clampedTexel(std::floor(xa / s), 0, res - 1), x1 = clampedTexel(std::floor(xb / s), 0, res - 1);
