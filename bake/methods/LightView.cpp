@@ -31,15 +31,23 @@ void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1
     const double ymin = std::min({p[0].y, p[1].y, p[2].y}), ymax = std::max({p[0].y, p[1].y, p[2].y});
     const int ya = clampedTexel(std::ceil(ymin - 0.5), y0, y1), yb = clampedTexel(std::floor(ymax - 0.5), y0 - 1, y1 - 1);
     const int xa = clampedTexel(std::ceil(xmin - 0.5), 0, map.res), xb = clampedTexel(std::floor(xmax - 0.5), -1, map.res - 1);
-    for (int y = ya; y <= yb; ++y)
+    // Edge i's function (u.x - cx)(v.y - cy) - (v.x - cx)(u.y - cy), u and v the other two
+    // vertices, is a + bx cx + by cy; its sign against the area's says inside (a texel centre on an
+    // edge is inside), and over the area it is the barycentric of vertex i.
+    const double inverseArea = 1.0 / area, orient = area > 0 ? 1.0 : -1.0;
+    double ea[3], ex[3], ey[3];
+    for (int i = 0; i < 3; ++i) {
+        const ViewPoint &u = p[(i + 1) % 3], &v = p[(i + 2) % 3];
+        ea[i] = (u.x * v.y - v.x * u.y) * orient, ex[i] = (u.y - v.y) * orient, ey[i] = (v.x - u.x) * orient;
+    }
+    for (int y = ya; y <= yb; ++y) {
+        const double cy = y + 0.5;
+        const double row[3] = {ea[0] + ey[0] * cy, ea[1] + ey[1] * cy, ea[2] + ey[2] * cy};
         for (int x = xa; x <= xb; ++x) {
-            const double cx = x + 0.5, cy = y + 0.5;
-            double b[3];
-            for (int i = 0; i < 3; ++i) {
-                const ViewPoint &u = p[(i + 1) % 3], &v = p[(i + 2) % 3];
-                b[i] = ((u.x - cx) * (v.y - cy) - (v.x - cx) * (u.y - cy)) / area;
-            }
-            if (b[0] < 0 || b[1] < 0 || b[2] < 0) continue;
+            const double cx = x + 0.5;
+            const double e0 = row[0] + ex[0] * cx, e1 = row[1] + ex[1] * cx, e2 = row[2] + ex[2] * cx;
+            if (e0 < 0 || e1 < 0 || e2 < 0) continue;
+            const double b[3] = {e0 * orient * inverseArea, e1 * orient * inverseArea, e2 * orient * inverseArea};
             const float z = float(view.fromLinear(b[0] * lin[0] + b[1] * lin[1] + b[2] * lin[2]));
             if (map.layers == 1) {
                 float& d = map.depth[size_t(y) * map.res + x];
@@ -48,6 +56,7 @@ void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1
                 map.insert(size_t(y) * map.res + x, z, float(view.layerGap(z)));
             }
         }
+    }
 }
 
 /// Clips @p t at the near plane (perspective views) and draws the pieces into rows [y0, y1).
