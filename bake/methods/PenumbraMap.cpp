@@ -390,7 +390,11 @@ public:
     explicit PenumbraMapCaster(const CastContext& c) : StreamedCaster(c), options_(optionsOf(c.methodOptions)) {}
 
     void cast(TriangleSource& blockers, uint32_t first, const CastSink& sink) override {
-        const ReceiverSet targets = receiversFrom(c_.receivers, first);
+        // A refinement's tail is copied; the first pass reads the receivers in place (a copy of a
+        // million receivers cost tens of milliseconds and their memory again).
+        std::optional<ReceiverSet> tail;
+        if (first > 0) tail = receiversFrom(c_.receivers, first);
+        const ReceiverSet& targets = tail ? *tail : c_.receivers;
         const int lights = c_.samples.lightCount();
         const uint64_t reads = options_.lookup == PenumbraMapOptions::Lookup::WymanHansen ? 2 : 1;  // per light
         ProgressReporter progress("penumbra-map", reads * blockers.sizeHint().value_or(0) * uint64_t(lights), c_.quiet);
