@@ -210,9 +210,30 @@ void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, Dept
         q.ymax = q.clip ? INFINITY : std::max({q.p[0].y, q.p[1].y, q.p[2].y});
     });
     const int rows = (map.res + kBands - 1) / kBands;
+    // Each band's triangles in stream order (a counting sort by the bands each may reach, a band
+    // to spare each side), so a band reads its own list, not the whole chunk: with 64 bands the
+    // scan of every triangle per band cost more than drawing the small ones.
+    auto bandsOf = [&](const Projected& q) {
+        const int lo = clampedTexel(std::floor((q.ymin - 0.5) / rows) - 1, 0, kBands - 1);
+        const int hi = clampedTexel(std::floor((q.ymax + 0.5) / rows) + 1, 0, kBands - 1);
+        return std::pair<int, int>(lo, hi);
+    };
+    std::vector<uint32_t> first(kBands + 1, 0), members;
+    for (const Projected& q : projected) {
+        const auto [lo, hi] = bandsOf(q);
+        for (int band = lo; band <= hi; ++band) ++first[size_t(band) + 1];
+    }
+    for (int band = 0; band < kBands; ++band) first[size_t(band) + 1] += first[size_t(band)];
+    members.resize(first[kBands]);
+    std::vector<uint32_t> fill(first.begin(), first.end() - 1);
+    for (size_t i = 0; i < projected.size(); ++i) {
+        const auto [lo, hi] = bandsOf(projected[i]);
+        for (int band = lo; band <= hi; ++band) members[fill[size_t(band)]++] = uint32_t(i);
+    }
     tbb::parallel_for(0, kBands, [&](int band) {
         const int y0 = band * rows, y1 = std::min(map.res, y0 + rows);
-        for (size_t i = 0; i < chunk.size() && y0 < y1; ++i) {
+        for (uint32_t m = first[size_t(band)]; m < first[size_t(band) + 1] && y0 < y1; ++m) {
+            const size_t i = members[m];
             const Projected& q = projected[i];
             if (q.ymax < y0 - 0.5 || q.ymin > y1 + 0.5) continue;
             if (q.clip) drawClipped(view, chunk[i], y0, y1, map);
