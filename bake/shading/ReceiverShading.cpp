@@ -179,11 +179,15 @@ double emitterIntegral(const std::vector<glm::dvec3>& corners, const glm::dvec3&
         if (da >= 0) clipped.push_back(a);
         if ((da >= 0) != (db >= 0)) clipped.push_back(a + (b - a) * (da / (da - db)));
     }
+    // Unit directions to the outline's vertices, each normalized once (zero: a vertex at p).
+    for (glm::dvec3& v : clipped) {
+        const double l = glm::length(v);
+        v = l > 0 ? v / l : glm::dvec3(0.0);
+    }
     double sum = 0;
     for (size_t i = 0; i < clipped.size(); ++i) {
-        const double la = glm::length(clipped[i]), lb = glm::length(clipped[(i + 1) % clipped.size()]);
-        if (!(la > 0 && lb > 0)) continue;
-        const glm::dvec3 a = clipped[i] / la, b = clipped[(i + 1) % clipped.size()] / lb;
+        const glm::dvec3 &a = clipped[i], &b = clipped[(i + 1) % clipped.size()];
+        if (a == glm::dvec3(0.0) || b == glm::dvec3(0.0)) continue;
         const glm::dvec3 g = glm::cross(a, b);
         const double s = glm::length(g);
         if (s > 0) sum += angleOf(s, glm::dot(a, b)) * glm::dot(n, g) / s;
