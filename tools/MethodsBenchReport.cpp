@@ -97,10 +97,14 @@ std::string targets(const json& result) {
         const json& hpc = at(at(row, "methods"), "hpc");
         const double cast = at(pm, "speedup_vs_hpc").get<double>();
         const json bake = ratioToHpc(hpc, pm, "bake_total_s"), cpu = ratioToHpc(hpc, pm, "process_cpu_s");
-        // Wall times on a loaded machine can flatter either side, so the CPU time must agree.
-        const bool met = cast >= 10 && bake.is_number() && bake.get<double>() >= 10 && cpu.is_number() && cpu.get<double>() >= 10;
+        // Judged both ways: the paper's count (the method's own phase against hpc's sort + build +
+        // cast) and the whole bake, whose wall time on a loaded machine can flatter either side,
+        // so its CPU time must agree.
+        const bool whole = bake.is_number() && bake.get<double>() >= 10 && cpu.is_number() && cpu.get<double>() >= 10;
+        const std::string judged = cast >= 10 ? (whole ? "met" : "met in the paper's count; **not met** for the whole bake")
+                                              : std::string(verdict(false));
         md += fmt::format("| penumbra-map ≥ 10× faster than hpc, {} 1280×960 (cast / whole bake / process CPU) | {:.1f}× / {} / {} | {} |\n",
-                          at(row, "scene").get<std::string>(), cast, number(bake, "{:.1f}×"), number(cpu, "{:.1f}×"), verdict(met));
+                          at(row, "scene").get<std::string>(), cast, number(bake, "{:.1f}×"), number(cpu, "{:.1f}×"), judged);
     }
     for (const json& row : at(result, "rows")) {
         const json& e = at(at(at(row, "methods"), "penumbra-map"), "error_vs_hpc");
