@@ -116,6 +116,14 @@ TEST_CASE("a method's own scene keys are read by the method whichever method bak
     requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_resolutions\": 64") + " -q"), "penumbra_map_resolutions");
     requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_lookup\": \"pcss\"") + " -q --method penumbra-map"),
                       "bake.penumbra_map_lookup: must be \"backprojection\" or \"wyman-hansen\"");
+    requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_taps\": 9") + " -q --method penumbra-map"), "bake.penumbra_map_taps");
+    // Fewer taps read a coarser level: a valid bake whose stats say so.
+    RunResult taps = runPenumbra("bake " + scene("\"penumbra_map_taps\": 1") + " -q --method penumbra-map --stats " +
+                                 (dir / "taps.json") + " -o " + (dir / "taps.exr"));
+    INFO(taps.err);
+    REQUIRE(taps.exitCode == 0);
+    CHECK(nlohmann::json::parse(slurp(dir / "taps.json"))["penumbra-map"]["taps"] == 1);
+    CHECK(runPenumbra("bake " + scene("") + " -q --method penumbra-map --penumbra-map-taps 0").exitCode != 0);
 }
 
 TEST_CASE("bench methods --render writes the Markdown of an earlier result, with whole-bake and CPU ratios", "[cli][methods]") {
