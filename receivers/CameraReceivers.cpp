@@ -1,6 +1,7 @@
 #include "receivers/CameraReceivers.h"
 
 #include "stream/util/Error.h"
+#include "stream/util/TexelIndex.h"
 
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
@@ -30,14 +31,6 @@ double rowOffset(const CameraBasis& b, int h, int y) { return (1.0 - 2.0 * (y + 
 /// Unit direction of the ray through the centre of pixel (x, y) of a w x h image.
 glm::dvec3 directionThrough(const CameraBasis& b, int w, int h, int x, int y) {
     return glm::normalize(b.forward + columnOffset(b, w, x) * b.right + rowOffset(b, h, y) * b.up);
-}
-
-/// @p value clamped to [@p lo, @p hi] and converted (NaN gives @p lo), as converting an
-/// infinite or NaN double to int is undefined.
-int clampedIndex(double value, int lo, int hi) {
-    if (!(value >= lo)) return lo;
-    if (!(value <= hi)) return hi;
-    return int(value);
 }
 
 /// The x range [lo, hi] of pixel centres on row centre @p py that can pass the inside test of
@@ -180,8 +173,8 @@ void CameraRasterizer::add(std::span<const Triangle> chunk) {
                 double lo = -INFINITY, hi = INFINITY;
                 rowSpan(sx, sy, m, orient, py, lo, hi);
                 if (!(lo <= hi)) continue;
-                xa = std::max(x0, clampedIndex(std::ceil(lo - 0.5), x0, x1 + 1));
-                xb = std::min(x1, clampedIndex(std::floor(hi - 0.5), x0 - 1, x1));
+                xa = std::max(x0, clampedTexel(std::ceil(lo - 0.5), x0, x1 + 1));
+                xb = std::min(x1, clampedTexel(std::floor(hi - 0.5), x0 - 1, x1));
             }
             for (int x = xa; x <= xb; ++x) {
                 const size_t base = slotOf(x, y);

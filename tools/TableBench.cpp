@@ -49,9 +49,6 @@ const std::vector<RowSpec>& rowSpecs() {
     return rows;
 }
 
-/// Our time: the paper's total, sort + hierarchy build + penumbra cast (wall-clock).
-double oursSeconds(const json& s) { return hpcPaperSeconds(s); }
-
 /// Embree's time: device, scene and BVH build plus tracing.
 double embreeSeconds(const json& s) { return s["embree"]["build_time_s"].get<double>() + s["embree"]["trace_time_s"].get<double>(); }
 
@@ -62,7 +59,7 @@ json oursColumns(const json& s) {
             {"hierarchy_build_s", hpcBuildWallSeconds(s)},
             {"hierarchy_build_thread_s", t["hierarchy_build_time_s"]},
             {"penumbra_cast_s", t["penumbra_cast_time_s"]},
-            {"time_s", oursSeconds(s)},
+            {"time_s", hpcPaperSeconds(s)},
             {"samples_memory_bytes", t["samples_memory_bytes"]},
             {"hierarchy_memory_bytes", t["peak_hierarchy_memory_bytes"]},
             {"mask_memory_bytes", t["peak_mask_memory_bytes"]},
@@ -265,9 +262,9 @@ json oursAtEveryThreadCount(const TableRun& run, const fs::path& file, const fs:
     json ours;
     scaling["threads"] = scaling["seconds"] = scaling["cast_seconds"] = json::array();
     for (int threads : run.threadList) {
-        ours = bestOf(run.o.repeat, oursSeconds, [&] { return bakeChild(file, "hpc", threads, work); });
+        ours = bestOf(run.o.repeat, hpcPaperSeconds, [&] { return bakeChild(file, "hpc", threads, work); });
         scaling["threads"].push_back(threads > 0 ? threads : int(tbb::info::default_concurrency()));
-        scaling["seconds"].push_back(ours.contains("error") ? json() : json(oursSeconds(ours)));
+        scaling["seconds"].push_back(ours.contains("error") ? json() : json(hpcPaperSeconds(ours)));
         scaling["cast_seconds"].push_back(ours.contains("error") ? json() : ours["table2"]["penumbra_cast_time_s"]);
     }
     const json& s = scaling["seconds"];
@@ -331,9 +328,9 @@ void runTableRow(TableRun& run, const std::string& name, const json& base, const
     row["light_samples"] = ours["light_samples"];
     row["ours"] = oursColumns(ours);
     if (run.threadList.size() > 1) run.result["thread_scaling"].push_back(scaling);
-    std::string line = fmt::format("{} {}: ours {:.2f} s, peak {} MiB", name, spec.name, oursSeconds(ours),
+    std::string line = fmt::format("{} {}: ours {:.2f} s, peak {} MiB", name, spec.name, hpcPaperSeconds(ours),
                                    formatMiB(row["ours"]["peak_rss_bytes"]));
-    if (!run.o.noEmbree) line += embreeColumnsOf(run, file, work, oursSeconds(ours), row);
+    if (!run.o.noEmbree) line += embreeColumnsOf(run, file, work, hpcPaperSeconds(ours), row);
     std::error_code ec;
     fs::remove_all(work, ec);
     run.result["rows"].push_back(row);

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,19 +20,25 @@ constexpr const char* kEndMarker = "<!-- penumbra bench table2: end -->";
 
 std::string secs(const json& v) { return fmt::format("{:.2f}", v.get<double>()); }
 
-/// The whole processes' wall times, from start to the written output, and their ratio; "–"
-/// where a result predates them or a bake failed.
+/// @p method's ("ours" or "embree") whole-process wall time in @p row, from start to the written
+/// output; none where a result predates it or the bake failed.
+std::optional<double> processWall(const json& row, const char* method) {
+    if (!row.contains(method) || row[method].contains("error") || !row[method].contains("process_wall_s")) return std::nullopt;
+    const json& w = row[method]["process_wall_s"];
+    return w.is_number() ? std::optional<double>(w.get<double>()) : std::nullopt;
+}
+
+/// Embree's whole-process wall time over ours in @p row, where both are known.
+std::optional<double> processWallRatio(const json& row) {
+    const auto ours = processWall(row, "ours"), embree = processWall(row, "embree");
+    if (!ours || !embree || !(*ours > 0)) return std::nullopt;
+    return *embree / *ours;
+}
+
+/// The process wall columns of @p row: ours, Embree's and their ratio ("–" where unknown).
 std::string processWallColumns(const json& row) {
-    auto wall = [&](const char* method) -> double {
-        if (!row.contains(method) || row[method].contains("error") || !row[method].contains("process_wall_s")) return -1;
-        const json& w = row[method]["process_wall_s"];
-        return w.is_number() ? w.get<double>() : -1;
-    };
-    const double ours = wall("ours"), embree = wall("embree");
-    std::string md = ours >= 0 ? fmt::format(" {:.2f} |", ours) : std::string(" – |");
-    md += embree >= 0 ? fmt::format(" {:.2f} |", embree) : std::string(" – |");
-    md += ours > 0 && embree >= 0 ? fmt::format(" {:.2f} |", embree / ours) : std::string(" – |");
-    return md;
+    auto cell = [](std::optional<double> v) { return v ? fmt::format(" {:.2f} |", *v) : std::string(" – |"); };
+    return cell(processWall(row, "ours")) + cell(processWall(row, "embree")) + cell(processWallRatio(row));
 }
 
 /// Finds the row of @p scene named @p row with no error, or nullptr.
@@ -56,9 +63,7 @@ std::string targetsMarkdown(const json& result) {
         for (const json& r : result["rows"]) {
             if (r["scene"] != scene || r["nominal_width"].get<int>() < 1280) continue;
             if (r.contains("ratio")) worst = std::min(worst, r["ratio"].get<double>());
-            if (r.contains("ours") && r.contains("embree") && !r["embree"].contains("error") && r["ours"].contains("process_wall_s") &&
-                r["embree"].contains("process_wall_s") && r["ours"]["process_wall_s"].is_number() && r["embree"]["process_wall_s"].is_number())
-                worstWall = std::min(worstWall, r["embree"]["process_wall_s"].get<double>() / r["ours"]["process_wall_s"].get<double>());
+            if (const auto wall = processWallRatio(r)) worstWall = std::min(worstWall, *wall);
         }
         const double need = scene == "flowers" || scene == "sponza-like" ? 2.0 : 1.0;
         auto line = [&](const char* how, double value) {

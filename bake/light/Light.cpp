@@ -148,6 +148,14 @@ double LightDesc::area() const {
     return 0.0;
 }
 
+std::vector<glm::dvec3> LightDesc::outline() const {
+    if (type == LightType::Polygon) return polygon;
+    std::vector<glm::dvec3> corners;
+    if (type == LightType::Rect)
+        for (auto [a, b] : {std::pair{-0.5, -0.5}, {0.5, -0.5}, {0.5, 0.5}, {-0.5, 0.5}}) corners.push_back(center + a * u + b * v);
+    return corners;
+}
+
 glm::dvec3 LightDesc::emitterNormal() const {
     switch (type) {
         case LightType::Rect: return glm::normalize(glm::cross(u, v));
@@ -307,12 +315,7 @@ LightSamples generateLightSamples(const std::vector<LightDesc>& lights, int grou
         };
         auto bound = [&](const std::vector<glm::dvec3>& pts, bool withOutline) {
             if (volumetric) return boundPoints3D(pts);
-            std::vector<glm::dvec3> outline;
-            if (withOutline && l.type == LightType::Rect)
-                for (auto [a, b] : {std::pair{-0.5, -0.5}, {0.5, -0.5}, {0.5, 0.5}, {-0.5, 0.5}})
-                    outline.push_back(l.center + a * l.u + b * l.v);
-            if (withOutline && l.type == LightType::Polygon) outline = l.polygon;
-            return boundPlanarPoints(pts, frame.origin, frame.u, frame.v, frame.n, outline);
+            return boundPlanarPoints(pts, frame.origin, frame.u, frame.v, frame.n, withOutline ? l.outline() : std::vector<glm::dvec3>());
         };
 
         out.lightFirstGroup.push_back(uint32_t(out.groups.size()));

@@ -36,6 +36,9 @@ struct LightDesc {
     /// Unit normal of the emitting side of a planar light; zero for spheres and suns, which have
     /// no emitter cosine.
     glm::dvec3 emitterNormal() const;
+    /// The corners of a rect (counter-clockwise from center - u/2 - v/2) or a polygon's vertices;
+    /// empty for other lights, whose outline is not a polygon.
+    std::vector<glm::dvec3> outline() const;
 };
 
 /// @brief Up to 64 spatially close samples of one light; one 64-bit mask word.

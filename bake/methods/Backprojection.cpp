@@ -1,6 +1,6 @@
 #include "bake/methods/Backprojection.h"
 
-#include "bake/methods/TexelIndex.h"
+#include "stream/util/TexelIndex.h"
 
 #include <glm/geometric.hpp>
 
@@ -10,7 +10,7 @@
 namespace penumbra {
 namespace {
 
-constexpr int kSearchRadius = 2;  ///< the same, for the nearest-blocker search that sizes the region
+constexpr int kSearchRadius = 2;  ///< texels each side read by the nearest-blocker search that sizes the region
 
 /// The convex hull of @p points, counter-clockwise (Andrew's monotone chain).
 std::vector<glm::dvec2> convexHull(std::vector<glm::dvec2> points) {
@@ -40,7 +40,7 @@ static_assert(LightGrid::kCells * LightGrid::kCells % 8 == 0, "visibleFraction()
 void blockBehindPlane(const LightView& view, const LightGrid& grid, const glm::dvec3& r, const glm::dvec3& n,
                       Transmission& transmitted) {
     const double c0 = glm::dot(view.ortho ? -view.axis : view.origin - r, n), cx = glm::dot(view.e1, n), cy = glm::dot(view.e2, n);
-    const glm::dvec2 hi = grid.lo + double(LightGrid::kCells) * grid.cell;
+    const glm::dvec2 hi = grid.hi();
     if (c0 + std::min(grid.lo.x * cx, hi.x * cx) + std::min(grid.lo.y * cy, hi.y * cy) >= 0) return;  // all in front
     // The same sums as c0 + l.x cx + l.y cy at each cell centre l, with the column part shared.
     std::array<double, LightGrid::kCells> column;
@@ -150,6 +150,9 @@ struct Backprojector {
     glm::dvec2 inverseCell{0.0};
     bool hasPlane = false;
     double base0 = 0, along0 = 0, perX = 0, perY = 0;
+    // Set by readLevel(): the level's texel size s (in fine texels), half a texel in image units,
+    // and the in-front margin of a quantile at depth q, fixedMargin + marginSlope q.
+    double s = 1, halfTexel = 0, fixedMargin = 0, marginSlope = 0;
 
     void prepare() {
         texel = view.texel(), inverseZ = 1.0 / p.z, inverseCell = 1.0 / grid.cell;
@@ -157,6 +160,19 @@ struct Backprojector {
         // Perspective: the point is origin + q (axis + lateral); orthographic: origin + lateral + q axis.
         base0 = glm::dot(view.origin - r, n), along0 = glm::dot(view.axis, n);
         perX = glm::dot(view.e1, n), perY = glm::dot(view.e2, n);
+    }
+    void readLevel(int level) {
+        s = double(1 << level), halfTexel = 0.5 * s * texel;
+        // A quantile's depth is within 0.71 s texels of a surface point.
+        const double marginPerDepth = (bias + 0.71 * s) * texel;
+        fixedMargin = eps + (view.ortho ? marginPerDepth : 0.0), marginSlope = view.ortho ? 0.0 : marginPerDepth;
+    }
+    /// The image box (fine texels) that can hold blockers at depth @p z or farther over the light:
+    /// the outline's box scaled by k(z) around the receiver, within the square of radiusFor(z).
+    void searchBox(double z, glm::dvec2& lo, glm::dvec2& hi) const {
+        const double radius = radiusFor(z), perLight = std::max(0.0, kOf(z)) / texel;  // fine texels per light unit
+        const glm::dvec2 at(p.x, p.y);
+        lo = glm::max(at - radius, at + perLight * grid.lo), hi = glm::min(at + radius, at + perLight * grid.hi());
     }
     /// Where the segment to the light meets depth @p z: image offset per unit of light offset.
     double kOf(double z) const { return view.ortho ? p.z - z : 1.0 / z - inverseZ; }
@@ -167,18 +183,13 @@ struct Backprojector {
     int firstCellX(double value) const { return clampedTexel(std::ceil((value - grid.lo.x) * inverseCell.x - 0.5), 0, LightGrid::kCells); }
     int firstCellY(double value) const { return clampedTexel(std::ceil((value - grid.lo.y) * inverseCell.y - 0.5), 0, LightGrid::kCells); }
 
-    /// Hides the light behind texel (@p tx, @p ty) of @p layer at @p level, for the share of its
-    /// quantiles that lie in front of the receiver's plane.
-    void addTexel(const DepthPyramid::Texel& t, int level, int tx, int ty) {
-        const double s = double(1 << level);
+    /// Hides the light behind texel (@p tx, @p ty) of the level set by readLevel(), for the share
+    /// of its quantiles that lie in front of the receiver's plane.
+    void addTexel(const DepthPyramid::Texel& t, int tx, int ty) {
         const glm::dvec2 centre((tx + 0.5) * s, (ty + 0.5) * s);
         const glm::dvec2 image = centre * texel - view.halfExtent;  // tangent (perspective) or world units
         const double lateral = image.x * perX + image.y * perY;
         const double base = view.ortho ? base0 + lateral : base0, along = view.ortho ? along0 : along0 + lateral;
-        // A quantile's depth is within 0.71 s texels of a surface point: the margin is
-        // eps + marginPerDepth (orthographic) or eps + marginPerDepth q (perspective).
-        const double marginPerDepth = (bias + 0.71 * s) * texel;
-        const double fixedMargin = eps + (view.ortho ? marginPerDepth : 0.0), marginSlope = view.ortho ? 0.0 : marginPerDepth;
         // Depth q is in front when c0 + q c1 > 0: beyond the receiver's plane by the margin (or,
         // without a plane, nearer than the receiver by it). Linear in q, so with c1 <= 0 (the
         // usual case: depth runs towards the plane) the quantiles in front are a prefix of the
@@ -200,7 +211,7 @@ struct Backprojector {
         const double z = depthSum * kInverseCount[blocking], gap = p.z - z;
         if (!(gap > 0)) return;
         const double inverseK = view.ortho ? 1.0 / gap : z * p.z / gap;
-        const glm::dvec2 offset = (centre - glm::dvec2(p.x, p.y)) * texel, half(0.5 * s * texel);
+        const glm::dvec2 offset = (centre - glm::dvec2(p.x, p.y)) * texel, half(halfTexel);
         const glm::dvec2 a = (offset - half) * inverseK, b = (offset + half) * inverseK;
         const int i0 = firstCellX(a.x), i1 = firstCellX(b.x), j0 = firstCellY(a.y), j1 = firstCellY(b.y);
         if (i0 >= i1 || j0 >= j1) return;
@@ -243,35 +254,28 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
         while (level + 1 < nearestLayer.levels() && radius > taps * double(1 << level)) ++level;
         return level;
     };
-    // Size the search region by the nearest blocker around, twice refined; the region is the
-    // outline's box scaled by the blocker's k (see below).
-    const glm::dvec2 outlineLo = grid.lo, outlineHi = grid.lo + double(LightGrid::kCells) * grid.cell;
-    double nearest = nearestLayer.nearest();
-    for (int pass = 0; pass < 2 && nearest < b.p.z; ++pass) {
-        const double radius = b.radiusFor(nearest), perLight = std::max(0.0, b.kOf(nearest)) / view.texel();
-        const glm::dvec2 at(b.p.x, b.p.y);
-        const glm::dvec2 lo = glm::max(at - radius, at + perLight * outlineLo), hi = glm::min(at + radius, at + perLight * outlineHi);
-        nearest = std::max(nearest, double(nearestLayer.nearestIn(levelFor(radius, kSearchRadius), lo, hi)));
-    }
-    if (!(nearest < b.p.z)) return b.visibleFraction();
-    const double radius = b.radiusFor(nearest);
-    const int level = levelFor(radius, taps), res = nearestLayer.resolution(level);
-    const double s = double(1 << level);
     // Only texels over the light's outline scaled by k can hide a cell, and k is largest for the
     // nearest blocker: the outline's box, t_r + k [lo, hi], within the square of the radius (a
     // square light's box is half the square around its circumscribed circle). Texels beside it
-    // hide no cell centre, so they are skipped without changing the answer.
-    const double perLight = std::max(0.0, b.kOf(nearest)) / view.texel();  // fine texels per light unit
-    const double xa = std::max(b.p.x - radius, b.p.x + perLight * grid.lo.x), xb = std::min(b.p.x + radius, b.p.x + perLight * outlineHi.x);
-    const double ya = std::max(b.p.y - radius, b.p.y + perLight * grid.lo.y), yb = std::min(b.p.y + radius, b.p.y + perLight * outlineHi.y);
-    const int x0 = clampedTexel(std::floor(xa / s), 0, res - 1), x1 = clampedTexel(std::floor(xb / s), 0, res - 1);
-    const int y0 = clampedTexel(std::floor(ya / s), 0, res - 1), y1 = clampedTexel(std::floor(yb / s), 0, res - 1);
+    // hide no cell centre. The search sizes that box by the nearest blocker around, twice refined.
+    glm::dvec2 lo, hi;
+    double nearest = nearestLayer.nearest();
+    for (int pass = 0; pass < 2 && nearest < b.p.z; ++pass) {
+        b.searchBox(nearest, lo, hi);
+        nearest = std::max(nearest, double(nearestLayer.nearestIn(levelFor(b.radiusFor(nearest), kSearchRadius), lo, hi)));
+    }
+    if (!(nearest < b.p.z)) return b.visibleFraction();
+    const int level = levelFor(b.radiusFor(nearest), taps), res = nearestLayer.resolution(level);
+    b.readLevel(level);
+    b.searchBox(nearest, lo, hi);
+    const int x0 = clampedTexel(std::floor(lo.x / b.s), 0, res - 1), x1 = clampedTexel(std::floor(hi.x / b.s), 0, res - 1);
+    const int y0 = clampedTexel(std::floor(lo.y / b.s), 0, res - 1), y1 = clampedTexel(std::floor(hi.y / b.s), 0, res - 1);
     for (int ty = y0; ty <= y1; ++ty)
         for (int tx = x0; tx <= x1; ++tx)
             for (const DepthPyramid& layer : pyramids) {
                 const DepthPyramid::Texel t = layer.at(level, tx, ty);
                 if (!(t.nearest < b.p.z)) break;  // nor any layer behind
-                b.addTexel(t, level, tx, ty);
+                b.addTexel(t, tx, ty);
             }
     return b.visibleFraction();
 }

@@ -82,6 +82,7 @@ public:
     /// False for a light without area (a point): the hard test from the centre applies.
     bool hasArea() const { return !inside_.empty(); }
     glm::dvec2 lo, cell;              ///< the grid's corner and cell size
+    glm::dvec2 hi() const { return lo + double(kCells) * cell; }  ///< the opposite corner
     double radius = 0;                ///< the largest distance of the outline from the centre
     /// The cells inside the outline, as j * kCells + i.
     const std::vector<uint16_t>& insideCells() const { return inside_; }

@@ -1,5 +1,5 @@
 #include "bake/methods/HeckbertHerf.h"
-#include "bake/methods/TexelIndex.h"
+#include "stream/util/TexelIndex.h"
 
 #include "bake/methods/StreamedCaster.h"
 #include "stream/util/Error.h"

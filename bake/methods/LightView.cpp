@@ -1,6 +1,6 @@
 #include "bake/methods/LightView.h"
 
-#include "bake/methods/TexelIndex.h"
+#include "stream/util/TexelIndex.h"
 
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
@@ -34,7 +34,7 @@ void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1
     // Edge i's function (u.x - cx)(v.y - cy) - (v.x - cx)(u.y - cy), u and v the other two
     // vertices, is a + bx cx + by cy; its sign against the area's says inside (a texel centre on an
     // edge is inside), and over the area it is the barycentric of vertex i.
-    const double inverseArea = 1.0 / area, orient = area > 0 ? 1.0 : -1.0;
+    const double orient = area > 0 ? 1.0 : -1.0, inverseArea = 1.0 / std::abs(area);  // the e_i below are oriented
     double ea[3], ex[3], ey[3];
     for (int i = 0; i < 3; ++i) {
         const ViewPoint &u = p[(i + 1) % 3], &v = p[(i + 2) % 3];
@@ -47,7 +47,7 @@ void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1
             const double cx = x + 0.5;
             const double e0 = row[0] + ex[0] * cx, e1 = row[1] + ex[1] * cx, e2 = row[2] + ex[2] * cx;
             if (e0 < 0 || e1 < 0 || e2 < 0) continue;
-            const double b[3] = {e0 * orient * inverseArea, e1 * orient * inverseArea, e2 * orient * inverseArea};
+            const double b[3] = {e0 * inverseArea, e1 * inverseArea, e2 * inverseArea};
             const float z = float(view.fromLinear(b[0] * lin[0] + b[1] * lin[1] + b[2] * lin[2]));
             if (map.layers == 1) {
                 float& d = map.depth[size_t(y) * map.res + x];
@@ -200,36 +200,30 @@ void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, Dept
     struct Projected {
         ViewPoint p[3];
         double ymin, ymax;
-        bool clip;  ///< crosses the near plane: drawn through drawClipped
+        bool clip;     ///< crosses the near plane: drawn through drawClipped
+        int bandLo, bandHi;  ///< the row bands it may reach, a band to spare each side
     };
+    const int rows = (map.res + kBands - 1) / kBands;
     std::vector<Projected> projected(chunk.size());
     tbb::parallel_for(size_t(0), chunk.size(), [&](size_t i) {
         Projected& q = projected[i];
         q.clip = !projectTriangle(view, chunk[i], q.p);
         q.ymin = q.clip ? -INFINITY : std::min({q.p[0].y, q.p[1].y, q.p[2].y});
         q.ymax = q.clip ? INFINITY : std::max({q.p[0].y, q.p[1].y, q.p[2].y});
+        q.bandLo = clampedTexel(std::floor((q.ymin - 0.5) / rows) - 1, 0, kBands - 1);
+        q.bandHi = clampedTexel(std::floor((q.ymax + 0.5) / rows) + 1, 0, kBands - 1);
     });
-    const int rows = (map.res + kBands - 1) / kBands;
-    // Each band's triangles in stream order (a counting sort by the bands each may reach, a band
-    // to spare each side), so a band reads its own list, not the whole chunk: with 64 bands the
-    // scan of every triangle per band cost more than drawing the small ones.
-    auto bandsOf = [&](const Projected& q) {
-        const int lo = clampedTexel(std::floor((q.ymin - 0.5) / rows) - 1, 0, kBands - 1);
-        const int hi = clampedTexel(std::floor((q.ymax + 0.5) / rows) + 1, 0, kBands - 1);
-        return std::pair<int, int>(lo, hi);
-    };
+    // Each band's triangles in stream order (a counting sort by band), so a band reads its own
+    // list, not the whole chunk: with 64 bands the scan of every triangle per band cost more than
+    // drawing the small ones.
     std::vector<uint32_t> first(kBands + 1, 0), members;
-    for (const Projected& q : projected) {
-        const auto [lo, hi] = bandsOf(q);
-        for (int band = lo; band <= hi; ++band) ++first[size_t(band) + 1];
-    }
+    for (const Projected& q : projected)
+        for (int band = q.bandLo; band <= q.bandHi; ++band) ++first[size_t(band) + 1];
     for (int band = 0; band < kBands; ++band) first[size_t(band) + 1] += first[size_t(band)];
     members.resize(first[kBands]);
     std::vector<uint32_t> fill(first.begin(), first.end() - 1);
-    for (size_t i = 0; i < projected.size(); ++i) {
-        const auto [lo, hi] = bandsOf(projected[i]);
-        for (int band = lo; band <= hi; ++band) members[fill[size_t(band)]++] = uint32_t(i);
-    }
+    for (size_t i = 0; i < projected.size(); ++i)
+        for (int band = projected[i].bandLo; band <= projected[i].bandHi; ++band) members[fill[size_t(band)]++] = uint32_t(i);
     tbb::parallel_for(0, kBands, [&](int band) {
         const int y0 = band * rows, y1 = std::min(map.res, y0 + rows);
         for (uint32_t m = first[size_t(band)]; m < first[size_t(band) + 1] && y0 < y1; ++m) {

@@ -2,7 +2,7 @@
 
 #include "bake/methods/Backprojection.h"
 #include "bake/methods/LightView.h"
-#include "bake/methods/TexelIndex.h"
+#include "stream/util/TexelIndex.h"
 #include "bake/cast/SceneCaster.h"
 #include "bake/methods/StreamedCaster.h"
 #include "stream/util/Error.h"

@@ -42,12 +42,7 @@ ReceiverShader::ReceiverShader(const std::vector<LightDesc>& lights, const Light
             // A sphere is seen as a disk of its radius from every direction.
             double area = l.type == LightType::Sphere ? M_PI * l.radius * l.radius : l.area();
             p.normal = l.emitterNormal(), p.weight = l.radiance * (area / l.samples);
-            p.radiance = l.radiance;
-            if (l.type == LightType::Rect)
-                p.corners = {l.center - 0.5 * l.u - 0.5 * l.v, l.center + 0.5 * l.u - 0.5 * l.v, l.center + 0.5 * l.u + 0.5 * l.v,
-                             l.center - 0.5 * l.u + 0.5 * l.v};
-            else if (l.type == LightType::Polygon)
-                p.corners = l.polygon;
+            p.radiance = l.radiance, p.corners = l.outline();
         }
         lights_.push_back(p);
     }
