@@ -9,10 +9,19 @@
 //    the candidate triangle, from the same float inputs as hpc (the receiver, the sample, the
 //    triangle's vertices), and rejects the hit when the rule does not block. So the receiver
 //    epsilon (perpendicular to T's plane), the open light end and sun directions mean exactly
-//    what they mean for hpc and reference. A hit far inside the triangle (barycentrics >= 1e-5),
-//    beyond twice the epsilon band and before the sample by many float ulps is one the rule
-//    certainly blocks, and is accepted without the rule (certainlyBlocks()): on GRIDS that is all
-//    but 0.1 % of the filter's calls.
+//    what they mean for hpc and reference. A hit far inside the triangle, beyond twice the
+//    epsilon band and before the sample by many float ulps is one the rule certainly blocks, and
+//    is accepted without the rule (certainlyBlocks()): on GRIDS that is all but a fraction of a
+//    percent of the filter's calls. "Far inside" is measured against the error of Embree's float
+//    barycentrics, which grows with the vertices' distance from the ray origin and falls with the
+//    triangle's area: a long sliver's hit 1.6e-5 inside an edge in barycentrics can be outside it
+//    (grids with the 4x light had one such false block with a fixed 1e-5 margin).
+//  - Each triangle is handed to Embree starting at its shortest edge (shortestEdgeStart()), with
+//    the winding kept; the filter's rule still reads the vertices in stream order. Embree's test
+//    works relative to the first vertex, and from a long sliver's far tip it rounded the edge
+//    functions near the short edge badly enough to miss hits 3e-3 rad inside, as seen from the
+//    receiver (two relations of grids 1280x960 with the 4x light). RTC_SCENE_FLAG_ROBUST finds
+//    them too, but costs 2.5x the trace time, which would not be a fair peer.
 //  - What can still differ: a triangle the rule blocks but Embree's float test never reports,
 //    i.e. a segment within float roundoff of one of its edges. Those are ties of the rule's edge
 //    test (bake/TieClassifier.h). Embree never blocks a relation the rule does not.
@@ -156,6 +165,19 @@ std::vector<const Triangle*> validTriangles(std::span<const Triangle> triangles,
     return kept;
 }
 
+/// The first vertex of @p t's shortest edge. Embree's triangle test works relative to the
+/// triangle's first vertex; anchoring it there keeps a long sliver's edge functions small where
+/// the sliver is wide (near its short edge), and with them the rounding. The winding is kept.
+int shortestEdgeStart(const Triangle& t) {
+    float best = INFINITY;
+    int first = 0;
+    for (int e = 0; e < 3; ++e) {
+        const float length = glm::length(t.v[(e + 1) % 3] - t.v[e]);
+        if (length < best) best = length, first = e;
+    }
+    return first;
+}
+
 /// Copies @p kept (non-empty) into Embree-allocated buffers, which carry the padding Embree needs
 /// for vector loads of the last vertex. Vertices are not shared: three per triangle.
 void fillBuffers(RTCGeometry geometry, const std::vector<const Triangle*>& kept) {
@@ -166,12 +188,13 @@ void fillBuffers(RTCGeometry geometry, const std::vector<const Triangle*>& kept)
         rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), n));
     if (!vertices || !indices) return;  // the error function has the reason
     for (size_t i = 0; i < n; ++i) {
+        const int first = shortestEdgeStart(*kept[i]);
         for (int c = 0; c < 3; ++c) {
             const glm::vec3& v = kept[i]->v[c];
             vertices[9 * i + 3 * c + 0] = v.x;
             vertices[9 * i + 3 * c + 1] = v.y;
             vertices[9 * i + 3 * c + 2] = v.z;
-            indices[3 * i + c] = uint32_t(3 * i + c);
+            indices[3 * i + c] = uint32_t(3 * i + (first + c) % 3);
         }
     }
 }
@@ -213,13 +236,19 @@ struct Packet {
     }
 };
 
+/// What the filter reads per primitive: one load for both.
+struct PrimitiveInfo {
+    uint32_t alphaId = 0;     ///< 0: opaque
+    float longestEdge = 0.0f; ///< bounds the vertices' distance from a hit (certainlyBlocks())
+};
+
 /// The intersect context Embree hands to the filter, extended with the packet being traced
 /// (Embree passes the pointer through unchanged; RTCIntersectContext must come first).
 struct FilterContext {
     RTCIntersectContext context;
     Packet* packet = nullptr;
     const float* vertices = nullptr;  ///< the geometry's vertex buffer: 9 floats per triangle
-    const uint32_t* alphaIds = nullptr;  ///< per primitive: its alpha id (0: opaque)
+    const PrimitiveInfo* primitives = nullptr;  ///< per primitive: alpha id and longest edge
     const AlphaTable* alpha = nullptr;
     bool ruleFilter = true;              ///< opaque hits get the rule too (else they are accepted)
     uint64_t calls = 0, exact = 0, rejected = 0;
@@ -229,10 +258,20 @@ struct FilterContext {
 /// and (for a point) before the sample that the rule certainly blocks too: margins many times
 /// the float roundoff of the hit's barycentrics and distances. Most hits take this path, so the
 /// filter costs Embree little; the rest get the rule itself.
-bool certainlyBlocks(const RTCFilterFunctionNArguments* args, unsigned i, const Packet& packet, unsigned lane) {
+///
+/// Barycentrics: Embree's u, v are float edge functions of the vertices taken relative to the ray
+/// origin o, divided by Ng . d (Ng = e1 x e2, |Ng| = twice the area). Their absolute error is
+/// below a small multiple of 2^-24 |d| R (R + M) / |Ng . d|, with R >= |v_i - o| (reach) and
+/// M >= |v_i| (magnitude); the float rounding of d moves the hit by less than that too. The
+/// margin is 16 times it: a sliver seen from near its short edge needs a large one. On grids at
+/// 640x480 this sends 2 % of the filter's calls to the rule (0.03 % with a fixed 1e-5), for about
+/// 3 % more trace time.
+bool certainlyBlocks(const RTCFilterFunctionNArguments* args, unsigned i, const Packet& packet, unsigned lane,
+                     float longestEdge) {
     const unsigned n = args->N;
     const float u = RTCHitN_u(args->hit, n, i), v = RTCHitN_v(args->hit, n, i);
-    if (!(std::min({u, v, 1.0f - u - v}) >= 1e-5f)) return false;
+    const double innermost = std::min({u, v, 1.0f - u - v});
+    if (!(innermost >= 1e-5)) return false;
     const glm::dvec3 ng(RTCHitN_Ng_x(args->hit, n, i), RTCHitN_Ng_y(args->hit, n, i), RTCHitN_Ng_z(args->hit, n, i));
     const glm::dvec3 d(RTCRayN_dir_x(args->ray, n, i), RTCRayN_dir_y(args->ray, n, i), RTCRayN_dir_z(args->ray, n, i));
     const double t = RTCRayN_tfar(args->ray, n, i), ngLength = glm::length(ng), dLength = glm::length(d);
@@ -241,6 +280,8 @@ bool certainlyBlocks(const RTCFilterFunctionNArguments* args, unsigned i, const 
     const glm::dvec3 hit = packet.receiver + t * d;
     const double scale = std::max({std::abs(hit.x), std::abs(hit.y), std::abs(hit.z), std::abs(packet.receiver.x),
                                    std::abs(packet.receiver.y), std::abs(packet.receiver.z)});
+    const double reach = t * dLength + double(longestEdge), magnitude = scale + double(longestEdge);
+    if (!(innermost * ngLength * cosine >= 16 * 0x1p-24 * reach * (reach + magnitude) * 1.7320508075688772)) return false;
     const double roundoff = 64 * 0x1p-24 * scale;
     if (!(t * dLength * cosine >= 2.0 * packet.eps + roundoff)) return false;  // behind the band
     return packet.w[lane] == 0.0 || (1.0 - t) * dLength * cosine >= roundoff;  // before the sample
@@ -265,10 +306,11 @@ void ruleFilter(const RTCFilterFunctionNArguments* args) {
         if (args->valid[i] == 0) continue;
         const unsigned lane = RTCRayN_id(args->ray, args->N, i);
         const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
-        const uint32_t alphaId = fc->alphaIds[prim];
+        const PrimitiveInfo info = fc->primitives[prim];
+        const uint32_t alphaId = info.alphaId;
         if (!alphaId && !fc->ruleFilter) continue;  // Embree's native answer for opaque triangles
         ++fc->calls;
-        if (!alphaId && certainlyBlocks(args, i, packet, lane)) continue;
+        if (!alphaId && certainlyBlocks(args, i, packet, lane, info.longestEdge)) continue;
         ++fc->exact;
         const float* v = fc->vertices + 9 * size_t(prim);
         Triangle tri{{glm::vec3(v[0], v[1], v[2]), glm::vec3(v[3], v[4], v[5]), glm::vec3(v[6], v[7], v[8])},
@@ -299,7 +341,7 @@ struct EmbreeBvh {
     DeviceHandle device;
     SceneHandle scene;
     const float* vertices = nullptr;  ///< owned by the geometry, which the scene keeps alive
-    std::vector<uint32_t> alphaIds;   ///< per primitive, for the filter
+    std::vector<PrimitiveInfo> primitives;  ///< per primitive, for the filter
     uint64_t sceneBytes = 0;
 };
 
@@ -317,14 +359,18 @@ void buildBvh(EmbreeBvh& bvh, std::span<const Triangle> triangles, bool ruleFilt
 
     bvh.scene.scene = rtcNewScene(device);
     bvh.errors.check(device, "scene creation");
-    rtcSetSceneFlags(bvh.scene.scene, RTC_SCENE_FLAG_NONE);
+    rtcSetSceneFlags(bvh.scene.scene, RTC_SCENE_FLAG_NONE);  // see the top of this file
     rtcSetSceneBuildQuality(bvh.scene.scene, RTC_BUILD_QUALITY_HIGH);
     bool anyAlpha = false;
     {
         const std::vector<const Triangle*> kept = validTriangles(triangles, translucent);  // freed before tracing
-        bvh.alphaIds.reserve(kept.size());
-        for (const Triangle* t : kept) bvh.alphaIds.push_back(alphaIdOf(t->flags)), anyAlpha = anyAlpha || bvh.alphaIds.back();
-        bvh.sceneBytes = uint64_t(kept.size()) * (9 * sizeof(float) + 4 * sizeof(uint32_t));
+        bvh.primitives.reserve(kept.size());
+        for (const Triangle* t : kept) {
+            const float longest = std::max({glm::length(t->v[1] - t->v[0]), glm::length(t->v[2] - t->v[1]), glm::length(t->v[0] - t->v[2])});
+            bvh.primitives.push_back({alphaIdOf(t->flags), longest * (1.0f + 0x1p-20f)});  // rounded up, never below
+            anyAlpha = anyAlpha || bvh.primitives.back().alphaId;
+        }
+        bvh.sceneBytes = uint64_t(kept.size()) * (9 * sizeof(float) + 3 * sizeof(uint32_t) + sizeof(PrimitiveInfo));
         if (!kept.empty()) {  // an empty scene needs no geometry (and Embree gets no zero-sized buffers)
             GeometryHandle geometry;
             geometry.geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
@@ -427,7 +473,7 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
         fc.context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // one receiver's rays share their origin
         fc.packet = &packet;
         fc.vertices = bvh.vertices;
-        fc.alphaIds = bvh.alphaIds.data();
+        fc.primitives = bvh.primitives.data();
         fc.alpha = alpha;
         fc.ruleFilter = ruleFilter;
         uint64_t traced = 0;
@@ -492,7 +538,7 @@ const CasterRegistration kEmbree{{"embree",
                                   [](uint64_t triangles, uint64_t, const LightSamples&, const nlohmann::json&) {
                                       // The scene read once, Embree's buffers and an estimate of its BVH
                                       // (Embree does not report the BVH's size).
-                                      return triangles * (sizeof(Triangle) + 52 + 120);
+                                      return triangles * (sizeof(Triangle) + 56 + 120);
                                   },
                                   nullptr}};
 

@@ -32,7 +32,7 @@ struct EmbreeStats {
     uint64_t filterCalls = 0;  ///< candidate hits the blocking-rule filter judged
     uint64_t filterExact = 0;  ///< of those, hits not certain from Embree's own hit: the rule decided
     uint64_t filterRejected = 0;  ///< of those, hits the rule does not count (epsilon band, edges)
-    uint64_t sceneBytes = 0;  ///< vertex and index buffers handed to Embree, and the alpha ids (its BVH comes on top)
+    uint64_t sceneBytes = 0;  ///< vertex and index buffers handed to Embree, and the filter's alpha id and longest edge per triangle (its BVH comes on top)
 };
 
 /// @brief Casts every relation. The ray of receiver r and sample l starts at r with
