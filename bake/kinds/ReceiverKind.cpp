@@ -51,7 +51,11 @@ public:
         if (lowercaseExtension(path_) != ".npy") return std::nullopt;  // a CSV tells by its lines
         try {
             const NpyRowReader rows(path_);
-            return rows.header().shape.empty() ? 0 : rows.header().shape[0];
+            const std::vector<uint64_t>& shape = rows.header().shape;
+            // Only an N x 6 array bounds the receivers; receivers() names what is wrong with any
+            // other (an N x 0 array would otherwise pass as N receivers to the memory plan).
+            if (shape.size() != 2 || shape[1] != 6) return std::nullopt;
+            return shape[0];
         } catch (const InputError&) {
             return std::nullopt;  // receivers() reports what is wrong with the file
         }

@@ -154,6 +154,32 @@ TEST_CASE("point receivers from .npy and .csv bake to a .npy of visible fraction
     }
 }
 
+TEST_CASE("point receivers of the wrong shape are named by their shape, never by the memory they would take", "[cli]") {
+    ScratchDir dir("points-shape");
+    std::ofstream(dir / "quad.obj") << "v -0.5 1 -0.5\nv 0.5 1 -0.5\nv 0.5 1 0.5\nv -0.5 1 0.5\nf 1 2 3 4\n";
+    // A valid empty array of 10^15 rows of nothing, and 4 rows of 3 columns: neither is N x 6.
+    const uint64_t huge[2] = {1000000000000000ull, 0}, narrow[2] = {4, 3};
+    const std::vector<float> twelve(12, 0.5f);
+    writeNpy(dir / "huge.npy", "<f4", huge, nullptr, 0);
+    writeNpy(dir / "narrow.npy", "<f4", narrow, twelve.data(), twelve.size() * sizeof(float));
+    for (const char* file : {"huge.npy", "narrow.npy"}) {
+        nlohmann::json s = {
+            {"geometry", {{{"type", "obj"}, {"path", "quad.obj"}}}},
+            {"lights", {{{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {0.5, 0, 0}}, {"v", {0, 0, 0.5}}, {"samples", 16}}}},
+            {"receivers", {{"type", "points"}, {"path", file}}},
+            {"output", "vis.npy"}};
+        std::ofstream(dir / "scene.json") << s.dump();
+        const RunResult r = runPenumbra("bake " + (dir / "scene.json") + " -q");
+        INFO(file << ": " << r.err);
+        CHECK(r.exitCode == 1);
+        CHECK(lineCount(r.err) == 1);
+        CHECK(r.err.find(file) != std::string::npos);
+        CHECK(r.err.find("N x 6") != std::string::npos);
+        CHECK(r.err.find("memory") == std::string::npos);
+        CHECK_FALSE(std::filesystem::exists(dir / "vis.npy"));
+    }
+}
+
 TEST_CASE("bake: the cast's progress lines on a terminal rise monotonically and only the last says 100 %", "[cli][progress]") {
     // `script` (util-linux) gives the bake a terminal, so the line is redrawn every 0.25 s.
     if (runShell("command -v script >/dev/null 2>&1") != 0) {
