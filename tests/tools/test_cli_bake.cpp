@@ -125,6 +125,16 @@ TEST_CASE("a full disk while writing outputs leaves no partial file", "[cli]") {
     CHECK_FALSE(hasTempFiles(dir.path));
 }
 
+namespace {
+/// A 1 x 1 quad.obj at y = 1 under a small rect light, with point receivers from @p file.
+nlohmann::json pointsScene(const char* file, int samples) {
+    return {{"geometry", {{{"type", "obj"}, {"path", "quad.obj"}}}},
+            {"lights", {{{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {0.5, 0, 0}}, {"v", {0, 0, 0.5}}, {"samples", samples}}}},
+            {"receivers", {{"type", "points"}, {"path", file}}},
+            {"output", "vis.npy"}};
+}
+}  // namespace
+
 TEST_CASE("point receivers from .npy and .csv bake to a .npy of visible fractions", "[cli]") {
     ScratchDir dir("points");
     // Three receivers on the floor: in the umbra of a 1x1 quad at y=1, in its penumbra
@@ -135,12 +145,7 @@ TEST_CASE("point receivers from .npy and .csv bake to a .npy of visible fraction
     std::ofstream(dir / "pts.csv") << "px,py,pz,nx,ny,nz\n0,0,0,0,1,0\n0.66,0,0,0,1,0\n5,0,5,0,1,0\n";
     std::ofstream(dir / "quad.obj") << "v -0.5 1 -0.5\nv 0.5 1 -0.5\nv 0.5 1 0.5\nv -0.5 1 0.5\nf 1 2 3 4\n";
     for (const char* file : {"pts.npy", "pts.csv"}) {
-        nlohmann::json s = {
-            {"geometry", {{{"type", "obj"}, {"path", "quad.obj"}}}},
-            {"lights", {{{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {0.5, 0, 0}}, {"v", {0, 0, 0.5}}, {"samples", 64}}}},
-            {"receivers", {{"type", "points"}, {"path", file}}},
-            {"output", "vis.npy"}};
-        std::ofstream(dir / "scene.json") << s.dump();
+        std::ofstream(dir / "scene.json") << pointsScene(file, 64).dump();
         RunResult r = runPenumbra("bake " + (dir / "scene.json") + " -q");
         INFO(file << ": " << r.err);
         REQUIRE(r.exitCode == 0);
@@ -163,12 +168,7 @@ TEST_CASE("point receivers of the wrong shape are named by their shape, never by
     writeNpy(dir / "huge.npy", "<f4", huge, nullptr, 0);
     writeNpy(dir / "narrow.npy", "<f4", narrow, twelve.data(), twelve.size() * sizeof(float));
     for (const char* file : {"huge.npy", "narrow.npy"}) {
-        nlohmann::json s = {
-            {"geometry", {{{"type", "obj"}, {"path", "quad.obj"}}}},
-            {"lights", {{{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {0.5, 0, 0}}, {"v", {0, 0, 0.5}}, {"samples", 16}}}},
-            {"receivers", {{"type", "points"}, {"path", file}}},
-            {"output", "vis.npy"}};
-        std::ofstream(dir / "scene.json") << s.dump();
+        std::ofstream(dir / "scene.json") << pointsScene(file, 16).dump();
         const RunResult r = runPenumbra("bake " + (dir / "scene.json") + " -q");
         INFO(file << ": " << r.err);
         CHECK(r.exitCode == 1);
