@@ -1,10 +1,10 @@
 // NumPy .npy: the whole-file reader, the row reader (compare's dumps) and point receivers.
 #include "FuzzSupport.h"
 
-#include <algorithm>
-
 #include "receivers/PointReceivers.h"
 #include "stream/util/Npy.h"
+
+#include <algorithm>
 
 PENUMBRA_FUZZ_FILE("points.npy") {
     using namespace penumbra;

@@ -9,8 +9,15 @@
 
 #include <cmath>
 #include <filesystem>
+#include <span>
 
 namespace penumbra {
+namespace {
+
+/// Position and normal per row.
+bool isPointArray(std::span<const uint64_t> shape) { return shape.size() == 2 && shape[1] == 6; }
+
+}  // namespace
 
 ReceiverSet loadPointReceivers(const std::string& path) {
     std::vector<float> values;
@@ -20,7 +27,7 @@ ReceiverSet loadPointReceivers(const std::string& path) {
             for (double v : row) values.push_back(float(v));
     } else {
         NpyArray array = readNpy(path);
-        if (array.shape.size() != 2 || array.shape[1] != 6)
+        if (!isPointArray(array.shape))
             fail(path, "expected an N x 6 array (position, normal), got shape of {} dimensions{}", array.shape.size(),
                  array.shape.size() == 2 ? fmt::format(" ({} x {})", array.shape[0], array.shape[1]) : "");
         values = npyAsFloat32(array, path);
@@ -38,6 +45,17 @@ ReceiverSet loadPointReceivers(const std::string& path) {
         set.normal[i] = len > 0 ? normal / len : normal;
     }
     return set;
+}
+
+std::optional<uint64_t> pointReceiverBound(const std::string& path) {
+    if (lowercaseExtension(path) != ".npy") return std::nullopt;
+    try {
+        const NpyRowReader rows(path);
+        if (!isPointArray(rows.header().shape)) return std::nullopt;
+        return rows.header().shape[0];
+    } catch (const InputError&) {
+        return std::nullopt;
+    }
 }
 
 }  // namespace penumbra

@@ -5,11 +5,18 @@
 
 #include "receivers/ReceiverSet.h"
 
+#include <cstdint>
+#include <optional>
 #include <string>
 
 namespace penumbra {
 
 /// @throw InputError naming the file and what is wrong (shape, dtype, non-finite value).
 ReceiverSet loadPointReceivers(const std::string& path);
+
+/// @brief The receiver count of a .npy point file, from its header alone: N for an N x 6 array.
+/// Nullopt for a CSV (its lines tell) and for any file loadPointReceivers() would refuse, which
+/// then names what is wrong; so a malformed header never reaches the memory plan as a count.
+std::optional<uint64_t> pointReceiverBound(const std::string& path);
 
 }  // namespace penumbra

@@ -47,19 +47,7 @@ std::optional<KindEntry> findKind(const std::string& type) {
 class PointsKind final : public ReceiverKind {
 public:
     explicit PointsKind(std::string path) : path_(std::move(path)) {}
-    std::optional<uint64_t> receiverBound() const override {
-        if (lowercaseExtension(path_) != ".npy") return std::nullopt;  // a CSV tells by its lines
-        try {
-            const NpyRowReader rows(path_);
-            const std::vector<uint64_t>& shape = rows.header().shape;
-            // Only an N x 6 array bounds the receivers; receivers() names what is wrong with any
-            // other (an N x 0 array would otherwise pass as N receivers to the memory plan).
-            if (shape.size() != 2 || shape[1] != 6) return std::nullopt;
-            return shape[0];
-        } catch (const InputError&) {
-            return std::nullopt;  // receivers() reports what is wrong with the file
-        }
-    }
+    std::optional<uint64_t> receiverBound() const override { return pointReceiverBound(path_); }
     ReceiverSet receivers() override { return loadPointReceivers(path_); }
     void write(const OutputContext& c) override {
         uint64_t shape[1] = {c.results.visibility.size()};

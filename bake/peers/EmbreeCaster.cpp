@@ -16,7 +16,7 @@
 //    barycentrics, which grows with the vertices' distance from the ray origin and falls with the
 //    triangle's area: a long sliver's hit 1.6e-5 inside an edge in barycentrics can be outside it
 //    (grids with the 4x light had one such false block with a fixed 1e-5 margin).
-//  - Each triangle is handed to Embree starting at its shortest edge (shortestEdgeStart()), with
+//  - Each triangle is handed to Embree starting at its shortest edge (fillBuffers()), with
 //    the winding kept; the filter's rule still reads the vertices in stream order. Embree's test
 //    works relative to the first vertex, and from a long sliver's far tip it rounded the edge
 //    functions near the short edge badly enough to miss hits 3e-3 rad inside, as seen from the
@@ -165,30 +165,32 @@ std::vector<const Triangle*> validTriangles(std::span<const Triangle> triangles,
     return kept;
 }
 
-/// The first vertex of @p t's shortest edge. Embree's triangle test works relative to the
-/// triangle's first vertex; anchoring it there keeps a long sliver's edge functions small where
-/// the sliver is wide (near its short edge), and with them the rounding. The winding is kept.
-int shortestEdgeStart(const Triangle& t) {
-    float best = INFINITY;
-    int first = 0;
-    for (int e = 0; e < 3; ++e) {
-        const float length = glm::length(t.v[(e + 1) % 3] - t.v[e]);
-        if (length < best) best = length, first = e;
-    }
-    return first;
-}
+/// What the filter reads per primitive: one load for both.
+struct PrimitiveInfo {
+    uint32_t alphaId = 0;     ///< 0: opaque
+    float longestEdge = 0.0f; ///< bounds the vertices' distance from a hit (certainlyBlocks())
+};
 
 /// Copies @p kept (non-empty) into Embree-allocated buffers, which carry the padding Embree needs
-/// for vector loads of the last vertex. Vertices are not shared: three per triangle.
-void fillBuffers(RTCGeometry geometry, const std::vector<const Triangle*>& kept) {
+/// for vector loads of the last vertex, and describes each triangle in @p primitives. Vertices
+/// are not shared: three per triangle, in stream order (the filter's rule reads them so). The
+/// indices start each triangle at its shortest edge, winding kept: Embree's test works relative
+/// to the first vertex, and anchoring it there keeps a long sliver's edge functions small where
+/// the sliver is wide, and with them the rounding.
+void fillBuffers(RTCGeometry geometry, const std::vector<const Triangle*>& kept, std::vector<PrimitiveInfo>& primitives) {
     const size_t n = kept.size();
     auto* vertices = static_cast<float*>(
         rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), 3 * n));
     auto* indices = static_cast<uint32_t*>(
         rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), n));
     if (!vertices || !indices) return;  // the error function has the reason
+    primitives.reserve(n);
     for (size_t i = 0; i < n; ++i) {
-        const int first = shortestEdgeStart(*kept[i]);
+        const Triangle& t = *kept[i];
+        float edge[3];
+        for (int e = 0; e < 3; ++e) edge[e] = glm::length(t.v[(e + 1) % 3] - t.v[e]);
+        const int first = int(std::min_element(edge, edge + 3) - edge);
+        primitives.push_back({alphaIdOf(t.flags), *std::max_element(edge, edge + 3) * (1.0f + 0x1p-20f)});  // rounded up
         for (int c = 0; c < 3; ++c) {
             const glm::vec3& v = kept[i]->v[c];
             vertices[9 * i + 3 * c + 0] = v.x;
@@ -236,12 +238,6 @@ struct Packet {
     }
 };
 
-/// What the filter reads per primitive: one load for both.
-struct PrimitiveInfo {
-    uint32_t alphaId = 0;     ///< 0: opaque
-    float longestEdge = 0.0f; ///< bounds the vertices' distance from a hit (certainlyBlocks())
-};
-
 /// The intersect context Embree hands to the filter, extended with the packet being traced
 /// (Embree passes the pointer through unchanged; RTCIntersectContext must come first).
 struct FilterContext {
@@ -263,9 +259,9 @@ struct FilterContext {
 /// origin o, divided by Ng . d (Ng = e1 x e2, |Ng| = twice the area). Their absolute error is
 /// below a small multiple of 2^-24 |d| R (R + M) / |Ng . d|, with R >= |v_i - o| (reach) and
 /// M >= |v_i| (magnitude); the float rounding of d moves the hit by less than that too. The
-/// margin is 16 times it: a sliver seen from near its short edge needs a large one. On grids at
-/// 640x480 this sends 2 % of the filter's calls to the rule (0.03 % with a fixed 1e-5), for about
-/// 3 % more trace time.
+/// margin is 16 times it (and sqrt(3) for taking norms from the inf-norm scale): a sliver seen
+/// from near its short edge needs a large one. On grids at 640x480 this sends 2 % of the filter's
+/// calls to the rule (0.03 % with a fixed 1e-5), for about 3 % more trace time.
 bool certainlyBlocks(const RTCFilterFunctionNArguments* args, unsigned i, const Packet& packet, unsigned lane,
                      float longestEdge) {
     const unsigned n = args->N;
@@ -281,7 +277,8 @@ bool certainlyBlocks(const RTCFilterFunctionNArguments* args, unsigned i, const 
     const double scale = std::max({std::abs(hit.x), std::abs(hit.y), std::abs(hit.z), std::abs(packet.receiver.x),
                                    std::abs(packet.receiver.y), std::abs(packet.receiver.z)});
     const double reach = t * dLength + double(longestEdge), magnitude = scale + double(longestEdge);
-    if (!(innermost * ngLength * cosine >= 16 * 0x1p-24 * reach * (reach + magnitude) * 1.7320508075688772)) return false;
+    constexpr double kBarycentricMargin = 16 * 0x1p-24 * 1.7320508075688772;
+    if (!(innermost * ngLength * cosine >= kBarycentricMargin * reach * (reach + magnitude))) return false;
     const double roundoff = 64 * 0x1p-24 * scale;
     if (!(t * dLength * cosine >= 2.0 * packet.eps + roundoff)) return false;  // behind the band
     return packet.w[lane] == 0.0 || (1.0 - t) * dLength * cosine >= roundoff;  // before the sample
@@ -361,23 +358,17 @@ void buildBvh(EmbreeBvh& bvh, std::span<const Triangle> triangles, bool ruleFilt
     bvh.errors.check(device, "scene creation");
     rtcSetSceneFlags(bvh.scene.scene, RTC_SCENE_FLAG_NONE);  // see the top of this file
     rtcSetSceneBuildQuality(bvh.scene.scene, RTC_BUILD_QUALITY_HIGH);
-    bool anyAlpha = false;
     {
         const std::vector<const Triangle*> kept = validTriangles(triangles, translucent);  // freed before tracing
-        bvh.primitives.reserve(kept.size());
-        for (const Triangle* t : kept) {
-            const float longest = std::max({glm::length(t->v[1] - t->v[0]), glm::length(t->v[2] - t->v[1]), glm::length(t->v[0] - t->v[2])});
-            bvh.primitives.push_back({alphaIdOf(t->flags), longest * (1.0f + 0x1p-20f)});  // rounded up, never below
-            anyAlpha = anyAlpha || bvh.primitives.back().alphaId;
-        }
         bvh.sceneBytes = uint64_t(kept.size()) * (9 * sizeof(float) + 3 * sizeof(uint32_t) + sizeof(PrimitiveInfo));
         if (!kept.empty()) {  // an empty scene needs no geometry (and Embree gets no zero-sized buffers)
             GeometryHandle geometry;
             geometry.geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
             bvh.errors.check(device, "geometry creation");
             rtcSetGeometryBuildQuality(geometry.geometry, RTC_BUILD_QUALITY_HIGH);
-            fillBuffers(geometry.geometry, kept);
+            fillBuffers(geometry.geometry, kept, bvh.primitives);
             bvh.errors.check(device, "buffer allocation");
+            const bool anyAlpha = std::any_of(bvh.primitives.begin(), bvh.primitives.end(), [](const PrimitiveInfo& p) { return p.alphaId != 0; });
             bvh.vertices = static_cast<const float*>(rtcGetGeometryBufferData(geometry.geometry, RTC_BUFFER_TYPE_VERTEX, 0));
             if (ruleFilter || anyAlpha) rtcSetGeometryOccludedFilterFunction(geometry.geometry, ::penumbra::ruleFilter);
             rtcCommitGeometry(geometry.geometry);
