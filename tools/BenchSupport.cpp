@@ -181,8 +181,10 @@ json bakeChild(const fs::path& scene, const std::string& method, int threads, co
     const std::string stats = (work / "stats.json").string();
     std::error_code ec;
     fs::remove(stats, ec);
+    // The bench writes its scenes into its own directory, with their inputs' paths anchored where
+    // the original scene lives (anchoredScene()): those lie outside the copy's directory.
     std::vector<std::string> args{"bake", scene.string(), "--method", method, "-q", "--stats", stats,
-                                  "--tmp", work.string()};
+                                  "--tmp", work.string(), "--allow-outside-uris"};
     if (threads > 0) args.insert(args.end(), {"--threads", std::to_string(threads)});
     args.insert(args.end(), extra.begin(), extra.end());
     ChildResult child = runSelf(args, work);
@@ -228,6 +230,29 @@ json resizedScene(json scene, int width, int height, int samples, double lightSc
                 for (json& c : light[axis]) c = c.get<double>() * lightScale;
     }
     scene["output"] = output.string();
+    return scene;
+}
+
+namespace {
+void anchorPaths(json& j, const fs::path& sourceDir) {
+    if (j.is_array()) {
+        for (json& e : j) anchorPaths(e, sourceDir);
+        return;
+    }
+    if (!j.is_object()) return;
+    for (auto it = j.begin(); it != j.end(); ++it) {
+        const bool input = it.key() == "path" || it.key() == "leaf_texture" || it.key() == "petal_texture";
+        if (input && it->is_string() && fs::path(it->get<std::string>()).is_relative())
+            *it = fs::absolute(sourceDir / it->get<std::string>()).lexically_normal().string();
+        else
+            anchorPaths(*it, sourceDir);
+    }
+}
+}  // namespace
+
+json anchoredScene(json scene, const fs::path& sourceDir) {
+    for (const char* section : {"geometry", "receivers"})
+        if (scene.contains(section)) anchorPaths(scene[section], sourceDir);
     return scene;
 }
 

@@ -85,6 +85,11 @@ std::string sceneName(const std::string& name);
 nlohmann::json resizedScene(nlohmann::json scene, int width, int height, int samples, double lightScale,
                             const std::filesystem::path& output);
 
+/// @brief @p scene with every relative input path (geometry and receiver `path`, `leaf_texture`,
+/// `petal_texture`) made absolute from @p sourceDir, so that a copy written elsewhere reads the
+/// same files. The bench's children bake such copies with --allow-outside-uris (bakeChild()).
+nlohmann::json anchoredScene(nlohmann::json scene, const std::filesystem::path& sourceDir);
+
 /// @brief Replaces the part of @p document between @p begin and @p end (marker lines) with
 /// @p generated; without markers, appends @p heading and the markers. Other sections are kept.
 std::string replaceGeneratedSection(const std::string& document, const std::string& begin, const std::string& end,

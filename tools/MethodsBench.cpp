@@ -32,6 +32,14 @@ double methodSeconds(const json& s, const std::string& method) {
     return t["penumbra_cast_time_s"].get<double>();
 }
 
+/// Receivers of the bake's first pass: all of them unless the kind refined (camera antialiasing
+/// adds receivers where the first pass's V changes, so their count and places depend on the method).
+uint64_t firstPassReceivers(const json& s) {
+    const uint64_t all = s["receivers"].get<uint64_t>();
+    if (!s.contains("antialias") || !s["antialias"].contains("added_receivers")) return all;
+    return all - std::min(all, s["antialias"]["added_receivers"].get<uint64_t>());
+}
+
 /// What the JSON keeps of one timed bake.
 json columns(const json& s, const std::string& method) {
     json c = {{"time_s", methodSeconds(s, method)},
@@ -41,6 +49,7 @@ json columns(const json& s, const std::string& method) {
               {"process_cpu_s", s["child_cpu_s"]},
               {"peak_rss_bytes", s["child_peak_rss_bytes"]},
               {"receivers", s["receivers"]},
+              {"first_pass_receivers", firstPassReceivers(s)},
               {"light_samples", s["light_samples"]},
               {"triangles", s["counters"]["triangles_read"]}};
     for (const char* section : {"ssv", "penumbra-map", "hh", "embree"})
@@ -48,19 +57,26 @@ json columns(const json& s, const std::string& method) {
     return c;
 }
 
-/// Mean and largest |V_a - V_b| over two --visibility files, and the share above 0.1.
-json visibilityError(const std::string& a, const std::string& b) {
+/// Mean and largest |V_a - V_b| over two --visibility files, and the share above 0.1. When the
+/// scene refines, the two bakes share only their first @p firstPass receivers (the refinement
+/// appends its receivers after them, chosen from each method's own V): those are compared.
+json visibilityError(const std::string& a, const std::string& b, uint64_t firstPass) {
     const std::vector<float> va = npyAsFloat32(readNpy(a), a), vb = npyAsFloat32(readNpy(b), b);
-    if (va.size() != vb.size()) return {{"error", fmt::format("{} and {} hold different receiver counts", a, b)}};
+    size_t count = va.size();
+    if (va.size() != vb.size()) {
+        if (firstPass > std::min(va.size(), vb.size()))
+            return {{"error", fmt::format("{} and {} hold different receiver counts", a, b)}};
+        count = firstPass;
+    }
     double sum = 0, largest = 0, meanA = 0, meanB = 0;
     uint64_t off = 0;
-    for (size_t i = 0; i < va.size(); ++i) {
+    for (size_t i = 0; i < count; ++i) {
         const double d = std::abs(double(va[i]) - double(vb[i]));
         sum += d, largest = std::max(largest, d), off += d > 0.1, meanA += va[i], meanB += vb[i];
     }
-    const double n = double(std::max<size_t>(1, va.size()));
+    const double n = double(std::max<size_t>(1, count));
     return {{"mean_abs_dv", sum / n}, {"max_abs_dv", largest}, {"fraction_above_0_1", double(off) / n},
-            {"mean_v", meanA / n}, {"mean_v_hpc", meanB / n}};
+            {"mean_v", meanA / n}, {"mean_v_hpc", meanB / n}, {"compared_receivers", count}};
 }
 
 /// Relations decided differently from hpc's dump, with ties classified against the scene.
@@ -71,7 +87,7 @@ json mismatches(const fs::path& scene, const fs::path& hpcDump, const std::strin
     args.insert(args.end(), {"--dump", dump.string()});
     json b = bakeChild(scene, method, threads, work, args);
     if (b.contains("error")) return b;
-    ChildResult c = runSelf({"compare", hpcDump.string(), dump.string(), "--scene", scene.string()}, work);
+    ChildResult c = runSelf({"compare", hpcDump.string(), dump.string(), "--scene", scene.string(), "--allow-outside-uris"}, work);
     std::error_code ec;
     fs::remove_all(dump, ec);
     if (c.exitCode != 0 && c.exitCode != 3) return {{"error", fmt::format("compare exited with {}: {}", c.exitCode, lastLine(c.err))}};
@@ -84,7 +100,7 @@ json mismatches(const fs::path& scene, const fs::path& hpcDump, const std::strin
 /// Runs @p method on @p file, timed (best of repeat), with its error against hpc's visibility
 /// and, for exact methods, its mismatches against hpc's dump.
 json runMethod(const BenchMethodsOptions& o, const std::string& method, const fs::path& file, const fs::path& work,
-               const fs::path& hpcVisibility, const fs::path& hpcDump) {
+               const fs::path& hpcVisibility, const fs::path& hpcDump, uint64_t hpcFirstPass) {
     std::vector<std::string> extra;
     if (casterEntry(method).traits.holdsScene) extra = {"--disable", "sort"};  // reads the scene once: no use for buckets
     const fs::path visibility = work / ("v-" + method + ".npy");
@@ -95,7 +111,10 @@ json runMethod(const BenchMethodsOptions& o, const std::string& method, const fs
     if (s.contains("error")) return s;
     json c = columns(s, method);
     if (method == "hpc") return c;
-    c["error_vs_hpc"] = visibilityError(visibility.string(), hpcVisibility.string());
+    const uint64_t firstPass = c["first_pass_receivers"].get<uint64_t>();
+    c["error_vs_hpc"] = firstPass == hpcFirstPass
+                            ? visibilityError(visibility.string(), hpcVisibility.string(), firstPass)
+                            : json{{"error", fmt::format("first passes of {} and {} receivers differ", firstPass, hpcFirstPass)}};
     if (casterEntry(method).traits.masks && !o.noCompare)
         c["mismatches_vs_hpc"] = mismatches(file, hpcDump, method, o.threads, work, extra);
     return c;
@@ -106,7 +125,7 @@ json runRow(const BenchMethodsOptions& o, const fs::path& file, const fs::path& 
             const std::function<void(const std::string&)>& progress) {
     json row = {{"methods", json::object()}};
     const fs::path hpcVisibility = work / "v-hpc.npy", hpcDump = work / "dump-hpc";
-    json hpc = runMethod(o, "hpc", file, work, hpcVisibility, hpcDump);
+    json hpc = runMethod(o, "hpc", file, work, hpcVisibility, hpcDump, 0);
     row["methods"]["hpc"] = hpc;
     if (hpc.contains("error")) return row;
     if (!o.noCompare) {
@@ -124,7 +143,7 @@ json runRow(const BenchMethodsOptions& o, const fs::path& file, const fs::path& 
                 continue;
             }
         }
-        json c = runMethod(o, m, file, work, hpcVisibility, hpcDump);
+        json c = runMethod(o, m, file, work, hpcVisibility, hpcDump, hpc["first_pass_receivers"].get<uint64_t>());
         if (!c.contains("error")) c["speedup_vs_hpc"] = hpcSeconds / std::max(1e-9, c["time_s"].get<double>());
         std::string line = c.contains("error") ? c["error"].get<std::string>() : fmt::format("{:.2f} s", c["time_s"].get<double>());
         if (c.contains("error_vs_hpc") && c["error_vs_hpc"].contains("mean_abs_dv"))
@@ -205,7 +224,10 @@ void runBenchMethods(const BenchMethodsOptions& o, const std::string& commandLin
     std::vector<std::pair<int, int>> sizes;
     for (const std::string& s : o.sizes) sizes.push_back(parseSize(s));
     std::vector<std::pair<std::string, json>> scenes;
-    for (const std::string& name : o.scenes) scenes.emplace_back(sceneName(name), readJsonFile(benchSceneFile(o.examplesDir, name).string()));
+    for (const std::string& name : o.scenes) {
+        const fs::path file = benchSceneFile(o.examplesDir, name);
+        scenes.emplace_back(sceneName(name), anchoredScene(readJsonFile(file.string()), file.parent_path()));
+    }
     const bool hh = std::find(o.methods.begin(), o.methods.end(), "hh") != o.methods.end();
     std::vector<std::string> cameraMethods;
     for (const std::string& m : o.methods)
@@ -238,19 +260,14 @@ void runBenchMethods(const BenchMethodsOptions& o, const std::string& commandLin
             save();
         }
     if (hh) {
-        const json base = readJsonFile(benchSceneFile(o.examplesDir, o.lightmap).string());
+        const fs::path lightmapFile = benchSceneFile(o.examplesDir, o.lightmap);
+        const json base = anchoredScene(readJsonFile(lightmapFile.string()), lightmapFile.parent_path());
         for (int samples : o.hhSamples) {
             const fs::path work = tmp.path / fmt::format("hh-{}", samples);
             fs::create_directories(work);
             json scene = base;
             for (json& light : scene["lights"]) light["samples"] = samples;
             scene["output"] = (work / "out.exr").string();
-            for (json& g : scene["geometry"])  // the scene file moves, and its paths stay in its directory
-                if (g.contains("path")) {
-                    const fs::path from = benchSceneFile(o.examplesDir, o.lightmap).parent_path() / g["path"].get<std::string>();
-                    fs::copy_file(from, work / from.filename(), fs::copy_options::overwrite_existing);
-                    g["path"] = from.filename().string();
-                }
             const fs::path file = work / "scene.json";
             writeText(file.string(), scene.dump(2));
             auto progress = [&](const std::string& line) {

@@ -59,7 +59,7 @@ void addCommands(CLI::App& app, Commands& c) {
     addFileCommands(app, c.files);
     c.generateCommand = addGenerateCommand(app, c.generate);
     c.makeExampleCommand = addMakeExampleCommand(app, c.makeExample);
-    for (CLI::App* command : {c.bakeCommand, c.generateCommand, c.files.infoCommand, c.files.convertCommand})
+    for (CLI::App* command : {c.bakeCommand, c.generateCommand, c.files.infoCommand, c.files.convertCommand, c.files.compareCommand})
         command->add_flag("--allow-outside-uris", c.allowOutside, "let scenes and glTF files name files outside their own directory");
     CLI::App* bench = app.add_subcommand("bench", "benchmarks");
     bench->require_subcommand(1);

@@ -21,8 +21,31 @@ void frame(const glm::dvec3& axis, glm::dvec3& e1, glm::dvec3& e2) {
 
 constexpr int kBands = 64;  ///< row bands rasterized in parallel
 
-/// Scan-converts one projected triangle into rows [y0, y1) of @p map.
-void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1, DepthMap& map) {
+/// A cut-out triangle's alpha test at a texel: the ray of the texel centre against the original
+/// triangle (so a piece clipped at the near plane tests the same texture), as the camera does.
+struct CutOut {
+    const LightView& view;
+    const Triangle& tri;
+    const AlphaTable& table;
+    uint32_t id;
+    bool opaqueAt(double cx, double cy) const {
+        const double sx = (2.0 * cx / view.res - 1.0) * view.halfExtent, sy = (2.0 * cy / view.res - 1.0) * view.halfExtent;
+        // Perspective: rays from the centre through the texel; orthographic: parallel rays from
+        // the texel's point on the origin plane.
+        const glm::dvec3 o = view.ortho ? view.origin + sx * view.e1 + sy * view.e2 : view.origin;
+        const glm::dvec3 d = view.ortho ? view.axis : view.axis + sx * view.e1 + sy * view.e2;
+        const glm::dvec3 a[3] = {glm::dvec3(tri.v[0]) - o, glm::dvec3(tri.v[1]) - o, glm::dvec3(tri.v[2]) - o};
+        double e[3];  // the ray's signed volume with the edge opposite vertex i: its barycentric
+        for (int i = 0; i < 3; ++i) e[i] = glm::dot(d, glm::cross(a[(i + 1) % 3], a[(i + 2) % 3]));
+        const double sum = (e[0] + e[1]) + e[2];
+        if (!(sum != 0.0)) return table.lookup(id, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0).opaque;
+        return table.lookup(id, e[0] / sum, e[1] / sum, e[2] / sum).opaque;
+    }
+};
+
+/// Scan-converts one projected triangle into rows [y0, y1) of @p map; with @p cutOut, only its
+/// opaque texels.
+void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1, DepthMap& map, const CutOut* cutOut) {
     const double area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
     if (!(std::abs(area) > 1e-12)) return;
     double lin[3];
@@ -47,6 +70,7 @@ void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1
             const double cx = x + 0.5;
             const double e0 = row[0] + ex[0] * cx, e1 = row[1] + ex[1] * cx, e2 = row[2] + ex[2] * cx;
             if (e0 < 0 || e1 < 0 || e2 < 0) continue;
+            if (cutOut && !cutOut->opaqueAt(cx, cy)) continue;
             const double b[3] = {e0 * inverseArea, e1 * inverseArea, e2 * inverseArea};
             const float z = float(view.fromLinear(b[0] * lin[0] + b[1] * lin[1] + b[2] * lin[2]));
             if (map.layers == 1) {
@@ -60,7 +84,7 @@ void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1
 }
 
 /// Clips @p t at the near plane (perspective views) and draws the pieces into rows [y0, y1).
-void drawClipped(const LightView& view, const Triangle& t, int y0, int y1, DepthMap& map) {
+void drawClipped(const LightView& view, const Triangle& t, int y0, int y1, DepthMap& map, const CutOut* cutOut) {
     glm::dvec3 in[3] = {glm::dvec3(t.v[0]), glm::dvec3(t.v[1]), glm::dvec3(t.v[2])};
     double d[3];
     int nearCount = 0;
@@ -81,7 +105,7 @@ void drawClipped(const LightView& view, const Triangle& t, int y0, int y1, Depth
     for (int i = 0; i < n; ++i) p[i] = view.project(poly[i]);
     for (int i = 1; i + 1 < n; ++i) {
         const ViewPoint tri[3] = {p[0], p[i], p[i + 1]};
-        drawTriangle(view, tri, y0, y1, map);
+        drawTriangle(view, tri, y0, y1, map, cutOut);
     }
 }
 
@@ -195,7 +219,7 @@ bool projectTriangle(const LightView& view, const Triangle& t, ViewPoint (&out)[
     return true;
 }
 
-void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, DepthMap& map) {
+void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, DepthMap& map, const AlphaTable* alpha) {
     // Project each triangle once, then let row bands draw the ones that reach them.
     struct Projected {
         ViewPoint p[3];
@@ -230,8 +254,16 @@ void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, Dept
             const size_t i = members[m];
             const Projected& q = projected[i];
             if (q.ymax < y0 - 0.5 || q.ymin > y1 + 0.5) continue;
-            if (q.clip) drawClipped(view, chunk[i], y0, y1, map);
-            else drawTriangle(view, q.p, y0, y1, map);
+            const uint32_t id = alpha ? alphaIdOf(chunk[i].flags) : 0;
+            if (id) {
+                const CutOut cutOut{view, chunk[i], *alpha, id};
+                if (q.clip) drawClipped(view, chunk[i], y0, y1, map, &cutOut);
+                else drawTriangle(view, q.p, y0, y1, map, &cutOut);
+            } else if (q.clip) {
+                drawClipped(view, chunk[i], y0, y1, map, nullptr);
+            } else {
+                drawTriangle(view, q.p, y0, y1, map, nullptr);
+            }
         }
     });
 }

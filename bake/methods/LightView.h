@@ -13,6 +13,7 @@
 
 #include "bake/light/Light.h"
 #include "receivers/ReceiverSet.h"
+#include "stream/AlphaTable.h"
 #include "stream/Triangle.h"
 
 #include <glm/vec2.hpp>
@@ -82,7 +83,10 @@ struct DepthMap {
 /// @brief Scan-converts @p chunk into @p map, texel centres inside or on a triangle's edges;
 /// triangles are clipped at the near plane. Rows are split between threads and every band draws
 /// the chunk's triangles in stream order, so the map does not depend on the thread count.
-void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, DepthMap& map);
+/// @param alpha when given, a cut-out triangle (an alpha id in its flags) covers only the texels
+/// whose ray from the view meets an opaque part of it (AlphaTable::lookup(), nearest texel), the
+/// same test as the exact methods' and the camera's; null draws cut-outs as opaque triangles.
+void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, DepthMap& map, const AlphaTable* alpha = nullptr);
 
 /// @brief Projects @p t's vertices, or returns false when one is nearer than zNear.
 bool projectTriangle(const LightView& view, const Triangle& t, ViewPoint (&out)[3]);

@@ -304,7 +304,7 @@ std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSe
             ScopedTimer timer(local.shadowSeconds);
             forEachChunk(
                 blockers, local, progress, [&](std::span<const Triangle> chunk) {
-                    for (ViewMaps& m : maps) rasterizeDepth(m.view, chunk, m.shadow);
+                    for (ViewMaps& m : maps) rasterizeDepth(m.view, chunk, m.shadow, options.alpha);
                 },
                 li == 0 ? observe : std::function<void(std::span<const Triangle>)>());
             for (ViewMaps& m : maps) buildTiles(m);
@@ -387,7 +387,9 @@ PenumbraMapOptions optionsOf(const nlohmann::json& bake) { return penumbraMapOpt
 /// Penumbra maps per light, streaming the blockers twice per light and cast; gives visible fractions.
 class PenumbraMapCaster final : public StreamedCaster {
 public:
-    explicit PenumbraMapCaster(const CastContext& c) : StreamedCaster(c), options_(optionsOf(c.methodOptions)) {}
+    explicit PenumbraMapCaster(const CastContext& c) : StreamedCaster(c), options_(optionsOf(c.methodOptions)) {
+        options_.alpha = &alphaTableOf(c.options);
+    }
 
     void cast(TriangleSource& blockers, uint32_t first, const CastSink& sink) override {
         // A refinement's tail is copied; the first pass reads the receivers in place (a copy of a

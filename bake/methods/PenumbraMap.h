@@ -34,6 +34,7 @@
 #include "bake/rule/BlockingRule.h"
 #include "bake/light/Light.h"
 #include "receivers/ReceiverSet.h"
+#include "stream/AlphaTable.h"
 #include "stream/util/JsonParams.h"
 #include "stream/TriangleSource.h"
 
@@ -60,6 +61,9 @@ struct PenumbraMapOptions {
     /// texels per layer; 2 reads 25 in about two thirds of the lookup time, for mean |dV| about
     /// 10 % higher on the examples and twice the error on the analytic edge (docs/BENCHMARKS.md).
     int taps = 3;
+    /// The bake's cut-outs (alpha ids in Triangle::flags): the shadow map keeps a cut-out's texel
+    /// only where it is opaque. Null: cut-outs are drawn as opaque triangles.
+    const AlphaTable* alpha = nullptr;
     /// Bytes of one light's maps (depth and penumbra, float, at most six cube faces).
     uint64_t mapBytes() const;
 };

@@ -86,6 +86,17 @@ double paperProfile(double d) {
     return i * i * (3 - 2 * i);
 }
 
+/// The mean |v - V| over every receiver, V the visible fraction of @p reference's masks.
+double meanErrorAgainst(const VisibilityMasks& reference, const LightSamples& samples, const std::vector<float>& v) {
+    double sum = 0;
+    for (uint32_t r = 0; r < v.size(); ++r) {
+        uint64_t blocked = 0;
+        for (int k = 0; k < reference.groups; ++k) blocked += uint64_t(__builtin_popcountll(reference.row(r)[k]));
+        sum += std::abs(v[r] - (1.0 - double(blocked) / samples.sampleCount));
+    }
+    return sum / double(std::max<size_t>(1, v.size()));
+}
+
 /// Both checks of the file comment; @p past(x) is how far x lies past the hard-shadow edge.
 template <class Exact, class Past>
 void requireProfiles(const ReceiverSet& receivers, const std::vector<float>& v, Exact exact, Past past) {
@@ -144,14 +155,7 @@ TEST_CASE("penumbra map: backprojection combines two stacked grids as the refere
     const std::vector<uint32_t> sets(receivers.size(), 0);
     const VisibilityMasks reference = castReference(samples, receivers, sets, tris, receiverEpsilonOf(CastOptions()));
     auto meanError = [&](Lookup lookup) {
-        const std::vector<float> v = penumbraMapOf(light, receivers, tris, lookup);
-        double sum = 0;
-        for (uint32_t r = 0; r < receivers.size(); ++r) {
-            uint64_t blocked = 0;
-            for (int k = 0; k < reference.groups; ++k) blocked += uint64_t(__builtin_popcountll(reference.row(r)[k]));
-            sum += std::abs(v[r] - (1.0 - double(blocked) / samples.sampleCount));
-        }
-        return sum / double(receivers.size());
+        return meanErrorAgainst(reference, samples, penumbraMapOf(light, receivers, tris, lookup));
     };
     const double backprojection = meanError(Lookup::Backprojection), paper = meanError(Lookup::WymanHansen);
     INFO("mean |dV|: backprojection " << backprojection << ", wyman-hansen " << paper);
@@ -213,4 +217,35 @@ TEST_CASE("penumbra map: irradiance is the exact unoccluded irradiance times the
         lit += dense.irradianceOf(r, 1).y > 0;
     }
     CHECK(lit > 0);
+}
+
+TEST_CASE("penumbra map: a cut-out leaf casts its outline's shadow, not its quad's", "[penumbra-map][alpha]") {
+    // The built-in leaf outline on a 2 x 2 quad at height 2 (corners (0,0) (1,0) (1,1) (0,1) at
+    // x = 2u - 1, z = 2v - 1), a small light at height 4: the floor gets the outline's shadow,
+    // twice its size. The shadow map keeps the quad's texels only where the outline is opaque,
+    // by the same test as the reference's, so the maps' V follows the outline and not the square.
+    std::vector<Triangle> tris = floorQuad(4);
+    const glm::vec3 p[4] = {{-1, 2, -1}, {1, 2, -1}, {1, 2, 1}, {-1, 2, 1}};
+    tris.push_back({{p[0], p[1], p[2]}, withAlphaId(0, kAlphaLeafLower)});
+    tris.push_back({{p[0], p[2], p[3]}, withAlphaId(0, kAlphaLeafUpper)});
+    ReceiverSet receivers;
+    for (int j = 0; j < 40; ++j)
+        for (int i = 0; i < 40; ++i)
+            receivers.position.push_back({-2.5f + 0.125f * float(i) + 0.03f, 0.f, -2.5f + 0.125f * float(j) + 0.02f}),
+                receivers.normal.push_back({0, 1, 0});
+    const LightDesc light = rectLight({0, 4, 0}, {0.1, 0, 0}, {0, 0, 0.1}, 64, 1);
+    const LightSamples samples = generateLightSamples({light}, 64, 3);
+    const std::vector<uint32_t> sets(receivers.size(), 0);
+    const VisibilityMasks reference = castReference(samples, receivers, sets, tris, receiverEpsilonOf(CastOptions()));
+    auto meanError = [&](const AlphaTable* alpha) {
+        VectorSource source(tris);
+        PenumbraMapOptions options;
+        options.alpha = alpha;
+        return meanErrorAgainst(reference, samples,
+                                castPenumbraMap(samples, receivers, {}, source, receiverEpsilonOf(CastOptions()), options));
+    };
+    const double cutOut = meanError(AlphaTable::builtin().get()), opaque = meanError(nullptr);
+    INFO("mean |dV| with the outline " << cutOut << ", as an opaque quad " << opaque);
+    CHECK(cutOut <= 0.01);
+    CHECK(opaque >= 0.1);  // the quad shadows floor that the leaf leaves lit
 }

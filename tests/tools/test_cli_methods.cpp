@@ -151,3 +151,36 @@ TEST_CASE("bench methods --render writes the Markdown of an earlier result, with
     write(dir / "bad.json", "{\"rows\": 3}");
     requireCleanError(runPenumbra("bench methods --render " + (dir / "bad.json")), "--render");
 }
+
+TEST_CASE("bench methods reads a scene's files where the scene lives, and compares an antialiased view on its first pass",
+          "[cli][methods]") {
+    // The bench bakes a resized copy of each scene in its own temporary directory: the scene's
+    // relative paths must still reach its files. With antialiasing the second pass refines where
+    // each method's own V changes, so the receivers differ past the first pass.
+    ScratchDir dir("bench-paths");
+    std::filesystem::create_directories(dir / "scenes");
+    std::filesystem::copy_file(std::string(PENUMBRA_SOURCE_DIR) + "/examples/room-blockers.obj", dir / "scenes/blockers.obj");
+    write(dir / "scenes/aa.json", R"({
+      "geometry": [{"type": "obj", "path": "blockers.obj"}, {"type": "grid", "cells": 4, "levels": 1, "size": 2, "floor_size": 8}],
+      "lights": [{"type": "rect", "center": [1,5,1], "u": [1,0,0], "v": [0,0,1], "samples": 64, "sample_sets": 2}],
+      "receivers": {"type": "camera", "eye": [0,5,6], "target": [0,0.5,0], "width": 64, "height": 48,
+                    "antialias": {"threshold": 0.1, "samples": 4}},
+      "output": "out/aa.exr"})");
+    RunResult r = runPenumbra("bench methods -q --examples " + (dir / "scenes") + " --scenes aa --sizes 64x48 --methods penumbra-map" +
+                              " --threads 1 --no-compare --tmp " + dir.path.string() + " --json " + (dir / "result.json"));
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    const nlohmann::json result = nlohmann::json::parse(slurp(dir / "result.json"));
+    const nlohmann::json& row = result.at("rows").at(0).at("methods");
+    REQUIRE(row.at("hpc").contains("time_s"));
+    const nlohmann::json& pm = row.at("penumbra-map");
+    INFO(pm.dump());
+    REQUIRE(pm.at("error_vs_hpc").contains("mean_abs_dv"));
+    const uint64_t firstPass = row.at("hpc").at("first_pass_receivers").get<uint64_t>();
+    CHECK(firstPass > 1000u);  // a pixel per receiver where the view meets the floor or the room
+    CHECK(firstPass <= 64u * 48u);
+    CHECK(row.at("hpc").at("receivers").get<uint64_t>() > firstPass);  // the antialiasing pass added receivers
+    CHECK(pm.at("first_pass_receivers").get<uint64_t>() == firstPass);
+    CHECK(pm.at("error_vs_hpc").at("compared_receivers").get<uint64_t>() == firstPass);
+    CHECK(pm.at("error_vs_hpc").at("mean_abs_dv").get<double>() < 0.2);
+}
