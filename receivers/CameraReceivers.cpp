@@ -116,15 +116,7 @@ glm::dvec3 CameraRasterizer::direction(int x, int y) const {
 bool CameraRasterizer::opaqueAlong(const Triangle& tri, const glm::dvec3& d) const {
     const uint32_t id = alphaIdOf(tri.flags);
     if (!alpha_ || id == 0) return true;
-    // The ray's signed volume with edge e (from vertex e + 1 to e + 2) is proportional to the
-    // barycentric of vertex e; inside the triangle all three share one sign.
-    const glm::dvec3 a[3] = {glm::dvec3(tri.v[0]) - camera_.eye, glm::dvec3(tri.v[1]) - camera_.eye,
-                             glm::dvec3(tri.v[2]) - camera_.eye};
-    double e[3];
-    for (int i = 0; i < 3; ++i) e[i] = glm::dot(d, glm::cross(a[(i + 1) % 3], a[(i + 2) % 3]));
-    const double sum = (e[0] + e[1]) + e[2];
-    if (!(sum != 0.0)) return alpha_->lookup(id, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0).opaque;
-    return alpha_->lookup(id, e[0] / sum, e[1] / sum, e[2] / sum).opaque;
+    return alpha_->lookupAlong(id, tri.v[0], tri.v[1], tri.v[2], camera_.eye, d).opaque;
 }
 
 void CameraRasterizer::add(std::span<const Triangle> chunk) {

@@ -4,6 +4,8 @@
 #include "stream/Translucency.h"
 #include "stream/Triangle.h"
 
+#include <glm/geometric.hpp>
+
 #include <cmath>
 
 namespace penumbra {
@@ -139,6 +141,16 @@ size_t AlphaTable::bytes() const {
     size_t total = sizeof(AlphaTable) + entries_.size() * sizeof(AlphaEntry);
     for (const AlphaMap& m : maps_) total += m.bytes();
     return total;
+}
+
+AlphaLookup AlphaTable::lookupAlong(uint32_t id, const glm::vec3& v0, const glm::vec3& v1, const glm::vec3& v2,
+                                     const glm::dvec3& origin, const glm::dvec3& direction) const {
+    const glm::dvec3 a[3] = {glm::dvec3(v0) - origin, glm::dvec3(v1) - origin, glm::dvec3(v2) - origin};
+    double e[3];  // the line's signed volume with the edge opposite vertex i: its barycentric
+    for (int i = 0; i < 3; ++i) e[i] = glm::dot(direction, glm::cross(a[(i + 1) % 3], a[(i + 2) % 3]));
+    const double sum = (e[0] + e[1]) + e[2];
+    if (!(sum != 0.0)) return lookup(id, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0);
+    return lookup(id, e[0] / sum, e[1] / sum, e[2] / sum);
 }
 
 }  // namespace penumbra

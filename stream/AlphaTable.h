@@ -24,6 +24,7 @@
 /// so generators need no table of their own.
 
 #include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
 
 #include <array>
 #include <cmath>
@@ -113,6 +114,12 @@ public:
     /// @brief The test at barycentrics (@p b0, @p b1, @p b2) of alpha id @p id. An id the table
     /// does not hold is opaque (never less blocking than the triangle without alpha).
     AlphaLookup lookup(uint32_t id, double b0, double b1, double b2) const;
+    /// @brief The test where the line through @p origin along @p direction meets triangle
+    /// (@p v0, @p v1, @p v2) of alpha id @p id: its barycentrics are the line's signed volumes
+    /// with the three edges, normalized (a line in the triangle's plane takes its centroid).
+    /// Rasterizers (camera, light views, lightmap projections) call it for a fragment they keep.
+    AlphaLookup lookupAlong(uint32_t id, const glm::vec3& v0, const glm::vec3& v1, const glm::vec3& v2, const glm::dvec3& origin,
+                            const glm::dvec3& direction) const;
 
     size_t entries() const { return entries_.size(); }
     const AlphaMap& map(uint32_t index) const { return maps_[index]; }

@@ -22,6 +22,7 @@ struct Polygon {
     glm::dvec3 p0, n;      ///< a corner and the unit normal of the side the receivers face
     glm::dvec3 ga, gb;     ///< dual basis: plane point x has parameters (ga . (x - p0), gb . (x - p0))
     glm::dvec2 t0, ta, tb; ///< texel coordinates of p0, and of the two edge vectors
+    glm::dvec3 ea, eb;     ///< the two edge vectors in the world: texel t0 + a ta + b tb is point p0 + a ea + b eb
     int x0 = 0, y0 = 0, width = 0, height = 0;  ///< the texel box of its receivers
     std::vector<int32_t> grid;
     uint64_t sets = 0;     ///< bit s set when a receiver uses sample set s (s < 64; bit 63 for the rest)
@@ -51,6 +52,7 @@ std::vector<Polygon> preparePolygons(const ReceiverSet& receivers, std::span<con
         p.ga = glm::cross(eb, nn) / glm::dot(ea, glm::cross(eb, nn));
         p.gb = glm::cross(nn, ea) / glm::dot(eb, glm::cross(nn, ea));
         p.t0 = src.texel[0], p.ta = src.texel[1] - src.texel[0], p.tb = src.texel[2] - src.texel[0];
+        p.ea = ea, p.eb = eb;
         glm::ivec2 lo(INT32_MAX), hi(INT32_MIN);
         for (uint32_t r : members[i]) lo = glm::min(lo, in.texelOf[r]), hi = glm::max(hi, in.texelOf[r]);
         p.x0 = lo.x, p.y0 = lo.y, p.width = hi.x - lo.x + 1, p.height = hi.y - lo.y + 1;
@@ -74,11 +76,33 @@ struct Context {
     std::span<const uint32_t> sets;
     std::vector<uint32_t> groupOf;  ///< per global sample: its group
     VisibilityMasks& masks;
+    const AlphaTable* alpha;        ///< the cut-outs' table; null: cut-outs are opaque triangles
+};
+
+/// A cut-out blocker seen from one sample: a covered texel is in its hard shadow only where the
+/// segment from the texel's point on the polygon to the sample meets an opaque part of it (the
+/// same AlphaTable test as the exact methods, at the ray's barycentrics).
+struct CutOutFromSample {
+    const Triangle& t;
+    const AlphaTable& table;
+    uint32_t id;
+    glm::dvec3 l;  ///< the sample (w = 1) or its direction (w = 0)
+    double w;
+    bool opaqueAt(const Polygon& p, const glm::dvec2& texel) const {
+        const glm::dvec2 d = texel - p.t0;
+        const double det = p.ta.x * p.tb.y - p.ta.y * p.tb.x;
+        if (!(det != 0.0)) return true;
+        const double a = (d.x * p.tb.y - d.y * p.tb.x) / det, b = (p.ta.x * d.y - p.ta.y * d.x) / det;
+        const glm::dvec3 x = p.p0 + a * p.ea + b * p.eb;
+        return table.lookupAlong(id, t.v[0], t.v[1], t.v[2], x, w == 1.0 ? l - x : l).opaque;
+    }
 };
 
 /// Scan-converts the convex polygon @p v (texel units, @p count corners) over @p p's texels and
-/// sets sample @p k's bit of every receiver of set @p set whose texel centre it covers.
-uint64_t cover(const Polygon& p, const glm::dvec2* v, int count, uint32_t set, uint32_t k, Context& c) {
+/// sets sample @p k's bit of every receiver of set @p set whose texel centre it covers (and, for a
+/// cut-out @p cut, where it is opaque).
+uint64_t cover(const Polygon& p, const glm::dvec2* v, int count, uint32_t set, uint32_t k, Context& c,
+               const CutOutFromSample* cut) {
     glm::dvec2 lo(INFINITY), hi(-INFINITY);
     for (int i = 0; i < count; ++i) lo = glm::min(lo, v[i]), hi = glm::max(hi, v[i]);
     const int xa = clampedTexel(std::ceil(lo.x - 0.5), p.x0, p.x0 + p.width), xb = clampedTexel(std::floor(hi.x - 0.5), p.x0 - 1, p.x0 + p.width - 1);
@@ -100,7 +124,7 @@ uint64_t cover(const Polygon& p, const glm::dvec2* v, int count, uint32_t set, u
                 const glm::dvec2 a = v[i], b = v[(i + 1) % count];
                 inside = orient * ((b.x - a.x) * (q.y - a.y) - (b.y - a.y) * (q.x - a.x)) >= 0;
             }
-            if (!inside) continue;
+            if (!inside || (cut && !cut->opaqueAt(p, q))) continue;
             c.masks.row(size_t(r))[group] |= 1ull << bit;
             ++covered;
         }
@@ -136,6 +160,7 @@ void shadePolygon(const Polygon& p, const Triangle& t, Context& c, HeckbertHerfS
     for (int i = 0; i < 3; ++i) v[i] = glm::dvec3(t.v[i]), h[i] = glm::dot(p.n, v[i] - p.p0);
     if (std::max({h[0], h[1], h[2]}) <= p.eps) return;  // on or behind the polygon's plane
     const LightSamples& s = c.samples;
+    const uint32_t alphaId = c.alpha ? alphaIdOf(t.flags) : 0;
     for (uint32_t set = 0; set < uint32_t(s.sets); ++set) {
         if (!(p.sets & setBit(set))) continue;
         for (uint32_t k = 0; k < uint32_t(s.sampleCount); ++k) {
@@ -156,7 +181,12 @@ void shadePolygon(const Polygon& p, const Triangle& t, Context& c, HeckbertHerfS
                 texels[i] = p.t0 + glm::dot(p.ga, q) * p.ta + glm::dot(p.gb, q) * p.tb;
             }
             ++local.projections;
-            local.coveredTexels += cover(p, texels, n, set, k, c);
+            if (alphaId) {
+                const CutOutFromSample cut{t, *c.alpha, alphaId, l, w};
+                local.coveredTexels += cover(p, texels, n, set, k, c, &cut);
+            } else {
+                local.coveredTexels += cover(p, texels, n, set, k, c, nullptr);
+            }
         }
     }
 }
@@ -183,11 +213,12 @@ void behindPolygon(const Polygon& p, Context& c) {
 VisibilityMasks castHeckbertHerf(const LightSamples& samples, const ReceiverSet& receivers,
                                  std::span<const uint32_t> sampleSets, TriangleSource& blockers,
                                  const ReceiverEpsilon& epsilon, const ReceiverPolygons& polygons,
-                                 HeckbertHerfStats* stats, const std::function<void(uint64_t)>& progress) {
+                                 HeckbertHerfStats* stats, const std::function<void(uint64_t)>& progress,
+                                 const AlphaTable* alpha) {
     Stopwatch watch;
     VisibilityMasks masks(receivers.size(), samples.groupCount());
     const std::vector<Polygon> prepared = preparePolygons(receivers, sampleSets, polygons, epsilon);
-    Context c{samples, sampleSets, std::vector<uint32_t>(size_t(samples.sampleCount)), masks};
+    Context c{samples, sampleSets, std::vector<uint32_t>(size_t(samples.sampleCount)), masks, alpha};
     for (uint32_t g = 0; g < uint32_t(samples.groupCount()); ++g)
         for (uint32_t j = 0; j < samples.groups[g].count; ++j) c.groupOf[samples.groups[g].first + j] = g;
     std::atomic<uint64_t> projections{0}, covered{0};
@@ -238,7 +269,8 @@ public:
         observeOnce(blockers);
         ProgressReporter progress("hh", blockers.sizeHint().value_or(0), c_.quiet);
         const VisibilityMasks masks = castHeckbertHerf(c_.samples, c_.receivers, c_.sampleSets, blockers, receiverEpsilonOf(c_.options),
-                                                       *c_.polygons, &stats_, [&](uint64_t n) { progress.update(n); });
+                                                       *c_.polygons, &stats_, [&](uint64_t n) { progress.update(n); },
+                                                       &alphaTableOf(c_.options));
         progress.done();
         reportInParallel(0, uint32_t(c_.receivers.size()), [&](uint32_t r) { sink.masks(r, masks.row(r), false); });
     }

@@ -26,6 +26,7 @@
 #include "receivers/LightmapReceivers.h"
 #include "bake/cast/VisibilityMasks.h"
 #include "receivers/ReceiverSet.h"
+#include "stream/AlphaTable.h"
 #include "stream/TriangleSource.h"
 
 #include <nlohmann/json.hpp>
@@ -46,10 +47,14 @@ struct HeckbertHerfStats {
 /// @brief Casts every relation of @p receivers, whose polygons and texels are @p polygons
 /// (ReceiverKind::receiverPolygons(), for these receivers: entry i belongs to receiver i).
 /// @param blockers read once, from the start (rewound)
+/// @param alpha the bake's cut-outs: a cut-out blocker shadows a texel from a sample only where
+/// the segment between them meets an opaque part of it (AlphaTable::lookup()); null draws
+/// cut-outs as opaque triangles
 VisibilityMasks castHeckbertHerf(const LightSamples& samples, const ReceiverSet& receivers,
                                  std::span<const uint32_t> sampleSets, TriangleSource& blockers,
                                  const ReceiverEpsilon& epsilon, const ReceiverPolygons& polygons,
-                                 HeckbertHerfStats* stats = nullptr, const std::function<void(uint64_t)>& progress = {});
+                                 HeckbertHerfStats* stats = nullptr, const std::function<void(uint64_t)>& progress = {},
+                                 const AlphaTable* alpha = nullptr);
 
 /// @brief The stats JSON's "hh" section.
 nlohmann::json heckbertHerfStatsJson(const HeckbertHerfStats& stats);

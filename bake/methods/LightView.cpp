@@ -34,12 +34,7 @@ struct CutOut {
         // the texel's point on the origin plane.
         const glm::dvec3 o = view.ortho ? view.origin + sx * view.e1 + sy * view.e2 : view.origin;
         const glm::dvec3 d = view.ortho ? view.axis : view.axis + sx * view.e1 + sy * view.e2;
-        const glm::dvec3 a[3] = {glm::dvec3(tri.v[0]) - o, glm::dvec3(tri.v[1]) - o, glm::dvec3(tri.v[2]) - o};
-        double e[3];  // the ray's signed volume with the edge opposite vertex i: its barycentric
-        for (int i = 0; i < 3; ++i) e[i] = glm::dot(d, glm::cross(a[(i + 1) % 3], a[(i + 2) % 3]));
-        const double sum = (e[0] + e[1]) + e[2];
-        if (!(sum != 0.0)) return table.lookup(id, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0).opaque;
-        return table.lookup(id, e[0] / sum, e[1] / sum, e[2] / sum).opaque;
+        return table.lookupAlong(id, tri.v[0], tri.v[1], tri.v[2], o, d).opaque;
     }
 };
 
