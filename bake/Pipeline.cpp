@@ -406,8 +406,14 @@ void castReceivers(Bake& b, uint32_t first) {
     };
     const std::vector<float> lit(p.lights.size(), 1.0f);
     sink.visibility = [&](uint32_t r, const float* lightVisibility) {
-        translucentBlockers(b);  // refuses a scene with translucent blockers
-        shader.shadeVisibleFraction(r, p.receivers.isUnshadowed(r) ? lit.data() : lightVisibility, b.results);
+        const bool unshadowed = p.receivers.isUnshadowed(r);
+        const uint32_t* depth = nullptr;
+        if (const TranslucentBlockers* t = translucentBlockers(b); t && !unshadowed) {
+            thread_local std::vector<uint32_t> row;
+            row.resize(size_t(p.samples.sampleCount) * 3);
+            if (t->depthAt(glm::dvec3(p.receivers.position[r]), int(p.sampleSets[r]), nullptr, false, epsilon, alpha, row)) depth = row.data();
+        }
+        shader.shadeVisibleFraction(r, unshadowed ? lit.data() : lightVisibility, b.results, depth);
     };
     b.caster->cast(*b.opaqueView, first, sink);
 }

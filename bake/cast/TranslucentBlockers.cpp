@@ -137,7 +137,8 @@ std::unique_ptr<TranslucentBlockers> translucentPass(const OpaqueOnlySource& vie
     if (partialFiles)
         fail(partialFiles, "scenes with translucent blockers cannot be sharded or checkpointed yet (their per-sample "
                            "transmittance is not in partial files)");
-    if (!traits.masks) fail("--method " + method, "does not support translucent blockers (use hpc, reference or embree)");
+    // A method without masks (penumbra-map) weighs every sample's transmittance as if no opaque
+    // blocker stood in the way; its visible fraction then scales the tinted irradiance.
     if (traits.translucency) return nullptr;  // Embree's filter weighs them
     return std::make_unique<TranslucentBlockers>(view.translucent(), samples);
 }

@@ -232,12 +232,19 @@ void ReceiverShader::shade(uint32_t r, const uint64_t* groupWords, bool fullUmbr
     out.irradiance[r] = glm::vec3(total);
 }
 
-void ReceiverShader::shadeVisibleFraction(uint32_t r, const float* lightVisibility, ReceiverResults& out) const {
+void ReceiverShader::shadeVisibleFraction(uint32_t r, const float* lightVisibility, ReceiverResults& out,
+                                          const uint32_t* depth) const {
     double visible = 0;
     glm::dvec3 total(0.0);
     for (int li = 0; li < samples_.lightCount(); ++li) {
         // A light fully blocked brings nothing: most receivers of a hard-edged preview are there.
-        const glm::dvec3 e = lightVisibility[li] > 0 ? unoccludedIrradiance(r, li) * double(lightVisibility[li]) : glm::dvec3(0.0);
+        glm::dvec3 e = lightVisibility[li] > 0 ? unoccludedIrradiance(r, li) * double(lightVisibility[li]) : glm::dvec3(0.0);
+        if (depth && lightVisibility[li] > 0) {
+            uint64_t blocked = 0;
+            const glm::dvec3 through = lightIrradiance(r, li, nullptr, false, blocked, depth),
+                             open = lightIrradiance(r, li, nullptr, false, blocked, nullptr);
+            for (int c = 0; c < 3; ++c) e[c] *= open[c] > 0 ? through[c] / open[c] : 1.0;
+        }
         visible += double(lightVisibility[li]) * lights_[li].samples;
         total += e;
         if (out.lights > 1) {
