@@ -405,15 +405,19 @@ void castReceivers(Bake& b, uint32_t first) {
         keepMasks(b, r, words, full);
     };
     const std::vector<float> lit(p.lights.size(), 1.0f);
+    // A preview's tint through translucent blockers: 32 samples per light, spread over it, weigh
+    // it (a whole light's segments cost as much as the exact methods' pass: docs/translucency.md).
+    const std::vector<uint64_t> tintSkip = samplesOutsideSubset(p.samples, 32);
     sink.visibility = [&](uint32_t r, const float* lightVisibility) {
         const bool unshadowed = p.receivers.isUnshadowed(r);
         const uint32_t* depth = nullptr;
         if (const TranslucentBlockers* t = translucentBlockers(b); t && !unshadowed) {
             thread_local std::vector<uint32_t> row;
             row.resize(size_t(p.samples.sampleCount) * 3);
-            if (t->depthAt(glm::dvec3(p.receivers.position[r]), int(p.sampleSets[r]), nullptr, false, epsilon, alpha, row)) depth = row.data();
+            if (t->depthAt(glm::dvec3(p.receivers.position[r]), int(p.sampleSets[r]), tintSkip.data(), false, epsilon, alpha, row))
+                depth = row.data();
         }
-        shader.shadeVisibleFraction(r, unshadowed ? lit.data() : lightVisibility, b.results, depth);
+        shader.shadeVisibleFraction(r, unshadowed ? lit.data() : lightVisibility, b.results, depth, tintSkip.data());
     };
     b.caster->cast(*b.opaqueView, first, sink);
 }

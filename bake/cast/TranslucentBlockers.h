@@ -108,10 +108,15 @@ private:
 /// @brief What a bake casts translucent blockers with, once @p view has read the whole replay:
 /// null when it held none or when method @p method weighs them itself (traits.translucency).
 /// @param partialFiles the flag of a sharded or checkpointed bake ("--shard", "--checkpoint"), or null
-/// @throw InputError for a method without masks, or partial files (they do not carry depths)
+/// @throw InputError for partial files (they do not carry depths)
 /// @throw std::logic_error when the method reported a receiver before reading every blocker
 std::unique_ptr<TranslucentBlockers> translucentPass(const OpaqueOnlySource& view, const LightSamples& samples,
                                                      const std::string& method, const CasterTraits& traits,
                                                      const char* partialFiles);
+
+/// @brief A mask (one word per group, LightSampleGroup layout) with every sample set but about
+/// @p perLight of each light's, spread over the light: the samples of a preview's tint. Samples
+/// are in stratum order (recursive median splits), so every k-th one is one per cell of k.
+std::vector<uint64_t> samplesOutsideSubset(const LightSamples& samples, int perLight);
 
 }  // namespace penumbra

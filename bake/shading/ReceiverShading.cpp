@@ -233,7 +233,7 @@ void ReceiverShader::shade(uint32_t r, const uint64_t* groupWords, bool fullUmbr
 }
 
 void ReceiverShader::shadeVisibleFraction(uint32_t r, const float* lightVisibility, ReceiverResults& out,
-                                          const uint32_t* depth) const {
+                                          const uint32_t* depth, const uint64_t* tintSamples) const {
     double visible = 0;
     glm::dvec3 total(0.0);
     for (int li = 0; li < samples_.lightCount(); ++li) {
@@ -241,8 +241,8 @@ void ReceiverShader::shadeVisibleFraction(uint32_t r, const float* lightVisibili
         glm::dvec3 e = lightVisibility[li] > 0 ? unoccludedIrradiance(r, li) * double(lightVisibility[li]) : glm::dvec3(0.0);
         if (depth && lightVisibility[li] > 0) {
             uint64_t blocked = 0;
-            const glm::dvec3 through = lightIrradiance(r, li, nullptr, false, blocked, depth),
-                             open = lightIrradiance(r, li, nullptr, false, blocked, nullptr);
+            const glm::dvec3 through = lightIrradiance(r, li, tintSamples, false, blocked, depth),
+                             open = lightIrradiance(r, li, tintSamples, false, blocked, nullptr);
             for (int c = 0; c < 3; ++c) e[c] *= open[c] > 0 ? through[c] / open[c] : 1.0;
         }
         visible += double(lightVisibility[li]) * lights_[li].samples;

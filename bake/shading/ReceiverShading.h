@@ -70,12 +70,13 @@ public:
     /// polygon light seen by an oriented receiver the unoccluded irradiance is the exact integral
     /// over the emitter (unoccludedIrradiance), the limit of the sample sum the exact methods take.
     /// @param lightVisibility one value in [0, 1] per light
-    /// @param depth as for shade(), computed with no opaque sample blocked, or nullptr: each
-    /// light's irradiance is also scaled, per channel, by its samples' transmittance weighted by
-    /// their unoccluded irradiance (the share the translucent blockers let through); the visible
-    /// fraction does not change
+    /// @param depth as for shade(), or nullptr: each light's irradiance is also scaled, per
+    /// channel, by its samples' transmittance weighted by their unoccluded irradiance (the share
+    /// the translucent blockers let through); the visible fraction does not change
+    /// @param tintSamples the samples that weigh the tint: those not set in these words (one
+    /// per group; nullptr: all), the ones @p depth was computed for
     void shadeVisibleFraction(uint32_t r, const float* lightVisibility, ReceiverResults& out,
-                              const uint32_t* depth = nullptr) const;
+                              const uint32_t* depth = nullptr, const uint64_t* tintSamples = nullptr) const;
 
 private:
     /// Light @p li's irradiance at receiver @p r from its unblocked samples; @p blocked gets how
