@@ -2,6 +2,7 @@
 
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
+#include "stream/util/JsonParams.h"
 
 #include <fmt/format.h>
 #include <tbb/info.h>
@@ -182,7 +183,7 @@ json bakeChild(const fs::path& scene, const std::string& method, int threads, co
     std::error_code ec;
     fs::remove(stats, ec);
     // The bench writes its scenes into its own directory, with their inputs' paths anchored where
-    // the original scene lives (anchoredScene()): those lie outside the copy's directory.
+    // the original scene lives (benchScene()): those lie outside the copy's directory.
     std::vector<std::string> args{"bake", scene.string(), "--method", method, "-q", "--stats", stats,
                                   "--tmp", work.string(), "--allow-outside-uris"};
     if (threads > 0) args.insert(args.end(), {"--threads", std::to_string(threads)});
@@ -250,10 +251,16 @@ void anchorPaths(json& j, const fs::path& sourceDir) {
 }
 }  // namespace
 
-json anchoredScene(json scene, const fs::path& sourceDir) {
+json benchScene(const std::string& examplesDir, const std::string& name) {
+    const fs::path file = benchSceneFile(examplesDir, name);
+    json scene = readJsonFile(file.string());
     for (const char* section : {"geometry", "receivers"})
-        if (scene.contains(section)) anchorPaths(scene[section], sourceDir);
+        if (scene.contains(section)) anchorPaths(scene[section], file.parent_path());
     return scene;
+}
+
+ChildResult compareDumps(const fs::path& a, const fs::path& b, const fs::path& scene, const fs::path& dir) {
+    return runSelf({"compare", a.string(), b.string(), "--scene", scene.string(), "--allow-outside-uris"}, dir);
 }
 
 std::string replaceGeneratedSection(const std::string& document, const std::string& begin, const std::string& end,

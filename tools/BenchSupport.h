@@ -85,10 +85,15 @@ std::string sceneName(const std::string& name);
 nlohmann::json resizedScene(nlohmann::json scene, int width, int height, int samples, double lightScale,
                             const std::filesystem::path& output);
 
-/// @brief @p scene with every relative input path (geometry and receiver `path`, `leaf_texture`,
-/// `petal_texture`) made absolute from @p sourceDir, so that a copy written elsewhere reads the
-/// same files. The bench's children bake such copies with --allow-outside-uris (bakeChild()).
-nlohmann::json anchoredScene(nlohmann::json scene, const std::filesystem::path& sourceDir);
+/// @brief Scene @p name of @p examplesDir (as benchSceneFile() finds it), with every relative
+/// input path (geometry and receiver `path`, `leaf_texture`, `petal_texture`) made absolute from
+/// the scene's folder, so that the copies the benches write elsewhere read the same files. Their
+/// children bake and compare those copies with --allow-outside-uris (bakeChild(), compareDumps()).
+nlohmann::json benchScene(const std::string& examplesDir, const std::string& name);
+
+/// @brief `penumbra compare @p a @p b --scene @p scene` in a child process, run in @p dir.
+ChildResult compareDumps(const std::filesystem::path& a, const std::filesystem::path& b, const std::filesystem::path& scene,
+                         const std::filesystem::path& dir);
 
 /// @brief Replaces the part of @p document between @p begin and @p end (marker lines) with
 /// @p generated; without markers, appends @p heading and the markers. Other sections are kept.

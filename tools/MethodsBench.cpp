@@ -57,17 +57,12 @@ json columns(const json& s, const std::string& method) {
     return c;
 }
 
-/// Mean and largest |V_a - V_b| over two --visibility files, and the share above 0.1. When the
-/// scene refines, the two bakes share only their first @p firstPass receivers (the refinement
-/// appends its receivers after them, chosen from each method's own V): those are compared.
-json visibilityError(const std::string& a, const std::string& b, uint64_t firstPass) {
+/// Mean and largest |V_a - V_b| over the first @p count receivers of two --visibility files, and
+/// the share above 0.1. The bakes share their first pass (every receiver unless the scene refines:
+/// a refinement appends receivers chosen from each method's own V), so that is what is compared.
+json visibilityError(const std::string& a, const std::string& b, uint64_t count) {
     const std::vector<float> va = npyAsFloat32(readNpy(a), a), vb = npyAsFloat32(readNpy(b), b);
-    size_t count = va.size();
-    if (va.size() != vb.size()) {
-        if (firstPass > std::min(va.size(), vb.size()))
-            return {{"error", fmt::format("{} and {} hold different receiver counts", a, b)}};
-        count = firstPass;
-    }
+    if (count > std::min(va.size(), vb.size())) return {{"error", fmt::format("{} or {} holds fewer than {} receivers", a, b, count)}};
     double sum = 0, largest = 0, meanA = 0, meanB = 0;
     uint64_t off = 0;
     for (size_t i = 0; i < count; ++i) {
@@ -87,7 +82,7 @@ json mismatches(const fs::path& scene, const fs::path& hpcDump, const std::strin
     args.insert(args.end(), {"--dump", dump.string()});
     json b = bakeChild(scene, method, threads, work, args);
     if (b.contains("error")) return b;
-    ChildResult c = runSelf({"compare", hpcDump.string(), dump.string(), "--scene", scene.string(), "--allow-outside-uris"}, work);
+    ChildResult c = compareDumps(hpcDump, dump, scene, work);
     std::error_code ec;
     fs::remove_all(dump, ec);
     if (c.exitCode != 0 && c.exitCode != 3) return {{"error", fmt::format("compare exited with {}: {}", c.exitCode, lastLine(c.err))}};
@@ -224,10 +219,7 @@ void runBenchMethods(const BenchMethodsOptions& o, const std::string& commandLin
     std::vector<std::pair<int, int>> sizes;
     for (const std::string& s : o.sizes) sizes.push_back(parseSize(s));
     std::vector<std::pair<std::string, json>> scenes;
-    for (const std::string& name : o.scenes) {
-        const fs::path file = benchSceneFile(o.examplesDir, name);
-        scenes.emplace_back(sceneName(name), anchoredScene(readJsonFile(file.string()), file.parent_path()));
-    }
+    for (const std::string& name : o.scenes) scenes.emplace_back(sceneName(name), benchScene(o.examplesDir, name));
     const bool hh = std::find(o.methods.begin(), o.methods.end(), "hh") != o.methods.end();
     std::vector<std::string> cameraMethods;
     for (const std::string& m : o.methods)
@@ -260,8 +252,7 @@ void runBenchMethods(const BenchMethodsOptions& o, const std::string& commandLin
             save();
         }
     if (hh) {
-        const fs::path lightmapFile = benchSceneFile(o.examplesDir, o.lightmap);
-        const json base = anchoredScene(readJsonFile(lightmapFile.string()), lightmapFile.parent_path());
+        const json base = benchScene(o.examplesDir, o.lightmap);
         for (int samples : o.hhSamples) {
             const fs::path work = tmp.path / fmt::format("hh-{}", samples);
             fs::create_directories(work);

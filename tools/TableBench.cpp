@@ -102,7 +102,7 @@ json mismatches(const fs::path& scene, int threads, const fs::path& work) {
     if (a.contains("error")) return a;
     json b = bakeChild(scene, "embree", threads, work, {"--dump", theirs.string(), "--disable", "sort"});
     if (b.contains("error")) return b;
-    ChildResult c = runSelf({"compare", ours.string(), theirs.string(), "--scene", scene.string(), "--allow-outside-uris"}, work);
+    ChildResult c = compareDumps(ours, theirs, scene, work);
     std::error_code ec;
     fs::remove_all(ours, ec), fs::remove_all(theirs, ec);
     if (c.exitCode != 0 && c.exitCode != 3)
@@ -115,7 +115,6 @@ json mismatches(const fs::path& scene, int threads, const fs::path& work) {
             {"compare_s", c.wallSeconds}};
 }
 
-fs::path sceneFile(const BenchTableOptions& o, const std::string& name) { return benchSceneFile(o.examplesDir, name); }
 
 /// Points on a square floor, normals up, as an N x 6 .npy (for the root-cull scene).
 void writeFloorPoints(const std::string& path, int side, float half) {
@@ -356,10 +355,7 @@ void runRootCull(TableRun& run) {
 void runBenchTable(const BenchTableOptions& o, const std::string& commandLine) {
     const std::vector<RowSpec> rows = checkedRows(o);
     std::vector<std::pair<std::string, json>> scenes;
-    for (const std::string& name : o.scenes) {
-        const fs::path file = sceneFile(o, name);
-        scenes.emplace_back(sceneName(name), anchoredScene(readJsonFile(file.string()), file.parent_path()));
-    }
+    for (const std::string& name : o.scenes) scenes.emplace_back(sceneName(name), benchScene(o.examplesDir, name));
 
     const std::vector<int> threadList = o.threads.empty() ? std::vector<int>{0} : o.threads;
     const int tableThreads = threadList.back() > 0 ? threadList.back() : int(tbb::info::default_concurrency());

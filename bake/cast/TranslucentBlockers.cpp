@@ -145,14 +145,14 @@ std::unique_ptr<TranslucentBlockers> translucentPass(const OpaqueOnlySource& vie
 
 std::vector<uint64_t> samplesOutsideSubset(const LightSamples& samples, int perLight) {
     std::vector<uint64_t> outside(size_t(samples.groupCount()), 0);
-    std::vector<uint32_t> firstOfLight(size_t(samples.lightCount()), UINT32_MAX), countOfLight(size_t(samples.lightCount()), 0);
-    for (const LightSampleGroup& g : samples.groups)
-        firstOfLight[g.light] = std::min(firstOfLight[g.light], g.first), countOfLight[g.light] += g.count;
-    for (size_t k = 0; k < outside.size(); ++k) {
-        const LightSampleGroup& g = samples.groups[k];
-        const uint32_t stride = std::max<uint32_t>(1, countOfLight[g.light] / uint32_t(std::max(1, perLight)));
-        for (uint32_t j = 0; j < g.count; ++j)
-            if ((g.first + j - firstOfLight[g.light]) % stride != 0) outside[k] |= 1ull << j;
+    for (int li = 0; li < samples.lightCount(); ++li) {
+        const uint32_t g0 = samples.lightFirstGroup[li], g1 = samples.lightFirstGroup[li + 1];
+        if (g0 == g1) continue;
+        const uint32_t first = samples.groups[g0].first, count = samples.groups[g1 - 1].first + samples.groups[g1 - 1].count - first;
+        const uint32_t stride = std::max<uint32_t>(1, count / uint32_t(std::max(1, perLight)));
+        for (uint32_t k = g0; k < g1; ++k)
+            for (uint32_t j = 0; j < samples.groups[k].count; ++j)
+                if ((samples.groups[k].first + j - first) % stride != 0) outside[k] |= 1ull << j;
     }
     return outside;
 }

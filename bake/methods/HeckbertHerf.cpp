@@ -22,7 +22,10 @@ struct Polygon {
     glm::dvec3 p0, n;      ///< a corner and the unit normal of the side the receivers face
     glm::dvec3 ga, gb;     ///< dual basis: plane point x has parameters (ga . (x - p0), gb . (x - p0))
     glm::dvec2 t0, ta, tb; ///< texel coordinates of p0, and of the two edge vectors
-    glm::dvec3 ea, eb;     ///< the two edge vectors in the world: texel t0 + a ta + b tb is point p0 + a ea + b eb
+    /// The inverse of the texel map, for cut-outs: texel t0 + d is point p0 + d.x worldX + d.y
+    /// worldY (false texelsInvertible: the texel parallelogram is degenerate)
+    glm::dvec3 worldX{0.0}, worldY{0.0};
+    bool texelsInvertible = false;
     int x0 = 0, y0 = 0, width = 0, height = 0;  ///< the texel box of its receivers
     std::vector<int32_t> grid;
     uint64_t sets = 0;     ///< bit s set when a receiver uses sample set s (s < 64; bit 63 for the rest)
@@ -52,7 +55,10 @@ std::vector<Polygon> preparePolygons(const ReceiverSet& receivers, std::span<con
         p.ga = glm::cross(eb, nn) / glm::dot(ea, glm::cross(eb, nn));
         p.gb = glm::cross(nn, ea) / glm::dot(eb, glm::cross(nn, ea));
         p.t0 = src.texel[0], p.ta = src.texel[1] - src.texel[0], p.tb = src.texel[2] - src.texel[0];
-        p.ea = ea, p.eb = eb;
+        if (const double det = p.ta.x * p.tb.y - p.ta.y * p.tb.x; det != 0.0) {
+            p.worldX = (p.tb.y * ea - p.ta.y * eb) / det, p.worldY = (p.ta.x * eb - p.tb.x * ea) / det;
+            p.texelsInvertible = true;
+        }
         glm::ivec2 lo(INT32_MAX), hi(INT32_MIN);
         for (uint32_t r : members[i]) lo = glm::min(lo, in.texelOf[r]), hi = glm::max(hi, in.texelOf[r]);
         p.x0 = lo.x, p.y0 = lo.y, p.width = hi.x - lo.x + 1, p.height = hi.y - lo.y + 1;
@@ -84,17 +90,15 @@ struct Context {
 /// same AlphaTable test as the exact methods, at the ray's barycentrics).
 struct CutOutFromSample {
     const Triangle& t;
-    const AlphaTable& table;
+    const AlphaTable* table;
     uint32_t id;
     glm::dvec3 l;  ///< the sample (w = 1) or its direction (w = 0)
     double w;
     bool opaqueAt(const Polygon& p, const glm::dvec2& texel) const {
+        if (!p.texelsInvertible) return true;
         const glm::dvec2 d = texel - p.t0;
-        const double det = p.ta.x * p.tb.y - p.ta.y * p.tb.x;
-        if (!(det != 0.0)) return true;
-        const double a = (d.x * p.tb.y - d.y * p.tb.x) / det, b = (p.ta.x * d.y - p.ta.y * d.x) / det;
-        const glm::dvec3 x = p.p0 + a * p.ea + b * p.eb;
-        return table.lookupAlong(id, t.v[0], t.v[1], t.v[2], x, w == 1.0 ? l - x : l).opaque;
+        const glm::dvec3 x = p.p0 + d.x * p.worldX + d.y * p.worldY;
+        return table->lookupAlong(id, t.v[0], t.v[1], t.v[2], x, w == 1.0 ? l - x : l).opaque;
     }
 };
 
@@ -181,12 +185,8 @@ void shadePolygon(const Polygon& p, const Triangle& t, Context& c, HeckbertHerfS
                 texels[i] = p.t0 + glm::dot(p.ga, q) * p.ta + glm::dot(p.gb, q) * p.tb;
             }
             ++local.projections;
-            if (alphaId) {
-                const CutOutFromSample cut{t, *c.alpha, alphaId, l, w};
-                local.coveredTexels += cover(p, texels, n, set, k, c, &cut);
-            } else {
-                local.coveredTexels += cover(p, texels, n, set, k, c, nullptr);
-            }
+            const CutOutFromSample cut{t, c.alpha, alphaId, l, w};
+            local.coveredTexels += cover(p, texels, n, set, k, c, alphaId ? &cut : nullptr);
         }
     }
 }

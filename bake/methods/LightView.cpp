@@ -26,7 +26,7 @@ constexpr int kBands = 64;  ///< row bands rasterized in parallel
 struct CutOut {
     const LightView& view;
     const Triangle& tri;
-    const AlphaTable& table;
+    const AlphaTable* table;
     uint32_t id;
     bool opaqueAt(double cx, double cy) const {
         const double sx = (2.0 * cx / view.res - 1.0) * view.halfExtent, sy = (2.0 * cy / view.res - 1.0) * view.halfExtent;
@@ -34,7 +34,7 @@ struct CutOut {
         // the texel's point on the origin plane.
         const glm::dvec3 o = view.ortho ? view.origin + sx * view.e1 + sy * view.e2 : view.origin;
         const glm::dvec3 d = view.ortho ? view.axis : view.axis + sx * view.e1 + sy * view.e2;
-        return table.lookupAlong(id, tri.v[0], tri.v[1], tri.v[2], o, d).opaque;
+        return table->lookupAlong(id, tri.v[0], tri.v[1], tri.v[2], o, d).opaque;
     }
 };
 
@@ -249,16 +249,10 @@ void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, Dept
             const size_t i = members[m];
             const Projected& q = projected[i];
             if (q.ymax < y0 - 0.5 || q.ymin > y1 + 0.5) continue;
-            const uint32_t id = alpha ? alphaIdOf(chunk[i].flags) : 0;
-            if (id) {
-                const CutOut cutOut{view, chunk[i], *alpha, id};
-                if (q.clip) drawClipped(view, chunk[i], y0, y1, map, &cutOut);
-                else drawTriangle(view, q.p, y0, y1, map, &cutOut);
-            } else if (q.clip) {
-                drawClipped(view, chunk[i], y0, y1, map, nullptr);
-            } else {
-                drawTriangle(view, q.p, y0, y1, map, nullptr);
-            }
+            const CutOut cutOut{view, chunk[i], alpha, alpha ? alphaIdOf(chunk[i].flags) : 0};
+            const CutOut* c = cutOut.id ? &cutOut : nullptr;
+            if (q.clip) drawClipped(view, chunk[i], y0, y1, map, c);
+            else drawTriangle(view, q.p, y0, y1, map, c);
         }
     });
 }
