@@ -32,6 +32,9 @@ struct BlockerBatch {
     std::vector<uint8_t> lightActive;          ///< [triangle][light]: in reach and not capped away
     std::vector<uint8_t> reached;              ///< [tile][triangle]: V_L met the tile's root box
     std::atomic<int> remaining{0};             ///< tiles that have not cast this chunk yet
+    /// Held from publishing until the last tile has read every tile's reached flags: the slot is
+    /// reused only after that, not as soon as remaining reaches 0.
+    std::atomic<bool> inUse{false};
 
     /// @brief Bytes of one chunk of @p blockers blockers for @p lights lights, for memory planning
     /// (the per-tile reached flags are left out, so a plan does not depend on the thread count).

@@ -170,6 +170,7 @@ void PenumbraCaster::Impl::castOnTile(size_t t, BlockerBatch& batch) {
         culled += !any;
     }
     culledAtRoot += culled;
+    batch.inUse.store(false);
 }
 
 void PenumbraCaster::Impl::drain(size_t t) {
@@ -199,17 +200,18 @@ void PenumbraCaster::cast(std::span<const Triangle> blockers) {
     if (!m.started) m.castWatch.reset(), m.started = true;
     const uint64_t c = m.published.load();
     BlockerBatch& batch = *m.ring[c % m.ring.size()];
-    // The slot still holds chunk c - ring size until every tile has cast it. Rather than wait,
-    // this thread casts the tiles nobody holds; it yields only while the tiles that still need
-    // the slot run on other threads.
-    while (batch.remaining.load() > 0) {
+    // The slot still holds chunk c - ring size until every tile has cast it and the last has
+    // counted its root culls. Rather than wait, this thread casts the tiles nobody holds; it
+    // yields only while the tiles that still need the slot run on other threads.
+    while (batch.inUse.load()) {
         for (size_t t = 0; t < m.tiles.size() && !m.failed; ++t) m.drain(t);
         if (m.failed) m.group.wait();  // rethrows the tile's exception
-        if (batch.remaining.load() > 0) std::this_thread::yield();
+        if (batch.inUse.load()) std::this_thread::yield();
     }
     m.stats.closedBackFaces += m.culls->prepare(batch, blockers);
     batch.reached.resize(m.tiles.size() * batch.n);
     batch.remaining.store(int(m.tiles.size()));
+    batch.inUse.store(true);
     m.published.store(c + 1);
     for (size_t t = 0; t < m.tiles.size(); ++t) m.group.run([&m, t] { m.drain(t); });
     m.stats.trianglesProcessed += blockers.size();
