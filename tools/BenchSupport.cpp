@@ -3,6 +3,8 @@
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
 #include "stream/util/JsonParams.h"
+#include "stream/util/StopRequest.h"
+#include "stream/util/TempRegistry.h"
 
 #include <fmt/format.h>
 #include <tbb/info.h>
@@ -15,7 +17,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <ctime>
@@ -31,6 +35,22 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace {
+
+constexpr int kForwardedSignals[] = {SIGINT, SIGTERM, SIGHUP, SIGQUIT};
+std::atomic<pid_t> g_child{0};                ///< the running child bake, 0 between children
+volatile std::sig_atomic_t g_interrupted = 0;  ///< the first forwarded signal, 0 if none
+struct sigaction g_before[std::size(kForwardedSignals)];
+bool g_forwarding = false;
+
+extern "C" void forwardToChild(int sig) {
+    if (!g_interrupted) g_interrupted = sig;
+    if (const pid_t child = g_child.load(); child > 0) ::kill(child, sig);
+}
+
+/// Throws after a forwarded signal: the benchmark unwinds to TempDir, which ends the process.
+void throwIfInterrupted() {
+    if (g_interrupted) throw StopRequested(fmt::format("bench: interrupted by signal {}", int(g_interrupted)));
+}
 
 /// Output of a shell command's first line ("" on failure); for `git rev-parse` and the like.
 std::string commandOutput(const std::string& command) {
@@ -138,15 +158,20 @@ ChildResult runSelf(const std::vector<std::string>& args, const fs::path& dir) {
     posix_spawn_file_actions_init(&actions);
     posix_spawn_file_actions_addopen(&actions, 1, outPath.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     posix_spawn_file_actions_addopen(&actions, 2, errPath.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    throwIfInterrupted();
     const auto start = std::chrono::steady_clock::now();
     pid_t pid = 0;
     int rc = posix_spawn(&pid, self.c_str(), &actions, nullptr, argv.data(), environ);
     posix_spawn_file_actions_destroy(&actions);
     if (rc != 0) fail(self, "cannot start a child process: {}", std::strerror(rc));
+    g_child.store(pid);
+    if (const int sig = g_interrupted) ::kill(pid, sig);  // arrived before the pid was known
     int status = 0;
     struct rusage usage {};
     while (::wait4(pid, &status, 0, &usage) < 0)
-        if (errno != EINTR) fail(self, "wait4 failed: {}", std::strerror(errno));
+        if (errno != EINTR) g_child.store(0), fail(self, "wait4 failed: {}", std::strerror(errno));
+    g_child.store(0);
+    throwIfInterrupted();
     ChildResult r;
     r.wallSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
@@ -170,11 +195,27 @@ TempDir::TempDir(const std::string& parent) {
     std::string pattern = (base / "penumbra-bench-XXXXXX").string();
     if (!::mkdtemp(pattern.data())) fail(base.string(), "cannot create a temporary directory: {}", std::strerror(errno));
     path = pattern;
+    struct sigaction action {};
+    action.sa_handler = forwardToChild;
+    sigemptyset(&action.sa_mask);
+    for (size_t i = 0; i < std::size(kForwardedSignals); ++i) {
+        ::sigaction(kForwardedSignals[i], nullptr, &g_before[i]);
+        if (g_before[i].sa_handler != SIG_IGN) ::sigaction(kForwardedSignals[i], &action, nullptr);  // nohup stays nohup
+    }
+    g_forwarding = true;
 }
 
 TempDir::~TempDir() {
     std::error_code ec;
     fs::remove_all(path, ec);
+    if (!g_forwarding) return;
+    for (size_t i = 0; i < std::size(kForwardedSignals); ++i) ::sigaction(kForwardedSignals[i], &g_before[i], nullptr);
+    g_forwarding = false;
+    if (const int sig = g_interrupted) {  // end as the signal would have, now that nothing is left behind
+        removeRegisteredTempFiles();
+        ::signal(sig, SIG_DFL);
+        ::raise(sig);
+    }
 }
 
 json bakeChild(const fs::path& scene, const std::string& method, int threads, const fs::path& work,

@@ -38,11 +38,19 @@ ChildResult runSelf(const std::vector<std::string>& args, const std::filesystem:
 /// Last non-empty line of a child's stderr, for error records.
 std::string lastLine(const std::string& text);
 
-/// A temporary directory removed with its contents when the benchmark ends (or throws).
+/// @brief A benchmark's temporary directory, removed with its contents when the benchmark ends,
+/// throws or is interrupted.
+///
+/// While it lives, SIGINT, SIGTERM, SIGHUP and SIGQUIT are forwarded to the running child bake
+/// (runSelf()), which removes its own temporaries and dies; the benchmark then unwinds, and this
+/// destructor removes the directory and ends the process by the same signal (exit 128 + N), so
+/// `kill` leaves no child running and no `penumbra-bench-*` folder behind. Not nestable.
 struct TempDir {
     std::filesystem::path path;
     explicit TempDir(const std::string& parent);
     ~TempDir();
+    TempDir(const TempDir&) = delete;
+    TempDir& operator=(const TempDir&) = delete;
 };
 
 /// @brief Runs one bake in a child and returns its stats with the child's wall time, CPU time and

@@ -7,7 +7,10 @@
 
 #include <catch2/catch.hpp>
 
+#include <csignal>
 #include <filesystem>
+
+#include <unistd.h>
 
 using namespace penumbra;
 using namespace penumbra::test;
@@ -183,4 +186,55 @@ TEST_CASE("bench methods reads a scene's files where the scene lives, and compar
     CHECK(pm.at("first_pass_receivers").get<uint64_t>() == firstPass);
     CHECK(pm.at("error_vs_hpc").at("compared_receivers").get<uint64_t>() == firstPass);
     CHECK(pm.at("error_vs_hpc").at("mean_abs_dv").get<double>() < 0.2);
+}
+
+namespace {
+
+/// True while some process's command line mentions @p text (a bench child baking in its folder).
+bool processMentions(const std::string& text) {
+    std::error_code ec;
+    for (const auto& e : std::filesystem::directory_iterator("/proc", ec)) {
+        if (!std::isdigit(static_cast<unsigned char>(e.path().filename().string()[0]))) continue;
+        const std::string cmdline = slurp(e.path().string() + "/cmdline");
+        if (cmdline.find(text) != std::string::npos) return true;
+    }
+    return false;
+}
+
+}  // namespace
+
+TEST_CASE("bench methods: SIGTERM or SIGINT stops the child bake too, and leaves no temporary folder", "[cli][methods]") {
+    for (int sig : {SIGTERM, SIGINT}) {
+        ScratchDir dir("bench-signal");
+        std::filesystem::create_directories(dir / "scenes");
+        std::filesystem::create_directories(dir / "tmp");
+        write(dir / "scenes/long.json", kCameraScene);
+        // The reference at this size runs far longer than the test waits: the signal finds a child.
+        const std::string args = "bench methods -q --examples " + (dir / "scenes") + " --scenes long --sizes 96x72 --methods reference " +
+                                 "--repeat 50 --no-compare --threads 1 --tmp " + (dir / "tmp");
+        const pid_t bench = ::fork();
+        REQUIRE(bench >= 0);
+        if (bench == 0) {
+            ::execl("/bin/sh", "sh", "-c", ("exec " + std::string(PENUMBRA_BINARY) + " " + args + " 2>/dev/null").c_str(), nullptr);
+            ::_exit(127);
+        }
+        // Wait (up to 60 s) until the bench has started a child bake: its stderr file exists.
+        bool started = false;
+        for (int i = 0; i < 600 && !started; ++i) {
+            std::error_code ec;  // the bench's folder appears, and is filled, while this looks
+            for (const auto& e : std::filesystem::recursive_directory_iterator(dir / "tmp", ec))
+                started = started || e.path().filename() == "child.err";
+            if (!started) ::usleep(100'000);
+        }
+        ::usleep(300'000);
+        ::kill(bench, sig);
+        int status = 0;
+        REQUIRE(::waitpid(bench, &status, 0) == bench);
+        INFO("signal " << sig);
+        CHECK(started);
+        REQUIRE(WIFSIGNALED(status));
+        CHECK(WTERMSIG(status) == sig);
+        CHECK(std::filesystem::is_empty(dir / "tmp"));
+        CHECK_FALSE(processMentions((dir / "tmp").c_str()));
+    }
 }
