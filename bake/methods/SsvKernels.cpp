@@ -1,8 +1,22 @@
 #include "bake/methods/SsvKernels.h"
 
+// An AVX2 clone and a default one, picked at load time by an ifunc resolver. ThreadSanitizer
+// crashes in a resolver (it runs before the sanitizer's runtime starts), so its builds take the
+// default code only.
+#if defined(__SANITIZE_THREAD__)
+#define PENUMBRA_AVX2_CLONES
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define PENUMBRA_AVX2_CLONES
+#endif
+#endif
+#ifndef PENUMBRA_AVX2_CLONES
+#define PENUMBRA_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
+#endif
+
 namespace penumbra {
 
-__attribute__((target_clones("avx2", "default"))) void ssvIntegrateSamples(const SsvEdgeTerm& t, uint32_t n, const double* lx,
+PENUMBRA_AVX2_CLONES void ssvIntegrateSamples(const SsvEdgeTerm& t, uint32_t n, const double* lx,
                                                                            const double* ly, const double* lz, const double* dx,
                                                                            const double* dy, const double* dz, int* depth) {
     const double wax = t.wa.x, way = t.wa.y, waz = t.wa.z, bax = t.ba.x, bay = t.ba.y, baz = t.ba.z;
@@ -20,7 +34,7 @@ __attribute__((target_clones("avx2", "default"))) void ssvIntegrateSamples(const
     }
 }
 
-__attribute__((target_clones("avx2", "default"))) void ssvStraddlerSamples(const BlockerTriangle& t, double w,
+PENUMBRA_AVX2_CLONES void ssvStraddlerSamples(const BlockerTriangle& t, double w,
                                                                            const glm::dvec3& r, double distance,
                                                                            double eps, uint32_t n, const double* lx,
                                                                            const double* ly, const double* lz,
