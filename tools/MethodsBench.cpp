@@ -23,8 +23,9 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 /// A method's own time: hpc's is the paper's (sort + hierarchy build + cast), Embree's its build
-/// and trace; every other method's is its whole cast phase after the scan pass (reading the scene
-/// into memory or streaming it, building, casting).
+/// and trace; every other method's is its cast phase after the scan pass (reading the scene into
+/// memory or streaming it, building, casting) up to shading its receivers, which hpc's leaves
+/// out too.
 double methodSeconds(const json& s, const std::string& method) {
     const json& t = s["table2"];
     if (method == "hpc") return hpcPaperSeconds(s);

@@ -37,6 +37,9 @@ struct CastOptions {
     /// Embree decides like hpc but for float edge ties. Off: Embree's native answer, with the
     /// epsilon as tnear along the ray, which also blocks grazing rays the rule does not.
     bool embreeRuleFilter = true;
+    /// Tests only: microseconds the last tile of a chunk waits before it counts the chunk's root
+    /// culls, to widen the window in which a scheduling race there would show (0: none).
+    int countDelayForTestsUs = 0;
     int sampleTableAngles = 128;   ///< angle bins of each table
     int sampleTableOffsets = 128;  ///< offset bins of each table
     double rebuildThreshold = 0.25;  ///< rebuild when this fraction of live receivers is in umbra

@@ -2,6 +2,9 @@
 
 #include "stream/util/Error.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <map>
 #include <mutex>
@@ -82,6 +85,12 @@ const CasterEntry& casterEntry(const std::string& name) {
     std::string known;
     for (const std::string& n : casterNames()) known += (known.empty() ? "" : ", ") + n;
     throw InputError(fmt::format("--method: unknown method \"{}\" (known: {})", name, known));
+}
+
+void reportInParallel(uint32_t first, uint32_t end, const std::function<void(uint32_t)>& report) {
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(first, end, 1024), [&](const tbb::blocked_range<uint32_t>& range) {
+        for (uint32_t r = range.begin(); r != range.end(); ++r) report(r);
+    });
 }
 
 }  // namespace penumbra

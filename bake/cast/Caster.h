@@ -102,6 +102,10 @@ public:
     virtual nlohmann::json methodStats() const { return nullptr; }
 };
 
+/// @brief Calls @p report for receivers [@p first, @p end) on the worker threads (the sink's
+/// calls are concurrent by contract: shading each receiver is independent of the others).
+void reportInParallel(uint32_t first, uint32_t end, const std::function<void(uint32_t)>& report);
+
 /// @brief What the pipeline must know of a method before it casts.
 struct CasterTraits {
     bool exact = true;          ///< the rule's masks, up to classified ties

@@ -163,6 +163,7 @@ void PenumbraCaster::Impl::castOnTile(size_t t, BlockerBatch& batch) {
     const uint64_t finished = tiles.size() - size_t(before), count = tiles.size();
     if (progress) progress(n * (finished + 1) / count - n * finished / count, work);
     if (before != 1) return;
+    if (options.countDelayForTestsUs > 0) std::this_thread::sleep_for(std::chrono::microseconds(options.countDelayForTestsUs));
     uint64_t culled = 0;  // the last tile: every tile's flags are written
     for (size_t i = 0; i < n; ++i) {
         bool any = false;

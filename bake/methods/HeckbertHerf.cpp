@@ -266,12 +266,14 @@ public:
         // Polygons belong to the kind's own receivers; lightmaps are never refined.
         if (!c_.polygons || first != 0 || c_.polygons->polygonOf.size() != c_.receivers.size())
             fail("--method", "hh needs every receiver on a receiver polygon (lightmap receivers)");
+        Stopwatch watch;
         observeOnce(blockers);
         ProgressReporter progress("hh", blockers.sizeHint().value_or(0), c_.quiet);
         const VisibilityMasks masks = castHeckbertHerf(c_.samples, c_.receivers, c_.sampleSets, blockers, receiverEpsilonOf(c_.options),
                                                        *c_.polygons, &stats_, [&](uint64_t n) { progress.update(n); },
                                                        &alphaTableOf(c_.options));
         progress.done();
+        castStats_.castSeconds += watch.seconds();
         reportInParallel(0, uint32_t(c_.receivers.size()), [&](uint32_t r) { sink.masks(r, masks.row(r), false); });
     }
 

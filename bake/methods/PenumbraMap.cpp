@@ -394,6 +394,7 @@ public:
     void cast(TriangleSource& blockers, uint32_t first, const CastSink& sink) override {
         // A refinement's tail is copied; the first pass reads the receivers in place (a copy of a
         // million receivers cost tens of milliseconds and their memory again).
+        Stopwatch watch;
         std::optional<ReceiverSet> tail;
         if (first > 0) tail = receiversFrom(c_.receivers, first);
         const ReceiverSet& targets = tail ? *tail : c_.receivers;
@@ -406,6 +407,7 @@ public:
                                                      takeObserver());
         progress.done();
         if (first == 0) stats_ = s;  // the first pass's: a refinement's few receivers would hide them
+        castStats_.castSeconds += watch.seconds();
         reportInParallel(first, uint32_t(c_.receivers.size()),
                          [&](uint32_t r) { sink.visibility(r, &v[size_t(r - first) * size_t(lights)]); });
     }

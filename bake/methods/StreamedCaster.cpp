@@ -1,7 +1,5 @@
 #include "bake/methods/StreamedCaster.h"
 
-#include <tbb/parallel_for.h>
-
 #include <vector>
 
 namespace penumbra {
@@ -18,12 +16,6 @@ std::function<void(std::span<const Triangle>)> StreamedCaster::takeObserver() {
     if (observed_ || !c_.observeChunk) return {};
     observed_ = true;
     return c_.observeChunk;
-}
-
-void StreamedCaster::reportInParallel(uint32_t first, uint32_t end, const std::function<void(uint32_t)>& report) {
-    tbb::parallel_for(tbb::blocked_range<uint32_t>(first, end, 1024), [&](const tbb::blocked_range<uint32_t>& range) {
-        for (uint32_t r = range.begin(); r != range.end(); ++r) report(r);
-    });
 }
 
 }  // namespace penumbra

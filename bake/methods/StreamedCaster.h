@@ -20,10 +20,12 @@ protected:
     /// @brief The receiver kind's chunk observer, on the first call only (empty after, or when the
     /// kind has none), for a method that shows it its own first read instead of observeOnce().
     std::function<void(std::span<const Triangle>)> takeObserver();
-    /// @brief Calls @p report for receivers [@p first, @p end) on the worker threads.
-    static void reportInParallel(uint32_t first, uint32_t end, const std::function<void(uint32_t)>& report);
+    /// @brief The cast's time without reporting (shading) the receivers, which hpc's cast time
+    /// leaves out too: what the benches compare.
+    CastStats stats() const override { return castStats_; }
 
     const CastContext c_;
+    CastStats castStats_;  ///< castSeconds: each cast() up to its report, summed
 
 private:
     bool observed_ = false;

@@ -62,6 +62,28 @@ TEST_CASE("caster: any tile count, chunk size and thread count gives the referen
     }
 }
 
+TEST_CASE("caster: the root-cull count does not depend on how the tiles are timed", "[hpc][caster]") {
+    // The last tile to cast a chunk counts the blockers no tile's root reached, reading every
+    // tile's flags; the slot must stay held until then. Released any earlier, the feeding thread
+    // refilled it mid-count and the count changed from run to run under load (CI, 2026-12-02).
+    // A pause before each count (a test hook) opens that window wide on every chunk.
+    const GridCase g(6, 2, 300, rectLight({0.3, 4, 0.2}, {1.5, 0, 0}, {0, 0, 1.5}, 64, 2));
+    CastOptions paused;
+    paused.countDelayForTestsUs = 300;
+    for (size_t chunk : {size_t(16), size_t(256)}) {
+        INFO("chunk " << chunk);
+        CastStats plain, delayed;
+        VisibilityMasks a, b;
+        tbb::task_arena(2).execute([&] {
+            a = castHpc(g.samples, g.receivers, g.sets, g.tris, CastOptions(), 8, chunk, &plain);
+            b = castHpc(g.samples, g.receivers, g.sets, g.tris, paused, 8, chunk, &delayed);
+        });
+        CHECK(delayed.trianglesCulledAtRoot == plain.trianglesCulledAtRoot);
+        CHECK(b.words == g.reference.words);
+        CHECK(a.words == g.reference.words);
+    }
+}
+
 TEST_CASE("caster: casters dropped mid-cast leave no task behind", "[hpc][caster]") {
     const GridCase g(4, 1, 500, rectLight({0, 4, 0}, {1, 0, 0}, {0, 0, 1}, 64, 2));
     // As when reading the replay throws between chunks: the destructor must wait for the tiles'
