@@ -155,10 +155,10 @@ ChildResult runSelf(const std::vector<std::string>& args, const fs::path& dir) {
     for (std::string& a : argvText) argv.push_back(a.data());
     argv.push_back(nullptr);
     posix_spawn_file_actions_t actions;
+    throwIfInterrupted();  // before the actions exist, so that nothing leaks
     posix_spawn_file_actions_init(&actions);
     posix_spawn_file_actions_addopen(&actions, 1, outPath.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     posix_spawn_file_actions_addopen(&actions, 2, errPath.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    throwIfInterrupted();
     const auto start = std::chrono::steady_clock::now();
     pid_t pid = 0;
     int rc = posix_spawn(&pid, self.c_str(), &actions, nullptr, argv.data(), environ);

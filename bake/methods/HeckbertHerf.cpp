@@ -273,8 +273,7 @@ public:
                                                        *c_.polygons, &stats_, [&](uint64_t n) { progress.update(n); },
                                                        &alphaTableOf(c_.options));
         progress.done();
-        castStats_.castSeconds += watch.seconds();
-        reportInParallel(0, uint32_t(c_.receivers.size()), [&](uint32_t r) { sink.masks(r, masks.row(r), false); });
+        report(watch, 0, uint32_t(c_.receivers.size()), [&](uint32_t r) { sink.masks(r, masks.row(r), false); });
     }
 
     nlohmann::json methodStats() const override { return heckbertHerfStatsJson(stats_); }

@@ -407,8 +407,7 @@ public:
                                                      takeObserver());
         progress.done();
         if (first == 0) stats_ = s;  // the first pass's: a refinement's few receivers would hide them
-        castStats_.castSeconds += watch.seconds();
-        reportInParallel(first, uint32_t(c_.receivers.size()),
+        report(watch, first, uint32_t(c_.receivers.size()),
                          [&](uint32_t r) { sink.visibility(r, &v[size_t(r - first) * size_t(lights)]); });
     }
 

@@ -18,4 +18,9 @@ std::function<void(std::span<const Triangle>)> StreamedCaster::takeObserver() {
     return c_.observeChunk;
 }
 
+void StreamedCaster::report(const Stopwatch& cast, uint32_t first, uint32_t end, const std::function<void(uint32_t)>& each) {
+    castStats_.castSeconds += cast.seconds();
+    reportInParallel(first, end, each);
+}
+
 }  // namespace penumbra

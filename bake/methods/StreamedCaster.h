@@ -6,12 +6,16 @@
 /// worker threads.
 
 #include "bake/cast/Caster.h"
+#include "stream/util/Timer.h"
 
 #include <functional>
 
 namespace penumbra {
 
 class StreamedCaster : public Caster {
+public:
+    CastStats stats() const override { return castStats_; }
+
 protected:
     explicit StreamedCaster(const CastContext& context) : c_(context) {}
 
@@ -20,14 +24,15 @@ protected:
     /// @brief The receiver kind's chunk observer, on the first call only (empty after, or when the
     /// kind has none), for a method that shows it its own first read instead of observeOnce().
     std::function<void(std::span<const Triangle>)> takeObserver();
-    /// @brief The cast's time without reporting (shading) the receivers, which hpc's cast time
-    /// leaves out too: what the benches compare.
-    CastStats stats() const override { return castStats_; }
+    /// @brief Ends the cast's time (begun at @p cast) and calls @p each for receivers
+    /// [@p first, @p end) on the worker threads. Shading is not the method's work, and hpc's cast
+    /// time leaves it out too: the benches compare the rest.
+    void report(const Stopwatch& cast, uint32_t first, uint32_t end, const std::function<void(uint32_t)>& each);
 
     const CastContext c_;
-    CastStats castStats_;  ///< castSeconds: each cast() up to its report, summed
 
 private:
+    CastStats castStats_;  ///< castSeconds: each cast() up to its report, summed
     bool observed_ = false;
 };
 
