@@ -35,6 +35,19 @@ struct alignas(32) HardShadowBlock {
     double side[kLanes];
 };
 
+/// @brief The blocks that hold a sample of @p samples: bit b is set when any of bits 4b..4b+3 is.
+/// Branch-free (nibbles folded to their low bit, then packed): the loop over set bits it replaces
+/// mispredicted on every pair of GRIDS under a large light (docs/performance.md).
+constexpr uint32_t blocksHolding(uint64_t samples) {
+    static_assert(HardShadowBlock::kLanes == 4, "one nibble per block");
+    uint64_t x = samples | (samples >> 1);
+    x = (x | (x >> 2)) & 0x1111111111111111ull;  // bit 4b: block b holds a sample
+    x = (x | (x >> 3)) & 0x0303030303030303ull;  // two blocks per byte
+    x = (x | (x >> 6)) & 0x000F000F000F000Full;  // four per 16 bits
+    x = (x | (x >> 12)) & 0x000000FF000000FFull; // eight per 32 bits
+    return uint32_t((x | (x >> 24)) & 0xFFFFull);
+}
+
 /// @brief Builds the block for @p count (1..4) consecutive samples starting at @p samples, all of
 /// homogeneous weight @p w (1: points, 0: directions; one light's samples share it).
 using BuildBlockFn = void (*)(HardShadowBlock& out, const glm::vec3* samples, int count, double w,

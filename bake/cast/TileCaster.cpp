@@ -62,12 +62,7 @@ void TileCaster::buildGroupVolumes() {
     const size_t slot = size_t(set) * groupCount + k;
     const LightSampleGroup& g = samples.groups[k];
     HardShadowBlock* blocks = &hardBlocks[set * blocksPerSet + blockFirst[k]];
-    which = 0;
-    for (uint64_t rest = needed; rest;) {
-        const int b = __builtin_ctzll(rest) / HardShadowBlock::kLanes;
-        which |= 1u << b;
-        rest &= ~(0xFull << (HardShadowBlock::kLanes * b));
-    }
+    which = blocksHolding(needed);
     uint32_t missing = which & ~hardReady[slot];
     if (missing) {
         if (!hardReady[slot]) hardReadyList.push_back(uint32_t(slot));

@@ -116,3 +116,23 @@ TEST_CASE("SIMD level names parse and bad names are rejected", "[simd]") {
     CHECK_THROWS_AS(parseSimdLevel("avx9", "scene.json: bake.simd"), InputError);
     CHECK(hardShadowKernels(SimdLevel::Auto).level != SimdLevel::Auto);
 }
+
+TEST_CASE("blocksHolding marks exactly the blocks with a sample, for every nibble pattern", "[hpc][simd]") {
+    // Against the obvious loop, over single bits, whole nibbles and pseudo-random words.
+    auto slow = [](uint64_t s) {
+        uint32_t which = 0;
+        for (int b = 0; b < 16; ++b)
+            if ((s >> (4 * b)) & 0xF) which |= 1u << b;
+        return which;
+    };
+    STATIC_REQUIRE(blocksHolding(0) == 0);
+    STATIC_REQUIRE(blocksHolding(~0ull) == 0xFFFFu);
+    for (int bit = 0; bit < 64; ++bit) CHECK(blocksHolding(1ull << bit) == 1u << (bit / 4));
+    uint64_t x = 0x9E3779B97F4A7C15ull;
+    for (int i = 0; i < 20000; ++i) {
+        x ^= x << 13, x ^= x >> 7, x ^= x << 17;
+        const uint64_t sparse = x & (x >> 11) & (x >> 23);  // few bits: most nibbles empty
+        REQUIRE(blocksHolding(x) == slow(x));
+        REQUIRE(blocksHolding(sparse) == slow(sparse));
+    }
+}
