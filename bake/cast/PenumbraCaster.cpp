@@ -114,7 +114,7 @@ PenumbraCaster::PenumbraCaster(const LightSamples& samples, const ReceiverSet& r
     }
     if (m.options.sampleTable)
         for (uint32_t l = 0; l < uint32_t(samples.lightCount()); ++l)
-            m.tables.emplace_back(samples, l, m.options.sampleTableAngles, m.options.sampleTableOffsets);
+            m.tables.emplace_back(samples, l, m.options.sampleTableAngles, m.options.sampleTableOffsets, m.options.simd);
     {
         ScopedTimer timer(m.stats.hierarchyBuildWallSeconds);
         m.buildTiles(receivers, sampleSetOf, receiverIds, tiles);

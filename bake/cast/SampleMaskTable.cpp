@@ -10,7 +10,6 @@
 namespace penumbra {
 namespace {
 
-constexpr double kRoundoff = 0x1p-53;  // u: unit roundoff of double
 /// Slack of a table cell in diamond angle: the cell's masks hold for every line whose diamond
 /// angle is within this of the cell's range, which covers the rounding of the diamond angle and
 /// of the bin index many times.
@@ -44,8 +43,9 @@ glm::dvec2 diamondDirection(double p) {
 
 }  // namespace
 
-SampleMaskTable::SampleMaskTable(const LightSamples& samples, uint32_t light, int angles, int offsets)
+SampleMaskTable::SampleMaskTable(const LightSamples& samples, uint32_t light, int angles, int offsets, SimdLevel simd)
     : angles_(angleBins(angles)), offsets_(std::max(1, offsets)) {
+    avx2_ = simd == SimdLevel::Avx2 || (simd == SimdLevel::Auto && simdSupported(SimdLevel::Avx2));
     firstGroup_ = samples.lightFirstGroup[light];
     w_ = samples.w(light);
     groups_ = samples.lightFirstGroup[light + 1] - firstGroup_;
@@ -189,10 +189,12 @@ SampleMaskTable::Blocker SampleMaskTable::prepare(const BlockerTriangle& t) cons
         const glm::dvec3 ab = glm::cross(a, b), d = b - a;
         // Stored for orientation +1; lookup() applies the orientation (sigma, or per receiver
         // for a split blocker).
-        out.line[e][0] = {glm::dot(ab, u_), glm::cross(d, u_)};
-        out.line[e][1] = {glm::dot(ab, v_), glm::cross(d, v_)};
-        out.line[e][2] = {glm::dot(ab, origin_), glm::cross(d, origin_ - w_ * a)};
-        out.line[e][3] = {glm::dot(ab, n_), glm::cross(d, n_)};
+        for (int lane = e; lane < (e == 2 ? 4 : e + 1); ++lane) {
+            out.line.set(0, lane, glm::dot(ab, u_), glm::cross(d, u_));
+            out.line.set(1, lane, glm::dot(ab, v_), glm::cross(d, v_));
+            out.line.set(2, lane, glm::dot(ab, origin_), glm::cross(d, origin_ - w_ * a));
+            out.line.set(3, lane, glm::dot(ab, n_), glm::cross(d, n_));
+        }
     }
     out.usable = true;
     return out;
@@ -242,9 +244,10 @@ SampleMaskTable::Lookup SampleMaskTable::lookup(const Blocker& b, uint32_t set, 
         rows.sure[3] = ones_.data(), rows.maybe[3] = ones_.data() + 1;
     }
     const double fixed = 4096 * u * m * m * m;
+    if (avx2_) return edgeRowsAvx2(b, set, r, s, fixed, m, rows) ? Lookup::Rows : Lookup::Exact;
     for (int e = 0; e < 3; ++e) {
-        const double wx = s * b.line[e][0].at(r), wy = s * b.line[e][1].at(r), k = s * b.line[e][2].at(r);
-        if (!lineRows(wx, wy, k, b.line[e][3].at(r), fixed, m, set, rows.sure[e], rows.maybe[e])) return Lookup::Exact;
+        const double wx = s * b.line.at(0, e, r), wy = s * b.line.at(1, e, r), k = s * b.line.at(2, e, r);
+        if (!lineRows(wx, wy, k, b.line.at(3, e, r), fixed, m, set, rows.sure[e], rows.maybe[e])) return Lookup::Exact;
     }
     return Lookup::Rows;
 }

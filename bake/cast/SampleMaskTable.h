@@ -27,6 +27,7 @@
 /// correctness. Lines whose margin is not small against the light (planes nearly parallel to the
 /// light, receivers or blockers far away relative to their size) fall back to the exact tests.
 
+#include "bake/cast/HardShadowBlock.h"
 #include "bake/rule/BlockingRule.h"
 #include "bake/light/Light.h"
 
@@ -49,7 +50,10 @@ public:
     /// two more bins hold the offsets beyond either end
     /// The table is not usable() (every relation goes to the exact test) when the light's samples
     /// do not lie in a plane (sphere lights) or span no area, or when it would exceed 64 MiB.
-    SampleMaskTable(const LightSamples& samples, uint32_t light, int angles = 128, int offsets = 128);
+    /// @param simd Avx2 or Auto (when the CPU has AVX2) looks up a receiver's three edge lines in
+    /// one AVX2 pass; any other level one line at a time. The rows found are the same either way.
+    SampleMaskTable(const LightSamples& samples, uint32_t light, int angles = 128, int offsets = 128,
+                    SimdLevel simd = SimdLevel::Auto);
 
     /// @brief Bytes the table of light @p light would take (0 when over the 64 MiB cap, as then
     /// none is built), for memory planning. Sphere lights are counted though they get no table.
@@ -84,12 +88,22 @@ public:
         /// Per edge (a, b): with m(r) = (b - a) x (r - a), the line's coefficients for
         /// orientation +1, wx = m.u, wy = m.v, k = m.(o - w a) and mn = m.n (frame u, v, n,
         /// origin o), are affine in r; each is stored as c0 - dot(c, r), [wx, wy, k, mn].
-        struct Affine {
-            double c0;
-            glm::dvec3 c;
-            double at(const glm::dvec3& r) const { return c0 - glm::dot(c, r); }
+        /// Structure of arrays, [coefficient][edge], so that one AVX2 pass evaluates the three
+        /// edges' lines at once; lane 3 repeats edge 2 (same result, never read).
+        struct Lines {
+            alignas(32) double c0[4][4];
+            alignas(32) double cx[4][4];
+            alignas(32) double cy[4][4];
+            alignas(32) double cz[4][4];
+            /// Coefficient @p j of edge @p e at @p r: c0 - dot(c, r), in glm::dot's order.
+            double at(int j, int e, const glm::dvec3& r) const {
+                return c0[j][e] - ((cx[j][e] * r.x + cy[j][e] * r.y) + cz[j][e] * r.z);
+            }
+            void set(int j, int e, double constant, const glm::dvec3& c) {
+                c0[j][e] = constant, cx[j][e] = c.x, cy[j][e] = c.y, cz[j][e] = c.z;
+            }
         };
-        Affine line[3][4];
+        Lines line;
     };
     /// @brief Classifies the light against @p t's plane (8 corners of the samples' box).
     Blocker prepare(const BlockerTriangle& t) const;
@@ -127,6 +141,8 @@ public:
     uint32_t firstGroup() const { return firstGroup_; }
 
 private:
+    static constexpr double kRoundoff = 0x1p-53;  ///< u: unit roundoff of double
+
     size_t cell(uint32_t set, int angle, int bin) const {
         return ((size_t(set) * angles_ + angle) * size_t(offsets_ + 2) + bin) * groups_ * 2;
     }
@@ -141,8 +157,12 @@ private:
     bool sideRows(const Blocker& b, uint32_t set, double s, double m, const uint64_t*& sure, const uint64_t*& maybe) const;
     bool lineRows(double wx, double wy, double k, double mn, double fixed, double m, uint32_t set, const uint64_t*& sure,
                   const uint64_t*& maybe) const;
+    /// The three edges' rows of @p b at @p r with orientation @p s, in one AVX2 pass: the same
+    /// operations as three lineRows() calls, lane by lane (SampleMaskTableAvx2.cpp).
+    bool edgeRowsAvx2(const Blocker& b, uint32_t set, const glm::dvec3& r, double s, double fixed, double m, Rows& rows) const;
 
     bool usable_ = false;
+    bool avx2_ = false;  ///< edgeRowsAvx2() looks up the edges' lines
     int angles_, offsets_;
     uint32_t firstGroup_ = 0, groups_ = 0;
     glm::dvec3 origin_{0.0}, u_{0.0}, v_{0.0}, n_{0.0};  ///< frame of the light plane

@@ -162,6 +162,63 @@ TEST_CASE("sample mask table splits a light that a blocker's plane cuts", "[tabl
     CHECK(tally.undecided * 4 < tally.sure + tally.excluded);
 }
 
+TEST_CASE("the AVX2 edge look-up finds the rows of the scalar one, receiver by receiver", "[table][simd]") {
+    if (!simdSupported(SimdLevel::Avx2)) {
+        WARN("no AVX2 on this CPU: only the scalar look-up runs");
+        return;
+    }
+    LightDesc sun;
+    sun.type = LightType::Sun, sun.direction = {0.3, -1, 0.2}, sun.angularDiameterDeg = 8, sun.samples = 64, sun.sampleSets = 4;
+    const std::vector<LightDesc> lights = {rectLight({0, 4, 0}, {1.3, 0.2, 0}, {0, 0.1, 1.1}, 64, 4), diskLight(), polygonLight(),
+                                           sun, rectLight({0, 4, 0}, {2, 0, 0}, {0, 0, 2}, 64, 2)};
+    Rng rng(33);
+    uint64_t rowsFound = 0, exact = 0, none = 0;
+    for (const LightDesc& light : lights) {
+        const LightSamples samples = generateLightSamples({light}, 64, 3);
+        const SampleMaskTable avx2(samples, 0, 64, 64, SimdLevel::Avx2), scalar(samples, 0, 64, 64, SimdLevel::Scalar);
+        std::vector<Triangle> tris = triangleSoup(17, 40, {-2, 1, -2}, {2, 3, 2}, 1.5f);
+        for (int i = 0; i < 20; ++i) {  // upright blades: planes that cut the light (split blockers)
+            const glm::vec3 base = randomIn(rng, {-1.5f, 0, -1.5f}, {1.5f, 0, 1.5f});
+            tris.push_back({{base, base + randomIn(rng, {-0.3f, 0, -0.3f}, {0.3f, 0, 0.3f}), base + glm::vec3(0.1f, 5.0f, 0.05f)}, 0});
+        }
+        // An upright triangle with a level top edge: a receiver level with that edge lies in a plane
+        // through it parallel to the light, a line the table cannot place (Lookup::Exact).
+        tris.push_back({{glm::vec3(-1, 2, 0), glm::vec3(1, 2, 0), glm::vec3(0, 0.5f, 0)}, 0});
+        const ReceiverEpsilon epsilon = receiverEpsilonOf(CastOptions());
+        for (const Triangle& tri : tris) {
+            const BlockerTriangle t = BlockerTriangle::from(tri);
+            if (!t.valid) continue;
+            const SampleMaskTable::Blocker b = avx2.prepare(t);
+            for (int i = 0; i < 30; ++i) {
+                // Random receivers, and some on T's plane and edges (zero distance, zero-length lines).
+                glm::dvec3 r(glm::vec3(randomIn(rng, {-3, -0.5f, -3}, {3, 1, 3})));
+                if (i % 10 == 0) r = t.v[i / 10 % 3];
+                if (i % 10 == 1) r = 0.5 * (t.v[0] + t.v[1]);
+                if (i % 10 == 2) r = {0.3 - 0.1 * (i / 10), 2.0, i < 15 ? 1.5 : -1.5};
+                const double dist = distanceBehind(t, r), eps = epsilon.at(r);
+                for (uint32_t set = 0; set < uint32_t(samples.sets); ++set) {
+                    SampleMaskTable::Rows a, s;
+                    const SampleMaskTable::Lookup la = avx2.lookup(b, set, r, dist, eps, a), ls = scalar.lookup(b, set, r, dist, eps, s);
+                    REQUIRE(la == ls);
+                    rowsFound += la == SampleMaskTable::Lookup::Rows, exact += la == SampleMaskTable::Lookup::Exact;
+                    none += la == SampleMaskTable::Lookup::NoneBlocked;
+                    if (la != SampleMaskTable::Lookup::Rows) continue;
+                    for (uint32_t k = 0; k < uint32_t(samples.groupCount()); ++k)
+                        for (int e = 0; e < 4; ++e) {
+                            INFO("set " << set << " group " << k << " line " << e);
+                            REQUIRE(a.sureWord(e, k) == s.sureWord(e, k));
+                            REQUIRE(a.maybeWord(e, k) == s.maybeWord(e, k));
+                        }
+                }
+            }
+        }
+    }
+    INFO("rows " << rowsFound << ", exact " << exact << ", none blocked " << none);
+    CHECK(rowsFound > 1000);
+    CHECK(exact > 0);
+    CHECK(none > 0);
+}
+
 TEST_CASE("penumbra casting with the sample mask table matches the reference", "[hpc][table][exact]") {
     std::vector<Triangle> tris;
     ReceiverSet receivers;
