@@ -91,11 +91,14 @@ inline void ReceiverHierarchy::foldUmbra(uint32_t i) {
     const Node& node = nodes[i];
     uint64_t* bits = &nodeGroupUmbra[size_t(i) * words_];
     if (node.leaf()) {
+        // Word by word into a register: ANDing into bits[w] per receiver made every step wait on
+        // the store before it (the arrays may alias, as far as the compiler knows).
         uint8_t full = 1;
-        std::fill_n(bits, words_, ~0ull);
-        for (uint32_t r = node.first; r < node.first + node.count; ++r) {
-            full &= fullUmbra[r];
-            for (int w = 0; w < words_; ++w) bits[w] &= groupUmbra[size_t(r) * words_ + w];
+        for (uint32_t r = node.first; r < node.first + node.count; ++r) full &= fullUmbra[r];
+        for (int w = 0; w < words_; ++w) {
+            uint64_t all = ~0ull;
+            for (uint32_t r = node.first; r < node.first + node.count; ++r) all &= groupUmbra[size_t(r) * words_ + w];
+            bits[w] = all;
         }
         nodeFullUmbra[i] = full;
         return;

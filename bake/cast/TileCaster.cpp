@@ -155,13 +155,17 @@ void TileCaster::visit(uint32_t nodeIndex, uint32_t lightPlanes, size_t groupsBe
     const size_t end = stack.size();
     if (begin == end) return;  // line 46
 
+    // A node's umbra bits are its children's AND, so they change only when a receiver's did below.
+    const bool changedBefore = umbraChanged;
+    umbraChanged = false;
     if (!node.leaf()) {
         visit(node.first, planes, begin, end);
         visit(node.first + 1, planes, begin, end);
     } else {
         for (uint32_t r = node.first; r < node.first + node.count; ++r) castReceiver(r, planes, begin, end);
     }
-    if (umbra()) h.foldUmbra(nodeIndex);  // lines 50-54, 77-80
+    if (umbra() && umbraChanged) h.foldUmbra(nodeIndex);  // lines 50-54, 77-80
+    umbraChanged |= changedBefore;
     stack.resize(begin);
 }
 
@@ -233,7 +237,7 @@ void TileCaster::castReceiver(uint32_t r, uint32_t lightPlanes, size_t groupsBeg
             }
             mask[g.group] = word;
         }
-        if (umbra() && word == group.fullMask()) bits[g.group >> 6] |= 1ull << (g.group & 63);
+        if (umbra() && word == group.fullMask()) bits[g.group >> 6] |= 1ull << (g.group & 63), umbraChanged = true;
     }
     if (umbra() && std::equal(bits, bits + umbraWords, allGroupsBits.begin())) {  // lines 74-75
         h.fullUmbra[r] = 1;

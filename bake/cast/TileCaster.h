@@ -108,6 +108,7 @@ private:
     SampleMaskTable::Blocker tableBlocker;  // the current triangle against the current light
     SampleMaskTable::SideCache sideCache;   // its plane's rows, when its plane cuts the light
     bool reachedRoot = false;  ///< the current triangle's V_L met the root box
+    bool umbraChanged = false;  ///< visit(): some receiver's umbra bits changed below the current node
 
     TileStats stats_;
 };
