@@ -45,7 +45,7 @@ glm::dvec2 diamondDirection(double p) {
 
 SampleMaskTable::SampleMaskTable(const LightSamples& samples, uint32_t light, int angles, int offsets, SimdLevel simd)
     : angles_(angleBins(angles)), offsets_(std::max(1, offsets)) {
-    avx2_ = simd == SimdLevel::Avx2 || (simd == SimdLevel::Auto && simdSupported(SimdLevel::Avx2));
+    avx2_ = hardShadowKernels(simd).level == SimdLevel::Avx2;  // Auto resolved, and refused if unsupported, in one place
     firstGroup_ = samples.lightFirstGroup[light];
     w_ = samples.w(light);
     groups_ = samples.lightFirstGroup[light + 1] - firstGroup_;
@@ -189,13 +189,12 @@ SampleMaskTable::Blocker SampleMaskTable::prepare(const BlockerTriangle& t) cons
         const glm::dvec3 ab = glm::cross(a, b), d = b - a;
         // Stored for orientation +1; lookup() applies the orientation (sigma, or per receiver
         // for a split blocker).
-        for (int lane = e; lane < (e == 2 ? 4 : e + 1); ++lane) {
-            out.line.set(0, lane, glm::dot(ab, u_), glm::cross(d, u_));
-            out.line.set(1, lane, glm::dot(ab, v_), glm::cross(d, v_));
-            out.line.set(2, lane, glm::dot(ab, origin_), glm::cross(d, origin_ - w_ * a));
-            out.line.set(3, lane, glm::dot(ab, n_), glm::cross(d, n_));
-        }
+        out.line.set(0, e, glm::dot(ab, u_), glm::cross(d, u_));
+        out.line.set(1, e, glm::dot(ab, v_), glm::cross(d, v_));
+        out.line.set(2, e, glm::dot(ab, origin_), glm::cross(d, origin_ - w_ * a));
+        out.line.set(3, e, glm::dot(ab, n_), glm::cross(d, n_));
     }
+    out.line.repeatLastEdge();
     out.usable = true;
     return out;
 }

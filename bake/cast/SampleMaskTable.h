@@ -102,6 +102,10 @@ public:
             void set(int j, int e, double constant, const glm::dvec3& c) {
                 c0[j][e] = constant, cx[j][e] = c.x, cy[j][e] = c.y, cz[j][e] = c.z;
             }
+            /// Lane 3 := edge 2, once the three edges are set.
+            void repeatLastEdge() {
+                for (int j = 0; j < 4; ++j) c0[j][3] = c0[j][2], cx[j][3] = cx[j][2], cy[j][3] = cy[j][2], cz[j][3] = cz[j][2];
+            }
         };
         Lines line;
     };
