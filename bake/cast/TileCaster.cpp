@@ -1,5 +1,7 @@
 #include "bake/cast/TileCaster.h"
 
+#include "bake/cast/LeafPrefilter.h"
+
 #include "bake/rule/AlphaRule.h"
 #include "stream/util/Timer.h"
 
@@ -18,7 +20,8 @@ constexpr uint32_t kSplitTableMinimumBits = 48;
 
 TileCaster::TileCaster(const LightSamples& s, const CastOptions& o, const std::vector<SampleMaskTable>* t)
     : samples(s), options(o), tables(t), alphaTable(alphaTableOf(o)), hierarchy_(o.hierarchy, s.groupCount()), pool_(s.groupCount()),
-      groupCount(s.groupCount()), umbraWords((s.groupCount() + 63) / 64), kernels(hardShadowKernels(o.simd)) {
+      groupCount(s.groupCount()), umbraWords((s.groupCount() + 63) / 64), kernels(hardShadowKernels(o.simd)),
+      prefilterAvx2(kernels.level == SimdLevel::Avx2) {
     allGroupsBits.assign(umbraWords, 0);
     for (int k = 0; k < groupCount; ++k) allGroupsBits[k >> 6] |= 1ull << (k & 63);
     groupVolumes.resize(groupCount);
@@ -162,27 +165,48 @@ void TileCaster::visit(uint32_t nodeIndex, uint32_t lightPlanes, size_t groupsBe
         visit(node.first, planes, begin, end);
         visit(node.first + 1, planes, begin, end);
     } else {
-        for (uint32_t r = node.first; r < node.first + node.count; ++r) castReceiver(r, planes, begin, end);
+        castLeaf(node.first, node.count, planes, begin, end);
     }
     if (umbra() && umbraChanged) h.foldUmbra(nodeIndex);  // lines 50-54, 77-80
     umbraChanged |= changedBefore;
     stack.resize(begin);
 }
 
-void TileCaster::castReceiver(uint32_t r, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd) {
+void TileCaster::castLeaf(uint32_t first, uint32_t count, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd) {
+    const ReceiverHierarchy& h = hierarchy_;
+    for (uint32_t r0 = first; r0 < first + count; r0 += 4) {
+        const int n = int(std::min<uint32_t>(4, first + count - r0));
+        uint32_t live = (1u << n) - 1u;
+        if (umbra())  // line 57
+            for (int i = 0; i < n; ++i) live &= ~(uint32_t(h.fullUmbra[r0 + i]) << i);
+        if (!live) continue;
+        // Line 58, then two exact early-outs of the rule (LeafPrefilter.h): a receiver within its
+        // epsilon of T's plane cannot be blocked by any sample (BlockingRule.h); a closed solid's
+        // face blocks a receiver in front of it only for samples behind it. Such a segment leaves
+        // the solid through T, so it entered it through a face that the sample sees, and that face
+        // blocks it: Sintorn et al. 2008's one-side argument, per receiver instead of per
+        // triangle, with the same exceptions as closed casters (docs/performance.md).
+        double dist[4];
+        if (prefilterAvx2) {
+            live &= leafPrefilterAvx2(*lightVolume, lightPlanes, *tri, &h.position[r0], &h.epsilon[r0], n, dist);
+        } else {
+            for (uint32_t rest = live; rest; rest &= rest - 1) {
+                const int i = __builtin_ctz(rest);
+                if (!passesLeafPrefilter(*lightVolume, lightPlanes, *tri, h.position[r0 + i], h.epsilon[r0 + i], dist[i]))
+                    live &= ~(1u << i);
+            }
+        }
+        for (; live; live &= live - 1) {
+            const int i = __builtin_ctz(live);
+            castReceiver(r0 + uint32_t(i), dist[i], groupsBegin, groupsEnd);
+        }
+    }
+}
+
+void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_t groupsEnd) {
     ReceiverHierarchy& h = hierarchy_;
-    if (umbra() && h.fullUmbra[r]) return;  // line 57
     const glm::dvec3& p = h.position[r];
-    if (!contains(*lightVolume, p, lightPlanes)) return;  // line 58
-    // Cheap exact early-out: a receiver not behind T's plane (beyond epsilon) on either side
-    // cannot be blocked by any sample (BlockingRule.h).
-    const double dist = distanceBehind(*tri, p), eps = h.epsilon[r];
-    if (!(dist > eps) && !(-dist > eps)) return;
-    // A closed solid's face blocks a receiver in front of it only for samples behind it. Such a
-    // segment leaves the solid through T, so it entered it through a face that the sample sees,
-    // and that face blocks it: Sintorn et al. 2008's one-side argument, per receiver instead of
-    // per triangle, with the same exceptions as closed casters (docs/performance.md).
-    if (tri->closed && dist > eps) return;
+    const double eps = h.epsilon[r];
     if (!groupVolumesBuilt) buildGroupVolumes();  // lines 60-64
 
     const uint32_t set = h.sampleSet[r];
@@ -239,7 +263,7 @@ void TileCaster::castReceiver(uint32_t r, uint32_t lightPlanes, size_t groupsBeg
         }
         if (umbra() && word == group.fullMask()) bits[g.group >> 6] |= 1ull << (g.group & 63), umbraChanged = true;
     }
-    if (umbra() && std::equal(bits, bits + umbraWords, allGroupsBits.begin())) {  // lines 74-75
+    if (umbra() && fullWords(bits)) {  // lines 74-75
         h.fullUmbra[r] = 1;
         ++h.umbraCount;
         if (options.lazyMasks && mask) {

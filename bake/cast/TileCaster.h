@@ -72,8 +72,19 @@ private:
     bool inFrontOfClosed(const Box& box) const;
     /// Lines 34-54: one node and, recursively, its children.
     void visit(uint32_t nodeIndex, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd);
-    /// Lines 56-75: one receiver against the active groups.
-    void castReceiver(uint32_t r, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd);
+    /// Lines 56-58 for a leaf's receivers, four at a time (LeafPrefilter.h), then castReceiver()
+    /// for each that passes.
+    void castLeaf(uint32_t first, uint32_t count, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd);
+    /// Lines 59-75: one receiver that passed castLeaf()'s tests, at distance @p dist behind T's
+    /// plane, against the active groups.
+    void castReceiver(uint32_t r, double dist, size_t groupsBegin, size_t groupsEnd);
+    /// Whether the umbra words @p bits hold every group's bit (a loop: std::equal called memcmp
+    /// for the usual single word, 1 % of GRIDS).
+    bool fullWords(const uint64_t* bits) const {
+        for (int w = 0; w < umbraWords; ++w)
+            if (bits[w] != allGroupsBits[w]) return false;
+        return true;
+    }
     /// The active groups receiver @p r still needs; returns how many of their samples are open.
     uint32_t gatherCandidates(uint32_t r, const glm::dvec3& p, bool pointTest, size_t groupsBegin, size_t groupsEnd);
     /// Of @p hits (the samples of group @p k, set @p set, whose hard-shadow volume holds @p p),
@@ -98,6 +109,7 @@ private:
     // Hard-shadow volumes in blocks of four samples: group k's samples 4b..4b+3 are block
     // blockFirst[k] + b of a set; a set holds blocksPerSet blocks.
     HardShadowKernels kernels;
+    bool prefilterAvx2;  // castLeaf(): the AVX2 prefilter, with the kernels' level (same bits as the scalar one)
     std::vector<uint32_t> blockFirst;
     size_t blocksPerSet = 0;
     std::vector<HardShadowBlock> hardBlocks;  // [set][block]
