@@ -72,15 +72,14 @@ uint64_t testSse2(const HardShadowBlock* blocks, uint32_t which, const EdgeOffse
 }
 
 // ---- AVX2: one block per register ---------------------------------------------------------------
-// target("avx2") deliberately without "fma": a fused multiply-add would round differently from
-// the scalar rule.
+// PENUMBRA_AVX2 (HardShadowBlock.h): AVX2 without FMA, so the rounding is the scalar rule's.
 
-__attribute__((target("avx2"))) inline __m256d dot3(__m256d ax, __m256d ay, __m256d az, __m256d bx, __m256d by,
+PENUMBRA_AVX2 inline __m256d dot3(__m256d ax, __m256d ay, __m256d az, __m256d bx, __m256d by,
                                                     __m256d bz) {
     return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(ax, bx), _mm256_mul_pd(ay, by)), _mm256_mul_pd(az, bz));
 }
 
-__attribute__((target("avx2"))) void buildAvx2(HardShadowBlock& out, const glm::vec3* samples, int count, double w,
+PENUMBRA_AVX2 void buildAvx2(HardShadowBlock& out, const glm::vec3* samples, int count, double w,
                                                const BlockerTriangle& t) {
     alignas(32) double px[kLanes], py[kLanes], pz[kLanes];
     for (int i = 0; i < kLanes; ++i) {  // unused lanes repeat a real sample; their side is zeroed
@@ -120,7 +119,7 @@ __attribute__((target("avx2"))) void buildAvx2(HardShadowBlock& out, const glm::
     }
 }
 
-__attribute__((target("avx2"))) uint64_t testAvx2(const HardShadowBlock* blocks, uint32_t which, const EdgeOffsets& at,
+PENUMBRA_AVX2 uint64_t testAvx2(const HardShadowBlock* blocks, uint32_t which, const EdgeOffsets& at,
                                                   double dist, double eps) {
     __m256d qx[3], qy[3], qz[3];
     for (int e = 0; e < 3; ++e)

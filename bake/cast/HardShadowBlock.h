@@ -22,6 +22,11 @@
 
 namespace penumbra {
 
+/// The attribute of every AVX2 kernel of the cast: "avx2" deliberately without "fma", because a
+/// fused multiply-add would round differently from the scalar rule, and each kernel must give the
+/// scalar code's bits.
+#define PENUMBRA_AVX2 __attribute__((target("avx2")))
+
 /// Which instruction set evaluates hard-shadow volumes. Auto picks the best the CPU supports.
 enum class SimdLevel : uint8_t { Scalar, Sse2, Avx2, Auto };
 

@@ -7,8 +7,6 @@
 
 namespace penumbra {
 
-#define PENUMBRA_AVX2 __attribute__((target("avx2")))
-
 PENUMBRA_AVX2 uint32_t leafPrefilterAvx2(const PenumbraVolume& v, uint32_t planes, const BlockerTriangle& t,
                                          const glm::dvec3* p, const double* epsilons, int count, double dist[4]) {
     // Missing lanes repeat receiver 0 and are masked off at the end.

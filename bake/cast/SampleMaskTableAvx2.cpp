@@ -16,8 +16,6 @@
 namespace penumbra {
 namespace {
 
-#define PENUMBRA_AVX2 __attribute__((target("avx2")))
-
 /// c0 - ((cx rx + cy ry) + cz rz) per lane: Blocker::Lines::at().
 PENUMBRA_AVX2 inline __m256d affineAt(const SampleMaskTable::Blocker::Lines& l, int j, __m256d rx, __m256d ry, __m256d rz) {
     const __m256d xy = _mm256_add_pd(_mm256_mul_pd(_mm256_load_pd(l.cx[j]), rx), _mm256_mul_pd(_mm256_load_pd(l.cy[j]), ry));
@@ -78,7 +76,5 @@ PENUMBRA_AVX2 bool SampleMaskTable::edgeRowsAvx2(const Blocker& b, uint32_t set,
     }
     return true;
 }
-
-#undef PENUMBRA_AVX2
 
 }  // namespace penumbra

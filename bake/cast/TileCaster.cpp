@@ -20,8 +20,7 @@ constexpr uint32_t kSplitTableMinimumBits = 48;
 
 TileCaster::TileCaster(const LightSamples& s, const CastOptions& o, const std::vector<SampleMaskTable>* t)
     : samples(s), options(o), tables(t), alphaTable(alphaTableOf(o)), hierarchy_(o.hierarchy, s.groupCount()), pool_(s.groupCount()),
-      groupCount(s.groupCount()), umbraWords((s.groupCount() + 63) / 64), kernels(hardShadowKernels(o.simd)),
-      prefilterAvx2(kernels.level == SimdLevel::Avx2) {
+      groupCount(s.groupCount()), umbraWords((s.groupCount() + 63) / 64), kernels(hardShadowKernels(o.simd)) {
     allGroupsBits.assign(umbraWords, 0);
     for (int k = 0; k < groupCount; ++k) allGroupsBits[k >> 6] |= 1ull << (k & 63);
     groupVolumes.resize(groupCount);
@@ -187,7 +186,7 @@ void TileCaster::castLeaf(uint32_t first, uint32_t count, uint32_t lightPlanes, 
         // blocks it: Sintorn et al. 2008's one-side argument, per receiver instead of per
         // triangle, with the same exceptions as closed casters (docs/performance.md).
         double dist[4];
-        if (prefilterAvx2) {
+        if (kernels.level == SimdLevel::Avx2) {  // the kernels' level: same bits either way
             live &= leafPrefilterAvx2(*lightVolume, lightPlanes, *tri, &h.position[r0], &h.epsilon[r0], n, dist);
         } else {
             for (uint32_t rest = live; rest; rest &= rest - 1) {

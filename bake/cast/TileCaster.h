@@ -109,7 +109,6 @@ private:
     // Hard-shadow volumes in blocks of four samples: group k's samples 4b..4b+3 are block
     // blockFirst[k] + b of a set; a set holds blocksPerSet blocks.
     HardShadowKernels kernels;
-    bool prefilterAvx2;  // castLeaf(): the AVX2 prefilter, with the kernels' level (same bits as the scalar one)
     std::vector<uint32_t> blockFirst;
     size_t blocksPerSet = 0;
     std::vector<HardShadowBlock> hardBlocks;  // [set][block]
