@@ -20,7 +20,7 @@ bool facesAway(const BlockerTriangle& t, const ConvexBound& bound) {
 }
 
 BlockerCulls::BlockerCulls(const LightSamples& samples, const CastOptions& options, const Box& receivers)
-    : samples_(samples), options_(options), receivers_(receivers) {
+    : samples_(samples), options_(options), receivers_(receivers), volumeLevel_(hardShadowKernels(options.simd).level) {
     for (const ConvexBound& bound : samples_.lightBounds) reach_.emplace_back(receivers_, bound);
 }
 
@@ -74,7 +74,7 @@ uint64_t BlockerCulls::prepare(BlockerBatch& batch, std::span<const Triangle> bl
             // blocker culled at the root rarely pays for its whole volume.
             if (!keepLights([&](size_t l) {
                     return !buildPenumbraVolume(samples_.lightBounds[l], prepared, batch.lightVolumes[i * lights + l],
-                                                &receivers_);
+                                                &receivers_, volumeLevel_);
                 }))
                 prepared.valid = false;
         }

@@ -57,6 +57,7 @@ private:
     const LightSamples& samples_;
     const CastOptions& options_;
     Box receivers_;
+    SimdLevel volumeLevel_;          ///< options_.simd resolved: which code builds V_L
     std::vector<LightReach> reach_;  ///< per light
 };
 

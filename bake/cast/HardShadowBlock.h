@@ -13,22 +13,15 @@
 /// needs a rigorous error bound per test and a second pass, and measured no faster than four
 /// double lanes here (docs/performance.md).
 
+#include "bake/cast/SimdLevel.h"
 #include "bake/rule/BlockingRule.h"
 
 #include <glm/vec3.hpp>
 
 #include <cstdint>
-#include <string_view>
 
 namespace penumbra {
 
-/// The attribute of every AVX2 kernel of the cast: "avx2" deliberately without "fma", because a
-/// fused multiply-add would round differently from the scalar rule, and each kernel must give the
-/// scalar code's bits.
-#define PENUMBRA_AVX2 __attribute__((target("avx2")))
-
-/// Which instruction set evaluates hard-shadow volumes. Auto picks the best the CPU supports.
-enum class SimdLevel : uint8_t { Scalar, Sse2, Avx2, Auto };
 
 /// @brief Hard-shadow volumes (BlockingRule.h) of up to four light samples and one triangle.
 /// Lane i holds the normal of edge plane e as (nx[e][i], ny[e][i], nz[e][i]) (anchored at the
@@ -82,14 +75,5 @@ struct HardShadowKernels {
 /// @brief The kernels for @p level; Auto resolves to the best level this CPU supports.
 /// @throw InputError when @p level is not supported by this CPU.
 HardShadowKernels hardShadowKernels(SimdLevel level);
-
-/// @brief Whether this CPU can run @p level.
-bool simdSupported(SimdLevel level);
-
-/// @brief "scalar", "sse2", "avx2" or "auto".
-const char* simdName(SimdLevel level);
-
-/// @brief Parses a name of simdName(); @throw InputError naming @p where and the value.
-SimdLevel parseSimdLevel(std::string_view name, std::string_view where);
 
 }  // namespace penumbra

@@ -3,6 +3,7 @@
 /// @brief Penumbra volumes V_L and V_Gk (Laine & Aila 2005, Section 3.2) with active plane sets
 /// (optimization B).
 
+#include "bake/cast/SimdLevel.h"
 #include "bake/rule/BlockingRule.h"
 #include "bake/rule/ConvexBound.h"
 #include "bake/rule/Plane.h"
@@ -45,9 +46,12 @@ struct alignas(16) PenumbraVolume {
 /// (in place: a volume is a kilobyte, and the caster builds several per triangle).
 /// @param cull when given, building stops as soon as one accepted plane leaves this box
 /// entirely outside: T shadows nothing in it, and most of the volume need not be built.
+/// @param level Avx2 evaluates the candidate planes four at a time (PenumbraVolumeAvx2.cpp), any
+/// other level one at a time; both give the same planes in the same order, bit for bit. The
+/// caller resolves Auto (HardShadowKernels::level) and checks that the CPU has AVX2.
 /// @return false when building stopped that way (@p out is then incomplete and unusable).
 bool buildPenumbraVolume(const ConvexBound& bound, const BlockerTriangle& t, PenumbraVolume& out,
-                         const Box* cull = nullptr);
+                         const Box* cull = nullptr, SimdLevel level = SimdLevel::Scalar);
 
 /// @brief Convenience form of buildPenumbraVolume().
 PenumbraVolume makePenumbraVolume(const ConvexBound& bound, const BlockerTriangle& t);

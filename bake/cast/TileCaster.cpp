@@ -49,7 +49,7 @@ void TileCaster::notePeaks() {
 
 void TileCaster::buildGroupVolumes() {
     for (uint32_t k = samples.lightFirstGroup[currentLight]; k < samples.lightFirstGroup[currentLight + 1]; ++k)
-        buildPenumbraVolume(samples.groups[k].bound, *tri, groupVolumes[k]);
+        buildPenumbraVolume(samples.groups[k].bound, *tri, groupVolumes[k], nullptr, kernels.level);
     if (tables) {
         tableBlocker = (*tables)[currentLight].prepare(*tri);
         if (tableBlocker.split) sideCache.reset(samples.sets), tableBlocker.sideCache = &sideCache;
@@ -129,7 +129,9 @@ bool TileCaster::castTriangle(const BlockerTriangle& t, const PenumbraVolume* li
 
 void TileCaster::visit(uint32_t nodeIndex, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd) {
     ReceiverHierarchy& h = hierarchy_;
-    const ReceiverHierarchy::Node node = h.nodes[nodeIndex];
+    // By reference: a copy went through the stack, and reading it back stalled on store forwarding
+    // (8 % of visit on FLOWERS). Nothing below changes the nodes; rebuilds happen between triangles.
+    const ReceiverHierarchy::Node& node = h.nodes[nodeIndex];
     ++stats_.visits;
     if (umbra() && h.nodeFullUmbra[nodeIndex]) return;  // line 35
     Box box{node.lo, node.hi};

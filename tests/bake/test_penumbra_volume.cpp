@@ -8,6 +8,9 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
+#include <cstring>
+
 using namespace penumbra;
 using namespace penumbra::test;
 
@@ -123,4 +126,69 @@ TEST_CASE("box and point tests agree with evaluating every plane at the box corn
     }
     CHECK(outside > 100);
     CHECK(pruned > 100);
+}
+
+namespace {
+
+/// Whether two builds gave the same volume, bit for bit: the same planes in the same order (and
+/// the zeroed slot after the last).
+bool sameVolume(const PenumbraVolume& a, const PenumbraVolume& b) {
+    if (a.count != b.count) return false;
+    const size_t n = size_t(std::min(a.count + 1, PenumbraVolume::kMaxPlanes)) * sizeof(double);
+    return std::memcmp(a.nx, b.nx, n) == 0 && std::memcmp(a.ny, b.ny, n) == 0 && std::memcmp(a.nz, b.nz, n) == 0 &&
+           std::memcmp(a.d, b.d, n) == 0;
+}
+
+/// Blockers where candidates turn: random, level (plane misses the light), upright (plane cuts
+/// it), tiny and far, large and near the light.
+std::vector<Triangle> volumeBlockers(uint64_t seed) {
+    std::vector<Triangle> out = triangleSoup(seed, 60, {-3, 0.2f, -3}, {3, 3.8f, 3}, 2.0f);
+    for (size_t i = 0; i < out.size(); i += 5) out[i].v[1].y = out[i].v[2].y = out[i].v[0].y;  // level
+    for (size_t i = 1; i < out.size(); i += 5) out[i].v[1].x = out[i].v[0].x, out[i].v[2].x = out[i].v[0].x;  // upright
+    for (size_t i = 2; i < out.size(); i += 5)  // a blade: a few millimetres, far out
+        for (glm::vec3& v : out[i].v) v = out[i].v[0] + (v - out[i].v[0]) * 0.002f + glm::vec3(40, 0, 0);
+    for (size_t i = 3; i < out.size(); i += 5)
+        for (glm::vec3& v : out[i].v) v = v * 3.0f + glm::vec3(0, 0.5f, 0);  // large, near the light
+    return out;
+}
+
+}  // namespace
+
+TEST_CASE("the AVX2 volume builder gives the scalar one's planes", "[hpc][volume][simd]") {
+    if (!simdSupported(SimdLevel::Avx2)) {
+        WARN("no AVX2 on this CPU: nothing to compare");
+        return;
+    }
+    const std::vector<LightDesc> lights = {rectLight({0, 4, 0}, {4, 0, 0}, {0, 0, 4}), rectLight({0, 5, 0}, {2, 0.3, 0}, {0, 0.2, 1.5}),
+                                           sunLight({0.3, -1, 0.2}, 5.0, 16), diskLight(), sphereLight(), polygonLight()};
+    const Box receivers{{-4, -1, -4}, {4, 0.5f, 4}}, far{{30, -1, 30}, {31, 0, 31}};
+    uint64_t builds = 0, planes = 0, culled = 0, maxBoundVertices = 0;
+    for (const LightDesc& light : lights) {
+        const LightSamples samples = generateLightSamples({light}, 64, 5);
+        std::vector<const ConvexBound*> bounds = {&samples.lightBounds[0]};
+        for (const LightSampleGroup& g : samples.groups) bounds.push_back(&g.bound);
+        for (uint64_t seed : {1, 2, 3}) {
+            for (const Triangle& tri : volumeBlockers(seed)) {
+                const BlockerTriangle t = BlockerTriangle::from(tri);
+                if (!t.valid) continue;
+                for (const ConvexBound* bound : bounds) {
+                    for (const Box* cull : {(const Box*)nullptr, &receivers, &far}) {
+                        INFO("light " << int(light.type) << " seed " << seed << " cull " << (cull ? 1 : 0));
+                        PenumbraVolume scalar, avx2;
+                        const bool keptScalar = buildPenumbraVolume(*bound, t, scalar, cull, SimdLevel::Scalar);
+                        const bool keptAvx2 = buildPenumbraVolume(*bound, t, avx2, cull, SimdLevel::Avx2);
+                        REQUIRE(keptScalar == keptAvx2);
+                        REQUIRE(sameVolume(scalar, avx2));
+                        ++builds, planes += uint64_t(scalar.count), culled += !keptScalar;
+                        maxBoundVertices = std::max<uint64_t>(maxBoundVertices, bound->vertices.size());
+                    }
+                }
+            }
+        }
+    }
+    INFO(builds << " builds, " << planes << " planes, " << culled << " culled, bounds up to " << maxBoundVertices << " vertices");
+    CHECK(builds > 5000);
+    CHECK(planes > 5 * builds);   // real volumes, not empty ones
+    CHECK(culled > builds / 10);  // and the cull path was taken
+    CHECK(maxBoundVertices > 4);  // lanes past four bound vertices
 }
