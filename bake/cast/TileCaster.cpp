@@ -122,23 +122,30 @@ bool TileCaster::castTriangle(const BlockerTriangle& t, const PenumbraVolume* li
         }
         stack.clear();
         for (uint32_t k = g0; k < g1; ++k) stack.push_back({k, kAllPlanes});
-        visit(0, lightVolume->all(), 0, stack.size());
+        uint32_t planes = lightVolume->all();
+        if (enters(0, planes)) visit(0, planes, 0, stack.size());
     }
     return reachedRoot;
 }
 
-void TileCaster::visit(uint32_t nodeIndex, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd) {
+[[gnu::always_inline]] inline bool TileCaster::enters(uint32_t nodeIndex, uint32_t& planes) {
+    const ReceiverHierarchy& h = hierarchy_;
+    ++stats_.visits;
+    if (umbra() && h.nodeFullUmbra[nodeIndex]) return false;  // line 35
+    const ReceiverHierarchy::Node& node = h.nodes[nodeIndex];
+    uint32_t active = options.activePlanes ? planes : lightVolume->all();
+    if (!intersects(*lightVolume, Box{node.lo, node.hi}, active)) return false;  // line 36
+    planes = options.activePlanes ? active : lightVolume->all();
+    return true;
+}
+
+void TileCaster::visit(uint32_t nodeIndex, uint32_t planes, size_t groupsBegin, size_t groupsEnd) {
     ReceiverHierarchy& h = hierarchy_;
     // By reference: a copy went through the stack, and reading it back stalled on store forwarding
     // (8 % of visit on FLOWERS). Nothing below changes the nodes; rebuilds happen between triangles.
     const ReceiverHierarchy::Node& node = h.nodes[nodeIndex];
-    ++stats_.visits;
-    if (umbra() && h.nodeFullUmbra[nodeIndex]) return;  // line 35
-    Box box{node.lo, node.hi};
-    uint32_t planes = options.activePlanes ? lightPlanes : lightVolume->all();
-    if (!intersects(*lightVolume, box, planes)) return;  // line 36
+    const Box box{node.lo, node.hi};
     if (tri->closed && inFrontOfClosed(box)) return;
-    if (!options.activePlanes) planes = lightVolume->all();
     if (nodeIndex == 0) reachedRoot = true;
 
     const size_t begin = stack.size();
@@ -163,8 +170,13 @@ void TileCaster::visit(uint32_t nodeIndex, uint32_t lightPlanes, size_t groupsBe
     const bool changedBefore = umbraChanged;
     umbraChanged = false;
     if (!node.leaf()) {
-        visit(node.first, planes, begin, end);
-        visit(node.first + 1, planes, begin, end);
+        // Both children's first tests here, before either descent: a child outside V_L (44 % of
+        // the nodes tested on FLOWERS) then costs no call, and its box load overlaps the other's.
+        // The descent into the first cannot change the second's umbra flag (disjoint receivers).
+        uint32_t planesA = planes, planesB = planes;
+        const bool a = enters(node.first, planesA), b = enters(node.first + 1, planesB);
+        if (a) visit(node.first, planesA, begin, end);
+        if (b) visit(node.first + 1, planesB, begin, end);
     } else {
         castLeaf(node.first, node.count, planes, begin, end);
     }

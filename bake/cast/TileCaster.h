@@ -70,8 +70,11 @@ private:
     /// Whether every receiver in @p box is in front of the current closed triangle beyond its
     /// epsilon, so that castReceiver() would skip each of them (conservative: false when unsure).
     bool inFrontOfClosed(const Box& box) const;
-    /// Lines 34-54: one node and, recursively, its children.
-    void visit(uint32_t nodeIndex, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd);
+    /// Lines 35-36: whether node @p nodeIndex still holds a receiver out of umbra and meets V_L;
+    /// @p planes (the parent's active V_L planes) loses the planes the node's box is inside of.
+    bool enters(uint32_t nodeIndex, uint32_t& planes);
+    /// Lines 37-54 for a node that enters(): the active groups, then its children or receivers.
+    void visit(uint32_t nodeIndex, uint32_t planes, size_t groupsBegin, size_t groupsEnd);
     /// Lines 56-58 for a leaf's receivers, four at a time (LeafPrefilter.h), then castReceiver()
     /// for each that passes.
     void castLeaf(uint32_t first, uint32_t count, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd);
