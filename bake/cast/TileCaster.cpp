@@ -209,18 +209,35 @@ void TileCaster::castLeaf(uint32_t first, uint32_t count, uint32_t lightPlanes, 
                     live &= ~(1u << i);
             }
         }
+        if (!live) continue;
+        if (!groupVolumesBuilt) buildGroupVolumes();  // lines 60-64, for the first receiver reached
+        // With table rows (T's plane clear of the light), the look-ups of the chunk's receivers
+        // first, each one's cells prefetched: a receiver's four cells are as many likely cache
+        // misses (the table is a megabyte per sample set, and neighbours use different sets), and
+        // the four receivers' misses now overlap (docs/performance.md, "Table cells prefetched").
+        RowLookup looked[4];
+        const bool rowsFirst = tables && !tableBlocker.split;
+        if (rowsFirst) {
+            const SampleMaskTable& table = (*tables)[currentLight];
+            for (uint32_t rest = live; rest; rest &= rest - 1) {
+                const int i = __builtin_ctz(rest);
+                const uint32_t r = r0 + uint32_t(i);
+                looked[i].result = table.lookup(tableBlocker, h.sampleSet[r], h.position[r], dist[i], h.epsilon[r], looked[i].rows);
+                if (looked[i].result == SampleMaskTable::Lookup::Rows)
+                    for (const uint64_t* cell : looked[i].rows.sure) __builtin_prefetch(cell);
+            }
+        }
         for (; live; live &= live - 1) {
             const int i = __builtin_ctz(live);
-            castReceiver(r0 + uint32_t(i), dist[i], groupsBegin, groupsEnd);
+            castReceiver(r0 + uint32_t(i), dist[i], groupsBegin, groupsEnd, rowsFirst ? &looked[i] : nullptr);
         }
     }
 }
 
-void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_t groupsEnd) {
+void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_t groupsEnd, const RowLookup* looked) {
     ReceiverHierarchy& h = hierarchy_;
     const glm::dvec3& p = h.position[r];
     const double eps = h.epsilon[r];
-    if (!groupVolumesBuilt) buildGroupVolumes();  // lines 60-64
 
     const uint32_t set = h.sampleSet[r];
     const SampleMaskTable* table = tables ? &(*tables)[currentLight] : nullptr;
@@ -235,7 +252,10 @@ void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_
     if (candidates.empty()) return;
     SampleMaskTable::Rows rows;
     auto lookup = SampleMaskTable::Lookup::Exact;
-    if (table && (!tableBlocker.split || openBits >= kSplitTableMinimumBits)) {
+    if (looked) {
+        lookup = looked->result, rows = looked->rows;
+        if (lookup == SampleMaskTable::Lookup::NoneBlocked) return;
+    } else if (table && (!tableBlocker.split || openBits >= kSplitTableMinimumBits)) {
         lookup = table->lookup(tableBlocker, set, p, dist, eps, rows);
         if (lookup == SampleMaskTable::Lookup::NoneBlocked) return;  // no bit has changed yet
     }

@@ -56,6 +56,11 @@ private:
         uint32_t group;
         uint32_t planes;
     };
+    /// A receiver's table look-up, made by castLeaf() ahead of castReceiver().
+    struct RowLookup {
+        SampleMaskTable::Lookup result = SampleMaskTable::Lookup::Exact;
+        SampleMaskTable::Rows rows;
+    };
 
     void notePeaks();
     bool umbra() const { return options.umbraBits; }
@@ -79,8 +84,9 @@ private:
     /// for each that passes.
     void castLeaf(uint32_t first, uint32_t count, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd);
     /// Lines 59-75: one receiver that passed castLeaf()'s tests, at distance @p dist behind T's
-    /// plane, against the active groups.
-    void castReceiver(uint32_t r, double dist, size_t groupsBegin, size_t groupsEnd);
+    /// plane, against the active groups. @p looked is its table look-up when castLeaf() made it
+    /// ahead (null: castReceiver() looks up itself, if it needs to).
+    void castReceiver(uint32_t r, double dist, size_t groupsBegin, size_t groupsEnd, const RowLookup* looked);
     /// Whether the umbra words @p bits hold every group's bit (a loop: std::equal called memcmp
     /// for the usual single word, 1 % of GRIDS).
     bool fullWords(const uint64_t* bits) const {
