@@ -8,11 +8,16 @@
 
 #include <immintrin.h>
 
+#include <algorithm>
 #include <bit>
+#include <iterator>
 #include <cmath>
 
 namespace penumbra {
 namespace {
+
+/// Lights with at most this many samples are shaded from a visibility bit mask on the stack.
+constexpr size_t kMaxMaskedSamples = 4096;
 
 /// The per-channel transmittance of one sample's optical depths @p d (R, G, B).
 glm::dvec3 transmittance(const uint32_t* d) { return {transmittanceOf(d[0]), transmittanceOf(d[1]), transmittanceOf(d[2])}; }
@@ -48,70 +53,47 @@ ReceiverShader::ReceiverShader(const std::vector<LightDesc>& lights, const Light
     }
 }
 
-glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* groupWords, bool fullUmbra,
-                                           uint64_t& blocked, const uint32_t* depth) const {
-    const glm::dvec3 p(receivers_.position[r]), n(receivers_.normal[r]);
-    const int set = int(sets_[r]);
-    const PerLight& light = lights_[li];
-    const bool planar = glm::dot(light.normal, light.normal) > 0;
-    blocked = 0;
-    glm::dvec3 e(0.0);
-    for (uint32_t k = samples_.lightFirstGroup[li]; k < samples_.lightFirstGroup[li + 1]; ++k) {
-        const LightSampleGroup& g = samples_.groups[k];
-        const uint64_t word = fullUmbra ? g.fullMask() : (groupWords ? groupWords[k] : 0);
-        blocked += uint64_t(std::popcount(word));
-        for (uint64_t visible = ~word & g.fullMask(); visible; visible &= visible - 1) {
-            const int sample = int(g.first) + std::countr_zero(visible);
-            // Translucent blockers crossed: the sample's weight per channel.
-            const glm::dvec3 weight = depth ? light.weight * transmittance(&depth[size_t(sample) * 3]) : light.weight;
-            // A sun's sample is a direction (w = 0): the receiver's position does not matter.
-            const glm::dvec3 l(samples_.position(set, sample));
-            glm::dvec3 d = light.sun ? l : l - p;
-            double dist2 = glm::dot(d, d);
-            if (!(dist2 > 0)) continue;
-            glm::dvec3 w = d / std::sqrt(dist2);
-            // A zero normal (volume receivers) means no receiver cosine: fluence-like irradiance.
-            double cosReceiver = n == glm::dvec3(0.0) ? 1.0 : std::max(0.0, glm::dot(n, w));
-            if (light.sun) {
-                e += weight * cosReceiver;
-                continue;
-            }
-            double cosEmitter = planar ? std::max(0.0, -glm::dot(light.normal, w)) : 1.0;
-            e += weight * (cosReceiver * cosEmitter / dist2);
-        }
-    }
-    return e;
-}
-
 namespace {
 
-/// Sum over samples [0, n) of the SoA arrays of (cos receiver) (cos emitter) / d^2 (planar
-/// emitters), cos / d^2 (volumes) or cos (directions): lightIrradiance's terms without weights.
-/// Four partial sums in a fixed order; the AVX2 path below computes the same lanes with the same
-/// correctly rounded operations (no fused multiply-add), so both give the same bits.
+/// One sample's (cos receiver) (cos emitter) / d^2 (planar emitters), cos / d^2 (volumes) or cos
+/// (directions), in the operation order of sampleSumAvx2()'s lanes.
+inline double sampleTerm(double x, double y, double z, glm::dvec3 p, glm::dvec3 normal, glm::dvec3 emitter) {
+    const double dx = x - p.x, dy = y - p.y, dz = z - p.z;
+    const double d2 = std::max(dx * dx + dy * dy + dz * dz, 1e-300);  // d = 0 gives zero cosines
+    const double inv = 1.0 / std::sqrt(d2);
+    const double cr = std::max(0.0, (normal.x * dx + normal.y * dy + normal.z * dz) * inv);
+    const double ce = std::max(0.0, -(emitter.x * dx + emitter.y * dy + emitter.z * dz) * inv);
+    return cr * ce / d2;
+}
+
+/// Whether sample @p j is in @p visible (every sample is when it is null).
+inline bool isVisible(const uint64_t* visible, size_t j) { return !visible || (visible[j >> 6] >> (j & 63) & 1u); }
+
+/// Sum over samples [0, n) of the SoA arrays of sampleTerm(), over the samples set in @p visible
+/// (all of them when it is null): lightIrradiance's terms without weights. Four partial sums,
+/// sample j in sum j % 4, in a fixed order; the AVX2 path below computes the same lanes with the
+/// same correctly rounded operations (no fused multiply-add), so both give the same bits. A
+/// hidden sample adds nothing (the sums start at +0 and no term is negative).
 double sampleSumScalar(const double* x, const double* y, const double* z, size_t n, glm::dvec3 p, glm::dvec3 normal,
-                       glm::dvec3 emitter) {
+                       glm::dvec3 emitter, const uint64_t* visible) {
     double lanes[4] = {0, 0, 0, 0};
-    for (size_t j = 0; j < n; ++j) {
-        const double dx = x[j] - p.x, dy = y[j] - p.y, dz = z[j] - p.z;
-        const double d2 = std::max(dx * dx + dy * dy + dz * dz, 1e-300);  // d = 0 gives zero cosines
-        const double inv = 1.0 / std::sqrt(d2);
-        const double cr = std::max(0.0, (normal.x * dx + normal.y * dy + normal.z * dz) * inv);
-        const double ce = std::max(0.0, -(emitter.x * dx + emitter.y * dy + emitter.z * dz) * inv);
-        lanes[j % 4] += cr * ce / d2;
-    }
+    for (size_t j = 0; j < n; ++j)
+        if (isVisible(visible, j)) lanes[j % 4] += sampleTerm(x[j], y[j], z[j], p, normal, emitter);
     return (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
 }
 
 __attribute__((target("avx2"))) double sampleSumAvx2(const double* x, const double* y, const double* z, size_t n, glm::dvec3 p,
-                                                     glm::dvec3 normal, glm::dvec3 emitter) {
+                                                     glm::dvec3 normal, glm::dvec3 emitter, const uint64_t* visible) {
     const __m256d px = _mm256_set1_pd(p.x), py = _mm256_set1_pd(p.y), pz = _mm256_set1_pd(p.z);
     const __m256d nx = _mm256_set1_pd(normal.x), ny = _mm256_set1_pd(normal.y), nz = _mm256_set1_pd(normal.z);
     const __m256d ex = _mm256_set1_pd(-emitter.x), ey = _mm256_set1_pd(-emitter.y), ez = _mm256_set1_pd(-emitter.z);
     const __m256d tiny = _mm256_set1_pd(1e-300), one = _mm256_set1_pd(1.0), zero = _mm256_setzero_pd();
+    const __m256i laneBits = _mm256_setr_epi64x(1, 2, 4, 8);
     __m256d acc = zero;
     size_t j = 0;
     for (; j + 4 <= n; j += 4) {
+        const uint64_t nibble = visible ? visible[j >> 6] >> (j & 63) & 15u : 15u;  // j % 4 == 0: within one word
+        if (!nibble) continue;  // a receiver in shadow skips its hidden samples four at a time
         const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(x + j), px), dy = _mm256_sub_pd(_mm256_loadu_pd(y + j), py),
                       dz = _mm256_sub_pd(_mm256_loadu_pd(z + j), pz);
         const __m256d d2 = _mm256_max_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz)), tiny);
@@ -120,26 +102,24 @@ __attribute__((target("avx2"))) double sampleSumAvx2(const double* x, const doub
         // -(e . d) as (-e.x) dx + (-e.y) dy + (-e.z) dz: negation commutes with rounding.
         const __m256d de = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(ex, dx), _mm256_mul_pd(ey, dy)), _mm256_mul_pd(ez, dz));
         const __m256d cr = _mm256_max_pd(_mm256_mul_pd(dn, inv), zero), ce = _mm256_max_pd(_mm256_mul_pd(de, inv), zero);
-        acc = _mm256_add_pd(acc, _mm256_div_pd(_mm256_mul_pd(cr, ce), d2));
+        const __m256d term = _mm256_div_pd(_mm256_mul_pd(cr, ce), d2);
+        const __m256i shown = _mm256_cmpeq_epi64(_mm256_and_si256(_mm256_set1_epi64x(int64_t(nibble)), laneBits), laneBits);
+        acc = _mm256_add_pd(acc, _mm256_and_pd(term, _mm256_castsi256_pd(shown)));
     }
     alignas(32) double lanes[4];
     _mm256_store_pd(lanes, acc);
-    for (; j < n; ++j) {  // the tail, into the lanes the scalar loop would use
-        const double dx = x[j] - p.x, dy = y[j] - p.y, dz = z[j] - p.z;
-        const double d2 = std::max(dx * dx + dy * dy + dz * dz, 1e-300);
-        const double inv = 1.0 / std::sqrt(d2);
-        const double cr = std::max(0.0, (normal.x * dx + normal.y * dy + normal.z * dz) * inv);
-        const double ce = std::max(0.0, -(emitter.x * dx + emitter.y * dy + emitter.z * dz) * inv);
-        lanes[j % 4] += cr * ce / d2;
-    }
+    for (; j < n; ++j)  // the tail, into the lanes the scalar loop would use
+        if (isVisible(visible, j)) lanes[j % 4] += sampleTerm(x[j], y[j], z[j], p, normal, emitter);
     return (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
 }
 
-/// Sum over samples [0, n) of the SoA arrays of (cos receiver) (cos emitter) / d^2: the terms of
-/// lightIrradiance for a planar emitter, without its weight.
-double sampleSum(const double* x, const double* y, const double* z, size_t n, glm::dvec3 p, glm::dvec3 normal, glm::dvec3 emitter) {
+/// Sum over samples [0, n) of the SoA arrays of (cos receiver) (cos emitter) / d^2, over the
+/// samples in @p visible (null: all): the terms of lightIrradiance for a planar emitter, without
+/// its weight.
+double sampleSum(const double* x, const double* y, const double* z, size_t n, glm::dvec3 p, glm::dvec3 normal, glm::dvec3 emitter,
+                 const uint64_t* visible = nullptr) {
     static const bool avx2 = __builtin_cpu_supports("avx2");
-    return avx2 ? sampleSumAvx2(x, y, z, n, p, normal, emitter) : sampleSumScalar(x, y, z, n, p, normal, emitter);
+    return avx2 ? sampleSumAvx2(x, y, z, n, p, normal, emitter, visible) : sampleSumScalar(x, y, z, n, p, normal, emitter, visible);
 }
 
 /// atan2(@p y, @p x) for y >= 0 (an angle in [0, pi]) within 3e-8 rad: Abramowitz & Stegun
@@ -192,13 +172,76 @@ double emitterIntegral(const std::vector<glm::dvec3>& corners, const glm::dvec3&
 
 }  // namespace
 
-glm::dvec3 ReceiverShader::unoccludedIrradiance(uint32_t r, int li) const {
+glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* groupWords, bool fullUmbra,
+                                           uint64_t& blocked, const uint32_t* depth) const {
+    const glm::dvec3 p(receivers_.position[r]), n(receivers_.normal[r]);
+    const int set = int(sets_[r]);
+    const PerLight& light = lights_[li];
+    const bool planar = glm::dot(light.normal, light.normal) > 0;
+    blocked = 0;
+    // Opaque blockers, a planar emitter, an oriented receiver (the common case): the visible
+    // samples' terms summed four at a time, each light's weight applied once.
+    const uint32_t g0 = samples_.lightFirstGroup[li], g1 = samples_.lightFirstGroup[li + 1];
+    if (!depth && planar && !light.sun && n != glm::dvec3(0.0) && size_t(light.samples) <= kMaxMaskedSamples) {
+        uint64_t visible[kMaxMaskedSamples / 64 + 1];
+        std::fill_n(visible, size_t(light.samples) / 64 + 2 <= std::size(visible) ? size_t(light.samples) / 64 + 2 : std::size(visible), 0);
+        const uint32_t lightFirst = samples_.groups[g0].first;
+        uint64_t anyShown = 0;
+        for (uint32_t k = g0; k < g1; ++k) {
+            const LightSampleGroup& g = samples_.groups[k];
+            const uint64_t word = fullUmbra ? g.fullMask() : (groupWords ? groupWords[k] : 0);
+            blocked += uint64_t(std::popcount(word));
+            const uint64_t shown = ~word & g.fullMask();
+            anyShown |= shown;
+            const uint32_t at = g.first - lightFirst, shift = at & 63u;
+            visible[at >> 6] |= shown << shift;
+            if (shift && g.count > 64 - shift) visible[(at >> 6) + 1] |= shown >> (64 - shift);
+        }
+        if (!anyShown) return glm::dvec3(0.0);
+        const double* x = soa();
+        const size_t total = samples_.positions.size(), first = size_t(set) * samples_.sampleCount + lightFirst;
+        return light.weight *
+               sampleSum(x + first, x + total + first, x + 2 * total + first, size_t(light.samples), p, n, light.normal, visible);
+    }
+    glm::dvec3 e(0.0);
+    for (uint32_t k = g0; k < g1; ++k) {
+        const LightSampleGroup& g = samples_.groups[k];
+        const uint64_t word = fullUmbra ? g.fullMask() : (groupWords ? groupWords[k] : 0);
+        blocked += uint64_t(std::popcount(word));
+        for (uint64_t visible = ~word & g.fullMask(); visible; visible &= visible - 1) {
+            const int sample = int(g.first) + std::countr_zero(visible);
+            // Translucent blockers crossed: the sample's weight per channel.
+            const glm::dvec3 weight = depth ? light.weight * transmittance(&depth[size_t(sample) * 3]) : light.weight;
+            // A sun's sample is a direction (w = 0): the receiver's position does not matter.
+            const glm::dvec3 l(samples_.position(set, sample));
+            glm::dvec3 d = light.sun ? l : l - p;
+            double dist2 = glm::dot(d, d);
+            if (!(dist2 > 0)) continue;
+            glm::dvec3 w = d / std::sqrt(dist2);
+            // A zero normal (volume receivers) means no receiver cosine: fluence-like irradiance.
+            double cosReceiver = n == glm::dvec3(0.0) ? 1.0 : std::max(0.0, glm::dot(n, w));
+            if (light.sun) {
+                e += weight * cosReceiver;
+                continue;
+            }
+            double cosEmitter = planar ? std::max(0.0, -glm::dot(light.normal, w)) : 1.0;
+            e += weight * (cosReceiver * cosEmitter / dist2);
+        }
+    }
+    return e;
+}
+
+const double* ReceiverShader::soa() const {
     std::call_once(soaOnce_, [&] {
         const size_t n = samples_.positions.size();
         soa_.resize(3 * n);
         for (size_t i = 0; i < n; ++i)
             for (int c = 0; c < 3; ++c) soa_[c * n + i] = samples_.positions[i][c];
     });
+    return soa_.data();
+}
+
+glm::dvec3 ReceiverShader::unoccludedIrradiance(uint32_t r, int li) const {
     const PerLight& light = lights_[li];
     const glm::dvec3 p(receivers_.position[r]), n(receivers_.normal[r]);
     if (!light.corners.empty() && n != glm::dvec3(0.0))
@@ -207,7 +250,7 @@ glm::dvec3 ReceiverShader::unoccludedIrradiance(uint32_t r, int li) const {
     const size_t first = size_t(sets_[r]) * samples_.sampleCount + samples_.groups[samples_.lightFirstGroup[li]].first;
     // The vectorized sum covers planar emitters seen by oriented receivers, the common case.
     if (!light.sun && glm::dot(light.normal, light.normal) > 0 && n != glm::dvec3(0.0))
-        return light.weight * sampleSum(&soa_[first], &soa_[total + first], &soa_[2 * total + first], size_t(light.samples), p, n,
+        return light.weight * sampleSum(soa() + first, soa() + total + first, soa() + 2 * total + first, size_t(light.samples), p, n,
                                         light.normal);
     uint64_t none = 0;
     return lightIrradiance(r, li, nullptr, false, none);

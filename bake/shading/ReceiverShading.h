@@ -101,6 +101,7 @@ private:
     std::span<const uint32_t> sets_;
     std::vector<PerLight> lights_;
     /// The samples as three arrays of double per set (x, then y, then z), made on first use.
+    const double* soa() const;
     mutable std::vector<double> soa_;
     mutable std::once_flag soaOnce_;
 };

@@ -224,3 +224,53 @@ TEST_CASE("sun shadows from hpc match the reference bit for bit", "[sun][hpc][ex
         }
     }
 }
+
+TEST_CASE("irradiance from blocked-sample masks equals the sum over the visible samples", "[radiometry]") {
+    // Group sizes that are not multiples of 64 (100 and 37 samples) put groups at any bit offset
+    // of the visible-sample mask; several lights put them at any group index.
+    LightDesc a = rectLight({-1, 3, 0}, {1.5, 0, 0}, {0, 0.3, 1}, 100, 3);
+    LightDesc b = polygonLight();
+    b.samples = 37;
+    LightDesc c = rectLight({1, 2.5, 0.5}, {0.4, 0, 0}, {0, 0, 0.4}, 256, 2);
+    const std::vector<LightDesc> lights = {a, b, c};
+    const LightSamples samples = generateLightSamples(lights, 24, 7);
+    ReceiverSet receivers = randomReceivers(5, 300, {-2, -1, -2}, {2, 0, 2});
+    for (size_t r = 0; r < receivers.size(); ++r)  // some receivers facing away from some lights
+        if (r % 7 == 3) receivers.normal[r] = glm::normalize(glm::vec3(1, 0.2f, -0.3f));
+    const std::vector<uint32_t> sets = assignSets(receivers, samples.sets);
+    ReceiverShader shader(lights, samples, receivers, sets);
+    ReceiverResults out;
+    out.resize(receivers.size(), int(lights.size()));
+    Rng rng(9);
+    double largest = 0;
+    for (uint32_t r = 0; r < receivers.size(); ++r) {
+        std::vector<uint64_t> words(size_t(samples.groupCount()));
+        for (size_t k = 0; k < words.size(); ++k) words[k] = rng.next() & rng.next() & samples.groups[k].fullMask();  // a quarter blocked
+        if (r % 5 == 0) words.assign(words.size(), 0);           // nothing blocked
+        if (r % 11 == 0)                                         // all blocked
+            for (size_t k = 0; k < words.size(); ++k) words[k] = samples.groups[k].fullMask();
+        shader.shade(r, words.data(), false, out);
+        const glm::dvec3 p(receivers.position[r]), n(receivers.normal[r]);
+        for (int li = 0; li < int(lights.size()); ++li) {
+            // The rule's sum, independently: radiance x area / K x cos cos / d^2 per visible sample.
+            const LightDesc& l = lights[size_t(li)];
+            const glm::dvec3 emitter = l.emitterNormal();
+            double sum = 0;
+            for (uint32_t k = samples.lightFirstGroup[li]; k < samples.lightFirstGroup[li + 1]; ++k) {
+                const LightSampleGroup& g = samples.groups[k];
+                for (uint32_t j = 0; j < g.count; ++j) {
+                    if (words[k] >> j & 1u) continue;
+                    const glm::dvec3 d = glm::dvec3(samples.position(int(sets[r]), int(g.first + j))) - p;
+                    const double d2 = glm::dot(d, d);
+                    sum += std::max(0.0, glm::dot(n, d)) * std::max(0.0, -glm::dot(emitter, d)) / (d2 * d2);
+                }
+            }
+            const double expected = l.radiance.x * l.area() / l.samples * sum;
+            const double got = out.irradianceOf(r, li).x;
+            INFO("receiver " << r << " light " << li << " got " << got << " expected " << expected);
+            REQUIRE(std::abs(got - expected) <= 1e-5 * expected + 1e-30);
+            largest = std::max(largest, expected);
+        }
+    }
+    CHECK(largest > 0.01);  // real irradiance, not zeros
+}
