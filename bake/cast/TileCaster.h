@@ -81,7 +81,7 @@ private:
     /// Lines 37-54 for a node that enters(): the active groups, then its children or receivers.
     void visit(uint32_t nodeIndex, uint32_t planes, size_t groupsBegin, size_t groupsEnd);
     /// Lines 56-58 for a leaf's receivers, four at a time (LeafPrefilter.h), then castReceiver()
-    /// for each that passes.
+    /// for each that passes (with table rows, after all their look-ups, their cells prefetched).
     void castLeaf(uint32_t first, uint32_t count, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd);
     /// Lines 59-75: one receiver that passed castLeaf()'s tests, at distance @p dist behind T's
     /// plane, against the active groups. @p looked is its table look-up when castLeaf() made it
