@@ -10,7 +10,6 @@
 
 #include <algorithm>
 #include <bit>
-#include <iterator>
 #include <cmath>
 
 namespace penumbra {
@@ -179,17 +178,18 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
     const PerLight& light = lights_[li];
     const bool planar = glm::dot(light.normal, light.normal) > 0;
     blocked = 0;
-    // Opaque blockers, a planar emitter, an oriented receiver (the common case): the visible
-    // samples' terms summed four at a time, each light's weight applied once.
     const uint32_t g0 = samples_.lightFirstGroup[li], g1 = samples_.lightFirstGroup[li + 1];
-    if (!depth && planar && !light.sun && n != glm::dvec3(0.0) && size_t(light.samples) <= kMaxMaskedSamples) {
+    auto blockedWord = [&](uint32_t k) { return fullUmbra ? samples_.groups[k].fullMask() : (groupWords ? groupWords[k] : 0); };
+    // Opaque blockers (the common case): the visible samples' terms summed four at a time, the
+    // light's weight applied once.
+    if (!depth && sumsInLanes(light, n) && size_t(light.samples) <= kMaxMaskedSamples) {
         uint64_t visible[kMaxMaskedSamples / 64 + 1];
-        std::fill_n(visible, size_t(light.samples) / 64 + 2 <= std::size(visible) ? size_t(light.samples) / 64 + 2 : std::size(visible), 0);
+        std::fill_n(visible, size_t(light.samples + 63) / 64 + 1, 0);  // a group may straddle into the last word
         const uint32_t lightFirst = samples_.groups[g0].first;
         uint64_t anyShown = 0;
         for (uint32_t k = g0; k < g1; ++k) {
             const LightSampleGroup& g = samples_.groups[k];
-            const uint64_t word = fullUmbra ? g.fullMask() : (groupWords ? groupWords[k] : 0);
+            const uint64_t word = blockedWord(k);
             blocked += uint64_t(std::popcount(word));
             const uint64_t shown = ~word & g.fullMask();
             anyShown |= shown;
@@ -197,16 +197,12 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
             visible[at >> 6] |= shown << shift;
             if (shift && g.count > 64 - shift) visible[(at >> 6) + 1] |= shown >> (64 - shift);
         }
-        if (!anyShown) return glm::dvec3(0.0);
-        const double* x = soa();
-        const size_t total = samples_.positions.size(), first = size_t(set) * samples_.sampleCount + lightFirst;
-        return light.weight *
-               sampleSum(x + first, x + total + first, x + 2 * total + first, size_t(light.samples), p, n, light.normal, visible);
+        return anyShown ? light.weight * lightSampleSum(r, li, visible) : glm::dvec3(0.0);
     }
     glm::dvec3 e(0.0);
     for (uint32_t k = g0; k < g1; ++k) {
         const LightSampleGroup& g = samples_.groups[k];
-        const uint64_t word = fullUmbra ? g.fullMask() : (groupWords ? groupWords[k] : 0);
+        const uint64_t word = blockedWord(k);
         blocked += uint64_t(std::popcount(word));
         for (uint64_t visible = ~word & g.fullMask(); visible; visible &= visible - 1) {
             const int sample = int(g.first) + std::countr_zero(visible);
@@ -231,14 +227,23 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
     return e;
 }
 
-const double* ReceiverShader::soa() const {
+bool ReceiverShader::sumsInLanes(const PerLight& light, const glm::dvec3& n) {
+    return !light.sun && glm::dot(light.normal, light.normal) > 0 && n != glm::dvec3(0.0);
+}
+
+double ReceiverShader::lightSampleSum(uint32_t r, int li, const uint64_t* visible) const {
     std::call_once(soaOnce_, [&] {
         const size_t n = samples_.positions.size();
         soa_.resize(3 * n);
         for (size_t i = 0; i < n; ++i)
             for (int c = 0; c < 3; ++c) soa_[c * n + i] = samples_.positions[i][c];
     });
-    return soa_.data();
+    const PerLight& light = lights_[li];
+    const size_t total = samples_.positions.size();
+    const size_t first = size_t(sets_[r]) * samples_.sampleCount + samples_.groups[samples_.lightFirstGroup[li]].first;
+    const double* x = soa_.data() + first;
+    return sampleSum(x, x + total, x + 2 * total, size_t(light.samples), glm::dvec3(receivers_.position[r]),
+                     glm::dvec3(receivers_.normal[r]), light.normal, visible);
 }
 
 glm::dvec3 ReceiverShader::unoccludedIrradiance(uint32_t r, int li) const {
@@ -246,12 +251,7 @@ glm::dvec3 ReceiverShader::unoccludedIrradiance(uint32_t r, int li) const {
     const glm::dvec3 p(receivers_.position[r]), n(receivers_.normal[r]);
     if (!light.corners.empty() && n != glm::dvec3(0.0))
         return light.radiance * emitterIntegral(light.corners, light.normal, p, glm::normalize(n));
-    const size_t total = samples_.positions.size();
-    const size_t first = size_t(sets_[r]) * samples_.sampleCount + samples_.groups[samples_.lightFirstGroup[li]].first;
-    // The vectorized sum covers planar emitters seen by oriented receivers, the common case.
-    if (!light.sun && glm::dot(light.normal, light.normal) > 0 && n != glm::dvec3(0.0))
-        return light.weight * sampleSum(soa() + first, soa() + total + first, soa() + 2 * total + first, size_t(light.samples), p, n,
-                                        light.normal);
+    if (sumsInLanes(light, n)) return light.weight * lightSampleSum(r, li, nullptr);
     uint64_t none = 0;
     return lightIrradiance(r, li, nullptr, false, none);
 }

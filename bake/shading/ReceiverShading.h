@@ -100,8 +100,13 @@ private:
     const ReceiverSet& receivers_;
     std::span<const uint32_t> sets_;
     std::vector<PerLight> lights_;
+    /// Whether light @p light's terms at a receiver with normal @p n are summed in lanes
+    /// (sampleSum): a planar emitter, not a sun, an oriented receiver.
+    static bool sumsInLanes(const PerLight& light, const glm::dvec3& n);
+    /// Light @p li's terms at receiver @p r without its weight, over the samples set in
+    /// @p visible (bit j: the light's sample j; null: all), four at a time.
+    double lightSampleSum(uint32_t r, int li, const uint64_t* visible) const;
     /// The samples as three arrays of double per set (x, then y, then z), made on first use.
-    const double* soa() const;
     mutable std::vector<double> soa_;
     mutable std::once_flag soaOnce_;
 };
