@@ -35,10 +35,7 @@ uint64_t testScalar(const HardShadowBlock* blocks, uint32_t which, const EdgeOff
         const HardShadowBlock& h = blocks[b];
         for (int i = 0; i < kLanes; ++i) {
             bool blocked = h.side[i] * dist > eps;
-            for (int e = 0; e < 3 && blocked; ++e) {
-                const glm::dvec3& q = at.rel[e];
-                blocked = (h.nx[e][i] * q.x + h.ny[e][i] * q.y) + h.nz[e][i] * q.z >= 0.0;
-            }
+            for (int e = 0; e < 3 && blocked; ++e) blocked = laneEdgeValue(h, e, i, at) >= 0.0;
             word |= uint64_t(blocked) << (4 * b + i);
         }
     }

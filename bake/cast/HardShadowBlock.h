@@ -58,6 +58,14 @@ struct EdgeOffsets {
     EdgeOffsets(const BlockerTriangle& t, const glm::dvec3& r) : rel{r - t.v[0], r - t.v[1], r - t.v[2]} {}
 };
 
+/// @brief Edge @p e's plane of lane @p i evaluated at the receiver: the kernels' expression, in
+/// glm::dot's order, so it is the very double edgeValue() gives for that sample (the lane's
+/// normal is the rule's cross product). The alpha test reads the hit's barycentrics from it.
+inline double laneEdgeValue(const HardShadowBlock& h, int e, int i, const EdgeOffsets& at) {
+    const glm::dvec3& q = at.rel[e];
+    return (h.nx[e][i] * q.x + h.ny[e][i] * q.y) + h.nz[e][i] * q.z;
+}
+
 /// @brief Tests a receiver against the blocks selected by @p which (bit b: blocks[b]).
 /// @param at the receiver relative to the edge anchors; @param dist distanceBehind(t, r);
 /// @param eps the receiver's epsilon.

@@ -286,7 +286,10 @@ void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_
             if (!haveOffsets) offsets = EdgeOffsets(*tri, p), haveOffsets = true;
             hits |= kernels.test(hard, which, offsets, dist, eps) & open;
         }
-        if (tri->alpha && hits) hits = alphaFilter(set, g.group, hits, p);
+        if (tri->alpha && hits) {
+            if (!haveOffsets) offsets = EdgeOffsets(*tri, p), haveOffsets = true;
+            hits = alphaFilter(set, g.group, hits, p, offsets);
+        }
         word |= hits;
         if (word != before) {
             if (!mask) {  // line 59, deferred until a bit is really set
@@ -308,18 +311,20 @@ void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_
 }
 // Cold: kept out of the hot code's way, so that what the alpha test grows to (max_distance,
 // textures) leaves the layout of castReceiver's loops alone (measured: moving them cost GRIDS 2 %).
-[[gnu::cold]] uint64_t TileCaster::alphaFilter(uint32_t set, uint32_t k, uint64_t hits, const glm::dvec3& p) {
-    // The kernels evaluate the rule's edge values operation for operation (HardShadowBlock.h),
-    // so recomputing them here in scalar form gives the very values the reference tests.
-    const LightSampleGroup& g = samples.groups[k];
-    const double w = samples.w(g.light);
-    const glm::vec3* first = &samples.position(int(set), int(g.first));
+[[gnu::cold]] uint64_t TileCaster::alphaFilter(uint32_t set, uint32_t k, uint64_t hits, const glm::dvec3& p,
+                                               const EdgeOffsets& at) {
+    // The hits' edge values from their hard-shadow blocks (built here for the table's sure bits):
+    // the kernels' normals are the rule's cross products, so these are the values the reference
+    // tests, without rebuilding each sample's volume (docs/performance.md, "Alpha tests").
+    uint32_t which;
+    const HardShadowBlock* blocks = hardShadowBlocks(set, k, hits, which);
     uint64_t kept = hits;
     for (uint64_t rest = hits; rest; rest &= rest - 1) {
-        const int j = __builtin_ctzll(rest);
-        const HardShadowVolume h = makeHardShadowVolume(glm::dvec3(first[j]), w, *tri);
+        const int j = __builtin_ctzll(rest), lane = j % HardShadowBlock::kLanes;
+        const HardShadowBlock& h = blocks[j / HardShadowBlock::kLanes];
+        const double e[3] = {laneEdgeValue(h, 0, lane, at), laneEdgeValue(h, 1, lane, at), laneEdgeValue(h, 2, lane, at)};
         ++stats_.alphaTests;
-        if (!alphaAtHit(alphaTable, h, *tri, p).opaque) kept &= ~(1ull << j), ++stats_.alphaRejected;
+        if (!alphaAtEdges(alphaTable, *tri, p, e).opaque) kept &= ~(1ull << j), ++stats_.alphaRejected;
     }
     return kept;
 }

@@ -97,8 +97,9 @@ private:
     /// The active groups receiver @p r still needs; returns how many of their samples are open.
     uint32_t gatherCandidates(uint32_t r, const glm::dvec3& p, bool pointTest, size_t groupsBegin, size_t groupsEnd);
     /// Of @p hits (the samples of group @p k, set @p set, whose hard-shadow volume holds @p p),
-    /// the ones whose hit on the current alpha triangle passes the alpha test (AlphaRule.h).
-    uint64_t alphaFilter(uint32_t set, uint32_t k, uint64_t hits, const glm::dvec3& p);
+    /// the ones whose hit on the current alpha triangle passes the alpha test (AlphaRule.h); @p at
+    /// is @p p relative to T's vertices.
+    uint64_t alphaFilter(uint32_t set, uint32_t k, uint64_t hits, const glm::dvec3& p, const EdgeOffsets& at);
 
     const LightSamples& samples;
     const CastOptions& options;

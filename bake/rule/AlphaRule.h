@@ -32,14 +32,6 @@ inline void barycentricsAtEdges(const double e[3], double b[3]) {
     b[0] = e[1] / sum, b[1] = e[2] / sum, b[2] = e[0] / sum;
 }
 
-/// @brief The alpha test of a relation that blocks(h, t, r, ...) blocks, given its three edge
-/// values @p e (edgeValue(h, t, e, r), all >= 0).
-inline AlphaLookup alphaAtEdges(const AlphaTable& table, uint32_t alpha, const double e[3]) {
-    double b[3];
-    barycentricsAtEdges(e, b);
-    return table.lookup(alpha, b[0], b[1], b[2]);
-}
-
 /// @brief A scene entry's "max_distance" (AlphaEntry::maxDistance): the hit at barycentrics
 /// @p b blocks only when |hit - r| <= @p limit. The hit is the barycentric mix of T's vertices,
 /// from the same edge values as the texture test, so every method measures the same double.
@@ -52,11 +44,11 @@ inline AlphaLookup distanceAtHit(double limit, const BlockerTriangle& t, const g
     return {d <= limit, std::abs(d - limit) <= 0x1p-40 * scale};
 }
 
-/// @brief The alpha test of the hit of (@p h, @p r) on @p t, which blocks() must already block:
-/// the map's opacity and, for an id with a max_distance, the distance of the hit.
-inline AlphaLookup alphaAtHit(const AlphaTable& table, const HardShadowVolume& h, const BlockerTriangle& t,
-                              const glm::dvec3& r) {
-    const double e[3] = {edgeValue(h, t, 0, r), edgeValue(h, t, 1, r), edgeValue(h, t, 2, r)};
+/// @brief The alpha test of a relation that the rule blocks, from its three edge values @p e
+/// (edgeValue(h, t, e, r), all >= 0): the map's opacity and, for an id with a max_distance, the
+/// distance of the hit. The caster passes the values its hard-shadow blocks hold, which are the
+/// same doubles (HardShadowBlock.h), without rebuilding the volume.
+inline AlphaLookup alphaAtEdges(const AlphaTable& table, const BlockerTriangle& t, const glm::dvec3& r, const double e[3]) {
     double b[3];
     barycentricsAtEdges(e, b);
     const AlphaLookup map = table.lookup(t.alpha, b[0], b[1], b[2]);
@@ -64,6 +56,13 @@ inline AlphaLookup alphaAtHit(const AlphaTable& table, const HardShadowVolume& h
     if (!(limit < INFINITY)) return map;
     const AlphaLookup near = distanceAtHit(limit, t, r, b);
     return {map.opaque && near.opaque, map.tie || near.tie};
+}
+
+/// @brief The alpha test of the hit of (@p h, @p r) on @p t, which blocks() must already block.
+inline AlphaLookup alphaAtHit(const AlphaTable& table, const HardShadowVolume& h, const BlockerTriangle& t,
+                              const glm::dvec3& r) {
+    const double e[3] = {edgeValue(h, t, 0, r), edgeValue(h, t, 1, r), edgeValue(h, t, 2, r)};
+    return alphaAtEdges(table, t, r, e);
 }
 
 /// @brief The whole rule with alpha: blocks() and, for an alpha triangle, the alpha test.

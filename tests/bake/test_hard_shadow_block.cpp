@@ -7,6 +7,8 @@
 
 #include <catch2/catch.hpp>
 
+#include <bit>
+
 using namespace penumbra;
 using namespace penumbra::test;
 
@@ -71,6 +73,14 @@ TEST_CASE("every SIMD level decides each relation like the blocking rule", "[hpc
                         expected |= uint64_t(blocks(glm::dvec3(c.samples[i]), w, r, c.t, eps)) << i;
                     const uint64_t word = k.test(hard.data(), 0b111, at, dist, e);
                     REQUIRE(word == expected);
+                    // The alpha test reads the hit's edge values from the blocks: the rule's own doubles.
+                    for (size_t i = 0; i < c.samples.size(); ++i) {
+                        const HardShadowVolume h = makeHardShadowVolume(glm::dvec3(c.samples[i]), w, c.t);
+                        if (h.side == 0.0) continue;
+                        for (int edge = 0; edge < 3; ++edge)
+                            REQUIRE(std::bit_cast<uint64_t>(laneEdgeValue(hard[i / 4], edge, int(i % 4), at)) ==
+                                    std::bit_cast<uint64_t>(edgeValue(h, c.t, edge, r)));
+                    }
                     REQUIRE(k.test(hard.data(), 0b010, at, dist, e) == (expected & 0xF0));  // only block 1
                     blocked += __builtin_popcountll(word);
                     tested += c.samples.size();
