@@ -134,7 +134,7 @@ bool TileCaster::castTriangle(const BlockerTriangle& t, const PenumbraVolume* li
     if (umbra() && h.nodeFullUmbra[nodeIndex]) return false;  // line 35
     const ReceiverHierarchy::Node& node = h.nodes[nodeIndex];
     uint32_t active = options.activePlanes ? planes : lightVolume->all();
-    if (!intersects(*lightVolume, Box{node.lo, node.hi}, active)) return false;  // line 36
+    if (!boxTest(*lightVolume, Box{node.lo, node.hi}, active)) return false;  // line 36
     planes = options.activePlanes ? active : lightVolume->all();
     return true;
 }
@@ -158,7 +158,7 @@ void TileCaster::visit(uint32_t nodeIndex, uint32_t planes, size_t groupsBegin, 
         if (groupVolumesBuilt) {
             const PenumbraVolume& v = groupVolumes[g.group];
             uint32_t p = options.activePlanes ? (g.planes & v.all()) : v.all();
-            if (!intersects(v, box, p)) continue;
+            if (!boxTest(v, box, p)) continue;
             stack.push_back({g.group, options.activePlanes ? p : kAllPlanes});
         } else {
             stack.push_back({g.group, kAllPlanes});

@@ -75,6 +75,11 @@ private:
     /// Whether every receiver in @p box is in front of the current closed triangle beyond its
     /// epsilon, so that castReceiver() would skip each of them (conservative: false when unsure).
     bool inFrontOfClosed(const Box& box) const;
+    /// INTERSECTS() at the kernels' level: four planes per instruction with AVX2, two otherwise
+    /// (the same answer and active planes either way).
+    bool boxTest(const PenumbraVolume& v, const Box& box, uint32_t& active) const {
+        return kernels.level == SimdLevel::Avx2 ? intersectsAvx2(v, box, active) : intersects(v, box, active);
+    }
     /// Lines 35-36: whether node @p nodeIndex still holds a receiver out of umbra and meets V_L;
     /// @p planes (the parent's active V_L planes) loses the planes the node's box is inside of.
     bool enters(uint32_t nodeIndex, uint32_t& planes);

@@ -192,3 +192,36 @@ TEST_CASE("the AVX2 volume builder gives the scalar one's planes", "[hpc][volume
     CHECK(culled > builds / 10);  // and the cull path was taken
     CHECK(maxBoundVertices > 4);  // lanes past four bound vertices
 }
+
+TEST_CASE("the AVX2 box test gives intersects()'s answer and active planes", "[hpc][volume][simd]") {
+    if (!simdSupported(SimdLevel::Avx2)) {
+        WARN("no AVX2 on this CPU: nothing to compare");
+        return;
+    }
+    Rng rng(17);
+    uint64_t tests = 0, outside = 0, pruned = 0, maxPlanes = 0;
+    for (const LightDesc& light : {rectLight({0, 4, 0}, {4, 0, 0}, {0, 0, 4}), sunLight({0.3, -1, 0.2}, 5.0, 16), polygonLight()}) {
+        const LightSamples samples = generateLightSamples({light}, 64, 5);
+        for (const Triangle& tri : volumeBlockers(7)) {
+            const BlockerTriangle t = BlockerTriangle::from(tri);
+            if (!t.valid) continue;
+            const PenumbraVolume v = makePenumbraVolume(samples.lightBounds[0], t);
+            maxPlanes = std::max<uint64_t>(maxPlanes, uint64_t(v.count));
+            for (int i = 0; i < 100; ++i) {
+                const glm::vec3 a = randomIn(rng, {-5, -1, -5}, {5, 4, 5}), b = a + randomIn(rng, {0, 0, 0}, {2, 2, 2});
+                // Every plane, then random subsets (a parent's pruned set), including planes in
+                // the lanes of a block whose neighbours are inactive.
+                const uint32_t subset = i == 0 ? v.all() : uint32_t(rng.next()) & v.all();
+                uint32_t sse2 = subset, avx2 = subset;
+                const bool hit = intersects(v, Box{a, b}, sse2);
+                REQUIRE(intersectsAvx2(v, Box{a, b}, avx2) == hit);
+                if (hit) REQUIRE(avx2 == sse2);
+                ++tests, outside += !hit, pruned += hit && sse2 != subset;
+            }
+        }
+    }
+    INFO(tests << " tests, " << outside << " outside, " << pruned << " pruned, volumes up to " << maxPlanes << " planes");
+    CHECK(outside > tests / 10);
+    CHECK(pruned > tests / 10);
+    CHECK(maxPlanes > 8);  // more than two blocks of four
+}
