@@ -49,7 +49,7 @@ void requireNonEmpty(const CLI::Option* option, const std::string& value) {
 
 void addCastOptions(CLI::App& bake, BakeCommand& c) {
     bake.add_option("--disable", c.disabled, std::string("switch optimizations off: ") + kOptimizations)->delimiter(',');
-    bake.add_option("--simd", c.simd, "hard-shadow test kernels: auto (default), avx2, sse2 or scalar; same bits for all");
+    bake.add_option("--simd", c.simd, "the cast's SIMD kernels: auto (default), avx2, sse2 or scalar; same bits for all");
     bake.add_option("--sample-table", c.sampleTable, "on or off: sample mask tables (overrides bake.sample_table)")
         ->check(CLI::IsMember({"on", "off"}));
     bake.add_option("--embree-filter", c.embreeFilter,
