@@ -261,7 +261,11 @@ void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_
         if (lookup == SampleMaskTable::Lookup::NoneBlocked) return;  // no bit has changed yet
     }
     bool haveOffsets = false;
-    EdgeOffsets offsets;  // r - v_e for the exact tests, once per receiver
+    EdgeOffsets offsets;  // r - v_e for the exact tests and the alpha test, once per receiver
+    auto edgeOffsets = [&]() -> const EdgeOffsets& {
+        if (!haveOffsets) offsets = EdgeOffsets(*tri, p), haveOffsets = true;
+        return offsets;
+    };
     for (const ActiveGroup& g : candidates) {
         const LightSampleGroup& group = samples.groups[g.group];
         const uint64_t before = mask ? mask[g.group] : 0;
@@ -283,13 +287,9 @@ void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_
             uint32_t which;
             const HardShadowBlock* hard = hardShadowBlocks(set, g.group, open, which);
             stats_.hardTests += uint64_t(__builtin_popcountll(open));
-            if (!haveOffsets) offsets = EdgeOffsets(*tri, p), haveOffsets = true;
-            hits |= kernels.test(hard, which, offsets, dist, eps) & open;
+            hits |= kernels.test(hard, which, edgeOffsets(), dist, eps) & open;
         }
-        if (tri->alpha && hits) {
-            if (!haveOffsets) offsets = EdgeOffsets(*tri, p), haveOffsets = true;
-            hits = alphaFilter(set, g.group, hits, p, offsets);
-        }
+        if (tri->alpha && hits) hits = alphaFilter(set, g.group, hits, p, edgeOffsets());
         word |= hits;
         if (word != before) {
             if (!mask) {  // line 59, deferred until a bit is really set

@@ -176,7 +176,6 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
     const glm::dvec3 p(receivers_.position[r]), n(receivers_.normal[r]);
     const int set = int(sets_[r]);
     const PerLight& light = lights_[li];
-    const bool planar = glm::dot(light.normal, light.normal) > 0;
     blocked = 0;
     const uint32_t g0 = samples_.lightFirstGroup[li], g1 = samples_.lightFirstGroup[li + 1];
     auto blockedWord = [&](uint32_t k) { return fullUmbra ? samples_.groups[k].fullMask() : (groupWords ? groupWords[k] : 0); };
@@ -220,7 +219,7 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
                 e += weight * cosReceiver;
                 continue;
             }
-            double cosEmitter = planar ? std::max(0.0, -glm::dot(light.normal, w)) : 1.0;
+            double cosEmitter = light.planar() ? std::max(0.0, -glm::dot(light.normal, w)) : 1.0;
             e += weight * (cosReceiver * cosEmitter / dist2);
         }
     }
@@ -228,7 +227,7 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
 }
 
 bool ReceiverShader::sumsInLanes(const PerLight& light, const glm::dvec3& n) {
-    return !light.sun && glm::dot(light.normal, light.normal) > 0 && n != glm::dvec3(0.0);
+    return !light.sun && light.planar() && n != glm::dvec3(0.0);
 }
 
 double ReceiverShader::lightSampleSum(uint32_t r, int li, const uint64_t* visible) const {

@@ -7,6 +7,7 @@
 #include "bake/light/Light.h"
 #include "receivers/ReceiverSet.h"
 
+#include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
 
 #include <mutex>
@@ -95,6 +96,7 @@ private:
         int samples = 1;
         glm::dvec3 radiance{0.0};         ///< planar emitters: the radiance, for the exact integral
         std::vector<glm::dvec3> corners;  ///< rect and polygon lights: the emitter's outline, in order
+        bool planar() const { return glm::dot(normal, normal) > 0; }  ///< an emitter cosine applies
     };
     const LightSamples& samples_;
     const ReceiverSet& receivers_;
