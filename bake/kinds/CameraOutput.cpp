@@ -8,6 +8,9 @@
 #include <glm/geometric.hpp>
 
 #include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <cmath>
@@ -69,8 +72,9 @@ CameraLayout layoutOf(const ReceiverSet& receivers, const ReceiverResults& resul
     c.lightLayers = results.lights > 1 ? results.lights : 0;
     c.order.resize(c.firstPass);
     std::iota(c.order.begin(), c.order.end(), 0u);
-    std::stable_sort(c.order.begin(), c.order.end(),
-                     [&](uint32_t a, uint32_t b) { return receivers.pixel[a] % c.pixels < receivers.pixel[b] % c.pixels; });
+    // Camera receivers come in pixel order; deep layers and other kinds' layouts may not.
+    const auto byPixel = [&](uint32_t a, uint32_t b) { return receivers.pixel[a] % c.pixels < receivers.pixel[b] % c.pixels; };
+    if (!std::is_sorted(c.order.begin(), c.order.end(), byPixel)) std::stable_sort(c.order.begin(), c.order.end(), byPixel);
     for (size_t i = c.firstPass; i < receivers.size();) {
         size_t end = i;
         while (end < receivers.size() && receivers.pixel[end] == receivers.pixel[i]) ++end;
@@ -80,7 +84,9 @@ CameraLayout layoutOf(const ReceiverSet& receivers, const ReceiverResults& resul
     std::stable_sort(c.refined.begin(), c.refined.end(), [](const RefinedPixel& a, const RefinedPixel& b) { return a.pixel < b.pixel; });
     // Preview exposure: the brighter lit surfaces sit near white (PreviewTone.h).
     std::vector<float> luminance(c.front);
-    for (size_t i = 0; i < c.front; ++i) luminance[i] = previewLuminance(shadedIrradiance(receivers, results, i, smooth));
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, c.front, 4096), [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t i = range.begin(); i != range.end(); ++i) luminance[i] = previewLuminance(shadedIrradiance(receivers, results, i, smooth));
+    });
     c.tone = previewTone(luminance);
     return c;
 }
@@ -109,18 +115,33 @@ public:
     }
     std::span<const uint8_t> preview(int rows) const { return std::span<const uint8_t>(rgb_).first(size_t(rows) * width_ * 3); }
 
+    /// Rows are filled in parallel: a row's receivers and refined pixels are a contiguous run of
+    /// the pixel-sorted lists and write only that row's pixels, in the order a serial fill would.
     void fill(int y0, int rows) {
-        std::fill(data_.begin(), data_.end(), 0.f);
-        for (size_t layer = 0; layer < c_.layers; ++layer)  // no surface: infinitely far
-            std::fill_n(&at(c_.perLayer * layer + kZ, 0), kStripRows * width_, std::numeric_limits<float>::infinity());
-        const size_t first = size_t(y0) * width_, end = first + size_t(rows) * width_;
-        for (size_t px = 0; px < end - first; ++px) setColour(px, glm::vec3(PreviewTone::kBackground));
-        for (; next_ < c_.order.size() && r_.pixel[c_.order[next_]] % c_.pixels < end; ++next_) firstPass(c_.order[next_], first);
-        for (; nextRefined_ < c_.refined.size() && c_.refined[nextRefined_].pixel < end; ++nextRefined_)
-            refinedPixel(c_.refined[nextRefined_], first);
+        const size_t first = size_t(y0) * width_;
+        // Where each row's receivers and refined pixels begin in the sorted lists.
+        std::vector<size_t> orderAt(size_t(rows) + 1), refinedAt(size_t(rows) + 1);
+        for (int y = 0; y <= rows; ++y) {
+            const size_t end = first + size_t(y) * width_;
+            for (; next_ < c_.order.size() && r_.pixel[c_.order[next_]] % c_.pixels < end; ++next_) {}
+            for (; nextRefined_ < c_.refined.size() && c_.refined[nextRefined_].pixel < end; ++nextRefined_) {}
+            orderAt[size_t(y)] = next_, refinedAt[size_t(y)] = nextRefined_;
+        }
+        tbb::parallel_for(tbb::blocked_range<int>(0, rows, 4), [&](const tbb::blocked_range<int>& range) {
+            for (int y = range.begin(); y != range.end(); ++y) fillRow(size_t(y), first, orderAt, refinedAt);
+        });
     }
 
 private:
+    void fillRow(size_t y, size_t first, const std::vector<size_t>& orderAt, const std::vector<size_t>& refinedAt) {
+        const size_t row = y * width_;
+        for (size_t ch = 0; ch < channels_; ++ch) std::fill_n(&at(ch, row), width_, 0.f);
+        for (size_t layer = 0; layer < c_.layers; ++layer)  // no surface: infinitely far
+            std::fill_n(&at(c_.perLayer * layer + kZ, row), width_, std::numeric_limits<float>::infinity());
+        for (size_t px = row; px < row + width_; ++px) setColour(px, glm::vec3(PreviewTone::kBackground));
+        for (size_t k = orderAt[y]; k < orderAt[y + 1]; ++k) firstPass(c_.order[k], first);
+        for (size_t k = refinedAt[y]; k < refinedAt[y + 1]; ++k) refinedPixel(c_.refined[k], first);
+    }
     float& at(size_t channel, size_t local) { return data_[channel * kStripRows * width_ + local]; }
     void setColour(size_t local, const glm::vec3& c) {
         for (int k = 0; k < 3; ++k) rgb_[3 * local + size_t(k)] = encodeSrgb(c[k]);
@@ -238,8 +259,8 @@ void writeCameraOutputs(const SceneDesc& scene, const CameraDesc& camera, const 
     for (int y = 0; y < H; y += kStripRows) {
         const int rows = std::min(kStripRows, H - y);
         strips.fill(y, rows);
-        exr.write(rows, strips.channels(rows));
-        png.write(rows, strips.preview(rows));
+        // Two files, two compressors: the PNG's deflate runs beside the EXR's.
+        tbb::parallel_invoke([&] { exr.write(rows, strips.channels(rows)); }, [&] { png.write(rows, strips.preview(rows)); });
     }
     exr.commit();
     png.commit();
