@@ -221,9 +221,11 @@ inline std::vector<std::pair<std::string, CastOptions>> optionVariants() {
     off("sse2 kernels", [](CastOptions& o) { o.simd = SimdLevel::Sse2; });
     off("no sample table", [](CastOptions& o) { o.sampleTable = false; });
     off("no closed casters", [](CastOptions& o) { o.closedCasters = false; });
+    off("group volumes for the first receiver", [](CastOptions& o) { o.groupVolumesAfter = 0; });
+    off("group volumes after three receivers", [](CastOptions& o) { o.groupVolumesAfter = 3; });
     off("all off", [](CastOptions& o) {
         o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = o.sampleTable =
-            o.closedCasters = false;
+            o.closedCasters = false, o.groupVolumesAfter = 0;
     });
     return v;
 }

@@ -20,7 +20,7 @@ namespace penumbra {
 namespace {
 
 constexpr const char* kOptimizations =
-    "umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, closed-casters, cull-before-spill, all";
+    "umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, closed-casters, cull-before-spill, defer-group-volumes, all";
 
 /// Applies `--disable a,b,c` to the scene's cast options.
 void disableOptimizations(CastOptions& o, const std::vector<std::string>& names) {
@@ -34,9 +34,10 @@ void disableOptimizations(CastOptions& o, const std::vector<std::string>& names)
         else if (name == "sample-table") o.sampleTable = false;
         else if (name == "closed-casters") o.closedCasters = false;
         else if (name == "cull-before-spill") o.cullBeforeSpill = false;
+        else if (name == "defer-group-volumes") o.groupVolumesAfter = 0;
         else if (name == "all")
             o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = o.sampleTable =
-                o.closedCasters = o.cullBeforeSpill = false;
+                o.closedCasters = o.cullBeforeSpill = false, o.groupVolumesAfter = 0;
         else
             throw InputError(fmt::format("--disable: unknown optimization \"{}\" (known: {})", name, kOptimizations));
     }

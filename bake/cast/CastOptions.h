@@ -33,6 +33,12 @@ struct CastOptions {
     /// as no light sample lies inside a closed solid (except for ties of the blocking rule:
     /// segments that only graze the solid).
     bool closedCasters = true;
+    /// With table rows (the light on one side of T's plane), T's group volumes V_Gk are built only
+    /// once T has reached more than this many receivers of a tile past the leaf prefilter: the rows
+    /// decide every group of a receiver at once, so V_Gk pay only for blockers whose penumbra
+    /// holds many receivers (docs/performance.md, "Group volumes deferred"). 0 builds them for
+    /// the first receiver, as Figure 3 does; `--disable defer-group-volumes`. Masks do not change.
+    uint32_t groupVolumesAfter = 32;
     /// --method embree: accept a hit only when the blocking rule blocks (an occlusion filter), so
     /// Embree decides like hpc but for float edge ties. Off: Embree's native answer, with the
     /// epsilon as tnear along the ray, which also blocks grazing rays the rule does not.

@@ -47,13 +47,15 @@ void TileCaster::notePeaks() {
     stats_.peakReceiverBytes = std::max(stats_.peakReceiverBytes, hierarchy_.receiverBytes());
 }
 
+void TileCaster::prepareTableBlocker() {
+    tableBlocker = (*tables)[currentLight].prepare(*tri);
+    if (tableBlocker.split) sideCache.reset(samples.sets), tableBlocker.sideCache = &sideCache;
+    tablePrepared = true;
+}
+
 void TileCaster::buildGroupVolumes() {
     for (uint32_t k = samples.lightFirstGroup[currentLight]; k < samples.lightFirstGroup[currentLight + 1]; ++k)
         buildPenumbraVolume(samples.groups[k].bound, *tri, groupVolumes[k], nullptr, kernels.level);
-    if (tables) {
-        tableBlocker = (*tables)[currentLight].prepare(*tri);
-        if (tableBlocker.split) sideCache.reset(samples.sets), tableBlocker.sideCache = &sideCache;
-    }
     groupVolumesBuilt = true;
 }
 
@@ -112,9 +114,10 @@ bool TileCaster::castTriangle(const BlockerTriangle& t, const PenumbraVolume* li
     for (currentLight = 0; currentLight < uint32_t(samples.lightCount()); ++currentLight) {
         if (!lightActive[currentLight]) continue;
         lightVolume = &lightVolumes[currentLight];
-        groupVolumesBuilt = false;
+        groupVolumesBuilt = tablePrepared = false, leafReceivers = 0;
         uint32_t g0 = samples.lightFirstGroup[currentLight], g1 = samples.lightFirstGroup[currentLight + 1];
         if (!options.lazyVolumes) {  // optimization C off: build everything before traversal
+            if (tables) prepareTableBlocker();
             buildGroupVolumes();
             uint32_t which;
             for (uint32_t set = 0; set < uint32_t(samples.sets); ++set)
@@ -211,7 +214,13 @@ void TileCaster::castLeaf(uint32_t first, uint32_t count, uint32_t lightPlanes, 
             }
         }
         if (!live) continue;
-        if (!groupVolumesBuilt) buildGroupVolumes();  // lines 60-64, for the first receiver reached
+        if (!groupVolumesBuilt) {  // lines 60-64, for the first receiver reached
+            if (tables && !tablePrepared) prepareTableBlocker();
+            // A small blocker reaches a few receivers, and its table rows decide all their
+            // groups at once; its V_Gk would cost more to build than their culling saves.
+            leafReceivers += uint32_t(__builtin_popcount(live));
+            if (!tables || tableBlocker.split || leafReceivers > options.groupVolumesAfter) buildGroupVolumes();
+        }
         // With table rows (T's plane clear of the light), the look-ups of the chunk's receivers
         // first, each one's cells prefetched: a receiver's four cells are as many likely cache
         // misses (the table is a megabyte per sample set, and neighbours use different sets), and
@@ -260,6 +269,8 @@ void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_
         lookup = table->lookup(tableBlocker, set, p, dist, eps, rows);
         if (lookup == SampleMaskTable::Lookup::NoneBlocked) return;  // no bit has changed yet
     }
+    // Without rows (the table gave up on this receiver), the groups' point tests need V_Gk.
+    if (!groupVolumesBuilt && lookup != SampleMaskTable::Lookup::Rows) buildGroupVolumes();
     bool haveOffsets = false;
     EdgeOffsets offsets;  // r - v_e for the exact tests and the alpha test, once per receiver
     auto edgeOffsets = [&]() -> const EdgeOffsets& {

@@ -64,8 +64,10 @@ private:
 
     void notePeaks();
     bool umbra() const { return options.umbraBits; }
-    /// The per-triangle state that only a reached receiver needs: V_Gk and the table's blocker
-    /// coefficients. Most blockers never reach a receiver of a given tile.
+    /// The per-triangle state that only a reached receiver needs, made on first use: the table's
+    /// blocker coefficients, and V_Gk (for a blocker with table rows, deferred until it has reached
+    /// options.groupVolumesAfter receivers). Most blockers never reach a receiver of a given tile.
+    void prepareTableBlocker();
     void buildGroupVolumes();
     /// The hard-shadow blocks of group @p k in sample set @p set, with every block that holds a
     /// sample of @p needed built. Per-block laziness matters for small blockers, which touch a
@@ -118,7 +120,8 @@ private:
     // Per-triangle state (Figure 3's "volumes-computed", split per light and per (set, group)).
     const BlockerTriangle* tri = nullptr;
     const PenumbraVolume* lightVolume = nullptr;
-    bool groupVolumesBuilt = false;
+    bool groupVolumesBuilt = false, tablePrepared = false;
+    uint32_t leafReceivers = 0;  ///< receivers past the leaf prefilter for the current light
     uint32_t currentLight = 0;
     std::vector<PenumbraVolume> groupVolumes;
     // Hard-shadow volumes in blocks of four samples: group k's samples 4b..4b+3 are block
