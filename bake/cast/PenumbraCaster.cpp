@@ -19,6 +19,8 @@
 namespace penumbra {
 namespace {
 
+/// Blockers between two reports of a tile's work within a chunk (two relaxed atomic adds each).
+constexpr size_t kWorkReportEvery = 256;
 
 }  // namespace
 
@@ -149,13 +151,20 @@ void PenumbraCaster::Impl::castOnTile(size_t t, BlockerBatch& batch) {
     const size_t n = batch.n, lights = size_t(samples.lightCount());
     TileCaster& tile = *tiles[t];
     uint8_t* reached = &batch.reached[t * n];
-    const uint64_t workBefore = tile.work();
+    uint64_t reported = tile.work();
     for (size_t i = 0; i < n; ++i) {
         reached[i] = 0;
+        // Work is reported as it is spent, not only when the chunk is through: a heavy chunk (the
+        // cut-outs, replayed last) would otherwise hold the display's ETA near zero while it drains.
+        if (progress && i % kWorkReportEvery == kWorkReportEvery - 1) {
+            const uint64_t w = tile.work();
+            progress(0, w - reported);
+            reported = w;
+        }
         if (!batch.prepared[i].valid) continue;
         reached[i] = tile.castTriangle(batch.prepared[i], &batch.lightVolumes[i * lights], &batch.lightActive[i * lights]);
     }
-    const uint64_t work = tile.work() - workBefore;
+    const uint64_t work = tile.work() - reported;
     // Each tile finishing the chunk credits its share of the chunk's triangles (tiles hold
     // near-equal receiver counts); the shares add up to n exactly. Counted as tiles finish, not
     // when the chunk is handed out, so the display reaches 100 % when the cast does.

@@ -24,8 +24,9 @@ using MaskVisitor = std::function<void(uint32_t receiver, const uint64_t* groupW
 
 /// @brief Called from the threads that cast each time a tile finishes a chunk: @p triangles is
 /// that tile's share of the chunk's count (the shares of all tiles add up to it exactly) and
-/// @p work the units the tile spent on it (TileCaster::work()). Must not throw; it runs inside
-/// the tiles' tasks.
+/// @p work the units the tile spent on it not reported yet (TileCaster::work()). Within a chunk it
+/// is also called every few hundred blockers with @p triangles 0 and the work spent so far, so the
+/// work moves while a heavy chunk is cast. Must not throw; it runs inside the tiles' tasks.
 using CastProgress = std::function<void(uint64_t triangles, uint64_t work)>;
 
 /// @brief Receivers are split spatially into tiles, each with its own hierarchy and mask pool.
