@@ -50,7 +50,6 @@ void TileCaster::notePeaks() {
 void TileCaster::prepareTableBlocker() {
     tableBlocker = (*tables)[currentLight].prepare(*tri);
     if (tableBlocker.split) sideCache.reset(samples.sets), tableBlocker.sideCache = &sideCache;
-    tablePrepared = true;
 }
 
 void TileCaster::buildGroupVolumes() {
@@ -114,7 +113,7 @@ bool TileCaster::castTriangle(const BlockerTriangle& t, const PenumbraVolume* li
     for (currentLight = 0; currentLight < uint32_t(samples.lightCount()); ++currentLight) {
         if (!lightActive[currentLight]) continue;
         lightVolume = &lightVolumes[currentLight];
-        groupVolumesBuilt = tablePrepared = false, leafReceivers = 0;
+        groupVolumesBuilt = false, leafReceivers = 0;
         uint32_t g0 = samples.lightFirstGroup[currentLight], g1 = samples.lightFirstGroup[currentLight + 1];
         if (!options.lazyVolumes) {  // optimization C off: build everything before traversal
             if (tables) prepareTableBlocker();
@@ -215,7 +214,7 @@ void TileCaster::castLeaf(uint32_t first, uint32_t count, uint32_t lightPlanes, 
         }
         if (!live) continue;
         if (!groupVolumesBuilt) {  // lines 60-64, for the first receiver reached
-            if (tables && !tablePrepared) prepareTableBlocker();
+            if (tables && leafReceivers == 0) prepareTableBlocker();
             // A small blocker reaches a few receivers, and its table rows decide all their
             // groups at once; its V_Gk would cost more to build than their culling saves.
             leafReceivers += uint32_t(__builtin_popcount(live));

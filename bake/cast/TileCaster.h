@@ -120,8 +120,10 @@ private:
     // Per-triangle state (Figure 3's "volumes-computed", split per light and per (set, group)).
     const BlockerTriangle* tri = nullptr;
     const PenumbraVolume* lightVolume = nullptr;
-    bool groupVolumesBuilt = false, tablePrepared = false;
-    uint32_t leafReceivers = 0;  ///< receivers past the leaf prefilter for the current light
+    bool groupVolumesBuilt = false;
+    /// Receivers past the leaf prefilter for the current light, counted until V_Gk are built (0:
+    /// none yet, so the table's blocker is not prepared either).
+    uint32_t leafReceivers = 0;
     uint32_t currentLight = 0;
     std::vector<PenumbraVolume> groupVolumes;
     // Hard-shadow volumes in blocks of four samples: group k's samples 4b..4b+3 are block

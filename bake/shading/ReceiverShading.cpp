@@ -199,6 +199,7 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
         return anyShown ? light.weight * lightSampleSum(r, li, visible) : glm::dvec3(0.0);
     }
     glm::dvec3 e(0.0);
+    const bool planar = light.planar();
     for (uint32_t k = g0; k < g1; ++k) {
         const LightSampleGroup& g = samples_.groups[k];
         const uint64_t word = blockedWord(k);
@@ -219,7 +220,7 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
                 e += weight * cosReceiver;
                 continue;
             }
-            double cosEmitter = light.planar() ? std::max(0.0, -glm::dot(light.normal, w)) : 1.0;
+            double cosEmitter = planar ? std::max(0.0, -glm::dot(light.normal, w)) : 1.0;
             e += weight * (cosReceiver * cosEmitter / dist2);
         }
     }
