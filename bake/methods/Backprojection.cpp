@@ -3,6 +3,8 @@
 #include "stream/util/TexelIndex.h"
 
 #include <glm/geometric.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -60,25 +62,46 @@ DepthPyramid::DepthPyramid(const DepthMap& shadow, int layer) : shadow_(&shadow)
         const int coarse = (fine + 1) / 2;
         std::vector<Texel> level(size_t(coarse) * coarse);
         const int l = levels();
-        for (int y = 0; y < coarse; ++y)
-            for (int x = 0; x < coarse; ++x) {
-                // Four quantiles of the children's sixteen (a fine texel counts four times).
-                std::array<float, 4 * kQuantiles> all;
-                Texel& t = level[size_t(y) * coarse + x];
-                t.nearest = INFINITY;
-                for (int c = 0; c < 4; ++c) {
-                    const int cx = 2 * x + c % 2, cy = 2 * y + c / 2;
-                    const Texel child = cx < fine && cy < fine ? at(l - 1, cx, cy) : Texel{INFINITY, {INFINITY, INFINITY, INFINITY, INFINITY}};
-                    t.nearest = std::min(t.nearest, child.nearest);
-                    std::copy(child.quantile.begin(), child.quantile.end(), all.begin() + c * kQuantiles);
-                }
-                std::sort(all.begin(), all.end());
-                for (int q = 0; q < kQuantiles; ++q) t.quantile[size_t(q)] = all[size_t(4 * q + 2)];
-            }
+        // Rows in parallel: each texel depends only on the finer level, so the result does not
+        // depend on the split (level 1 of four 1024² layers took 60 ms on one thread).
+        tbb::parallel_for(tbb::blocked_range<int>(0, coarse, 16), [&](const tbb::blocked_range<int>& rows) {
+            for (int y = rows.begin(); y < rows.end(); ++y)
+                for (int x = 0; x < coarse; ++x) level[size_t(y) * coarse + x] = coarseTexel(l, fine, x, y);
+        });
         res_.push_back(coarse);
         levels_.push_back(std::move(level));
         fine = coarse;
     }
+}
+
+DepthPyramid::Texel DepthPyramid::coarseTexel(int l, int fine, int x, int y) const {
+    Texel t;
+    t.nearest = INFINITY;
+    if (l == 1) {
+        // Level 0's quantiles are its depth four times, so the sixteen values sorted are the four
+        // depths sorted, each four times, and the quantiles (the 3rd, 7th, 11th and 15th) are
+        // the four depths in order: the same result as the general case for a quarter of the sort.
+        std::array<float, 4> depth;
+        for (int c = 0; c < 4; ++c) {
+            const int cx = 2 * x + c % 2, cy = 2 * y + c / 2;
+            depth[size_t(c)] = cx < fine && cy < fine ? shadow_->at(cx, cy, layer_) : INFINITY;
+            t.nearest = std::min(t.nearest, depth[size_t(c)]);
+        }
+        std::sort(depth.begin(), depth.end());
+        t.quantile = depth;
+        return t;
+    }
+    // Four quantiles of the children's sixteen (a fine texel counts four times).
+    std::array<float, 4 * kQuantiles> all;
+    for (int c = 0; c < 4; ++c) {
+        const int cx = 2 * x + c % 2, cy = 2 * y + c / 2;
+        const Texel child = cx < fine && cy < fine ? at(l - 1, cx, cy) : Texel{INFINITY, {INFINITY, INFINITY, INFINITY, INFINITY}};
+        t.nearest = std::min(t.nearest, child.nearest);
+        std::copy(child.quantile.begin(), child.quantile.end(), all.begin() + c * kQuantiles);
+    }
+    std::sort(all.begin(), all.end());
+    for (int q = 0; q < kQuantiles; ++q) t.quantile[size_t(q)] = all[size_t(4 * q + 2)];
+    return t;
 }
 
 DepthPyramid::Texel DepthPyramid::at(int level, int x, int y) const {

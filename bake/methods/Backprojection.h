@@ -64,6 +64,9 @@ public:
     static uint64_t plannedBytes(int resolution);
 
 private:
+    /// Texel (@p x, @p y) of level @p l from level l - 1, whose resolution is @p fine.
+    Texel coarseTexel(int l, int fine, int x, int y) const;
+
     const DepthMap* shadow_;
     int layer_;
     std::vector<int> res_;

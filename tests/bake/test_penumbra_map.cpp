@@ -16,6 +16,7 @@
 
 #include "bake/peers/ReferenceCaster.h"
 
+#include "bake/methods/Backprojection.h"
 #include "bake/methods/PenumbraMap.h"
 #include "bake/shading/ReceiverShading.h"
 
@@ -248,4 +249,37 @@ TEST_CASE("penumbra map: a cut-out leaf casts its outline's shadow, not its quad
     INFO("mean |dV| with the outline " << cutOut << ", as an opaque quad " << opaque);
     CHECK(cutOut <= 0.01);
     CHECK(opaque >= 0.1);  // the quad shadows floor that the leaf leaves lit
+}
+
+TEST_CASE("penumbra map: a depth pyramid's texels hold the nearest depth and the quantiles of the sixteen below", "[penumbra-map]") {
+    // An odd resolution, so that the edges' missing children count as nothing drawn.
+    DepthMap map;
+    map.reset(37, 2);
+    uint32_t state = 12345;
+    for (float& z : map.depth) {
+        state = state * 1664525u + 1013904223u;
+        z = (state >> 28) == 0 ? INFINITY : float(state >> 8) * 0x1p-24f;
+    }
+    const DepthPyramid pyramid(map, 1);
+    REQUIRE(pyramid.levels() == 7);
+    for (int level = 1; level < pyramid.levels(); ++level) {
+        const int fine = pyramid.resolution(level - 1);
+        for (int y = 0; y < pyramid.resolution(level); ++y)
+            for (int x = 0; x < pyramid.resolution(level); ++x) {
+                std::vector<float> all;
+                float nearest = INFINITY;
+                for (int c = 0; c < 4; ++c) {
+                    const int cx = 2 * x + c % 2, cy = 2 * y + c / 2;
+                    const bool in = cx < fine && cy < fine;
+                    const DepthPyramid::Texel child = in ? pyramid.at(level - 1, cx, cy) : DepthPyramid::Texel{INFINITY, {INFINITY, INFINITY, INFINITY, INFINITY}};
+                    nearest = std::min(nearest, child.nearest);
+                    all.insert(all.end(), child.quantile.begin(), child.quantile.end());
+                }
+                std::sort(all.begin(), all.end());
+                const DepthPyramid::Texel t = pyramid.at(level, x, y);
+                CHECK(t.nearest == nearest);
+                for (int q = 0; q < DepthPyramid::kQuantiles; ++q) CHECK(t.quantile[size_t(q)] == all[size_t(4 * q + 2)]);
+            }
+    }
+    CHECK(pyramid.at(0, 5, 3).nearest == map.at(5, 3, 1));
 }
