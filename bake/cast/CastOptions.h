@@ -39,6 +39,11 @@ struct CastOptions {
     /// holds many receivers (docs/performance.md, "Group volumes deferred"). 0 builds them for
     /// the first receiver, as Figure 3 does; `--disable defer-group-volumes`. Masks do not change.
     uint32_t groupVolumesAfter = 32;
+    /// A blocker whose plane cuts the light: per receiver, the box of the light that T covers seen
+    /// from it (SampleMaskTable::footprint()) clears the samples outside it before V_Gk and the
+    /// exact tests (docs/performance.md, "Footprints of split blockers"). Needs the sample table;
+    /// `--disable footprints`. Masks do not change.
+    bool footprints = true;
     /// --method embree: accept a hit only when the blocking rule blocks (an occlusion filter), so
     /// Embree decides like hpc but for float edge ties. Off: Embree's native answer, with the
     /// epsilon as tnear along the ray, which also blocks grazing rays the rule does not.

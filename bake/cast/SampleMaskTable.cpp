@@ -90,7 +90,7 @@ SampleMaskTable::SampleMaskTable(const LightSamples& samples, uint32_t light, in
         flatness = std::max(flatness, std::abs(glm::dot(n_, d)));
     }
     if (!(radius > 0.0) || flatness > kMaxFlatness * radius) return;
-    const size_t words = plannedBytes(samples, light, angles_, offsets_) / sizeof(uint64_t);
+    const size_t words = cellBytes(samples, light, angles_, offsets_) / sizeof(uint64_t);
     if (words == 0) return;
     // Slack for the rounding of these very measurements (a few ulps of the coordinates).
     flatness_ = flatness + 1e-12 * (maxAbs_ + radius);
@@ -105,6 +105,7 @@ SampleMaskTable::SampleMaskTable(const LightSamples& samples, uint32_t light, in
         const LightSampleGroup& g = samples.groups[firstGroup_ + k];
         for (uint32_t j = 0; j < g.count; ++j) groupOf[g.first - first + j] = k, bitOf[g.first - first + j] = j;
     }
+    buildFootprintBins(coords, groupOf, bitOf, samples.sets);
     cells_.assign(words, 0);
     ones_.assign(2 * size_t(groups_) + 1, ~0ull);
     for (int set = 0; set < samples.sets; ++set)
@@ -149,10 +150,16 @@ int SampleMaskTable::offsetBin(double x) const {
     return int(std::clamp((x + radius_) * invWidth_ + 1.0, 0.0, double(offsets_ + 1)));
 }
 
-size_t SampleMaskTable::plannedBytes(const LightSamples& samples, uint32_t light, int angles, int offsets) {
+size_t SampleMaskTable::cellBytes(const LightSamples& samples, uint32_t light, int angles, int offsets) {
     const size_t groups = samples.lightFirstGroup[light + 1] - samples.lightFirstGroup[light];
     const size_t bytes = size_t(samples.sets) * angleBins(angles) * (std::max(1, offsets) + 2) * groups * 2 * sizeof(uint64_t);
     return bytes > kMaxTableBytes ? 0 : bytes;
+}
+
+size_t SampleMaskTable::plannedBytes(const LightSamples& samples, uint32_t light, int angles, int offsets) {
+    const size_t cells = cellBytes(samples, light, angles, offsets);
+    const size_t groups = samples.lightFirstGroup[light + 1] - samples.lightFirstGroup[light];
+    return cells == 0 ? 0 : cells + size_t(samples.sets) * 4 * kFootprintBins * groups * sizeof(uint64_t);
 }
 
 SampleMaskTable::Blocker SampleMaskTable::prepare(const BlockerTriangle& t) const {

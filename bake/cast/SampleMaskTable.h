@@ -60,8 +60,8 @@ public:
     static size_t plannedBytes(const LightSamples& samples, uint32_t light, int angles, int offsets);
 
     bool usable() const { return usable_; }
-    /// @brief Bytes held by the two mask arrays.
-    size_t bytes() const { return cells_.size() * sizeof(uint64_t); }
+    /// @brief Bytes held by the mask arrays (cells and footprint bins).
+    size_t bytes() const { return (cells_.size() + footprintRows_.size()) * sizeof(uint64_t); }
 
     /// @brief The rows of a split blocker's plane line per sample set and orientation: they do
     /// not depend on the receiver, so a caller that looks up many receivers against one blocker
@@ -141,11 +141,38 @@ public:
     /// @param rows filled when the result is Lookup::Rows
     Lookup lookup(const Blocker& b, uint32_t set, const glm::dvec3& r, double dist, double eps, Rows& rows) const;
 
+    /// @brief A split blocker's footprint on the light, seen from one receiver: a box of the
+    /// light's plane (in its frame, as bins of the samples' coordinates) that holds every sample
+    /// the rule could find blocked (SampleMaskTableFootprint.cpp derives it from lookup()'s error
+    /// budget). A thin face seen from beside reaches many receivers of a large light but covers
+    /// few samples of any; the box ends most such pairs before V_Gk and the exact tests
+    /// (docs/performance.md, "Footprints of split blockers").
+    struct Footprint {
+        /// Per group of the light: samples of the set outside the box in s or t are cleared.
+        const uint64_t* sLow;
+        const uint64_t* sHigh;
+        const uint64_t* tLow;
+        const uint64_t* tHigh;
+        /// The samples of group @p k (index within the light's groups) that may be blocked.
+        uint64_t word(uint32_t k) const { return sLow[k] & sHigh[k] & tLow[k] & tHigh[k]; }
+    };
+    enum class FootprintResult {
+        Unknown,      ///< no usable bound here (every sample stays a candidate)
+        NoneBlocked,  ///< the receiver is within eps of T's plane: the rule blocks no sample
+        Box,          ///< Footprint::word() bounds the blocked samples of each group
+    };
+    /// @brief The footprint of split blocker @p b from receiver @p r (sample set @p set).
+    /// @param dist distanceBehind(T, r); @param eps the receiver's epsilon
+    FootprintResult footprint(const Blocker& b, uint32_t set, const glm::dvec3& r, double dist, double eps,
+                              Footprint& out) const;
+
     /// @brief Index of the light's first group in LightSamples::groups (subtract it from a group).
     uint32_t firstGroup() const { return firstGroup_; }
 
 private:
     static constexpr double kRoundoff = 0x1p-53;  ///< u: unit roundoff of double
+    /// Bytes of the cells alone (0 over the cap, when no table is built).
+    static size_t cellBytes(const LightSamples& samples, uint32_t light, int angles, int offsets);
 
     size_t cell(uint32_t set, int angle, int bin) const {
         return ((size_t(set) * angles_ + angle) * size_t(offsets_ + 2) + bin) * groups_ * 2;
@@ -178,6 +205,28 @@ private:
     glm::dvec3 lo_{0.0}, hi_{0.0};  ///< box of every sample (exact float values)
     std::vector<uint64_t> cells_;  ///< [set][angle][offset bin][group of the light][sure, maybe]
     std::vector<uint64_t> ones_;   ///< a row of all-ones words: the fourth line of a blocker that is not split
+
+    // Footprints (SampleMaskTableFootprint.cpp): the samples' coordinates in kFootprintBins bins
+    // per axis, and per [set][axis][side][bin] a row of one word per group of the light: side 0
+    // holds the samples in this bin or above it, side 1 those in this bin or below it.
+    static constexpr int kFootprintBins = 32;
+    void buildFootprintBins(const std::vector<glm::dvec2>& coords, const std::vector<uint32_t>& groupOf,
+                            const std::vector<uint32_t>& bitOf, int sets);
+    int footprintBin(int axis, double value) const;
+    /// Lines within this (relative) of parallel give footprint vertices too uncertain to bound.
+    static constexpr double kMinimumFootprintSine = 1e-4;
+    /// The box [lo, hi] of the footprint in the light's frame, for orientation @p s and
+    /// coordinate bound @p m; false when the bound does not apply (footprint()).
+    bool footprintBox(const Blocker& b, const glm::dvec3& r, double s, double m, double lo[2], double hi[2]) const;
+    bool footprintBoxAvx2(const Blocker& b, const glm::dvec3& r, double s, double m, double lo[2], double hi[2]) const;
+    size_t footprintIndex(uint32_t set, int axis, int side, int bin) const {
+        return (((size_t(set) * 2 + axis) * 2 + side) * kFootprintBins + bin) * groups_;
+    }
+    const uint64_t* footprintRow(uint32_t set, int axis, int side, int bin) const {
+        return &footprintRows_[footprintIndex(set, axis, side, bin)];
+    }
+    double binLow_[2] = {0, 0}, binScale_[2] = {0, 0};  ///< bin = floor((value - binLow_) * binScale_)
+    std::vector<uint64_t> footprintRows_;
 };
 
 }  // namespace penumbra

@@ -257,7 +257,15 @@ void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_
     // cheaply, and the look-up is only worth it for enough open samples. Otherwise, with table
     // rows, the point test would only repeat what the rows decide.
     const bool pointTestFirst = !table || tableBlocker.split;
-    const uint32_t openBits = gatherCandidates(r, p, pointTestFirst, groupsBegin, groupsEnd);
+    // A split blocker's footprint on the light, seen from r: only its samples can be blocked.
+    SampleMaskTable::Footprint footprint;
+    const SampleMaskTable::Footprint* inFootprint = nullptr;
+    if (table && tableBlocker.split && options.footprints) {
+        const auto result = table->footprint(tableBlocker, set, p, dist, eps, footprint);
+        if (result == SampleMaskTable::FootprintResult::NoneBlocked) return;
+        if (result == SampleMaskTable::FootprintResult::Box) inFootprint = &footprint;
+    }
+    const uint32_t openBits = gatherCandidates(r, p, pointTestFirst, inFootprint, groupsBegin, groupsEnd);
     if (candidates.empty()) return;
     SampleMaskTable::Rows rows;
     auto lookup = SampleMaskTable::Lookup::Exact;
@@ -280,6 +288,7 @@ void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_
         const LightSampleGroup& group = samples.groups[g.group];
         const uint64_t before = mask ? mask[g.group] : 0;
         uint64_t word = before, open = ~word & group.fullMask(), alphaSure = 0;
+        if (inFootprint) open &= inFootprint->word(g.group - table->firstGroup());
         const PenumbraVolume& v = groupVolumes[g.group];
         if (!pointTestFirst && lookup != SampleMaskTable::Lookup::Rows && !contains(v, p, g.planes & v.all())) continue;
         if (lookup == SampleMaskTable::Lookup::Rows) {  // sure bits are blocked; bits outside maybe are not
@@ -339,8 +348,9 @@ void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_
     return kept;
 }
 
-[[gnu::always_inline]] inline uint32_t TileCaster::gatherCandidates(uint32_t r, const glm::dvec3& p, bool pointTest, size_t groupsBegin,
-                                      size_t groupsEnd) {
+[[gnu::always_inline]] inline uint32_t TileCaster::gatherCandidates(uint32_t r, const glm::dvec3& p, bool pointTest,
+                                                                   const SampleMaskTable::Footprint* footprint, size_t groupsBegin,
+                                                                   size_t groupsEnd) {
     const ReceiverHierarchy& h = hierarchy_;
     const uint64_t* bits = &h.groupUmbra[size_t(r) * umbraWords];
     const uint64_t* mask = h.mask[r] != MaskPool::kNone ? pool_.data(h.mask[r]) : nullptr;
@@ -349,7 +359,8 @@ void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_
     for (size_t i = groupsBegin; i < groupsEnd; ++i) {  // lines 65-73
         const ActiveGroup g = stack[i];
         if (umbra() && h.groupUmbraBit(bits, g.group)) continue;
-        const uint64_t open = ~(mask ? mask[g.group] : 0) & samples.groups[g.group].fullMask();
+        uint64_t open = ~(mask ? mask[g.group] : 0) & samples.groups[g.group].fullMask();
+        if (footprint) open &= footprint->word(g.group - (*tables)[currentLight].firstGroup());
         if (!open) continue;
         const PenumbraVolume& v = groupVolumes[g.group];
         if (pointTest && !contains(v, p, g.planes & v.all())) continue;

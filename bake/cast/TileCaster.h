@@ -101,8 +101,10 @@ private:
             if (bits[w] != allGroupsBits[w]) return false;
         return true;
     }
-    /// The active groups receiver @p r still needs; returns how many of their samples are open.
-    uint32_t gatherCandidates(uint32_t r, const glm::dvec3& p, bool pointTest, size_t groupsBegin, size_t groupsEnd);
+    /// The active groups receiver @p r still needs (with open samples inside @p footprint, when
+    /// given); returns how many of their samples are open.
+    uint32_t gatherCandidates(uint32_t r, const glm::dvec3& p, bool pointTest, const SampleMaskTable::Footprint* footprint,
+                              size_t groupsBegin, size_t groupsEnd);
     /// Of @p hits (the samples of group @p k, set @p set, whose hard-shadow volume holds @p p),
     /// the ones whose hit on the current alpha triangle passes the alpha test (AlphaRule.h); @p at
     /// is @p p relative to T's vertices.

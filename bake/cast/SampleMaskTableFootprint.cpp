@@ -1,0 +1,121 @@
+/// @file SampleMaskTableFootprint.cpp
+/// @brief SampleMaskTable::footprint(): the box of the light's plane that can hold a split
+/// blocker's blocked samples, seen from one receiver, bounded with lookup()'s error budget.
+///
+/// lookup() shows (SampleMaskTable.cpp) that for a sample whose frame coordinates, as the table
+/// computed them, are q = (s, t), the rule's edge value E_e(l) >= 0 implies
+///     w_e . q + k_e >= -Delta_e,   Delta_e = delta_e g_e,
+/// with w_e = (wx, wy), k_e the edge's line coefficients at r in the orientation of the samples
+/// that can be blocked, g_e = |w_e|_1 and delta_e the margin lineRows() derives. So every blocked
+/// sample lies in P, the intersection of the three half-planes w_e . q + c_e >= 0 with
+/// c_e = k_e + Delta_e (the coefficients as computed, now taken as exact reals).
+///
+/// When the three inward normals w_e positively span the plane (their three cross products
+/// d_ij = w_i x w_j share one strict sign), P is bounded: a triangle, possibly empty, whose
+/// vertices are the pairwise intersections V_ij of the lines w_i . q = -c_i, w_j . q = -c_j. The
+/// box of the three computed vertices, each widened by a bound of its rounding, then holds P.
+/// A pair of lines within 1e-4 (relative) of parallel is left to the other tests. Samples are
+/// binned by a monotone function of their coordinate, so a sample inside the box lies in a bin
+/// between the box ends' bins.
+///
+/// Rounding of one vertex, x = N / d with N = -c_i wy_j + c_j wy_i and d = d_ij: the computed N and
+/// d are within 2u N_abs and 2u D of the exact ones (N_abs = |c_i wy_j| + |c_j wy_i|, D = |wx_i wy_j|
+/// + |wy_i wx_j|), so the computed x is within 2u (N_abs + |x| D) / |d| + u |x| of the exact
+/// quotient (|d| >= 1e-4 D keeps the relative error of d below 3e4 u). The code multiplies by a
+/// computed 1/d (one more rounding, u |x|) and doubles each term; the AVX2 form computes the same
+/// expressions three vertices at a time.
+/// The sums c_e = k_e + Delta_e round by at most u (|k_e| + Delta_e), far inside Delta_e's own
+/// factor-two slack (Delta_e >= 1e-12 |k_e|).
+
+#include "bake/cast/SampleMaskTable.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace penumbra {
+namespace {
+
+double maxAbsOf(const glm::dvec3& p) { return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
+
+}  // namespace
+
+void SampleMaskTable::buildFootprintBins(const std::vector<glm::dvec2>& coords, const std::vector<uint32_t>& groupOf,
+                                         const std::vector<uint32_t>& bitOf, int sets) {
+    for (int axis = 0; axis < 2; ++axis) {
+        double lo = INFINITY, hi = -INFINITY;
+        for (const glm::dvec2& q : coords) lo = std::min(lo, q[axis]), hi = std::max(hi, q[axis]);
+        binLow_[axis] = lo;
+        // A light of no extent along an axis (a line light) puts every sample in bin 0.
+        binScale_[axis] = hi > lo ? kFootprintBins / (hi - lo) : 0.0;
+    }
+    const size_t count = coords.size() / size_t(sets);
+    footprintRows_.assign(size_t(sets) * 4 * kFootprintBins * groups_, 0);
+    for (int set = 0; set < sets; ++set)
+        for (size_t k = 0; k < count; ++k) {
+            const glm::dvec2 q = coords[size_t(set) * count + k];
+            const uint64_t bit = 1ull << bitOf[k];
+            for (int axis = 0; axis < 2; ++axis) {
+                const int own = footprintBin(axis, q[axis]);
+                for (int bin = 0; bin <= own; ++bin) footprintRows_[footprintIndex(uint32_t(set), axis, 0, bin) + groupOf[k]] |= bit;
+                for (int bin = own; bin < kFootprintBins; ++bin) footprintRows_[footprintIndex(uint32_t(set), axis, 1, bin) + groupOf[k]] |= bit;
+            }
+        }
+}
+
+int SampleMaskTable::footprintBin(int axis, double value) const {
+    // Subtraction and multiplication by a positive constant round monotonically, and so do floor
+    // and the clamp: a larger value never gets a smaller bin. Callers pass finite values only.
+    return int(std::clamp(std::floor((value - binLow_[axis]) * binScale_[axis]), 0.0, double(kFootprintBins - 1)));
+}
+
+bool SampleMaskTable::footprintBox(const Blocker& b, const glm::dvec3& r, double s, double m, double lo[2], double hi[2]) const {
+    const double u = kRoundoff, fixed = 4096 * u * m * m * m;
+    double wx[3], wy[3], c[3];
+    for (int e = 0; e < 3; ++e) {
+        wx[e] = s * b.line.at(0, e, r), wy[e] = s * b.line.at(1, e, r);
+        const double k = s * b.line.at(2, e, r), mn = b.line.at(3, e, r);
+        const double g = std::abs(wx[e]) + std::abs(wy[e]), norm1 = g + std::abs(mn);
+        // lineRows()'s delta times g, doubled.
+        c[e] = k + 2.0 * (2.0 * (fixed + norm1 * (flatness_ + 128 * u * m)) + 1e-12 * (radius_ * g + std::abs(k)));
+    }
+    lo[0] = lo[1] = INFINITY, hi[0] = hi[1] = -INFINITY;
+    int sign = 0;
+    for (int i = 0; i < 3; ++i) {
+        const int j = (i + 1) % 3;
+        const double p = wx[i] * wy[j], q = wy[i] * wx[j], d = p - q, dAbs = std::abs(p) + std::abs(q);
+        if (!(std::abs(d) >= kMinimumFootprintSine * dAbs) || !(dAbs > 0)) return false;  // NaN too
+        const int dSign = d > 0 ? 1 : -1;
+        if (sign != 0 && dSign != sign) return false;  // P unbounded
+        sign = dSign;
+        const double inverse = 1.0 / d;
+        const double a1 = c[i] * wy[j], a2 = c[j] * wy[i], b1 = wx[i] * c[j], b2 = wx[j] * c[i];
+        const double vertex[2] = {(a2 - a1) * inverse, (b2 - b1) * inverse};
+        const double numeratorAbs[2] = {std::abs(a1) + std::abs(a2), std::abs(b1) + std::abs(b2)};
+        for (int axis = 0; axis < 2; ++axis) {
+            const double x = vertex[axis];
+            const double margin = 4 * u * ((numeratorAbs[axis] + std::abs(x) * dAbs) * std::abs(inverse) + std::abs(x));
+            lo[axis] = std::min(lo[axis], x - margin), hi[axis] = std::max(hi[axis], x + margin);
+        }
+    }
+    return true;
+}
+
+SampleMaskTable::FootprintResult SampleMaskTable::footprint(const Blocker& b, uint32_t set, const glm::dvec3& r, double dist,
+                                                            double eps, Footprint& out) const {
+    if (!b.usable || !b.split) return FootprintResult::Unknown;
+    // As in lookup(): only samples on the far side of T from r can be blocked, all with the
+    // orientation s; a receiver within eps of T's plane is blocked by none.
+    if (!(-dist > eps) && !(dist > eps)) return FootprintResult::NoneBlocked;
+    const double s = -dist > eps ? 1.0 : -1.0, m = std::max(b.maxAbs, maxAbsOf(r));
+    double lo[2], hi[2];
+    if (!(avx2_ ? footprintBoxAvx2(b, r, s, m, lo, hi) : footprintBox(b, r, s, m, lo, hi))) return FootprintResult::Unknown;
+    for (int axis = 0; axis < 2; ++axis)
+        if (!std::isfinite(lo[axis]) || !std::isfinite(hi[axis])) return FootprintResult::Unknown;
+    out.sLow = footprintRow(set, 0, 0, footprintBin(0, lo[0]));
+    out.sHigh = footprintRow(set, 0, 1, footprintBin(0, hi[0]));
+    out.tLow = footprintRow(set, 1, 0, footprintBin(1, lo[1]));
+    out.tHigh = footprintRow(set, 1, 1, footprintBin(1, hi[1]));
+    return FootprintResult::Box;
+}
+
+}  // namespace penumbra
