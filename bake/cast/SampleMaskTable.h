@@ -166,6 +166,11 @@ public:
     FootprintResult footprint(const Blocker& b, uint32_t set, const glm::dvec3& r, double dist, double eps,
                               Footprint& out) const;
 
+    /// @brief footprint() for the receivers @p live (bits 0..3) of r[0..3], with their sample sets,
+    /// distances behind T and epsilons; with AVX2, one receiver per lane (the chunks of a leaf).
+    void footprints(const Blocker& b, const glm::dvec3* r, const uint32_t* set, const double* dist, const double* eps,
+                    uint32_t live, FootprintResult* result, Footprint* out) const;
+
     /// @brief Index of the light's first group in LightSamples::groups (subtract it from a group).
     uint32_t firstGroup() const { return firstGroup_; }
 
@@ -215,10 +220,13 @@ private:
     int footprintBin(int axis, double value) const;
     /// Lines within this (relative) of parallel give footprint vertices too uncertain to bound.
     static constexpr double kMinimumFootprintSine = 1e-4;
-    /// The box [lo, hi] of the footprint in the light's frame, for orientation @p s and
-    /// coordinate bound @p m; false when the bound does not apply (footprint()).
-    bool footprintBox(const Blocker& b, const glm::dvec3& r, double s, double m, double lo[2], double hi[2]) const;
-    bool footprintBoxAvx2(const Blocker& b, const glm::dvec3& r, double s, double m, double lo[2], double hi[2]) const;
+    /// The footprint's box in the light's frame for orientation @p s and coordinate bound @p m, as
+    /// bins: s low, s high, t low, t high; false when the bound does not apply (footprint()).
+    bool footprintBins(const Blocker& b, const glm::dvec3& r, double s, double m, int bins[4]) const;
+    bool footprintBinsAvx2(const Blocker& b, const glm::dvec3& r, double s, double m, int bins[4]) const;
+    /// footprintBins() for four receivers (one per lane): bins[end][lane]; returns the lanes
+    /// whose bound applies.
+    uint32_t footprintBins4Avx2(const Blocker& b, const glm::dvec3* r, const double* s, const double* m, int bins[4][4]) const;
     size_t footprintIndex(uint32_t set, int axis, int side, int bin) const {
         return (((size_t(set) * 2 + axis) * 2 + side) * kFootprintBins + bin) * groups_;
     }

@@ -79,9 +79,8 @@ PENUMBRA_AVX2 bool SampleMaskTable::edgeRowsAvx2(const Blocker& b, uint32_t set,
     return true;
 }
 
-PENUMBRA_AVX2 bool SampleMaskTable::footprintBoxAvx2(const Blocker& b, const glm::dvec3& r, double s, double m, double lo[2],
-                                                     double hi[2]) const {
-    // footprintBox() with lane e for edge e (lane 3 repeats edge 2) and, after a rotation, lane i
+PENUMBRA_AVX2 bool SampleMaskTable::footprintBinsAvx2(const Blocker& b, const glm::dvec3& r, double s, double m, int bins[4]) const {
+    // footprintBins() with lane e for edge e (lane 3 repeats edge 2) and, after a rotation, lane i
     // for vertex V_i,i+1 (lane 3 repeats V_20). Only the bound matters here, not the rounding
     // order: the margins cover either.
     const __m256d rx = _mm256_set1_pd(r.x), ry = _mm256_set1_pd(r.y), rz = _mm256_set1_pd(r.z), sv = _mm256_set1_pd(s);
@@ -116,12 +115,89 @@ PENUMBRA_AVX2 bool SampleMaskTable::footprintBoxAvx2(const Blocker& b, const glm
     };
     const __m256d mx = margin(_mm256_add_pd(_mm256_andnot_pd(signBit, a1), _mm256_andnot_pd(signBit, a2)), xAbs);
     const __m256d my = margin(_mm256_add_pd(_mm256_andnot_pd(signBit, b1), _mm256_andnot_pd(signBit, b2)), yAbs);
-    alignas(32) double xl[4], xh[4], yl[4], yh[4];
-    _mm256_store_pd(xl, _mm256_sub_pd(x, mx)), _mm256_store_pd(xh, _mm256_add_pd(x, mx));
-    _mm256_store_pd(yl, _mm256_sub_pd(y, my)), _mm256_store_pd(yh, _mm256_add_pd(y, my));
-    lo[0] = std::min({xl[0], xl[1], xl[2]}), hi[0] = std::max({xh[0], xh[1], xh[2]});
-    lo[1] = std::min({yl[0], yl[1], yl[2]}), hi[1] = std::max({yh[0], yh[1], yh[2]});
+    // The box's ends as one vector (min x, max x, min y, max y: lane 3 repeats lane 2, so four
+    // lanes' extremes are three vertices'), then footprintBin()'s operations on each lane.
+    auto lowest = [](__m256d v) PENUMBRA_AVX2 {
+        const __m256d a = _mm256_min_pd(v, _mm256_permute4x64_pd(v, _MM_SHUFFLE(1, 0, 3, 2)));
+        return _mm256_min_pd(a, _mm256_permute_pd(a, 0x5));
+    };
+    auto highest = [](__m256d v) PENUMBRA_AVX2 {
+        const __m256d a = _mm256_max_pd(v, _mm256_permute4x64_pd(v, _MM_SHUFFLE(1, 0, 3, 2)));
+        return _mm256_max_pd(a, _mm256_permute_pd(a, 0x5));
+    };
+    __m256d ends = _mm256_blend_pd(lowest(_mm256_sub_pd(x, mx)), highest(_mm256_add_pd(x, mx)), 0x2);
+    ends = _mm256_blend_pd(ends, lowest(_mm256_sub_pd(y, my)), 0x4);
+    ends = _mm256_blend_pd(ends, highest(_mm256_add_pd(y, my)), 0x8);
+    // Finite ends only (v - v is 0 exactly for finite v).
+    if (_mm256_movemask_pd(_mm256_cmp_pd(_mm256_sub_pd(ends, ends), _mm256_setzero_pd(), _CMP_EQ_OQ)) != 0xF) return false;
+    const __m256d low = _mm256_setr_pd(binLow_[0], binLow_[0], binLow_[1], binLow_[1]);
+    const __m256d scale = _mm256_setr_pd(binScale_[0], binScale_[0], binScale_[1], binScale_[1]);
+    const __m256d bin = _mm256_floor_pd(_mm256_mul_pd(_mm256_sub_pd(ends, low), scale));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(bins), clampedTruncation(bin, double(kFootprintBins - 1)));
     return true;
+}
+
+PENUMBRA_AVX2 uint32_t SampleMaskTable::footprintBins4Avx2(const Blocker& b, const glm::dvec3* r, const double* s, const double* m,
+                                                          int bins[4][4]) const {
+    // footprintBins() for four receivers, one per lane: the same expressions, and no horizontal
+    // step (the three vertices are three vectors), so the four chains overlap.
+    const __m256d rx = _mm256_setr_pd(r[0].x, r[1].x, r[2].x, r[3].x), ry = _mm256_setr_pd(r[0].y, r[1].y, r[2].y, r[3].y);
+    const __m256d rz = _mm256_setr_pd(r[0].z, r[1].z, r[2].z, r[3].z), sv = _mm256_loadu_pd(s), mv = _mm256_loadu_pd(m);
+    const __m256d signBit = _mm256_set1_pd(-0.0), u = _mm256_set1_pd(kRoundoff), zero = _mm256_setzero_pd();
+    const __m256d fixed = _mm256_mul_pd(_mm256_set1_pd(4096 * kRoundoff), _mm256_mul_pd(_mm256_mul_pd(mv, mv), mv));
+    const __m256d flat = _mm256_add_pd(_mm256_set1_pd(flatness_), _mm256_mul_pd(_mm256_set1_pd(128 * kRoundoff), mv));
+    auto at = [&](int j, int e) PENUMBRA_AVX2 {
+        const Blocker::Lines& l = b.line;
+        const __m256d xy = _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(l.cx[j][e]), rx), _mm256_mul_pd(_mm256_set1_pd(l.cy[j][e]), ry));
+        return _mm256_sub_pd(_mm256_set1_pd(l.c0[j][e]), _mm256_add_pd(xy, _mm256_mul_pd(_mm256_set1_pd(l.cz[j][e]), rz)));
+    };
+    __m256d wx[3], wy[3], c[3];
+    for (int e = 0; e < 3; ++e) {
+        wx[e] = _mm256_mul_pd(sv, at(0, e)), wy[e] = _mm256_mul_pd(sv, at(1, e));
+        const __m256d k = _mm256_mul_pd(sv, at(2, e)), mn = at(3, e);
+        const __m256d g = _mm256_add_pd(_mm256_andnot_pd(signBit, wx[e]), _mm256_andnot_pd(signBit, wy[e]));
+        const __m256d norm1 = _mm256_add_pd(g, _mm256_andnot_pd(signBit, mn));
+        const __m256d scaled = _mm256_add_pd(fixed, _mm256_mul_pd(norm1, flat));
+        const __m256d slack = _mm256_mul_pd(_mm256_set1_pd(1e-12), _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(radius_), g),
+                                                                                 _mm256_andnot_pd(signBit, k)));
+        c[e] = _mm256_add_pd(k, _mm256_mul_pd(_mm256_set1_pd(2.0), _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(2.0), scaled), slack)));
+    }
+    __m256d ok = _mm256_cmp_pd(zero, zero, _CMP_EQ_OQ), sLow = _mm256_set1_pd(INFINITY), tLow = sLow;
+    __m256d sHigh = _mm256_set1_pd(-INFINITY), tHigh = sHigh, firstSign = zero, signsDiffer = zero;
+    const __m256d four = _mm256_set1_pd(4.0), minimumSine = _mm256_set1_pd(kMinimumFootprintSine);
+    for (int i = 0; i < 3; ++i) {
+        const int j = (i + 1) % 3;
+        const __m256d p = _mm256_mul_pd(wx[i], wy[j]), q = _mm256_mul_pd(wy[i], wx[j]);
+        const __m256d d = _mm256_sub_pd(p, q), dAbs = _mm256_add_pd(_mm256_andnot_pd(signBit, p), _mm256_andnot_pd(signBit, q));
+        ok = _mm256_and_pd(ok, _mm256_and_pd(_mm256_cmp_pd(_mm256_andnot_pd(signBit, d), _mm256_mul_pd(minimumSine, dAbs), _CMP_GE_OQ),
+                                             _mm256_cmp_pd(dAbs, zero, _CMP_GT_OQ)));
+        // P is bounded only when the three d share a sign: collect the sign bits that differ.
+        if (i == 0) firstSign = _mm256_and_pd(d, signBit);
+        else signsDiffer = _mm256_or_pd(signsDiffer, _mm256_xor_pd(firstSign, _mm256_and_pd(d, signBit)));
+        const __m256d inverse = _mm256_div_pd(_mm256_set1_pd(1.0), d), inverseAbs = _mm256_andnot_pd(signBit, inverse);
+        const __m256d a1 = _mm256_mul_pd(c[i], wy[j]), a2 = _mm256_mul_pd(c[j], wy[i]), b1 = _mm256_mul_pd(wx[i], c[j]), b2 = _mm256_mul_pd(wx[j], c[i]);
+        const __m256d x = _mm256_mul_pd(_mm256_sub_pd(a2, a1), inverse), y = _mm256_mul_pd(_mm256_sub_pd(b2, b1), inverse);
+        auto margin = [&](__m256d numeratorAbs, __m256d v) PENUMBRA_AVX2 {
+            const __m256d vAbs = _mm256_andnot_pd(signBit, v);
+            const __m256d quotient = _mm256_mul_pd(_mm256_add_pd(numeratorAbs, _mm256_mul_pd(vAbs, dAbs)), inverseAbs);
+            return _mm256_mul_pd(_mm256_mul_pd(four, u), _mm256_add_pd(quotient, vAbs));
+        };
+        const __m256d mx = margin(_mm256_add_pd(_mm256_andnot_pd(signBit, a1), _mm256_andnot_pd(signBit, a2)), x);
+        const __m256d my = margin(_mm256_add_pd(_mm256_andnot_pd(signBit, b1), _mm256_andnot_pd(signBit, b2)), y);
+        sLow = _mm256_min_pd(sLow, _mm256_sub_pd(x, mx)), sHigh = _mm256_max_pd(sHigh, _mm256_add_pd(x, mx));
+        tLow = _mm256_min_pd(tLow, _mm256_sub_pd(y, my)), tHigh = _mm256_max_pd(tHigh, _mm256_add_pd(y, my));
+    }
+    // Finite ends only (v - v is 0 exactly for finite v; a NaN vertex makes its ends NaN, since
+    // min and max return their second operand when either is NaN).
+    const __m256d ends[4] = {sLow, sHigh, tLow, tHigh};
+    for (const __m256d& v : ends) ok = _mm256_and_pd(ok, _mm256_cmp_pd(_mm256_sub_pd(v, v), zero, _CMP_EQ_OQ));
+    const uint32_t lanes = uint32_t(_mm256_movemask_pd(ok)) & ~uint32_t(_mm256_movemask_pd(signsDiffer));
+    for (int end = 0; end < 4; ++end) {
+        const int axis = end / 2;
+        const __m256d bin = _mm256_floor_pd(_mm256_mul_pd(_mm256_sub_pd(ends[end], _mm256_set1_pd(binLow_[axis])), _mm256_set1_pd(binScale_[axis])));
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(bins[end]), clampedTruncation(bin, double(kFootprintBins - 1)));
+    }
+    return lanes;
 }
 
 }  // namespace penumbra

@@ -68,7 +68,7 @@ int SampleMaskTable::footprintBin(int axis, double value) const {
     return int(std::clamp(std::floor((value - binLow_[axis]) * binScale_[axis]), 0.0, double(kFootprintBins - 1)));
 }
 
-bool SampleMaskTable::footprintBox(const Blocker& b, const glm::dvec3& r, double s, double m, double lo[2], double hi[2]) const {
+bool SampleMaskTable::footprintBins(const Blocker& b, const glm::dvec3& r, double s, double m, int bins[4]) const {
     const double u = kRoundoff, fixed = 4096 * u * m * m * m;
     double wx[3], wy[3], c[3];
     for (int e = 0; e < 3; ++e) {
@@ -78,7 +78,7 @@ bool SampleMaskTable::footprintBox(const Blocker& b, const glm::dvec3& r, double
         // lineRows()'s delta times g, doubled.
         c[e] = k + 2.0 * (2.0 * (fixed + norm1 * (flatness_ + 128 * u * m)) + 1e-12 * (radius_ * g + std::abs(k)));
     }
-    lo[0] = lo[1] = INFINITY, hi[0] = hi[1] = -INFINITY;
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
     int sign = 0;
     for (int i = 0; i < 3; ++i) {
         const int j = (i + 1) % 3;
@@ -97,6 +97,10 @@ bool SampleMaskTable::footprintBox(const Blocker& b, const glm::dvec3& r, double
             lo[axis] = std::min(lo[axis], x - margin), hi[axis] = std::max(hi[axis], x + margin);
         }
     }
+    for (int axis = 0; axis < 2; ++axis) {
+        if (!std::isfinite(lo[axis]) || !std::isfinite(hi[axis])) return false;
+        bins[2 * axis] = footprintBin(axis, lo[axis]), bins[2 * axis + 1] = footprintBin(axis, hi[axis]);
+    }
     return true;
 }
 
@@ -107,15 +111,52 @@ SampleMaskTable::FootprintResult SampleMaskTable::footprint(const Blocker& b, ui
     // orientation s; a receiver within eps of T's plane is blocked by none.
     if (!(-dist > eps) && !(dist > eps)) return FootprintResult::NoneBlocked;
     const double s = -dist > eps ? 1.0 : -1.0, m = std::max(b.maxAbs, maxAbsOf(r));
-    double lo[2], hi[2];
-    if (!(avx2_ ? footprintBoxAvx2(b, r, s, m, lo, hi) : footprintBox(b, r, s, m, lo, hi))) return FootprintResult::Unknown;
-    for (int axis = 0; axis < 2; ++axis)
-        if (!std::isfinite(lo[axis]) || !std::isfinite(hi[axis])) return FootprintResult::Unknown;
-    out.sLow = footprintRow(set, 0, 0, footprintBin(0, lo[0]));
-    out.sHigh = footprintRow(set, 0, 1, footprintBin(0, hi[0]));
-    out.tLow = footprintRow(set, 1, 0, footprintBin(1, lo[1]));
-    out.tHigh = footprintRow(set, 1, 1, footprintBin(1, hi[1]));
+    int bins[4];
+    if (!(avx2_ ? footprintBinsAvx2(b, r, s, m, bins) : footprintBins(b, r, s, m, bins))) return FootprintResult::Unknown;
+    out.sLow = footprintRow(set, 0, 0, bins[0]);
+    out.sHigh = footprintRow(set, 0, 1, bins[1]);
+    out.tLow = footprintRow(set, 1, 0, bins[2]);
+    out.tHigh = footprintRow(set, 1, 1, bins[3]);
     return FootprintResult::Box;
+}
+
+void SampleMaskTable::footprints(const Blocker& b, const glm::dvec3* r, const uint32_t* set, const double* dist, const double* eps,
+                                 uint32_t live, FootprintResult* result, Footprint* out) const {
+    if (!avx2_ || !b.usable || !b.split) {
+        for (uint32_t rest = live; rest; rest &= rest - 1) {
+            const int i = __builtin_ctz(rest);
+            result[i] = footprint(b, set[i], r[i], dist[i], eps[i], out[i]);
+        }
+        return;
+    }
+    double s[4], m[4];
+    glm::dvec3 at[4];
+    uint32_t pending = 0;
+    for (uint32_t rest = live; rest; rest &= rest - 1) {
+        const int i = __builtin_ctz(rest);
+        if (!(-dist[i] > eps[i]) && !(dist[i] > eps[i])) {
+            result[i] = FootprintResult::NoneBlocked;
+            continue;
+        }
+        s[i] = -dist[i] > eps[i] ? 1.0 : -1.0, m[i] = std::max(b.maxAbs, maxAbsOf(r[i])), at[i] = r[i];
+        pending |= 1u << i;
+    }
+    if (!pending) return;
+    const int first = __builtin_ctz(pending);
+    for (int i = 0; i < 4; ++i)
+        if (!(pending >> i & 1)) s[i] = s[first], m[i] = m[first], at[i] = at[first];  // lanes computed and ignored
+    int bins[4][4];
+    const uint32_t boxes = footprintBins4Avx2(b, at, s, m, bins);
+    for (uint32_t rest = pending; rest; rest &= rest - 1) {
+        const int i = __builtin_ctz(rest);
+        if (!(boxes >> i & 1)) {
+            result[i] = FootprintResult::Unknown;
+            continue;
+        }
+        result[i] = FootprintResult::Box;
+        out[i].sLow = footprintRow(set[i], 0, 0, bins[0][i]), out[i].sHigh = footprintRow(set[i], 0, 1, bins[1][i]);
+        out[i].tLow = footprintRow(set[i], 1, 0, bins[2][i]), out[i].tHigh = footprintRow(set[i], 1, 1, bins[3][i]);
+    }
 }
 
 }  // namespace penumbra

@@ -236,14 +236,27 @@ void TileCaster::castLeaf(uint32_t first, uint32_t count, uint32_t lightPlanes, 
                     for (const uint64_t* cell : looked[i].rows.sure) __builtin_prefetch(cell);
             }
         }
+        // A split blocker's footprints, four receivers at once: only their samples can be blocked.
+        SampleMaskTable::FootprintResult footprintResult[4];
+        SampleMaskTable::Footprint footprint[4];
+        const bool footprints = tables && tableBlocker.split && options.footprints;
+        if (footprints)
+            (*tables)[currentLight].footprints(tableBlocker, &h.position[r0], &h.sampleSet[r0], dist, &h.epsilon[r0], live,
+                                               footprintResult, footprint);
         for (; live; live &= live - 1) {
             const int i = __builtin_ctz(live);
-            castReceiver(r0 + uint32_t(i), dist[i], groupsBegin, groupsEnd, rowsFirst ? &looked[i] : nullptr);
+            const SampleMaskTable::Footprint* inFootprint = nullptr;
+            if (footprints) {
+                if (footprintResult[i] == SampleMaskTable::FootprintResult::NoneBlocked) continue;
+                if (footprintResult[i] == SampleMaskTable::FootprintResult::Box) inFootprint = &footprint[i];
+            }
+            castReceiver(r0 + uint32_t(i), dist[i], groupsBegin, groupsEnd, rowsFirst ? &looked[i] : nullptr, inFootprint);
         }
     }
 }
 
-void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_t groupsEnd, const RowLookup* looked) {
+void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_t groupsEnd, const RowLookup* looked,
+                              const SampleMaskTable::Footprint* inFootprint) {
     ReceiverHierarchy& h = hierarchy_;
     const glm::dvec3& p = h.position[r];
     const double eps = h.epsilon[r];
@@ -257,14 +270,6 @@ void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_
     // cheaply, and the look-up is only worth it for enough open samples. Otherwise, with table
     // rows, the point test would only repeat what the rows decide.
     const bool pointTestFirst = !table || tableBlocker.split;
-    // A split blocker's footprint on the light, seen from r: only its samples can be blocked.
-    SampleMaskTable::Footprint footprint;
-    const SampleMaskTable::Footprint* inFootprint = nullptr;
-    if (table && tableBlocker.split && options.footprints) {
-        const auto result = table->footprint(tableBlocker, set, p, dist, eps, footprint);
-        if (result == SampleMaskTable::FootprintResult::NoneBlocked) return;
-        if (result == SampleMaskTable::FootprintResult::Box) inFootprint = &footprint;
-    }
     const uint32_t openBits = gatherCandidates(r, p, pointTestFirst, inFootprint, groupsBegin, groupsEnd);
     if (candidates.empty()) return;
     SampleMaskTable::Rows rows;

@@ -92,8 +92,10 @@ private:
     void castLeaf(uint32_t first, uint32_t count, uint32_t lightPlanes, size_t groupsBegin, size_t groupsEnd);
     /// Lines 59-75: one receiver that passed castLeaf()'s tests, at distance @p dist behind T's
     /// plane, against the active groups. @p looked is its table look-up when castLeaf() made it
-    /// ahead (null: castReceiver() looks up itself, if it needs to).
-    void castReceiver(uint32_t r, double dist, size_t groupsBegin, size_t groupsEnd, const RowLookup* looked);
+    /// ahead (null: castReceiver() looks up itself, if it needs to); @p inFootprint, when given,
+    /// holds every sample T can block for it (SampleMaskTable::footprint()).
+    void castReceiver(uint32_t r, double dist, size_t groupsBegin, size_t groupsEnd, const RowLookup* looked,
+                      const SampleMaskTable::Footprint* inFootprint);
     /// Whether the umbra words @p bits hold every group's bit (a loop: std::equal called memcmp
     /// for the usual single word, 1 % of GRIDS).
     bool fullWords(const uint64_t* bits) const {

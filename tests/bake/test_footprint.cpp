@@ -21,16 +21,34 @@ struct FootprintTally {
     uint64_t inside = 0;
 };
 
-/// Every sample of every set of receiver @p r against split blocker @p t.
+/// Every sample of every set of receiver @p r against split blocker @p t, from footprint() and
+/// from footprints() (a leaf chunk of four: r in lanes 0, 1 and 3 with other sets, lane 2 on T).
 void checkFootprint(const LightSamples& samples, const SampleMaskTable& table, const BlockerTriangle& t, const glm::dvec3& r,
                     FootprintTally& tally) {
     const ReceiverEpsilon epsilon = receiverEpsilonOf(CastOptions());
     const SampleMaskTable::Blocker b = table.prepare(t);
     if (!b.split) return;
     const double dist = distanceBehind(t, r), eps = epsilon.at(r), w = samples.w(0);
-    for (uint32_t set = 0; set < uint32_t(samples.sets); ++set) {
+    const uint32_t sets = uint32_t(samples.sets);
+    const glm::dvec3 onT = (t.v[0] + t.v[1] + t.v[2]) / 3.0;
+    const glm::dvec3 chunk[4] = {r, r, onT, r};
+    const uint32_t chunkSet[4] = {0, 1 % sets, 0, 2 % sets};
+    const double chunkDist[4] = {dist, dist, distanceBehind(t, onT), dist};
+    const double chunkEps[4] = {eps, eps, epsilon.at(onT), eps};
+    SampleMaskTable::FootprintResult chunkResult[4];
+    SampleMaskTable::Footprint chunkFootprint[4];
+    table.footprints(b, chunk, chunkSet, chunkDist, chunkEps, 0xF, chunkResult, chunkFootprint);
+    CHECK(chunkResult[2] == SampleMaskTable::FootprintResult::NoneBlocked);
+    for (uint32_t set = 0; set < sets + 3; ++set) {
         SampleMaskTable::Footprint f;
-        const SampleMaskTable::FootprintResult result = table.footprint(b, set, r, dist, eps, f);
+        SampleMaskTable::FootprintResult result;
+        uint32_t of = set;
+        if (set < sets) {
+            result = table.footprint(b, set, r, dist, eps, f);
+        } else {  // the chunk's lanes 0, 1 and 3
+            const int lane = set == sets ? 0 : set == sets + 1 ? 1 : 3;
+            result = chunkResult[lane], f = chunkFootprint[lane], of = chunkSet[lane];
+        }
         tally.boxes += result == SampleMaskTable::FootprintResult::Box;
         tally.unknown += result == SampleMaskTable::FootprintResult::Unknown;
         tally.none += result == SampleMaskTable::FootprintResult::NoneBlocked;
@@ -39,10 +57,10 @@ void checkFootprint(const LightSamples& samples, const SampleMaskTable& table, c
             const LightSampleGroup& group = samples.groups[k];
             const uint64_t word = result == SampleMaskTable::FootprintResult::Box ? f.word(k) : 0;
             for (uint32_t j = 0; j < group.count; ++j) {
-                const bool blocked = blocks(glm::dvec3(samples.position(int(set), int(group.first + j))), w, r, t, epsilon);
+                const bool blocked = blocks(glm::dvec3(samples.position(int(of), int(group.first + j))), w, r, t, epsilon);
                 const bool in = (word >> j) & 1;
                 if (blocked && !in) {
-                    INFO("set " << set << " group " << k << " sample " << j << " receiver " << r.x << " " << r.y << " " << r.z);
+                    INFO("set " << of << (set >= sets ? " (chunk)" : "") << " group " << k << " sample " << j << " receiver " << r.x << " " << r.y << " " << r.z);
                     FAIL("a blocked sample outside the footprint");
                 }
                 tally.blocked += blocked, tally.excluded += !in, tally.inside += in;
