@@ -3,6 +3,7 @@ cancels leaving nothing behind; threads in sources and callbacks never deadlock.
 import _thread
 import faulthandler
 import os
+import signal
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -92,12 +93,18 @@ def slow_scene(count=10_000):
 def test_ctrl_c_cancels_and_leaves_no_temp_files(tmp_path):
     tmp = tmp_path / "tmp"
     tmp.mkdir()
-    timer = threading.Timer(0.5, _thread.interrupt_main)
-    timer.start()
-    started = time.monotonic()
-    with pytest.raises(KeyboardInterrupt):
-        penumbra.bake(slow_scene(), tmp_dir=str(tmp))
-    timer.join()
+    # A shell starts background jobs with SIGINT ignored, and then interrupt_main() does nothing:
+    # Ctrl-C's own handler, for this test, whatever started the suite.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        timer = threading.Timer(0.5, _thread.interrupt_main)
+        timer.start()
+        started = time.monotonic()
+        with pytest.raises(KeyboardInterrupt):
+            penumbra.bake(slow_scene(), tmp_dir=str(tmp))
+        timer.join()
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert time.monotonic() - started < 15
     assert os.listdir(tmp) == []
     # The next bake is not cancelled.
