@@ -23,8 +23,6 @@ constexpr size_t kMaxTableBytes = size_t(64) << 20;
 
 int angleBins(int angles) { return std::max(4, (angles + 3) / 4 * 4); }  // cells within a quadrant
 
-double maxAbs(const glm::dvec3& p) { return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
-
 /// The direction of 1-norm 1 whose diamond angle is @p p, for p in [0, 4]. The diamond angle
 /// increases with the polar angle over [0, 4) (one quadrant per unit) and, unlike the polar
 /// angle, moves the unit-1-norm direction linearly within a quadrant; so dot(direction, q) is
@@ -282,10 +280,9 @@ bool SampleMaskTable::lineRows(double wx, double wy, double k, double mn, double
                                const uint64_t*& sure, const uint64_t*& maybe) const {
     // Normalised by g = |w|_1, so the direction has 1-norm 1 and its diamond angle is one
     // component over g: one division per line, no square root, no atan2.
-    const double u = kRoundoff;
     const double ax = std::abs(wx), ay = std::abs(wy), invG = 1.0 / (ax + ay), tau = -k * invG;
     const double norm1 = ax + ay + std::abs(mn);
-    const double delta = 2.0 * (fixed + norm1 * (flatness_ + 128 * u * m)) * invG + 1e-12 * (radius_ + std::abs(tau));
+    const double delta = lineMargin(norm1, fixed, m) * invG + 1e-12 * (radius_ + std::abs(tau));
     // A line this uncertain (a plane nearly parallel to the light, or g == 0) decides little.
     if (!(delta < radius_) || !std::isfinite(tau)) return false;
     const double diamond = wy >= 0 ? (wx >= 0 ? wy * invG : 1 + ax * invG) : (wx < 0 ? 2 + ay * invG : 3 + ax * invG);

@@ -34,6 +34,8 @@
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -161,10 +163,15 @@ public:
         NoneBlocked,  ///< the receiver is within eps of T's plane: the rule blocks no sample
         Box,          ///< Footprint::word() bounds the blocked samples of each group
     };
-    /// @brief The footprint of split blocker @p b from receiver @p r (sample set @p set).
+    /// @brief The footprint of split blocker @p b from receiver @p r (sample set @p set): footprints()
+    /// for one receiver.
     /// @param dist distanceBehind(T, r); @param eps the receiver's epsilon
     FootprintResult footprint(const Blocker& b, uint32_t set, const glm::dvec3& r, double dist, double eps,
-                              Footprint& out) const;
+                              Footprint& out) const {
+        FootprintResult result;
+        footprints(b, &r, &set, &dist, &eps, 1u, &result, &out);
+        return result;
+    }
 
     /// @brief footprint() for the receivers @p live (bits 0..3) of r[0..3], with their sample sets,
     /// distances behind T and epsilons; with AVX2, one receiver per lane (the chunks of a leaf).
@@ -176,6 +183,7 @@ public:
 
 private:
     static constexpr double kRoundoff = 0x1p-53;  ///< u: unit roundoff of double
+    static double maxAbs(const glm::dvec3& p) { return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
     /// Bytes of the cells alone (0 over the cap, when no table is built).
     static size_t cellBytes(const LightSamples& samples, uint32_t light, int angles, int offsets);
 
@@ -193,6 +201,11 @@ private:
     bool sideRows(const Blocker& b, uint32_t set, double s, double m, const uint64_t*& sure, const uint64_t*& maybe) const;
     bool lineRows(double wx, double wy, double k, double mn, double fixed, double m, uint32_t set, const uint64_t*& sure,
                   const uint64_t*& maybe) const;
+    /// The part of a line's margin that scales with the line (lookup()'s error budget): divided
+    /// by g it is lineRows()'s delta but for the offset's own rounding; footprints use it times g.
+    double lineMargin(double norm1, double fixed, double m) const {
+        return 2.0 * (fixed + norm1 * (flatness_ + 128 * kRoundoff * m));
+    }
     /// The three edges' rows of @p b at @p r with orientation @p s, in one AVX2 pass: the same
     /// operations as three lineRows() calls, lane by lane (SampleMaskTableAvx2.cpp).
     bool edgeRowsAvx2(const Blocker& b, uint32_t set, const glm::dvec3& r, double s, double fixed, double m, Rows& rows) const;
@@ -223,7 +236,6 @@ private:
     /// The footprint's box in the light's frame for orientation @p s and coordinate bound @p m, as
     /// bins: s low, s high, t low, t high; false when the bound does not apply (footprint()).
     bool footprintBins(const Blocker& b, const glm::dvec3& r, double s, double m, int bins[4]) const;
-    bool footprintBinsAvx2(const Blocker& b, const glm::dvec3& r, double s, double m, int bins[4]) const;
     /// footprintBins() for four receivers (one per lane): bins[end][lane]; returns the lanes
     /// whose bound applies.
     uint32_t footprintBins4Avx2(const Blocker& b, const glm::dvec3* r, const double* s, const double* m, int bins[4][4]) const;

@@ -13,8 +13,6 @@
 
 #include <immintrin.h>
 
-#include <algorithm>
-
 namespace penumbra {
 namespace {
 
@@ -76,64 +74,6 @@ PENUMBRA_AVX2 bool SampleMaskTable::edgeRowsAvx2(const Blocker& b, uint32_t set,
         rows.sure[e] = &cells_[cell(set, a[e], sureBin[e])];
         rows.maybe[e] = &cells_[cell(set, a[e], maybeBin[e]) + 1];
     }
-    return true;
-}
-
-PENUMBRA_AVX2 bool SampleMaskTable::footprintBinsAvx2(const Blocker& b, const glm::dvec3& r, double s, double m, int bins[4]) const {
-    // footprintBins() with lane e for edge e (lane 3 repeats edge 2) and, after a rotation, lane i
-    // for vertex V_i,i+1 (lane 3 repeats V_20). Only the bound matters here, not the rounding
-    // order: the margins cover either.
-    const __m256d rx = _mm256_set1_pd(r.x), ry = _mm256_set1_pd(r.y), rz = _mm256_set1_pd(r.z), sv = _mm256_set1_pd(s);
-    const __m256d signBit = _mm256_set1_pd(-0.0), u = _mm256_set1_pd(kRoundoff);
-    const __m256d wx = _mm256_mul_pd(sv, affineAt(b.line, 0, rx, ry, rz));
-    const __m256d wy = _mm256_mul_pd(sv, affineAt(b.line, 1, rx, ry, rz));
-    const __m256d k = _mm256_mul_pd(sv, affineAt(b.line, 2, rx, ry, rz));
-    const __m256d mn = affineAt(b.line, 3, rx, ry, rz);
-    const __m256d g = _mm256_add_pd(_mm256_andnot_pd(signBit, wx), _mm256_andnot_pd(signBit, wy));
-    const __m256d norm1 = _mm256_add_pd(g, _mm256_andnot_pd(signBit, mn));
-    const double fixed = 4096 * kRoundoff * m * m * m;
-    const __m256d scaled = _mm256_add_pd(_mm256_set1_pd(fixed), _mm256_mul_pd(norm1, _mm256_set1_pd(flatness_ + 128 * kRoundoff * m)));
-    const __m256d slack = _mm256_mul_pd(_mm256_set1_pd(1e-12), _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(radius_), g),
-                                                                             _mm256_andnot_pd(signBit, k)));
-    const __m256d c = _mm256_add_pd(k, _mm256_mul_pd(_mm256_set1_pd(2.0), _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(2.0), scaled), slack)));
-    // The next edge's values in each lane: (1, 2, 0, 0).
-    constexpr int kNext = _MM_SHUFFLE(0, 0, 2, 1);
-    const __m256d wxj = _mm256_permute4x64_pd(wx, kNext), wyj = _mm256_permute4x64_pd(wy, kNext), cj = _mm256_permute4x64_pd(c, kNext);
-    const __m256d p = _mm256_mul_pd(wx, wyj), q = _mm256_mul_pd(wy, wxj);
-    const __m256d d = _mm256_sub_pd(p, q), dAbs = _mm256_add_pd(_mm256_andnot_pd(signBit, p), _mm256_andnot_pd(signBit, q));
-    const __m256d sure = _mm256_and_pd(_mm256_cmp_pd(_mm256_andnot_pd(signBit, d), _mm256_mul_pd(_mm256_set1_pd(kMinimumFootprintSine), dAbs), _CMP_GE_OQ),
-                                       _mm256_cmp_pd(dAbs, _mm256_setzero_pd(), _CMP_GT_OQ));
-    const int signs = _mm256_movemask_pd(d);
-    if (_mm256_movemask_pd(sure) != 0xF || (signs != 0 && signs != 0xF)) return false;
-    const __m256d inverse = _mm256_div_pd(_mm256_set1_pd(1.0), d), inverseAbs = _mm256_andnot_pd(signBit, inverse);
-    const __m256d a1 = _mm256_mul_pd(c, wyj), a2 = _mm256_mul_pd(cj, wy), b1 = _mm256_mul_pd(wx, cj), b2 = _mm256_mul_pd(wxj, c);
-    const __m256d x = _mm256_mul_pd(_mm256_sub_pd(a2, a1), inverse), y = _mm256_mul_pd(_mm256_sub_pd(b2, b1), inverse);
-    const __m256d xAbs = _mm256_andnot_pd(signBit, x), yAbs = _mm256_andnot_pd(signBit, y), four = _mm256_set1_pd(4.0);
-    auto margin = [&](__m256d numeratorAbs, __m256d vAbs) PENUMBRA_AVX2 {
-        const __m256d quotient = _mm256_mul_pd(_mm256_add_pd(numeratorAbs, _mm256_mul_pd(vAbs, dAbs)), inverseAbs);
-        return _mm256_mul_pd(_mm256_mul_pd(four, u), _mm256_add_pd(quotient, vAbs));
-    };
-    const __m256d mx = margin(_mm256_add_pd(_mm256_andnot_pd(signBit, a1), _mm256_andnot_pd(signBit, a2)), xAbs);
-    const __m256d my = margin(_mm256_add_pd(_mm256_andnot_pd(signBit, b1), _mm256_andnot_pd(signBit, b2)), yAbs);
-    // The box's ends as one vector (min x, max x, min y, max y: lane 3 repeats lane 2, so four
-    // lanes' extremes are three vertices'), then footprintBin()'s operations on each lane.
-    auto lowest = [](__m256d v) PENUMBRA_AVX2 {
-        const __m256d a = _mm256_min_pd(v, _mm256_permute4x64_pd(v, _MM_SHUFFLE(1, 0, 3, 2)));
-        return _mm256_min_pd(a, _mm256_permute_pd(a, 0x5));
-    };
-    auto highest = [](__m256d v) PENUMBRA_AVX2 {
-        const __m256d a = _mm256_max_pd(v, _mm256_permute4x64_pd(v, _MM_SHUFFLE(1, 0, 3, 2)));
-        return _mm256_max_pd(a, _mm256_permute_pd(a, 0x5));
-    };
-    __m256d ends = _mm256_blend_pd(lowest(_mm256_sub_pd(x, mx)), highest(_mm256_add_pd(x, mx)), 0x2);
-    ends = _mm256_blend_pd(ends, lowest(_mm256_sub_pd(y, my)), 0x4);
-    ends = _mm256_blend_pd(ends, highest(_mm256_add_pd(y, my)), 0x8);
-    // Finite ends only (v - v is 0 exactly for finite v).
-    if (_mm256_movemask_pd(_mm256_cmp_pd(_mm256_sub_pd(ends, ends), _mm256_setzero_pd(), _CMP_EQ_OQ)) != 0xF) return false;
-    const __m256d low = _mm256_setr_pd(binLow_[0], binLow_[0], binLow_[1], binLow_[1]);
-    const __m256d scale = _mm256_setr_pd(binScale_[0], binScale_[0], binScale_[1], binScale_[1]);
-    const __m256d bin = _mm256_floor_pd(_mm256_mul_pd(_mm256_sub_pd(ends, low), scale));
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(bins), clampedTruncation(bin, double(kFootprintBins - 1)));
     return true;
 }
 

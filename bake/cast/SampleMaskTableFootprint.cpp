@@ -23,7 +23,7 @@
 /// + |wy_i wx_j|), so the computed x is within 2u (N_abs + |x| D) / |d| + u |x| of the exact
 /// quotient (|d| >= 1e-4 D keeps the relative error of d below 3e4 u). The code multiplies by a
 /// computed 1/d (one more rounding, u |x|) and doubles each term; the AVX2 form computes the same
-/// expressions three vertices at a time.
+/// expressions for four receivers at a time, one per lane.
 /// The sums c_e = k_e + Delta_e round by at most u (|k_e| + Delta_e), far inside Delta_e's own
 /// factor-two slack (Delta_e >= 1e-12 |k_e|).
 
@@ -33,11 +33,6 @@
 #include <cmath>
 
 namespace penumbra {
-namespace {
-
-double maxAbsOf(const glm::dvec3& p) { return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
-
-}  // namespace
 
 void SampleMaskTable::buildFootprintBins(const std::vector<glm::dvec2>& coords, const std::vector<uint32_t>& groupOf,
                                          const std::vector<uint32_t>& bitOf, int sets) {
@@ -76,7 +71,7 @@ bool SampleMaskTable::footprintBins(const Blocker& b, const glm::dvec3& r, doubl
         const double k = s * b.line.at(2, e, r), mn = b.line.at(3, e, r);
         const double g = std::abs(wx[e]) + std::abs(wy[e]), norm1 = g + std::abs(mn);
         // lineRows()'s delta times g, doubled.
-        c[e] = k + 2.0 * (2.0 * (fixed + norm1 * (flatness_ + 128 * u * m)) + 1e-12 * (radius_ * g + std::abs(k)));
+        c[e] = k + 2.0 * (lineMargin(norm1, fixed, m) + 1e-12 * (radius_ * g + std::abs(k)));
     }
     double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
     int sign = 0;
@@ -104,55 +99,43 @@ bool SampleMaskTable::footprintBins(const Blocker& b, const glm::dvec3& r, doubl
     return true;
 }
 
-SampleMaskTable::FootprintResult SampleMaskTable::footprint(const Blocker& b, uint32_t set, const glm::dvec3& r, double dist,
-                                                            double eps, Footprint& out) const {
-    if (!b.usable || !b.split) return FootprintResult::Unknown;
-    // As in lookup(): only samples on the far side of T from r can be blocked, all with the
-    // orientation s; a receiver within eps of T's plane is blocked by none.
-    if (!(-dist > eps) && !(dist > eps)) return FootprintResult::NoneBlocked;
-    const double s = -dist > eps ? 1.0 : -1.0, m = std::max(b.maxAbs, maxAbsOf(r));
-    int bins[4];
-    if (!(avx2_ ? footprintBinsAvx2(b, r, s, m, bins) : footprintBins(b, r, s, m, bins))) return FootprintResult::Unknown;
-    out.sLow = footprintRow(set, 0, 0, bins[0]);
-    out.sHigh = footprintRow(set, 0, 1, bins[1]);
-    out.tLow = footprintRow(set, 1, 0, bins[2]);
-    out.tHigh = footprintRow(set, 1, 1, bins[3]);
-    return FootprintResult::Box;
-}
-
 void SampleMaskTable::footprints(const Blocker& b, const glm::dvec3* r, const uint32_t* set, const double* dist, const double* eps,
                                  uint32_t live, FootprintResult* result, Footprint* out) const {
-    if (!avx2_ || !b.usable || !b.split) {
-        for (uint32_t rest = live; rest; rest &= rest - 1) {
-            const int i = __builtin_ctz(rest);
-            result[i] = footprint(b, set[i], r[i], dist[i], eps[i], out[i]);
-        }
-        return;
-    }
+    // As in lookup(): only samples on the far side of T from r can be blocked, all with the
+    // orientation s; a receiver within eps of T's plane is blocked by none.
     double s[4], m[4];
     glm::dvec3 at[4];
     uint32_t pending = 0;
     for (uint32_t rest = live; rest; rest &= rest - 1) {
         const int i = __builtin_ctz(rest);
+        result[i] = FootprintResult::Unknown;
+        if (!b.usable || !b.split) continue;
         if (!(-dist[i] > eps[i]) && !(dist[i] > eps[i])) {
             result[i] = FootprintResult::NoneBlocked;
             continue;
         }
-        s[i] = -dist[i] > eps[i] ? 1.0 : -1.0, m[i] = std::max(b.maxAbs, maxAbsOf(r[i])), at[i] = r[i];
+        s[i] = -dist[i] > eps[i] ? 1.0 : -1.0, m[i] = std::max(b.maxAbs, maxAbs(r[i])), at[i] = r[i];
         pending |= 1u << i;
     }
     if (!pending) return;
-    const int first = __builtin_ctz(pending);
-    for (int i = 0; i < 4; ++i)
-        if (!(pending >> i & 1)) s[i] = s[first], m[i] = m[first], at[i] = at[first];  // lanes computed and ignored
     int bins[4][4];
-    const uint32_t boxes = footprintBins4Avx2(b, at, s, m, bins);
-    for (uint32_t rest = pending; rest; rest &= rest - 1) {
-        const int i = __builtin_ctz(rest);
-        if (!(boxes >> i & 1)) {
-            result[i] = FootprintResult::Unknown;
-            continue;
+    uint32_t boxes = 0;
+    if (avx2_) {
+        const int first = __builtin_ctz(pending);
+        for (int i = 0; i < 4; ++i)
+            if (!(pending >> i & 1)) s[i] = s[first], m[i] = m[first], at[i] = at[first];  // lanes computed and ignored
+        boxes = footprintBins4Avx2(b, at, s, m, bins) & pending;
+    } else {
+        for (uint32_t rest = pending; rest; rest &= rest - 1) {
+            const int i = __builtin_ctz(rest);
+            int one[4];
+            if (!footprintBins(b, at[i], s[i], m[i], one)) continue;
+            for (int end = 0; end < 4; ++end) bins[end][i] = one[end];
+            boxes |= 1u << i;
         }
+    }
+    for (uint32_t rest = boxes; rest; rest &= rest - 1) {
+        const int i = __builtin_ctz(rest);
         result[i] = FootprintResult::Box;
         out[i].sLow = footprintRow(set[i], 0, 0, bins[0][i]), out[i].sHigh = footprintRow(set[i], 0, 1, bins[1][i]);
         out[i].tLow = footprintRow(set[i], 1, 0, bins[2][i]), out[i].tHigh = footprintRow(set[i], 1, 1, bins[3][i]);
