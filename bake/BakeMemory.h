@@ -10,8 +10,10 @@
 ///    here, naming that worst-case minimum, which is sure to be enough.
 /// 2. After the scan (before the bucket pass and the cast): the demand with the receivers found,
 ///    exact up to the kind's bound on its tables; a failure names the smallest budget that works.
-/// Later plans only see smaller or equal demands, so they cannot fail again (the antialiasing
-/// pass, whose receivers depend on the first cast's results, is checked when they are known).
+/// Later plans only see smaller or equal demands, so they cannot fail again. The antialiasing
+/// pass, whose pixels depend on the first cast's results, is checked once when they are known,
+/// before its pass: the pass, then its cast and the outputs with every sub-pixel sample a receiver
+/// (MemoryDemand::Refinement), so that it fails at most once, naming a budget that works.
 
 #include "bake/light/Light.h"
 #include "bake/MemoryPlan.h"

@@ -39,10 +39,20 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string&
     const uint64_t outputPhase = plan.residentBytes + d.outputBytes;
     plan.minimumBudget = std::max({scanPhaseBytes(d), bucketPhase, outputPhase,
                                    plan.residentBytes + castSources + smallestTile * plan.perReceiverBytes});
+    if (d.refinement.addedReceivers > 0) {
+        MemoryDemand after = d;
+        after.refinement = {};
+        after.receivers += d.refinement.addedReceivers;
+        after.kindBytes = d.refinement.kindBytesAfter;
+        after.outputBytes = std::max(d.outputBytes, d.refinement.outputBytesAfter);
+        plan.minimumBudget = std::max(plan.minimumBudget, planMemory(after, 0).minimumBudget);
+    }
     if (budget == 0) return plan;
     if (budget < plan.minimumBudget) {
         std::string why;
         if (!d.sourceDetail.empty() && d.sourceBytes > plan.minimumBudget / 2) why = fmt::format(" ({})", d.sourceDetail);
+        else if (d.refinement.addedReceivers > 0)
+            why = fmt::format(" (with the antialiasing pass's up to {} more receivers)", d.refinement.addedReceivers);
         throw InputError(fmt::format("{} {} is too small for {} receivers with {} mask words each; at least {} is needed{}", label,
                                      formatBytes(budget + overhead), d.receivers, d.groups,
                                      budgetText(plan.minimumBudget + overhead), why));

@@ -35,6 +35,16 @@ struct MemoryDemand {
     /// Translucent blockers held for the bake (bake/cast/TranslucentBlockers.h), at worst every
     /// alpha-matte triangle, and each thread's row of per-sample depths.
     uint64_t translucentBytes = 0;
+    /// Set for the check before a refinement's pass (camera antialiasing, once its pixels are
+    /// known): the receivers it may add at most, and the kind's resident and output bytes with
+    /// them. planMemory() folds the bake after that pass (every receiver resident, a smallest tile
+    /// cast, the outputs written) into the minimum budget, so that one check covers the rest of
+    /// the bake; the tiles stay those of the receivers cast so far.
+    struct Refinement {
+        uint64_t addedReceivers = 0;
+        uint64_t kindBytesAfter = 0;
+        uint64_t outputBytesAfter = 0;
+    } refinement;
 };
 
 struct MemoryPlan {

@@ -51,7 +51,10 @@ public:
     }
     uint64_t maxResidentBytes(uint64_t receivers, std::optional<uint64_t> triangles) const override {
         if (!smooth_) return 0;
-        if (bend_) return bend_->plannedBytes();  // the visible triangles are known
+        // The visible triangles are known; more receivers than the table holds are a
+        // refinement's, whose corners may grow its vector to twice their size.
+        if (bend_ && receivers <= bend_->receivers()) return bend_->plannedBytes();
+        if (bend_) return VertexBend::boundBytes(receivers, triangles.value_or(receivers), lights_.size()) + 12 * receivers;
         return VertexBend::boundBytes(receivers, triangles.value_or(receivers), lights_.size());
     }
     std::optional<uint64_t> receiverBound() const override {
@@ -107,6 +110,7 @@ public:
         return true;
     }
     bool mayRefine() const override { return aa_.samples > 0; }
+    uint64_t maxRefinedReceivers() const override { return refinedPixels_ * uint64_t(aa_.samples); }
     ReceiverSet refinedReceivers() override {
         ReceiverSet set = raster_->finish();
         if (bend_) bend_->addTriangles(raster_->takeTriangles(), set.normal);

@@ -107,6 +107,9 @@ public:
     /// the bucket pass must not cull blockers by the first pass's reach).
     virtual bool mayRefine() const { return false; }
     virtual ReceiverSet refinedReceivers() { return {}; }
+    /// The most receivers refinedReceivers() can return, asked after refine() returned true, so
+    /// that the plan checks the refinement's cast and outputs before its pass.
+    virtual uint64_t maxRefinedReceivers() const { return 0; }
 
     /// The receivers' polygons and texels, for kinds whose receivers are texels of receiver
     /// polygons (lightmaps); null for the others. Filled by receivers(), so it is complete after it;

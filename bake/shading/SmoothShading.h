@@ -89,6 +89,8 @@ public:
     uint64_t plannedBytes() const;
     /// Vertex slots (distinct visible vertices, once per distinct owner face normal).
     size_t vertices() const { return vertex_.size(); }
+    /// Receivers whose corners the table holds.
+    size_t receivers() const { return corners_.size(); }
 
 private:
     struct Key {

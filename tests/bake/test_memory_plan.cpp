@@ -76,3 +76,72 @@ TEST_CASE("a tiled bake under --memory-budget is bit-identical to an untiled one
     CHECK_THAT(tooSmall.err, Catch::Contains("--memory-budget 1.00 MiB is too small") && Catch::Contains("at least"));
     CHECK(lineCount(tooSmall.err) == 1);
 }
+
+TEST_CASE("a refinement's check covers its cast and outputs after it, the tiles staying those cast so far", "[memory]") {
+    MemoryDemand d;
+    d.receivers = 500'000, d.scanBytes = 8'000'000, d.groups = 4, d.umbraWords = 1, d.outputBytes = 4'000'000;
+    d.kindBytes = 30'000'000;  // the refinement's rasterizer
+    const MemoryPlan pass = planMemory(d, 0);
+    d.refinement = {2'000'000, 1'000'000, 12'000'000};
+    const MemoryPlan both = planMemory(d, 0);
+    CHECK(both.residentBytes == pass.residentBytes);
+    CHECK(both.perReceiverBytes == pass.perReceiverBytes);
+    MemoryDemand after = d;
+    after.refinement = {};
+    after.receivers += 2'000'000, after.kindBytes = 1'000'000, after.outputBytes = 12'000'000;
+    CHECK(both.minimumBudget == std::max(pass.minimumBudget, planMemory(after, 0).minimumBudget));
+    CHECK(both.minimumBudget > pass.minimumBudget);
+    std::string message;
+    try {
+        planMemory(d, pass.minimumBudget);
+    } catch (const InputError& e) {
+        message = e.what();
+    }
+    CHECK_THAT(message, Catch::Contains("at least " + budgetText(both.minimumBudget) + " is needed") &&
+                            Catch::Contains("antialiasing pass's up to 2000000 more receivers"));
+    MemoryDemand passOnly = d;
+    passOnly.refinement = {};
+    CHECK(planMemory(d, both.minimumBudget).tiles == planMemory(passOnly, both.minimumBudget).tiles);
+}
+
+TEST_CASE("an antialiased bake too large for its budget fails once, before its antialiasing pass, naming a budget that works",
+          "[memory][cli]") {
+    ScratchDir dir("aa-budget");
+    std::ofstream(dir / "scene.json") << R"({
+      "geometry": [{"type": "grid", "cells": 6, "levels": 2, "size": 2, "floor_size": 5}],
+      "lights": [{"type": "rect", "center": [0,4,0], "u": [1,0,0], "v": [0,0,1], "samples": 64, "sample_sets": 4}],
+      "receivers": {"type": "camera", "eye": [0,4,5], "target": [0,0.5,0], "width": 400, "height": 300,
+                    "antialias": {"threshold": 0.05, "samples": 16}},
+      "output": "out/a.exr"})";
+    RunResult whole = runPenumbra("bake " + (dir / "scene.json") + " -q --threads 2 --stats " + (dir / "whole.json"));
+    REQUIRE(whole.exitCode == 0);
+    const auto stats = nlohmann::json::parse(slurp(dir / "whole.json"));
+    REQUIRE(stats["antialias"]["added_receivers"].get<uint64_t>() > 0);
+    // The minimum the stats name covers every stage, the antialiasing pass's included, and the
+    // bake under it stays within it.
+    const uint64_t minimum = stats["memory_plan"]["minimum_budget_bytes"];
+    RunResult atMinimum = runPenumbra("bake " + (dir / "scene.json") + " -q --threads 2 --memory-budget " + std::to_string(minimum) +
+                                      " -o " + (dir / "m.exr") + " --stats " + (dir / "m.json"));
+    INFO(atMinimum.err);
+    REQUIRE(atMinimum.exitCode == 0);
+    CHECK(slurp(dir / "m.exr") == slurp(dir / "out/a.exr"));
+    CHECK(nlohmann::json::parse(slurp(dir / "m.json"))["counters"]["peak_rss_bytes"].get<uint64_t>() <= minimum);
+
+    // Below it, at several budgets: one error line before the antialiasing pass, no output, and
+    // the budget it names works.
+    for (const uint64_t less : {1ull << 20, 4ull << 20, 12ull << 20}) {
+        RunResult tooSmall = runPenumbra("bake " + (dir / "scene.json") + " --threads 2 --memory-budget " + std::to_string(minimum - less) +
+                                         " -o " + (dir / "small.exr"));
+        INFO(tooSmall.err);
+        CHECK(tooSmall.exitCode == 1);
+        CHECK_THAT(tooSmall.err, Catch::Contains("is too small") && !Catch::Contains("[antialias]"));
+        CHECK_FALSE(std::filesystem::exists(dir / "small.exr"));
+        const size_t at = tooSmall.err.find("at least ");
+        REQUIRE(at != std::string::npos);
+        const std::string named = tooSmall.err.substr(at + 9, tooSmall.err.find(' ', at + 9) - at - 9);
+        RunResult fits = runPenumbra("bake " + (dir / "scene.json") + " -q --threads 2 --memory-budget " + named + " -o " + (dir / "b.exr"));
+        INFO(named << ": " << fits.err);
+        CHECK(fits.exitCode == 0);
+        CHECK(slurp(dir / "b.exr") == slurp(dir / "out/a.exr"));
+    }
+}
