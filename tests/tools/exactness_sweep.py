@@ -27,7 +27,7 @@ import sys
 import tempfile
 
 EXAMPLES = ["grids.json", "flowers.json", "sponza-like.json", "antialias.json", "glass.json", "gltf-tree.json",
-            "lightmap.json"]
+            "lightmap.json", "vertices.json"]
 
 
 def random_light(rng):
@@ -59,7 +59,7 @@ def variant(rng, examples, size):
     if receivers.get("type") == "camera":
         receivers["width"], receivers["height"] = size, size * 3 // 4
     elif receivers.get("type") == "lightmap":
-        receivers["resolution"] = size // 2
+        receivers["resolution"] = max(64, size)  # room for the charts and their padding
     scene.pop("output", None)
     return name, scene
 
@@ -81,13 +81,14 @@ def same_outputs(a, b):
 
 def check_case(penumbra, scene_path, scene, rng, work, determinism):
     """Returns None when the case passes, else what failed."""
+    out = "out.glb" if scene.get("receivers", {}).get("type") == "vertices" else "out.exr"
     method = rng.choice(["hpc", "hpc", "ssv"])
     extra = rng.choice([[], ["--disable", "footprints"], ["--simd", "scalar"]])
     bakes = {"exact": [method] + extra, "embree": ["embree"]}
     for tag, m in bakes.items():
         os.makedirs(os.path.join(work, tag))
         r = run([penumbra, "bake", scene_path, "-q", "--threads", "2", "--method", *m, "--dump",
-                 os.path.join(work, tag, "dump"), "-o", os.path.join(work, tag, "out.exr")])
+                 os.path.join(work, tag, "dump"), "-o", os.path.join(work, tag, out)])
         if r.returncode:
             return f"{tag} bake ({' '.join(m)}) exited {r.returncode}: {r.stderr.strip()[-200:]}"
     r = run([penumbra, "compare", os.path.join(work, "embree", "dump"), os.path.join(work, "exact", "dump"),
@@ -100,7 +101,7 @@ def check_case(penumbra, scene_path, scene, rng, work, determinism):
     for tag, args in {"one": ["--threads", "1"], "two": ["--threads", "2"]}.items():
         outs[tag] = os.path.join(work, tag)
         os.makedirs(outs[tag])
-        r = run([penumbra, "bake", scene_path, "-q", *args, "-o", os.path.join(outs[tag], "out.exr")])
+        r = run([penumbra, "bake", scene_path, "-q", *args, "-o", os.path.join(outs[tag], out)])
         if r.returncode:
             return f"bake {' '.join(args)} exited {r.returncode}: {r.stderr.strip()[-200:]}"
     if not same_outputs(outs["one"], outs["two"]):
@@ -112,10 +113,10 @@ def check_case(penumbra, scene_path, scene, rng, work, determinism):
     os.makedirs(merged)
     for i in range(3):
         r = run([penumbra, "bake", scene_path, "-q", "--threads", "1", "--shard", f"{i}/3", "--shard-dir", shards,
-                 "-o", os.path.join(merged, "out.exr")])
+                 "-o", os.path.join(merged, out)])
         if r.returncode:
             return f"shard {i}/3 exited {r.returncode}: {r.stderr.strip()[-200:]}"
-    r = run([penumbra, "merge", scene_path, "-q", "--shard-dir", shards, "-o", os.path.join(merged, "out.exr")])
+    r = run([penumbra, "merge", scene_path, "-q", "--shard-dir", shards, "-o", os.path.join(merged, out)])
     if r.returncode:
         return f"merge exited {r.returncode}: {r.stderr.strip()[-200:]}"
     if not same_outputs(outs["two"], merged):
@@ -129,7 +130,7 @@ def main():
     p.add_argument("examples")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--cases", type=int, default=4)
-    p.add_argument("--size", type=int, default=64, help="camera width (lightmaps get half as many texels per side)")
+    p.add_argument("--size", type=int, default=64, help="camera width (and lightmap texels per side, at least 64)")
     p.add_argument("--keep", default=None, help="directory for the scenes of failing cases")
     a = p.parse_args()
     rng = random.Random(a.seed)
