@@ -44,7 +44,7 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string&
         after.refinement = {};
         after.receivers += d.refinement.addedReceivers;
         after.kindBytes = d.refinement.kindBytesAfter;
-        after.outputBytes = std::max(d.outputBytes, d.refinement.outputBytesAfter);
+        after.outputBytes = d.refinement.outputBytesAfter;
         plan.minimumBudget = std::max(plan.minimumBudget, planMemory(after, 0).minimumBudget);
     }
     if (budget == 0) return plan;

@@ -272,7 +272,6 @@ struct Bake {
     std::unique_ptr<TranslucentBlockers> translucent;
     std::once_flag translucentOnce;
     size_t firstPass = 0;  ///< receivers of the first pass; later ones are a refinement's
-    std::optional<uint64_t> sceneTriangles;  ///< counted by the scan
     double streamSeconds = 0, castSeconds = 0, refineSeconds = 0;
 
     Bake(const SceneDesc& s, const BakeSettings& b)
@@ -317,7 +316,6 @@ void scanScene(Bake& b) {
     checkAddressSpaceLeft(scene.file, "the scan pass", scanPhaseBytes(b.demand));
     checkMemoryFits(scene.file, "casting", planMemory(b.demand, 0).minimumBudget);
     auto afterScan = [&](const Prepared& prepared, uint64_t triangles) {
-        b.sceneTriangles = triangles;
         b.demand.receivers = prepared.receivers.size();
         b.demand.kindBytes = b.kind->maxResidentBytes(b.demand.receivers, triangles);
         b.demand.outputBytes = b.kind->outputBytes(b.demand.receivers);
@@ -448,7 +446,7 @@ bool refineReceivers(Bake& b) {
     // Its pass, and then its cast and the outputs at worst (every sub-pixel sample a receiver):
     // one check before the pass, so that a budget too small fails once, naming one that works.
     const uint64_t added = b.kind->maxRefinedReceivers(), all = p.receivers.size() + added;
-    b.demand.refinement = {added, b.kind->maxResidentBytes(all, b.sceneTriangles), b.kind->outputBytes(all)};
+    b.demand.refinement = {added, b.kind->maxResidentBytes(all, p.triangleCount), b.kind->outputBytes(all)};
     b.replan();
     {
         ScopedTimer timer(b.refineSeconds);

@@ -51,10 +51,7 @@ public:
     }
     uint64_t maxResidentBytes(uint64_t receivers, std::optional<uint64_t> triangles) const override {
         if (!smooth_) return 0;
-        // The visible triangles are known; more receivers than the table holds are a
-        // refinement's, whose corners may grow its vector to twice their size.
-        if (bend_ && receivers <= bend_->receivers()) return bend_->plannedBytes();
-        if (bend_) return VertexBend::boundBytes(receivers, triangles.value_or(receivers), lights_.size()) + 12 * receivers;
+        if (bend_) return bend_->plannedBytes(receivers, triangles.value_or(receivers));  // the visible triangles are known
         return VertexBend::boundBytes(receivers, triangles.value_or(receivers), lights_.size());
     }
     std::optional<uint64_t> receiverBound() const override {

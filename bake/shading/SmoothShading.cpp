@@ -198,6 +198,12 @@ uint64_t VertexBend::plannedBytes() const {
     return boundBytes(corners_.size(), distinct, lights_.size());
 }
 
+uint64_t VertexBend::plannedBytes(uint64_t receivers, uint64_t triangles) const {
+    if (receivers <= corners_.size()) return plannedBytes();
+    // Appending may grow the corner vector to twice the receivers' corners.
+    return boundBytes(receivers, triangles, lights_.size()) + sizeof(corners_[0]) * receivers;
+}
+
 uint64_t VertexBend::bytes() const {
     // An unordered_map node is the key and value plus a next pointer and the cached hash, and
     // each node has a bucket pointer.

@@ -87,10 +87,11 @@ public:
     static uint64_t boundBytes(uint64_t receivers, uint64_t triangles, size_t lights);
     /// @brief boundBytes() with the distinct triangles expectTriangleIds() named (call after it).
     uint64_t plannedBytes() const;
+    /// @brief plannedBytes() once the table holds @p receivers receivers: more than it holds now
+    /// are appended by addTriangles() (a refinement's), among any of the scene's @p triangles.
+    uint64_t plannedBytes(uint64_t receivers, uint64_t triangles) const;
     /// Vertex slots (distinct visible vertices, once per distinct owner face normal).
     size_t vertices() const { return vertex_.size(); }
-    /// Receivers whose corners the table holds.
-    size_t receivers() const { return corners_.size(); }
 
 private:
     struct Key {

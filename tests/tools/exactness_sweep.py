@@ -17,6 +17,7 @@ Exit 0 when every case passes; 1 with one line per failing case (its scene is ke
 """
 
 import argparse
+import filecmp
 import json
 import math
 import os
@@ -64,19 +65,18 @@ def variant(rng, examples, size):
     return name, scene
 
 
-def run(args, **kw):
-    return subprocess.run(args, capture_output=True, text=True, timeout=1800, **kw)
+def bake(penumbra, scene_path, args, what):
+    """Runs `penumbra bake` on the scene; None when it succeeds, else what failed."""
+    r = subprocess.run([penumbra, "bake", scene_path, "-q", *args], capture_output=True, text=True, timeout=1800)
+    return None if r.returncode == 0 else f"{what} exited {r.returncode}: {r.stderr.strip()[-200:]}"
 
 
 def same_outputs(a, b):
     names = sorted(os.listdir(a))
     if names != sorted(os.listdir(b)):
         return False
-    for n in names:
-        with open(os.path.join(a, n), "rb") as fa, open(os.path.join(b, n), "rb") as fb:
-            if fa.read() != fb.read():
-                return False
-    return True
+    match, mismatch, errors = filecmp.cmpfiles(a, b, names, shallow=False)
+    return not mismatch and not errors
 
 
 def check_case(penumbra, scene_path, scene, rng, work, determinism):
@@ -84,42 +84,34 @@ def check_case(penumbra, scene_path, scene, rng, work, determinism):
     out = "out.glb" if scene.get("receivers", {}).get("type") == "vertices" else "out.exr"
     method = rng.choice(["hpc", "hpc", "ssv"])
     extra = rng.choice([[], ["--disable", "footprints"], ["--simd", "scalar"]])
-    bakes = {"exact": [method] + extra, "embree": ["embree"]}
-    for tag, m in bakes.items():
+    for tag, m in {"exact": [method] + extra, "embree": ["embree"]}.items():
         os.makedirs(os.path.join(work, tag))
-        r = run([penumbra, "bake", scene_path, "-q", "--threads", "2", "--method", *m, "--dump",
-                 os.path.join(work, tag, "dump"), "-o", os.path.join(work, tag, out)])
-        if r.returncode:
-            return f"{tag} bake ({' '.join(m)}) exited {r.returncode}: {r.stderr.strip()[-200:]}"
-    r = run([penumbra, "compare", os.path.join(work, "embree", "dump"), os.path.join(work, "exact", "dump"),
-             "--scene", scene_path])
+        dump = ["--dump", os.path.join(work, tag, "dump"), "-o", os.path.join(work, tag, out)]
+        if failure := bake(penumbra, scene_path, ["--threads", "2", "--method", *m, *dump], f"{tag} bake ({' '.join(m)})"):
+            return failure
+    r = subprocess.run([penumbra, "compare", os.path.join(work, "embree", "dump"), os.path.join(work, "exact", "dump"),
+                        "--scene", scene_path], capture_output=True, text=True, timeout=1800)
     if r.returncode:
         return f"{method} {' '.join(extra)} against embree: {r.stdout.strip().splitlines()[-1:]}"
     if not determinism:
         return None
-    outs = {}
-    for tag, args in {"one": ["--threads", "1"], "two": ["--threads", "2"]}.items():
-        outs[tag] = os.path.join(work, tag)
-        os.makedirs(outs[tag])
-        r = run([penumbra, "bake", scene_path, "-q", *args, "-o", os.path.join(outs[tag], out)])
-        if r.returncode:
-            return f"bake {' '.join(args)} exited {r.returncode}: {r.stderr.strip()[-200:]}"
-    if not same_outputs(outs["one"], outs["two"]):
+    dirs = {threads: os.path.join(work, f"threads{threads}") for threads in (1, 2)}
+    for threads, d in dirs.items():
+        os.makedirs(d)
+        if failure := bake(penumbra, scene_path, ["--threads", str(threads), "-o", os.path.join(d, out)], f"bake on {threads} thread(s)"):
+            return failure
+    if not same_outputs(dirs[1], dirs[2]):
         return "outputs differ between 1 and 2 threads"
-    translucent = any("translucent" in g for g in scene.get("geometry", []))
-    if translucent:  # such scenes cannot be sharded (documented)
+    if any("translucent" in g for g in scene.get("geometry", [])):  # such scenes cannot be sharded (documented)
         return None
     shards, merged = os.path.join(work, "shards"), os.path.join(work, "merged")
     os.makedirs(merged)
     for i in range(3):
-        r = run([penumbra, "bake", scene_path, "-q", "--threads", "1", "--shard", f"{i}/3", "--shard-dir", shards,
-                 "-o", os.path.join(merged, out)])
-        if r.returncode:
-            return f"shard {i}/3 exited {r.returncode}: {r.stderr.strip()[-200:]}"
-    r = run([penumbra, "merge", scene_path, "-q", "--shard-dir", shards, "-o", os.path.join(merged, out)])
-    if r.returncode:
-        return f"merge exited {r.returncode}: {r.stderr.strip()[-200:]}"
-    if not same_outputs(outs["two"], merged):
+        if failure := bake(penumbra, scene_path, ["--threads", "1", "--shard", f"{i}/3", "--shard-dir", shards], f"shard {i}/3"):
+            return failure
+    if failure := bake(penumbra, scene_path, ["--merge", "--shard-dir", shards, "-o", os.path.join(merged, out)], "merge"):
+        return failure
+    if not same_outputs(dirs[2], merged):
         return "merged shards differ from the single bake"
     return None
 
