@@ -42,6 +42,8 @@ nlohmann::json counters(const BakeStatsInputs& in) {
             {"table_decided_relations", in.cast.tableDecidedRelations},
             {"alpha_tests", in.cast.alphaTests},
             {"alpha_rejected", in.cast.alphaRejected},
+            {"alpha_group_tests", in.cast.alphaGroupTests},
+            {"alpha_groups_decided", in.cast.alphaGroupsDecided},
             {"sample_table_bytes", in.cast.sampleTableBytes},
             {"peak_rss_bytes", peakRssBytes()}};
 }

@@ -6,6 +6,7 @@
 
 #include <glm/geometric.hpp>
 
+#include <algorithm>
 #include <cmath>
 
 namespace penumbra {
@@ -39,6 +40,59 @@ int64_t texel(double x, bool& tie) {
 }
 
 AlphaLookup outline(double f) { return {f > 0.0, std::abs(f) < kOutlineTie}; }
+
+/// An interval [lo, hi] of one texture coordinate over a region.
+struct Span {
+    double lo = INFINITY, hi = -INFINITY;
+    void add(double x) { lo = std::min(lo, x), hi = std::max(hi, x); }
+    void widen(double by) { lo -= by, hi += by; }
+    bool contains(double x) const { return lo <= x && x <= hi; }
+    /// Bounds of x^2 over the span.
+    double minSquare() const { return contains(0.0) ? 0.0 : std::min(lo * lo, hi * hi); }
+    double maxSquare() const { return std::max(lo * lo, hi * hi); }
+};
+
+/// The verdict of an outline whose value over the region lies in [fMin, fMax] (computed with
+/// rounding far below kOutlineTie for the coordinates verdictOver() lets through).
+AlphaVerdict outlineVerdict(double fMin, double fMax) {
+    if (fMin > kOutlineTie) return AlphaVerdict::Opaque;
+    if (fMax < -kOutlineTie) return AlphaVerdict::Clear;
+    return AlphaVerdict::Mixed;
+}
+
+/// |2 x - 1| over a span: its bounds.
+double maxAbsCentred(const Span& s) { return std::max(std::abs(2.0 * s.lo - 1.0), std::abs(2.0 * s.hi - 1.0)); }
+double minAbsCentred(const Span& s) {
+    return s.contains(0.5) ? 0.0 : std::min(std::abs(2.0 * s.lo - 1.0), std::abs(2.0 * s.hi - 1.0));
+}
+
+AlphaVerdict leafVerdict(const Span& u, const Span& v) {
+    auto g = [](double x) { return 4.0 * x * (1.0 - x); };  // concave: its minimum at an end
+    const double gMin = std::min(g(u.lo), g(u.hi)), gMax = g(std::clamp(0.5, u.lo, u.hi));
+    return outlineVerdict(gMin - maxAbsCentred(v), gMax - minAbsCentred(v));
+}
+
+AlphaVerdict petalVerdict(const Span& u, const Span& v) {
+    const Span x{2.0 * u.lo - 1.0, 2.0 * u.hi - 1.0}, y{2.0 * v.lo - 1.0, 2.0 * v.hi - 1.0};
+    return outlineVerdict(1.0 - (x.maxSquare() + y.maxSquare()), 1.0 - (x.minSquare() + y.minSquare()));
+}
+
+/// Every texel a lookup in [u, v] can pick (texel() floors fl(u W), monotone in u), if few.
+AlphaVerdict textureVerdict(const AlphaMap& m, const Span& u, const Span& v) {
+    if (m.width == 0 || m.height == 0) return AlphaVerdict::Opaque;  // lookup(): opaque
+    const double x0 = std::floor(u.lo * double(m.width)), x1 = std::floor(u.hi * double(m.width));
+    const double y0 = std::floor(v.lo * double(m.height)), y1 = std::floor(v.hi * double(m.height));
+    if (!(x1 - x0 < 16.0) || !(y1 - y0 < 16.0) || !((x1 - x0 + 1.0) * (y1 - y0 + 1.0) <= 256.0)) return AlphaVerdict::Mixed;
+    if (!(std::abs(x0) < 0x1p52 && std::abs(y0) < 0x1p52)) return AlphaVerdict::Mixed;
+    bool anyOpaque = false, anyClear = false;
+    for (int64_t y = int64_t(y0); y <= int64_t(y1); ++y)
+        for (int64_t x = int64_t(x0); x <= int64_t(x1); ++x) {
+            const bool opaque = m.at(uint32_t(wrapIndex(x, m.width, m.wrapS)), uint32_t(wrapIndex(y, m.height, m.wrapT)));
+            (opaque ? anyOpaque : anyClear) = true;
+            if (anyOpaque && anyClear) return AlphaVerdict::Mixed;
+        }
+    return anyOpaque ? AlphaVerdict::Opaque : AlphaVerdict::Clear;
+}
 
 AlphaEntry quadEntry(uint32_t map, bool upper) {
     AlphaEntry e;
@@ -135,6 +189,48 @@ AlphaLookup AlphaTable::lookup(uint32_t id, double b0, double b1, double b2) con
     const int64_t j = wrapIndex(texel(v * double(m.height), out.tie), m.height, m.wrapT);
     out.opaque = m.at(uint32_t(i), uint32_t(j));
     return out;
+}
+
+AlphaVerdict AlphaTable::verdictOver(uint32_t id, std::span<const std::array<double, 3>> corners, double pad) const {
+    if (id == 0 || id >= entries_.size()) return AlphaVerdict::Opaque;
+    const AlphaEntry& e = entries_[id];
+    const AlphaMap& m = maps_[e.map];
+    if (m.shape == AlphaShape::Solid) return AlphaVerdict::Opaque;
+    if (corners.empty() || !(pad >= 0.0) || !(pad < 1.0)) return AlphaVerdict::Mixed;
+    // uv' is affine in b: uv'_c = sum_i b_i q_ic + t_c. Each corner's uv' in lookup()'s own order;
+    // a b within pad moves uv'_c by at most pad sum_i |q_ic|, and the lookup's rounding (a few
+    // ulps of the magnitudes involved) is covered by 1e-12 of them.
+    const std::array<double, 6>& t = m.transform;
+    double bMax = 0.0;
+    Span u, v;
+    for (const std::array<double, 3>& b : corners) {
+        const double u0 = (b[0] * e.uv[0].x + b[1] * e.uv[1].x) + b[2] * e.uv[2].x;
+        const double v0 = (b[0] * e.uv[0].y + b[1] * e.uv[1].y) + b[2] * e.uv[2].y;
+        u.add((t[0] * u0 + t[1] * v0) + t[2]);
+        v.add((t[3] * u0 + t[4] * v0) + t[5]);
+        bMax = std::max({bMax, std::abs(b[0]), std::abs(b[1]), std::abs(b[2])});
+    }
+    double qu = 0.0, qv = 0.0, mu = 0.0, mv = 0.0;  // sum_i |q_i| and the magnitude of the terms
+    for (const glm::dvec2& c : e.uv) {
+        qu += std::abs(t[0] * c.x + t[1] * c.y), qv += std::abs(t[3] * c.x + t[4] * c.y);
+        mu += std::abs(t[0] * c.x) + std::abs(t[1] * c.y), mv += std::abs(t[3] * c.x) + std::abs(t[4] * c.y);
+    }
+    u.widen(pad * qu + 1e-12 * (1.0 + (bMax + pad) * mu + std::abs(t[2])));
+    v.widen(pad * qv + 1e-12 * (1.0 + (bMax + pad) * mv + std::abs(t[5])));
+    if (!std::isfinite(u.lo) || !std::isfinite(u.hi) || !std::isfinite(v.lo) || !std::isfinite(v.hi))
+        return AlphaVerdict::Mixed;
+    switch (m.shape) {
+        case AlphaShape::Leaf:
+        case AlphaShape::Petal: {
+            // Outlines live in [0, 1]^2; beyond 16 their values' rounding could near kOutlineTie.
+            const double far = std::max({std::abs(u.lo), std::abs(u.hi), std::abs(v.lo), std::abs(v.hi)});
+            if (!(far <= 16.0)) return AlphaVerdict::Mixed;
+            return m.shape == AlphaShape::Leaf ? leafVerdict(u, v) : petalVerdict(u, v);
+        }
+        case AlphaShape::Solid: return AlphaVerdict::Opaque;
+        case AlphaShape::Texture: break;
+    }
+    return textureVerdict(m, u, v);
 }
 
 size_t AlphaTable::bytes() const {

@@ -30,6 +30,7 @@
 #include <cmath>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -87,6 +88,13 @@ struct AlphaLookup {
     bool tie = false;  ///< within roundoff of a texel edge or of an outline
 };
 
+/// @brief What every alpha test over a region of a triangle agrees on (AlphaTable::verdictOver()).
+enum class AlphaVerdict : uint8_t {
+    Mixed,   ///< the region may hold both results, or the map cannot tell cheaply: test each hit
+    Opaque,  ///< every test in the region passes
+    Clear,   ///< every test in the region fails
+};
+
 /// @brief Every alpha map and alpha id of a bake. Read-only once the bake starts, so methods
 /// share one table across threads.
 class AlphaTable {
@@ -120,6 +128,13 @@ public:
     /// Rasterizers (camera, light views, lightmap projections) call it for a fragment they keep.
     AlphaLookup lookupAlong(uint32_t id, const glm::vec3& v0, const glm::vec3& v1, const glm::vec3& v2, const glm::dvec3& origin,
                             const glm::dvec3& direction) const;
+
+    /// @brief The result every lookup(@p id, b) shares for the b within @p pad (per coordinate)
+    /// of the convex hull of @p corners (barycentrics), the lookup's own rounding included:
+    /// Opaque or Clear only when each of those lookups certainly gives it (exact by construction,
+    /// so a caster may skip them), otherwise Mixed. Textures are judged over at most 256 texels.
+    /// The map only: a caller of an id with a max_distance tests the distance itself.
+    AlphaVerdict verdictOver(uint32_t id, std::span<const std::array<double, 3>> corners, double pad) const;
 
     size_t entries() const { return entries_.size(); }
     const AlphaMap& map(uint32_t index) const { return maps_[index]; }

@@ -44,6 +44,11 @@ struct CastOptions {
     /// exact tests (docs/performance.md, "Footprints of split blockers"). Needs the sample table;
     /// `--disable footprints`. Masks do not change.
     bool footprints = true;
+    /// An alpha triangle: per receiver and group, the region of T that the group's samples hit
+    /// is bounded, and where the map is opaque (or clear) all over it, the group's hits skip their
+    /// alpha tests (bake/rule/AlphaBound.h; docs/performance.md, "Alpha tests by group").
+    /// `--disable alpha-bounds`. Masks do not change.
+    bool alphaBounds = true;
     /// --method embree: accept a hit only when the blocking rule blocks (an occlusion filter), so
     /// Embree decides like hpc but for float edge ties. Off: Embree's native answer, with the
     /// epsilon as tnear along the ray, which also blocks grazing rays the rule does not.
@@ -97,6 +102,8 @@ struct CastStats {
     uint64_t sampleTableBytes = 0;       ///< memory of the sample mask tables
     uint64_t alphaTests = 0;             ///< hits on alpha triangles that took the alpha test
     uint64_t alphaRejected = 0;          ///< of those, hits on transparent texels (not blocked)
+    uint64_t alphaGroupTests = 0;        ///< (receiver, group) pairs whose alpha test was tried at once
+    uint64_t alphaGroupsDecided = 0;     ///< of those, the ones decided (no per-hit alpha test)
 };
 
 /// @brief Adds the stats of one more tile or cast pass to @p total. Tiles and passes run one

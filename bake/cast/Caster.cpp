@@ -46,6 +46,8 @@ void addSequential(CastStats& total, const CastStats& s) {
     total.tableDecidedRelations += s.tableDecidedRelations;
     total.alphaTests += s.alphaTests;
     total.alphaRejected += s.alphaRejected;
+    total.alphaGroupTests += s.alphaGroupTests;
+    total.alphaGroupsDecided += s.alphaGroupsDecided;
     total.sampleTableBytes = std::max(total.sampleTableBytes, s.sampleTableBytes);
     total.peakLiveMasks = std::max(total.peakLiveMasks, s.peakLiveMasks);
     total.peakMaskBytes = std::max(total.peakMaskBytes, s.peakMaskBytes);

@@ -274,6 +274,8 @@ CastStats PenumbraCaster::stats() const {
         s.tableDecidedRelations += t.tableDecided;
         s.alphaTests += t.alphaTests;
         s.alphaRejected += t.alphaRejected;
+        s.alphaGroupTests += t.alphaGroupTests;
+        s.alphaGroupsDecided += t.alphaGroupsDecided;
     }
     return s;
 }

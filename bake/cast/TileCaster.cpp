@@ -2,6 +2,7 @@
 
 #include "bake/cast/LeafPrefilter.h"
 
+#include "bake/rule/AlphaBound.h"
 #include "bake/rule/AlphaRule.h"
 #include "stream/util/Timer.h"
 
@@ -15,6 +16,9 @@ constexpr uint32_t kAllPlanes = ~0u;  // "ALL": masked by the volume's own plane
 /// (docs/performance.md, "Blockers whose plane cuts the light"); with fewer open samples in the
 /// groups whose V_Gk holds the receiver, the exact tests decide them.
 constexpr uint32_t kSplitTableMinimumBits = 48;
+/// A group's alpha bound (AlphaBound.h) costs about as much as this many per-hit alpha tests
+/// (docs/performance.md, "Alpha tests by group"); a group with fewer candidates tests its hits.
+constexpr int kAlphaBoundMinimumBits = 32;
 
 }  // namespace
 
@@ -307,13 +311,20 @@ void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_
             open = undecided;
         }
         uint64_t hits = alphaSure;
+        AlphaVerdict verdict = AlphaVerdict::Mixed;
+        if (tri->alpha && options.alphaBounds && __builtin_popcountll(alphaSure | open) >= kAlphaBoundMinimumBits) {
+            verdict = alphaOverBound(alphaTable, *tri, p, group.bound);
+            ++stats_.alphaGroupTests;
+            if (verdict != AlphaVerdict::Mixed) ++stats_.alphaGroupsDecided;
+            if (verdict == AlphaVerdict::Clear) hits = open = 0;  // no hit of the group passes
+        }
         if (open) {
             uint32_t which;
             const HardShadowBlock* hard = hardShadowBlocks(set, g.group, open, which);
             stats_.hardTests += uint64_t(__builtin_popcountll(open));
             hits |= kernels.test(hard, which, edgeOffsets(), dist, eps) & open;
         }
-        if (tri->alpha && hits) hits = alphaFilter(set, g.group, hits, p, edgeOffsets());
+        if (tri->alpha && hits && verdict == AlphaVerdict::Mixed) hits = alphaFilter(set, g.group, hits, p, edgeOffsets());
         word |= hits;
         if (word != before) {
             if (!mask) {  // line 59, deferred until a bit is really set

@@ -26,6 +26,7 @@ namespace penumbra {
 struct TileStats {
     double buildSeconds = 0;  ///< hierarchy builds and rebuilds
     uint64_t rebuilds = 0, hardTests = 0, tableDecided = 0, alphaTests = 0, alphaRejected = 0;
+    uint64_t alphaGroupTests = 0, alphaGroupsDecided = 0;
     uint64_t visits = 0;  ///< hierarchy nodes visited: with hardTests, the work the progress display counts
     size_t peakHierarchyBytes = 0, peakReceiverBytes = 0;
 };
