@@ -233,6 +233,15 @@ AlphaVerdict AlphaTable::verdictOver(uint32_t id, std::span<const std::array<dou
     return textureVerdict(m, u, v);
 }
 
+bool AlphaTable::outlineOf(uint32_t id, AlphaOutline& out) const {
+    if (id == 0 || id >= entries_.size() || std::isfinite(entries_[id].maxDistance)) return false;
+    const AlphaEntry& e = entries_[id];
+    const AlphaMap& m = maps_[e.map];
+    if (m.shape != AlphaShape::Leaf && m.shape != AlphaShape::Petal) return false;
+    out.shape = m.shape, out.uv = e.uv, out.transform = m.transform;
+    return true;
+}
+
 size_t AlphaTable::bytes() const {
     size_t total = sizeof(AlphaTable) + entries_.size() * sizeof(AlphaEntry);
     for (const AlphaMap& m : maps_) total += m.bytes();

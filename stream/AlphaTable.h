@@ -82,6 +82,14 @@ struct AlphaEntry {
     double maxDistance = INFINITY;
 };
 
+/// @brief An id whose test depends on the barycentrics alone through an analytic outline: what
+/// lookup() reads for it, so that a SIMD form can repeat its operations (bake/cast/OutlineTest.h).
+struct AlphaOutline {
+    AlphaShape shape = AlphaShape::Leaf;  ///< Leaf or Petal
+    std::array<glm::dvec2, 3> uv{};
+    std::array<double, 6> transform{1, 0, 0, 0, 1, 0};
+};
+
 /// @brief The result of one alpha test.
 struct AlphaLookup {
     bool opaque = true;
@@ -135,6 +143,9 @@ public:
     /// so a caster may skip them), otherwise Mixed. Textures are judged over at most 256 texels.
     /// The map only: a caller of an id with a max_distance tests the distance itself.
     AlphaVerdict verdictOver(uint32_t id, std::span<const std::array<double, 3>> corners, double pad) const;
+    /// @brief Whether @p id's whole test is an analytic outline (Leaf or Petal, no max_distance);
+    /// if so, @p out gets what lookup() reads for it.
+    bool outlineOf(uint32_t id, AlphaOutline& out) const;
 
     size_t entries() const { return entries_.size(); }
     const AlphaMap& map(uint32_t index) const { return maps_[index]; }

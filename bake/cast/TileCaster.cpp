@@ -1,6 +1,7 @@
 #include "bake/cast/TileCaster.h"
 
 #include "bake/cast/LeafPrefilter.h"
+#include "bake/cast/OutlineTest.h"
 
 #include "bake/rule/AlphaBound.h"
 #include "bake/rule/AlphaRule.h"
@@ -112,6 +113,7 @@ bool TileCaster::castTriangle(const BlockerTriangle& t, const PenumbraVolume* li
     }
     if (umbra() && h.nodeFullUmbra[0]) return false;
     tri = &t;
+    outline = kOutlineUnknown;
     for (uint32_t slot : hardReadyList) hardReady[slot] = 0;
     hardReadyList.clear();
     for (currentLight = 0; currentLight < uint32_t(samples.lightCount()); ++currentLight) {
@@ -353,6 +355,20 @@ void TileCaster::castReceiver(uint32_t r, double dist, size_t groupsBegin, size_
     // tests, without rebuilding each sample's volume (docs/performance.md, "Alpha tests").
     uint32_t which;
     const HardShadowBlock* blocks = hardShadowBlocks(set, k, hits, which);
+    if (outline == kOutlineUnknown)
+        outline = kernels.level == SimdLevel::Avx2 && alphaTable.outlineOf(tri->alpha, outlineOfTri) ? kOutlineYes : kOutlineNo;
+    if (outline == kOutlineYes) {  // an analytic outline: four lanes at once, the same bits (OutlineTest.h)
+        uint64_t kept = 0;
+        for (uint32_t rest = which; rest; rest &= rest - 1) {
+            const int b = __builtin_ctz(rest);
+            const uint32_t lanes = uint32_t(hits >> (4 * b)) & 0xFu;
+            if (!lanes) continue;
+            kept |= uint64_t(outlineLanesAvx2(blocks[b], lanes, at, outlineOfTri)) << (4 * b);
+        }
+        stats_.alphaTests += uint64_t(__builtin_popcountll(hits));
+        stats_.alphaRejected += uint64_t(__builtin_popcountll(hits & ~kept));
+        return kept;
+    }
     uint64_t kept = hits;
     for (uint64_t rest = hits; rest; rest &= rest - 1) {
         const int j = __builtin_ctzll(rest), lane = j % HardShadowBlock::kLanes;

@@ -125,6 +125,10 @@ private:
     // Per-triangle state (Figure 3's "volumes-computed", split per light and per (set, group)).
     const BlockerTriangle* tri = nullptr;
     const PenumbraVolume* lightVolume = nullptr;
+    /// Whether the current alpha triangle's test is an analytic outline that alphaFilter() runs
+    /// four lanes at a time (AVX2 only), found on its first alpha test.
+    enum : uint8_t { kOutlineUnknown, kOutlineYes, kOutlineNo } outline = kOutlineUnknown;
+    AlphaOutline outlineOfTri;
     bool groupVolumesBuilt = false;
     /// Receivers past the leaf prefilter for the current light, counted until V_Gk are built (0:
     /// none yet, so the table's blocker is not prepared either).

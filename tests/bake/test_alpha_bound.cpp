@@ -1,11 +1,15 @@
 // A group's alpha test at once (bake/rule/AlphaBound.h): AlphaTable::verdictOver() on regions of
 // known outlines and texels, every Opaque or Clear verdict of alphaOverBound() checked against
 // every hit's own alpha test (every light kind, outlines, textures, max_distance ids), and hpc
-// with the bounds on giving the reference's bits while the bounds decide groups.
+// with the bounds on giving the reference's bits while the bounds decide groups; the four-lane
+// outline test (bake/cast/OutlineTest.h) against the scalar alpha test, lane by lane.
 
 #include "AlphaScenes.h"
 #include "TestScenes.h"
 
+#include "bake/cast/HardShadowBlock.h"
+#include "bake/cast/OutlineTest.h"
+#include "bake/cast/SimdLevel.h"
 #include "bake/rule/AlphaBound.h"
 #include "bake/rule/AlphaRule.h"
 #include "stream/AlphaTable.h"
@@ -163,4 +167,60 @@ TEST_CASE("alpha bound: hpc with group verdicts gives the reference's bits and d
         CHECK((stats.alphaGroupsDecided > 0) == bounds);
         CHECK(stats.alphaTests > 0);
     }
+}
+
+TEST_CASE("alpha outlines four lanes at once: the scalar alpha test's verdict in every lane", "[alpha][simd]") {
+    if (!simdSupported(SimdLevel::Avx2)) {
+        WARN("no AVX2 on this CPU: nothing to compare");
+        return;
+    }
+    const HardShadowKernels avx2 = hardShadowKernels(SimdLevel::Avx2);
+    Rng rng(29);
+    AlphaTable table;
+    uint64_t compared = 0, opaque = 0, centroid = 0;
+    for (int round = 0; round < 400; ++round) {
+        // A leaf or petal map with a random transform, on a triangle with random corner UVs.
+        AlphaMap m;
+        m.shape = round % 2 ? AlphaShape::Leaf : AlphaShape::Petal;
+        const double angle = rng.uniform(-1, 1), s = rng.uniform(0.5, 2);
+        m.transform = {s * std::cos(angle), -s * std::sin(angle), rng.uniform(-0.5, 0.5),
+                       s * std::sin(angle), s * std::cos(angle), rng.uniform(-0.5, 0.5)};
+        if (round % 5 == 0) m.transform = {1, 0, 0, 0, 1, 0};
+        AlphaEntry entry{table.addMap(m), {}};
+        for (glm::dvec2& uv : entry.uv) uv = {rng.uniform(-0.2, 1.2), rng.uniform(-0.2, 1.2)};
+        const uint32_t id = table.addEntry(entry);
+        AlphaOutline outline;
+        REQUIRE(table.outlineOf(id, outline));
+        Triangle raw{{randomIn(rng, {-1, 1, -1}, {1, 2, 1}), randomIn(rng, {-1, 1, -1}, {1, 2, 1}), randomIn(rng, {-1, 1, -1}, {1, 2, 1})},
+                     withAlphaId(0, id)};
+        const BlockerTriangle t = BlockerTriangle::from(raw);
+        if (!t.valid) continue;
+        glm::vec3 samples[4];
+        for (glm::vec3& l : samples) l = randomIn(rng, {-1.5f, 4, -1.5f}, {1.5f, 4.5f, 1.5f});
+        HardShadowBlock block;
+        avx2.build(block, samples, 4, 1.0, t);
+        for (int receiver = 0; receiver < 8; ++receiver) {
+            const glm::dvec3 r(randomIn(rng, {-2, 0, -2}, {2, 0.8f, 2}));
+            const EdgeOffsets at(t, r);
+            const uint32_t lanes = 0xF;
+            const uint32_t got = outlineLanesAvx2(block, lanes, at, outline);
+            for (int i = 0; i < 4; ++i) {
+                if (block.side[i] == 0.0) continue;
+                const double e[3] = {laneEdgeValue(block, 0, i, at), laneEdgeValue(block, 1, i, at), laneEdgeValue(block, 2, i, at)};
+                const bool expected = alphaAtEdges(table, t, r, e).opaque;
+                INFO("round " << round << ", receiver " << receiver << ", lane " << i);
+                REQUIRE(((got >> i) & 1u) == uint32_t(expected));
+                ++compared, opaque += expected, centroid += !((e[0] + e[1]) + e[2] > 0.0);
+            }
+        }
+    }
+    CHECK(compared > 5000);
+    CHECK(opaque > compared / 20);
+    CHECK(opaque < compared - compared / 20);
+    CHECK(centroid > 0);
+    // An id with a max_distance, a texture or no alpha is not an outline: the scalar test keeps it.
+    AlphaOutline unused;
+    CHECK_FALSE(table.outlineOf(table.withDistance(kAlphaLeafLower, 1.0), unused));
+    CHECK_FALSE(table.outlineOf(table.addEntry({table.addMap(AlphaMap::texture(1, 1, {1})), {}}), unused));
+    CHECK_FALSE(table.outlineOf(0, unused));
 }
