@@ -94,6 +94,14 @@ AlphaVerdict textureVerdict(const AlphaMap& m, const Span& u, const Span& v) {
     return anyOpaque ? AlphaVerdict::Opaque : AlphaVerdict::Clear;
 }
 
+/// uv' = T (b0 uv0 + b1 uv1 + b2 uv2): the texture coordinates of barycentrics b on entry @p e,
+/// in the one order lookup() and verdictOver() both round in.
+glm::dvec2 mappedUv(const AlphaEntry& e, const AlphaMap& m, double b0, double b1, double b2) {
+    const double u0 = (b0 * e.uv[0].x + b1 * e.uv[1].x) + b2 * e.uv[2].x;
+    const double v0 = (b0 * e.uv[0].y + b1 * e.uv[1].y) + b2 * e.uv[2].y;
+    return {(m.transform[0] * u0 + m.transform[1] * v0) + m.transform[2], (m.transform[3] * u0 + m.transform[4] * v0) + m.transform[5]};
+}
+
 AlphaEntry quadEntry(uint32_t map, bool upper) {
     AlphaEntry e;
     e.map = map;
@@ -170,10 +178,8 @@ AlphaLookup AlphaTable::lookup(uint32_t id, double b0, double b1, double b2) con
     if (id == 0 || id >= entries_.size()) return {};
     const AlphaEntry& e = entries_[id];
     const AlphaMap& m = maps_[e.map];
-    const double u0 = (b0 * e.uv[0].x + b1 * e.uv[1].x) + b2 * e.uv[2].x;
-    const double v0 = (b0 * e.uv[0].y + b1 * e.uv[1].y) + b2 * e.uv[2].y;
-    const double u = (m.transform[0] * u0 + m.transform[1] * v0) + m.transform[2];
-    const double v = (m.transform[3] * u0 + m.transform[4] * v0) + m.transform[5];
+    const glm::dvec2 uv = mappedUv(e, m, b0, b1, b2);
+    const double u = uv.x, v = uv.y;
     switch (m.shape) {
         case AlphaShape::Leaf: return outline(4.0 * u * (1.0 - u) - std::abs(2.0 * v - 1.0));
         case AlphaShape::Petal: {
@@ -204,10 +210,8 @@ AlphaVerdict AlphaTable::verdictOver(uint32_t id, std::span<const std::array<dou
     double bMax = 0.0;
     Span u, v;
     for (const std::array<double, 3>& b : corners) {
-        const double u0 = (b[0] * e.uv[0].x + b[1] * e.uv[1].x) + b[2] * e.uv[2].x;
-        const double v0 = (b[0] * e.uv[0].y + b[1] * e.uv[1].y) + b[2] * e.uv[2].y;
-        u.add((t[0] * u0 + t[1] * v0) + t[2]);
-        v.add((t[3] * u0 + t[4] * v0) + t[5]);
+        const glm::dvec2 uv = mappedUv(e, m, b[0], b[1], b[2]);
+        u.add(uv.x), v.add(uv.y);
         bMax = std::max({bMax, std::abs(b[0]), std::abs(b[1]), std::abs(b[2])});
     }
     double qu = 0.0, qv = 0.0, mu = 0.0, mv = 0.0;  // sum_i |q_i| and the magnitude of the terms

@@ -42,17 +42,17 @@ AlphaVerdict alphaOverBound(const AlphaTable& table, const BlockerTriangle& t, c
     for (size_t k = 0; k < n; ++k) spread = std::max(spread, norm1({value[k][0], value[k][1], value[k][2]}));
     delta += 4.0 * kUnit * spread;
     // The denominator's sign over the hull is its sign at the vertices (it is linear in l).
-    const double first = (value[0][0] + value[0][1]) + value[0][2];
-    const double sign = first > 0.0 ? 1.0 : -1.0;
+    std::array<double, kMaxVertices> sums;
+    for (size_t k = 0; k < n; ++k) sums[k] = (value[k][0] + value[k][1]) + value[k][2];
+    const double sign = sums[0] > 0.0 ? 1.0 : -1.0;
     double lowest = INFINITY;
-    for (size_t k = 0; k < n; ++k) lowest = std::min(lowest, sign * ((value[k][0] + value[k][1]) + value[k][2]) - delta);
+    for (size_t k = 0; k < n; ++k) lowest = std::min(lowest, sign * sums[k] - delta);
     if (!(lowest > 8.0 * delta) || !std::isfinite(lowest)) return AlphaVerdict::Mixed;
     std::array<std::array<double, 3>, kMaxVertices> corners;
     double largest = 0.0;
     for (size_t k = 0; k < n; ++k) {
-        const double sum = (value[k][0] + value[k][1]) + value[k][2];
         // barycentricsAtEdges()'s order: b0 = E_1 / sum, b1 = E_2 / sum, b2 = E_0 / sum.
-        corners[k] = {value[k][1] / sum, value[k][2] / sum, value[k][0] / sum};
+        corners[k] = {value[k][1] / sums[k], value[k][2] / sums[k], value[k][0] / sums[k]};
         largest = std::max({largest, std::abs(corners[k][0]), std::abs(corners[k][1]), std::abs(corners[k][2])});
     }
     // A computed barycentric is within 2 (1 + |b|) Delta / S + 4u |b| of its exact value (S >= the
