@@ -225,9 +225,10 @@ inline std::vector<std::pair<std::string, CastOptions>> optionVariants() {
     off("group volumes after three receivers", [](CastOptions& o) { o.groupVolumesAfter = 3; });
     off("no footprints", [](CastOptions& o) { o.footprints = false; });
     off("no alpha bounds", [](CastOptions& o) { o.alphaBounds = false; });
+    off("no front plane", [](CastOptions& o) { o.frontPlane = false; });
     off("all off", [](CastOptions& o) {
         o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = o.sampleTable =
-            o.closedCasters = o.footprints = o.alphaBounds = false, o.groupVolumesAfter = 0;
+            o.closedCasters = o.footprints = o.alphaBounds = o.frontPlane = false, o.groupVolumesAfter = 0;
     });
     return v;
 }

@@ -20,7 +20,7 @@ namespace penumbra {
 namespace {
 
 constexpr const char* kOptimizations =
-    "umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, closed-casters, cull-before-spill, defer-group-volumes, footprints, alpha-bounds, all";
+    "umbra, active-planes, lazy-volumes, lazy-masks, rebuild, sort, sample-table, closed-casters, cull-before-spill, defer-group-volumes, footprints, alpha-bounds, front-plane, all";
 
 /// Applies `--disable a,b,c` to the scene's cast options.
 void disableOptimizations(CastOptions& o, const std::vector<std::string>& names) {
@@ -37,9 +37,11 @@ void disableOptimizations(CastOptions& o, const std::vector<std::string>& names)
         else if (name == "defer-group-volumes") o.groupVolumesAfter = 0;
         else if (name == "footprints") o.footprints = false;
         else if (name == "alpha-bounds") o.alphaBounds = false;
+        else if (name == "front-plane") o.frontPlane = false;
         else if (name == "all")
             o.umbraBits = o.activePlanes = o.lazyVolumes = o.lazyMasks = o.rebuild = o.sortBlockers = o.sampleTable =
-                o.closedCasters = o.cullBeforeSpill = o.footprints = o.alphaBounds = false, o.groupVolumesAfter = 0;
+                o.closedCasters = o.cullBeforeSpill = o.footprints = o.alphaBounds = o.frontPlane = false,
+            o.groupVolumesAfter = 0;
         else
             throw InputError(fmt::format("--disable: unknown optimization \"{}\" (known: {})", name, kOptimizations));
     }

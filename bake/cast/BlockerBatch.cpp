@@ -19,6 +19,24 @@ bool facesAway(const BlockerTriangle& t, const ConvexBound& bound) {
     return !bound.vertices.empty();
 }
 
+bool cutInFront(PenumbraVolume& volume, const BlockerTriangle& t, const Box& receivers, const CastOptions& options) {
+    if (volume.count >= PenumbraVolume::kMaxPlanes) return true;
+    // inFrontOfClosed() culls a box when distanceBehind(c) > eps(box) + 1e-12 (|c - v0|_1 +
+    // extent(box)) at its corner c nearest T's front; over the boxes inside `receivers` that
+    // margin is at most eps(E) + 1e-12 (3 (E + V) + E), E the largest |coordinate| of a receiver
+    // and V of v0. One more 1e-12 (E + V) covers the rounding of this plane's evaluation (about
+    // 1e-15 (E + V)) against distanceBehind()'s.
+    const glm::vec3 far = glm::max(glm::abs(receivers.lo), glm::abs(receivers.hi));
+    const double e = std::max({double(far.x), double(far.y), double(far.z)});
+    const double v = std::max({std::abs(t.v[0].x), std::abs(t.v[0].y), std::abs(t.v[0].z)});
+    const double margin = options.epsilon * std::max(options.epsilonLength, e) + 1e-12 * (4 * (e + v) + e);
+    const Plane behind{-t.plane.n, glm::dot(t.plane.n, t.v[0]) + margin};  // positive side: inside
+    if (classify(behind, receivers) == BoxSide::Outside) return false;
+    volume.push(behind);
+    volume.frontCulled = true;
+    return true;
+}
+
 BlockerCulls::BlockerCulls(const LightSamples& samples, const CastOptions& options, const Box& receivers)
     : samples_(samples), options_(options), receivers_(receivers), volumeLevel_(hardShadowKernels(options.simd).level) {
     for (const ConvexBound& bound : samples_.lightBounds) reach_.emplace_back(receivers_, bound);
@@ -73,8 +91,9 @@ uint64_t BlockerCulls::prepare(BlockerBatch& batch, std::span<const Triangle> bl
             // outside (first the cap: every receiver on the light's side of T's plane), so a
             // blocker culled at the root rarely pays for its whole volume.
             if (!keepLights([&](size_t l) {
-                    return !buildPenumbraVolume(samples_.lightBounds[l], prepared, batch.lightVolumes[i * lights + l],
-                                                &receivers_, volumeLevel_);
+                    PenumbraVolume& volume = batch.lightVolumes[i * lights + l];
+                    return !buildPenumbraVolume(samples_.lightBounds[l], prepared, volume, &receivers_, volumeLevel_) ||
+                           (prepared.closed && options_.frontPlane && !cutInFront(volume, prepared, receivers_, options_));
                 }))
                 prepared.valid = false;
         }

@@ -61,6 +61,17 @@ private:
     std::vector<LightReach> reach_;  ///< per light
 };
 
+/// @brief Appends to @p volume, V_L of the closed face @p t, the plane that culls every receiver
+/// more than a margin in front of T, where the face blocks nothing (closed casters: a segment
+/// from the light that reaches such a receiver through T leaves the solid there, and the face
+/// where it entered blocks it). Its margin bounds TileCaster::inFrontOfClosed()'s over every box
+/// inside @p receivers, so every box (or receiver) the plane culls, that test culls too, and the
+/// traversal can skip that test per node: the plane leaves a box's active set once the box is
+/// behind it.
+/// @return false when every receiver in @p receivers lies in front (T casts nothing); true
+/// otherwise, also when the volume is full (frontCulled then stays false).
+bool cutInFront(PenumbraVolume& volume, const BlockerTriangle& t, const Box& receivers, const CastOptions& options);
+
 /// @brief Every vertex of @p bound strictly behind T's plane, beyond roundoff of the plane's
 /// evaluation (for a sun, every direction of the cone points away from T's front side).
 bool facesAway(const BlockerTriangle& t, const ConvexBound& bound);

@@ -49,6 +49,11 @@ struct CastOptions {
     /// alpha tests (bake/rule/AlphaBound.h; docs/performance.md, "Alpha tests by group").
     /// `--disable alpha-bounds`. Masks do not change.
     bool alphaBounds = true;
+    /// A closed face (closed casters on): V_L gets one more plane that culls the receivers in
+    /// front of T, which the face never blocks, instead of a test of every visited node's box
+    /// (BlockerBatch.h, cutInFront(); docs/performance.md, "Closed faces' front in V_L").
+    /// `--disable front-plane`. Masks do not change.
+    bool frontPlane = true;
     /// --method embree: accept a hit only when the blocking rule blocks (an occlusion filter), so
     /// Embree decides like hpc but for float edge ties. Off: Embree's native answer, with the
     /// epsilon as tnear along the ray, which also blocks grazing rays the rule does not.

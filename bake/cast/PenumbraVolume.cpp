@@ -105,7 +105,7 @@ bool capPlane(const ConvexBound& bound, const BlockerTriangle& t, double scale, 
 
 bool buildPenumbraVolume(const ConvexBound& bound, const BlockerTriangle& t, PenumbraVolume& volume, const Box* cull,
                          SimdLevel level) {
-    volume.count = 0;
+    volume.count = 0, volume.frontCulled = false;
     volume.nx[0] = volume.ny[0] = volume.nz[0] = volume.d[0] = 0.0;  // the slot after the last
     Builder b{bound, t, volume, volumeScale(bound, t), cull};
 

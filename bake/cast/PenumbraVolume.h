@@ -30,6 +30,9 @@ struct alignas(16) PenumbraVolume {
     // Left uninitialised on purpose (see Plane): volumes are built per triangle and per group.
     double nx[kMaxPlanes], ny[kMaxPlanes], nz[kMaxPlanes], d[kMaxPlanes];
     int count = 0;
+    /// V_L of a closed face only: a plane culls every receiver box in front of T (BlockerBatch.h,
+    /// cutInFront()), so the traversal needs no test of its own for it.
+    bool frontCulled = false;
 
     /// The active-plane set with every plane active ("ALL" in the paper's pseudocode).
     uint32_t all() const { return count >= 32 ? ~0u : (1u << count) - 1u; }

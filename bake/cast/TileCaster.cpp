@@ -154,7 +154,7 @@ void TileCaster::visit(uint32_t nodeIndex, uint32_t planes, size_t groupsBegin, 
     // between triangles.
     const ReceiverHierarchy::Node& node = h.nodes[nodeIndex];
     const Box box{node.lo, node.hi};
-    if (tri->closed && inFrontOfClosed(box)) return;
+    if (tri->closed && !lightVolume->frontCulled && inFrontOfClosed(box)) return;
     if (nodeIndex == 0) reachedRoot = true;
 
     const size_t begin = stack.size();

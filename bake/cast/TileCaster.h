@@ -77,6 +77,8 @@ private:
     const HardShadowBlock* hardShadowBlocks(uint32_t set, uint32_t k, uint64_t needed, uint32_t& which);
     /// Whether every receiver in @p box is in front of the current closed triangle beyond its
     /// epsilon, so that castReceiver() would skip each of them (conservative: false when unsure).
+    /// Only when V_L lacks the plane that cutInFront() appends (`--disable front-plane`, or a full
+    /// volume).
     bool inFrontOfClosed(const Box& box) const;
     /// INTERSECTS() at the kernels' level: four planes per instruction with AVX2, two otherwise
     /// (the same answer and active planes either way).

@@ -3,6 +3,7 @@
 
 #include "TestScenes.h"
 
+#include "bake/cast/BlockerBatch.h"
 #include "bake/cast/LeafPrefilter.h"
 
 #include <catch2/catch.hpp>
@@ -87,4 +88,72 @@ TEST_CASE("the AVX2 leaf prefilter keeps the scalar one's receivers and distance
     CHECK(outside > 1000);
     CHECK(nearPlane > 100);
     CHECK(compared - kept > 2000);
+}
+
+// A closed face's front plane in V_L (BlockerBatch.h, cutInFront()) may cull a box only where
+// the leaf prefilter's closed test would skip every receiver in it: each receiver more than its
+// own eps(r) in front of T. Boxes are placed across the plane's margin, at scales from 1 to 1e4.
+TEST_CASE("a closed face's front plane culls only receivers in front of it", "[hpc]") {
+    uint64_t culled = 0, kept = 0, wholeCast = 0;
+    for (uint64_t seed = 1; seed <= 400; ++seed) {
+        Rng rng(seed);
+        const float scale = float(std::pow(10.0, double(seed % 5)));
+        Triangle tri = triangleSoup(seed, 1, scale * glm::vec3(-1), scale * glm::vec3(1), 1.5f * scale)[0];
+        BlockerTriangle t = BlockerTriangle::from(tri);
+        if (!t.valid) continue;
+        t.closed = true;
+        const Box receivers{scale * glm::vec3(-4), scale * glm::vec3(4)};
+        CastOptions options;
+        options.epsilonLength = 4.0 * scale;
+        const ReceiverEpsilon epsilon = receiverEpsilonOf(options);
+        PenumbraVolume v;
+        v.count = 0;
+        if (!cutInFront(v, t, receivers, options)) {  // never for these boxes: T lies inside them
+            ++wholeCast;
+            continue;
+        }
+        REQUIRE(v.frontCulled);
+        REQUIRE(v.count == 1);
+        const double eps = epsilon.at(glm::dvec3(options.epsilonLength));
+        for (int b = 0; b < 64; ++b) {
+            // A small box whose nearest corner lies about k eps in front of T's plane.
+            const glm::dvec3 q = t.v[0] + rng.uniform(-1, 1) * (t.v[1] - t.v[0]) + rng.uniform(-1, 1) * (t.v[2] - t.v[0]);
+            const double k = rng.uniform(0.0, 3.0), size = eps * rng.uniform(0.0, 4.0);
+            const glm::vec3 lo = glm::vec3(q + k * eps * t.plane.n - 0.5 * size * glm::abs(t.plane.n));
+            const Box box{lo, lo + glm::vec3(float(size))};
+            uint32_t active = v.all();
+            if (intersects(v, box, active)) {
+                ++kept;
+                continue;
+            }
+            ++culled;
+            for (int c = 0; c < 8; ++c) {
+                const glm::dvec3 r{c & 1 ? box.hi.x : box.lo.x, c & 2 ? box.hi.y : box.lo.y, c & 4 ? box.hi.z : box.lo.z};
+                INFO("seed " << seed << " box " << b << " corner " << c);
+                REQUIRE(distanceBehind(t, r) > epsilon.at(r));
+            }
+        }
+    }
+    INFO(culled << " boxes culled, " << kept << " kept, " << wholeCast << " triangles outside");
+    CHECK(culled > 2000);
+    CHECK(kept > 2000);
+    CHECK(wholeCast == 0);
+}
+
+TEST_CASE("a closed face's front plane drops a light when every receiver is in front", "[hpc]") {
+    Triangle tri;
+    tri.v[0] = {0, 0, 0}, tri.v[1] = {0, 0, 1}, tri.v[2] = {1, 0, 0};  // normal +y
+    BlockerTriangle t = BlockerTriangle::from(tri);
+    t.closed = true;
+    REQUIRE(t.plane.n.y > 0.99);
+    CastOptions options;
+    PenumbraVolume v;
+    v.count = 0;
+    CHECK_FALSE(cutInFront(v, t, Box{{-1, 0.5f, -1}, {1, 2, 1}}, options));  // all above: in front
+    v.count = 0;
+    CHECK(cutInFront(v, t, Box{{-1, -0.5f, -1}, {1, 2, 1}}, options));
+    CHECK(v.frontCulled);
+    v.count = PenumbraVolume::kMaxPlanes, v.frontCulled = false;  // full: nothing appended
+    CHECK(cutInFront(v, t, Box{{-1, 0.5f, -1}, {1, 2, 1}}, options));
+    CHECK_FALSE(v.frontCulled);
 }
