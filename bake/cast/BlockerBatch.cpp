@@ -21,15 +21,15 @@ bool facesAway(const BlockerTriangle& t, const ConvexBound& bound) {
 
 bool cutInFront(PenumbraVolume& volume, const BlockerTriangle& t, const Box& receivers, const CastOptions& options) {
     if (volume.count >= PenumbraVolume::kMaxPlanes) return true;
-    // inFrontOfClosed() culls a box when distanceBehind(c) > eps(box) + 1e-12 (|c - v0|_1 +
-    // extent(box)) at its corner c nearest T's front; over the boxes inside `receivers` that
-    // margin is at most eps(E) + 1e-12 (3 (E + V) + E), E the largest |coordinate| of a receiver
-    // and V of v0. One more 1e-12 (E + V) covers the rounding of this plane's evaluation (about
-    // 1e-15 (E + V)) against distanceBehind()'s.
+    // inFrontOfClosed() culls a box at closedFrontMargin(extent(box), |c - v0|_1), c its corner
+    // nearest T's front. Over the boxes inside `receivers` the extent is at most E, the largest
+    // |coordinate| of a receiver, and |c - v0|_1 at most 3 (E + V), V that of v0; one more (E + V)
+    // covers the rounding of this plane's evaluation (about 1e-15 (E + V)) against
+    // distanceBehind()'s.
     const glm::vec3 far = glm::max(glm::abs(receivers.lo), glm::abs(receivers.hi));
     const double e = std::max({double(far.x), double(far.y), double(far.z)});
     const double v = std::max({std::abs(t.v[0].x), std::abs(t.v[0].y), std::abs(t.v[0].z)});
-    const double margin = options.epsilon * std::max(options.epsilonLength, e) + 1e-12 * (4 * (e + v) + e);
+    const double margin = closedFrontMargin(options, e, 4 * (e + v));
     const Plane behind{-t.plane.n, glm::dot(t.plane.n, t.v[0]) + margin};  // positive side: inside
     if (classify(behind, receivers) == BoxSide::Outside) return false;
     volume.push(behind);

@@ -84,6 +84,14 @@ inline const AlphaTable& alphaTableOf(const CastOptions& options) {
 /// @brief The rule's receiver epsilon for @p options.
 inline ReceiverEpsilon receiverEpsilonOf(const CastOptions& options) { return {options.epsilon, options.epsilonLength}; }
 
+/// @brief How far in front of a closed face's plane a point must lie to be culled: eps(r) at a
+/// receiver whose largest |coordinate| is @p extent, plus 1e-12 (@p offset + @p extent) for the
+/// rounding of every receiver's own distance, @p offset bounding |c - v0|_1 over the culled points.
+/// TileCaster::inFrontOfClosed() takes it per box, cutInFront() (BlockerBatch.h) over every box.
+inline double closedFrontMargin(const CastOptions& options, double extent, double offset) {
+    return receiverEpsilonOf(options).at(glm::dvec3(extent)) + 1e-12 * (offset + extent);
+}
+
 /// @brief Counters and timers of one cast, summed over tiles (the paper's Table 2 columns).
 struct CastStats {
     double hierarchyBuildSeconds = 0;  ///< thread-seconds, all builds and rebuilds

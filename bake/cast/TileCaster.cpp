@@ -92,9 +92,8 @@ bool TileCaster::inFrontOfClosed(const Box& box) const {
     const glm::dvec3 c{n.x > 0 ? box.lo.x : box.hi.x, n.y > 0 ? box.lo.y : box.hi.y, n.z > 0 ? box.lo.z : box.hi.z};
     const glm::vec3 far = glm::max(glm::abs(box.lo), glm::abs(box.hi));
     const double extent = std::max({far.x, far.y, far.z});
-    const double eps = options.epsilon * std::max(options.epsilonLength, extent);
     const glm::dvec3 d = glm::abs(c - tri->v[0]);
-    return distanceBehind(*tri, c) > eps + 1e-12 * (d.x + d.y + d.z + extent);
+    return distanceBehind(*tri, c) > closedFrontMargin(options, extent, d.x + d.y + d.z);
 }
 
 bool TileCaster::castTriangle(const BlockerTriangle& t, const PenumbraVolume* lightVolumes, const uint8_t* lightActive) {
