@@ -32,6 +32,17 @@ struct ReceiverSet {
     }
 };
 
+/// @brief The positions and normals of receivers [first, size) of a set, without a copy: what a
+/// method that reads only the points takes (a refinement pass's tail of a million-receiver set
+/// cost milliseconds to copy).
+struct ReceiverPoints {
+    std::span<const glm::vec3> position, normal;
+    ReceiverPoints(const ReceiverSet& set, size_t first = 0)  // NOLINT: a set is its points
+        : position(std::span<const glm::vec3>(set.position).subspan(first)),
+          normal(std::span<const glm::vec3>(set.normal).subspan(first)) {}
+    size_t size() const { return position.size(); }
+};
+
 /// @brief What a receiver made on a geometry entry's surface does: the entry's
 /// "receive_shadows" and "receiver_offset" (Triangle.h, receiver class; SceneDesc::receiverClasses).
 struct ReceiverClass {

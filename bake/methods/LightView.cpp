@@ -4,7 +4,9 @@
 
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <cmath>
@@ -20,6 +22,32 @@ void frame(const glm::dvec3& axis, glm::dvec3& e1, glm::dvec3& e2) {
 }
 
 constexpr int kBands = 64;  ///< row bands rasterized in parallel
+
+/// Folds every receiver position into a value of type T: blocks of a fixed size are folded with
+/// @p add in order and their results combined with @p join in block order
+/// (tbb::parallel_deterministic_reduce), so sums have the same bits for any thread count.
+template <class T, class Add, class Join>
+T reduceReceivers(const ReceiverPoints& receivers, T identity, Add add, Join join) {
+    constexpr size_t kGrain = 16384;
+    return tbb::parallel_deterministic_reduce(
+        tbb::blocked_range<size_t>(0, receivers.size(), kGrain), identity,
+        [&](const tbb::blocked_range<size_t>& range, T value) {
+            for (size_t i = range.begin(); i < range.end(); ++i) add(value, glm::dvec3(receivers.position[i]));
+            return value;
+        },
+        [&](T a, const T& b) {
+            join(a, b);
+            return a;
+        },
+        tbb::simple_partitioner());
+}
+
+/// A box as minima and maxima.
+struct Extent {
+    glm::dvec3 lo{INFINITY}, hi{-INFINITY};
+    void add(const glm::dvec3& p) { lo = glm::min(lo, p), hi = glm::max(hi, p); }
+    void add(const Extent& e) { lo = glm::min(lo, e.lo), hi = glm::max(hi, e.hi); }
+};
 
 /// A cut-out triangle's alpha test at a texel: the ray of the texel centre against the original
 /// triangle (so a piece clipped at the near plane tests the same texture), as the camera does.
@@ -140,7 +168,7 @@ glm::dvec3 lightCentre(const LightSamples& samples, int light) {
     return c / double(std::max<size_t>(1, bound.vertices.size()));
 }
 
-std::vector<LightView> makeLightViews(const LightSamples& samples, int light, const ReceiverSet& receivers, int resolution,
+std::vector<LightView> makeLightViews(const LightSamples& samples, int light, const ReceiverPoints& receivers, int resolution,
                                       int cubeResolution) {
     const glm::dvec3 c = lightCentre(samples, light);
     const ConvexBound& bound = samples.lightBounds[size_t(light)];
@@ -152,13 +180,12 @@ std::vector<LightView> makeLightViews(const LightSamples& samples, int light, co
         double tanRadius = 0;  // the sun's angular radius
         for (const glm::dvec3& d : bound.vertices)
             tanRadius = std::max(tanRadius, glm::length(d - glm::dot(d, -v.axis) * -v.axis) / glm::dot(d, -v.axis));
-        glm::dvec2 lo(INFINITY), hi(-INFINITY);
-        double zlo = INFINITY, zhi = -INFINITY;
-        for (const glm::vec3& r : receivers.position) {
-            const glm::dvec3 p(r);
-            const glm::dvec2 q(glm::dot(p, v.e1), glm::dot(p, v.e2));
-            lo = glm::min(lo, q), hi = glm::max(hi, q), zlo = std::min(zlo, glm::dot(p, v.axis)), zhi = std::max(zhi, glm::dot(p, v.axis));
-        }
+        // The receivers' box in the view's axes (minima and maxima: any order gives the same bits).
+        const Extent box = reduceReceivers(receivers, Extent{}, [&](Extent& e, const glm::dvec3& p) {
+            e.add(glm::dvec3(glm::dot(p, v.e1), glm::dot(p, v.e2), glm::dot(p, v.axis)));
+        }, [](Extent& a, const Extent& b) { a.add(b); });
+        glm::dvec2 lo(box.lo), hi(box.hi);
+        double zlo = box.lo.z, zhi = box.hi.z;
         if (receivers.size() == 0) lo = hi = glm::dvec2(0), zlo = zhi = 0;
         const double margin = tanRadius * (zhi - zlo) + 0.02 * std::max(hi.x - lo.x, hi.y - lo.y) + 1e-6;
         const glm::dvec2 mid = 0.5 * (lo + hi);
@@ -168,24 +195,29 @@ std::vector<LightView> makeLightViews(const LightSamples& samples, int light, co
         views.push_back(v);
         return views;
     }
+    // The axis: the mean direction from the centre of at most about 65,536 receivers spread
+    // evenly over the set (any axis near the middle serves; the angle below covers them all).
     glm::dvec3 mean(0.0);
-    double farthest = 0;
-    for (const glm::vec3& r : receivers.position) {
-        const glm::dvec3 d = glm::dvec3(r) - c;
+    const size_t stride = std::max<size_t>(1, receivers.size() / 65536);
+    for (size_t i = 0; i < receivers.size(); i += stride) {
+        const glm::dvec3 d = glm::dvec3(receivers.position[i]) - c;
         const double length = glm::length(d);
         if (length > 0) mean += d / length;
-        farthest = std::max(farthest, length);
     }
-    double halfAngle = 0;
+    // The widest angle from the axis is the acos of the smallest cosine: one acos, not one per
+    // receiver (a million of them were most of the views' set-up).
+    struct Spread {
+        double smallestCosine = 1, farthest = 0;
+    };
     const bool hasMean = glm::length(mean) > 1e-9;
-    if (hasMean) {
-        mean = glm::normalize(mean);
-        for (const glm::vec3& r : receivers.position) {
-            const glm::dvec3 d = glm::dvec3(r) - c;
-            const double length = glm::length(d);
-            if (length > 0) halfAngle = std::max(halfAngle, std::acos(std::clamp(glm::dot(d / length, mean), -1.0, 1.0)));
-        }
-    }
+    if (hasMean) mean = glm::normalize(mean);
+    const Spread spread = reduceReceivers(receivers, Spread{}, [&](Spread& a, const glm::dvec3& p) {
+        const glm::dvec3 d = p - c;
+        const double length = glm::length(d);
+        if (length > 0) a.smallestCosine = std::min(a.smallestCosine, glm::dot(d, mean) / length);
+        a.farthest = std::max(a.farthest, length);
+    }, [](Spread& a, const Spread& b) { a.smallestCosine = std::min(a.smallestCosine, b.smallestCosine), a.farthest = std::max(a.farthest, b.farthest); });
+    const double farthest = spread.farthest, halfAngle = hasMean ? std::acos(std::clamp(spread.smallestCosine, -1.0, 1.0)) : 0.0;
     const double zNear = 1e-6 * std::max(farthest, 1e-300);
     if (hasMean && halfAngle <= glm::radians(70.0)) {
         LightView v;
@@ -204,6 +236,18 @@ std::vector<LightView> makeLightViews(const LightSamples& samples, int light, co
         views.push_back(v);
     }
     return views;
+}
+
+bool viewsCover(const std::vector<LightView>& views, const ReceiverPoints& receivers) {
+    return reduceReceivers(receivers, true, [&](bool& covered, const glm::dvec3& p) {
+        if (!covered) return;
+        bool inside = false;
+        for (const LightView& v : views) {
+            const ViewPoint q = v.project(p);
+            inside = inside || (q.z >= v.zNear && q.z <= v.zFar && q.x >= 0 && q.y >= 0 && q.x < v.res && q.y < v.res);
+        }
+        covered = inside;
+    }, [](bool& a, bool b) { a = a && b; });
 }
 
 bool projectTriangle(const LightView& view, const Triangle& t, ViewPoint (&out)[3]) {

@@ -58,8 +58,9 @@ public:
 /// @brief The views of light @p light: one perspective view fitted to the receivers' directions
 /// from the light's centre when they lie within 70 degrees of their mean, else the six faces of a
 /// cube at @p cubeResolution; a sun gets one orthographic view covering the receivers, grown by
-/// the reach of its penumbrae.
-std::vector<LightView> makeLightViews(const LightSamples& samples, int light, const ReceiverSet& receivers, int resolution,
+/// the reach of its penumbrae. The views' set-up reads the receivers in parallel, in fixed blocks
+/// (the same views for any thread count).
+std::vector<LightView> makeLightViews(const LightSamples& samples, int light, const ReceiverPoints& receivers, int resolution,
                                       int cubeResolution);
 
 /// @brief The light's centre (w = 1) or central direction towards it (w = 0): the mean of its
@@ -87,6 +88,10 @@ struct DepthMap {
 /// whose ray from the view meets an opaque part of it (AlphaTable::lookup(), nearest texel), the
 /// same test as the exact methods' and the camera's; null draws cut-outs as opaque triangles.
 void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, DepthMap& map, const AlphaTable* alpha = nullptr);
+
+/// @brief True when every receiver of @p receivers projects into @p views: inside one view's
+/// image (a cube: beyond the near plane), and no farther than its zFar.
+bool viewsCover(const std::vector<LightView>& views, const ReceiverPoints& receivers);
 
 /// @brief Projects @p t's vertices, or returns false when one is nearer than zNear.
 bool projectTriangle(const LightView& view, const Triangle& t, ViewPoint (&out)[3]);

@@ -3,7 +3,6 @@
 #include "bake/methods/Backprojection.h"
 #include "bake/methods/LightView.h"
 #include "stream/util/TexelIndex.h"
-#include "bake/cast/SceneCaster.h"
 #include "bake/methods/StreamedCaster.h"
 #include "stream/util/Error.h"
 #include "stream/util/Progress.h"
@@ -234,7 +233,7 @@ void forEachChunk(TriangleSource& blockers, PenumbraMapStats& stats, const std::
     }
 }
 
-std::vector<ViewMaps> prepareViews(const LightSamples& samples, int li, const ReceiverSet& receivers,
+std::vector<ViewMaps> prepareViews(const LightSamples& samples, int li, const ReceiverPoints& receivers,
                                    const PenumbraMapOptions& options) {
     std::vector<ViewMaps> maps;
     const glm::dvec3 c = lightCentre(samples, li);
@@ -287,63 +286,111 @@ uint64_t PenumbraMapOptions::mapBytes() const {
     return kLayers * (sizeof(float) * texels + std::max(DepthPyramid::plannedBytes(resolution), 6 * DepthPyramid::plannedBytes(resolution / 2)));
 }
 
-std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSet& receivers,
+namespace {
+
+/// Draws light @p li's maps over the streamed @p blockers: the shadow map, then the pyramids
+/// (backprojection) or the penumbra map (Wyman-Hansen, a second read). @p observe, if set, sees
+/// the first read.
+std::vector<ViewMaps> drawMaps(const LightSamples& samples, int li, const ReceiverPoints& receivers, TriangleSource& blockers,
+                               const PenumbraMapOptions& options, PenumbraMapStats& local,
+                               const std::function<void(uint64_t)>& progress,
+                               const std::function<void(std::span<const Triangle>)>& observe) {
+    std::vector<ViewMaps> maps = prepareViews(samples, li, receivers, options);
+    local.views += int(maps.size());
+    uint64_t bytes = 0;
+    for (const ViewMaps& m : maps) bytes += (m.shadow.depth.size() + m.penumbra.size()) * sizeof(float);
+    {
+        ScopedTimer timer(local.shadowSeconds);
+        forEachChunk(
+            blockers, local, progress, [&](std::span<const Triangle> chunk) {
+                for (ViewMaps& m : maps) rasterizeDepth(m.view, chunk, m.shadow, options.alpha);
+            },
+            observe);
+        for (ViewMaps& m : maps) buildTiles(m);
+    }
+    ScopedTimer timer(local.penumbraSeconds);
+    if (options.lookup == PenumbraMapOptions::Lookup::Backprojection) {
+        for (ViewMaps& m : maps) m.pyramids.reserve(size_t(m.shadow.layers));
+        for (ViewMaps& m : maps)
+            for (int layer = 0; layer < m.shadow.layers; ++layer) m.pyramids.emplace_back(m.shadow, layer);
+        for (const ViewMaps& m : maps) bytes += m.shadow.layers * DepthPyramid::plannedBytes(m.view.res);
+    } else {
+        std::vector<std::vector<Run>> perTriangle;
+        std::vector<Run> runs;
+        forEachChunk(blockers, local, progress, [&](std::span<const Triangle> chunk) {
+            for (ViewMaps& m : maps) {
+                perTriangle.assign(chunk.size(), {});
+                tbb::parallel_for(size_t(0), chunk.size(), [&](size_t i) { findRuns(m, chunk[i], options.bias, perTriangle[i]); });
+                runs.clear();
+                for (const std::vector<Run>& r : perTriangle) runs.insert(runs.end(), r.begin(), r.end());
+                local.silhouetteRuns += runs.size();
+                const int rows = (m.view.res + kBands - 1) / kBands;
+                tbb::parallel_for(0, kBands, [&](int band) {
+                    const int y0 = band * rows, y1 = std::min(m.view.res, y0 + rows);
+                    for (const Run& run : runs)
+                        if (std::max(run.a.y, run.b.y) + run.reach >= y0 && std::min(run.a.y, run.b.y) - run.reach <= y1)
+                            drawRun(m, run, options.bias, y0, y1);
+                });
+            }
+        });
+    }
+    local.mapBytes = std::max(local.mapBytes, bytes);
+    return maps;
+}
+
+std::vector<LightView> viewsOf(const std::vector<ViewMaps>& maps) {
+    std::vector<LightView> views;
+    for (const ViewMaps& m : maps) views.push_back(m.view);
+    return views;
+}
+
+}  // namespace
+
+struct PenumbraMapCache::Kept {
+    int light = -1;
+    std::vector<ViewMaps> maps;  ///< moved in whole: the pyramids point at their maps' shadow maps
+};
+PenumbraMapCache::PenumbraMapCache() = default;
+PenumbraMapCache::~PenumbraMapCache() = default;
+PenumbraMapCache::PenumbraMapCache(PenumbraMapCache&&) noexcept = default;
+PenumbraMapCache& PenumbraMapCache::operator=(PenumbraMapCache&&) noexcept = default;
+
+std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverPoints& receivers,
                                    std::span<const uint32_t>, TriangleSource& blockers, const ReceiverEpsilon& epsilon,
                                    const PenumbraMapOptions& options, PenumbraMapStats* stats,
                                    const std::function<void(uint64_t)>& progress,
-                                   const std::function<void(std::span<const Triangle>)>& observe) {
+                                   const std::function<void(std::span<const Triangle>)>& observe, PenumbraMapCache* cache) {
     PenumbraMapStats local;
     const int lights = samples.lightCount();
     std::vector<float> visibility(receivers.size() * size_t(lights), 1.0f);
-    for (int li = 0; li < lights; ++li) {
-        std::vector<ViewMaps> maps = prepareViews(samples, li, receivers, options);
-        local.views += int(maps.size());
-        uint64_t bytes = 0;
-        for (const ViewMaps& m : maps) bytes += (m.shadow.depth.size() + m.penumbra.size()) * sizeof(float);
-        {
-            ScopedTimer timer(local.shadowSeconds);
-            forEachChunk(
-                blockers, local, progress, [&](std::span<const Triangle> chunk) {
-                    for (ViewMaps& m : maps) rasterizeDepth(m.view, chunk, m.shadow, options.alpha);
-                },
-                li == 0 ? observe : std::function<void(std::span<const Triangle>)>());
-            for (ViewMaps& m : maps) buildTiles(m);
-        }
-        if (options.lookup == PenumbraMapOptions::Lookup::Backprojection) {
-            ScopedTimer timer(local.penumbraSeconds);
-            for (ViewMaps& m : maps) m.pyramids.reserve(size_t(m.shadow.layers));
-            for (ViewMaps& m : maps)
-                for (int layer = 0; layer < m.shadow.layers; ++layer) m.pyramids.emplace_back(m.shadow, layer);
-            for (const ViewMaps& m : maps) bytes += m.shadow.layers * DepthPyramid::plannedBytes(m.view.res);
+    // The kept light first, so that only the last light's maps need keeping for the next cast;
+    // each light fills its own slot of every receiver, so the order does not change the result.
+    const int keptLight = cache && cache->kept && cache->kept->light < lights ? cache->kept->light : -1;
+    std::function<void(std::span<const Triangle>)> unobserved = observe;  // until the first read
+    for (int step = 0; step < lights; ++step) {
+        const int li = keptLight < 0 ? step : step == 0 ? keptLight : step <= keptLight ? step - 1 : step;
+        std::vector<ViewMaps> maps;
+        if (li == keptLight && viewsCover(viewsOf(cache->kept->maps), receivers)) {
+            maps = std::move(cache->kept->maps);
+            ++local.mapsReused;
         } else {
-            ScopedTimer timer(local.penumbraSeconds);
-            std::vector<std::vector<Run>> perTriangle;
-            std::vector<Run> runs;
-            forEachChunk(blockers, local, progress, [&](std::span<const Triangle> chunk) {
-                for (ViewMaps& m : maps) {
-                    perTriangle.assign(chunk.size(), {});
-                    tbb::parallel_for(size_t(0), chunk.size(), [&](size_t i) { findRuns(m, chunk[i], options.bias, perTriangle[i]); });
-                    runs.clear();
-                    for (const std::vector<Run>& r : perTriangle) runs.insert(runs.end(), r.begin(), r.end());
-                    local.silhouetteRuns += runs.size();
-                    const int rows = (m.view.res + kBands - 1) / kBands;
-                    tbb::parallel_for(0, kBands, [&](int band) {
-                        const int y0 = band * rows, y1 = std::min(m.view.res, y0 + rows);
-                        for (const Run& run : runs)
-                            if (std::max(run.a.y, run.b.y) + run.reach >= y0 && std::min(run.a.y, run.b.y) - run.reach <= y1)
-                                drawRun(m, run, options.bias, y0, y1);
-                    });
-                }
+            if (cache) cache->kept.reset();  // its memory, before the next light's maps are drawn
+            maps = drawMaps(samples, li, receivers, blockers, options, local, progress, unobserved);
+            unobserved = {};
+        }
+        {
+            ScopedTimer timer(local.lookupSeconds);
+            tbb::parallel_for(size_t(0), receivers.size(), [&](size_t r) {
+                const glm::dvec3 p(receivers.position[r]);
+                visibility[r * lights + li] = lookup(maps, p, glm::dvec3(receivers.normal[r]), options.bias, epsilon.at(p), options.taps);
             });
         }
-        local.mapBytes = std::max(local.mapBytes, bytes);
-        ScopedTimer timer(local.lookupSeconds);
-        tbb::parallel_for(size_t(0), receivers.size(), [&](size_t r) {
-            const glm::dvec3 p(receivers.position[r]);
-            visibility[r * lights + li] = lookup(maps, p, glm::dvec3(receivers.normal[r]), options.bias, epsilon.at(p), options.taps);
-        });
+        if (cache && step + 1 == lights) {
+            if (!cache->kept) cache->kept = std::make_unique<PenumbraMapCache::Kept>();
+            cache->kept->light = li, cache->kept->maps = std::move(maps);
+        }
     }
-    if (lights == 0 && observe) forEachChunk(blockers, local, {}, [](std::span<const Triangle>) {}, observe);
+    if (unobserved) forEachChunk(blockers, local, {}, [](std::span<const Triangle>) {}, unobserved);
     if (stats) *stats = local;
     return visibility;
 }
@@ -354,6 +401,7 @@ nlohmann::json penumbraMapStatsJson(const PenumbraMapStats& s, const PenumbraMap
             {"bias_texels", o.bias},
             {"taps", o.taps},
             {"views", s.views},
+            {"maps_reused", s.mapsReused},
             {"map_bytes", s.mapBytes},
             {"shadow_map_time_s", s.shadowSeconds},
             {"penumbra_map_time_s", s.penumbraSeconds},
@@ -392,21 +440,22 @@ public:
     }
 
     void cast(TriangleSource& blockers, uint32_t first, const CastSink& sink) override {
-        // A refinement's tail is copied; the first pass reads the receivers in place (a copy of a
-        // million receivers cost tens of milliseconds and their memory again).
+        // A refinement pass reads its receivers in place, and the last light's maps kept from the
+        // pass before serve it when they cover its receivers.
         Stopwatch watch;
-        std::optional<ReceiverSet> tail;
-        if (first > 0) tail = receiversFrom(c_.receivers, first);
-        const ReceiverSet& targets = tail ? *tail : c_.receivers;
+        const ReceiverPoints targets(c_.receivers, first);
         const int lights = c_.samples.lightCount();
         const uint64_t reads = options_.lookup == PenumbraMapOptions::Lookup::WymanHansen ? 2 : 1;  // per light
         ProgressReporter progress("penumbra-map", reads * blockers.sizeHint().value_or(0) * uint64_t(lights), c_.quiet);
         PenumbraMapStats s;
         const std::vector<float> v = castPenumbraMap(c_.samples, targets, std::span<const uint32_t>(c_.sampleSets).subspan(first), blockers,
                                                      receiverEpsilonOf(c_.options), options_, &s, [&](uint64_t n) { progress.update(n); },
-                                                     takeObserver());
+                                                     takeObserver(), &kept_);
         progress.done();
-        if (first == 0) stats_ = s;  // the first pass's: a refinement's few receivers would hide them
+        // The first pass's stats: a refinement's few receivers would hide them; but say whether
+        // the refinement drew its maps again.
+        if (first == 0) stats_ = s;
+        else stats_.mapsReused += s.mapsReused;
         report(watch, first, uint32_t(c_.receivers.size()),
                          [&](uint32_t r) { sink.visibility(r, &v[size_t(r - first) * size_t(lights)]); });
     }
@@ -416,6 +465,7 @@ public:
 private:
     PenumbraMapOptions options_;
     PenumbraMapStats stats_;
+    PenumbraMapCache kept_;
 };
 
 const CasterRegistration kPenumbraMap{

@@ -41,6 +41,7 @@
 #include <nlohmann/json.hpp>
 
 #include <functional>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -74,7 +75,8 @@ struct PenumbraMapOptions {
 PenumbraMapOptions penumbraMapOptions(const JsonParams& bake);
 
 struct PenumbraMapStats {
-    int views = 0;
+    int views = 0;                ///< views drawn (a light's maps kept from the last cast are not drawn again)
+    int mapsReused = 0;           ///< lights whose maps came from the last cast (PenumbraMapCache)
     uint64_t mapBytes = 0;        ///< the largest light's maps
     double shadowSeconds = 0;     ///< pass 1: shadow maps
     double penumbraSeconds = 0;   ///< pass 2 (wyman-hansen): silhouettes, cones and sheets; backprojection: the depth pyramid
@@ -83,17 +85,34 @@ struct PenumbraMapStats {
     uint64_t trianglesRead = 0;
 };
 
+/// @brief One light's finished maps, kept from one cast to the next. An antialiasing pass's
+/// receivers lie among the first pass's, so the maps drawn for those serve them, unless a
+/// receiver falls outside their views; then the light's maps are drawn again, fitted to the new
+/// receivers. One light's maps at most, so the memory plan's count holds.
+class PenumbraMapCache {
+public:
+    PenumbraMapCache();
+    ~PenumbraMapCache();
+    PenumbraMapCache(PenumbraMapCache&&) noexcept;
+    PenumbraMapCache& operator=(PenumbraMapCache&&) noexcept;
+    struct Kept;                  ///< the light and its maps (PenumbraMap.cpp)
+    std::unique_ptr<Kept> kept;   ///< null until a cast has kept one
+};
+
 /// @brief The visible fraction of every light for every receiver, receiver-major (r * lights + l).
 /// @param sampleSets unused: the method has no samples (kept for a common caster signature)
 /// @param epsilon the rule's receiver epsilon, the smallest depth bias
 /// @param blockers read once or twice per light, from the start (rewound)
 /// @param observe if set, shown every chunk of the first read as read (before non-casting
 /// triangles are dropped), so that a receiver kind that watches the stream needs no read of its own
-std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverSet& receivers,
+/// @param cache if set, the light it holds is done first, from its maps when they cover every
+/// receiver, and the last light's maps are left in it
+std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverPoints& receivers,
                                    std::span<const uint32_t> sampleSets, TriangleSource& blockers,
                                    const ReceiverEpsilon& epsilon, const PenumbraMapOptions& options,
                                    PenumbraMapStats* stats = nullptr, const std::function<void(uint64_t)>& progress = {},
-                                   const std::function<void(std::span<const Triangle>)>& observe = {});
+                                   const std::function<void(std::span<const Triangle>)>& observe = {},
+                                   PenumbraMapCache* cache = nullptr);
 
 /// @brief The stats JSON's "penumbra_map" section.
 nlohmann::json penumbraMapStatsJson(const PenumbraMapStats& stats, const PenumbraMapOptions& options);

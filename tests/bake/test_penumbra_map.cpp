@@ -283,3 +283,40 @@ TEST_CASE("penumbra map: a depth pyramid's texels hold the nearest depth and the
     }
     CHECK(pyramid.at(0, 5, 3).nearest == map.at(5, 3, 1));
 }
+
+TEST_CASE("penumbra map: a refinement pass reads the kept light's maps when they cover its receivers, and draws them again when not",
+          "[penumbra-map]") {
+    // Two lights (a rect and a sun) over the square: the first cast keeps the last light's maps;
+    // a second cast over some of the same receivers does that light first from the kept maps,
+    // which gives exactly the first cast's values, and draws the other light's maps afresh,
+    // which gives exactly what a cast without the cache gives.
+    const LightSamples samples = generateLightSamples({rectLight({0.3, 4, 0}, {0.4, 0, 0}, {0, 0, 0.4}, 64, 1), sunLight({0.2, -1, 0.1}, 4, 64, 1)}, 64, 3);
+    const ReceiverSet all = floorLine(400);
+    for (const Lookup lookup : {Lookup::Backprojection, Lookup::WymanHansen}) {
+        PenumbraMapOptions options;
+        options.lookup = lookup;
+        auto cast = [&](const ReceiverPoints& receivers, PenumbraMapCache* cache, PenumbraMapStats& stats) {
+            VectorSource source(squareOverFloor());
+            return castPenumbraMap(samples, receivers, {}, source, receiverEpsilonOf(CastOptions()), options, &stats, {}, {}, cache);
+        };
+        PenumbraMapCache cache;
+        PenumbraMapStats first, second, fresh, beyond;
+        const std::vector<float> whole = cast(all, &cache, first);
+        const std::vector<float> refined = cast(ReceiverPoints(all, 100), &cache, second);
+        const std::vector<float> alone = cast(ReceiverPoints(all, 100), nullptr, fresh);
+        CHECK(first.mapsReused == 0);
+        CHECK(second.mapsReused == 1);
+        CHECK(second.views == first.views - 1);
+        for (size_t r = 0; r < 300; ++r) {
+            CHECK(refined[2 * r + 1] == whole[2 * (r + 100) + 1]);  // the sun's kept maps
+            CHECK(refined[2 * r] == alone[2 * r]);                  // the rect's, drawn again
+        }
+        // Receivers beyond the kept views (far off along x) get the light's maps drawn again.
+        ReceiverSet far = floorLine(50);
+        for (glm::vec3& p : far.position) p.x += 40.0f;
+        PenumbraMapStats farFresh;
+        const std::vector<float> farCached = cast(far, &cache, beyond), farAlone = cast(far, nullptr, farFresh);
+        CHECK(beyond.mapsReused == 0);
+        CHECK(farCached == farAlone);
+    }
+}
