@@ -88,7 +88,13 @@ DepthPyramid::Texel DepthPyramid::coarseTexel(int l, int fine, int x, int y) con
             depth[size_t(c)] = cx < fine && cy < fine ? shadow_->at(cx, cy, layer_) : INFINITY;
             t.nearest = std::min(t.nearest, depth[size_t(c)]);
         }
-        std::sort(depth.begin(), depth.end());
+        // Sorted by a network of five compare-exchanges (level 1 is three quarters of the
+        // pyramid's texels, and std::sort's call cost more than the sort).
+        auto order = [&](size_t a, size_t b) {
+            const float lo = std::min(depth[a], depth[b]), hi = std::max(depth[a], depth[b]);
+            depth[a] = lo, depth[b] = hi;
+        };
+        order(0, 1), order(2, 3), order(0, 2), order(1, 3), order(1, 2);
         t.quantile = depth;
         return t;
     }
@@ -100,7 +106,12 @@ DepthPyramid::Texel DepthPyramid::coarseTexel(int l, int fine, int x, int y) con
         t.nearest = std::min(t.nearest, child.nearest);
         std::copy(child.quantile.begin(), child.quantile.end(), all.begin() + c * kQuantiles);
     }
-    std::sort(all.begin(), all.end());
+    // The children's quantiles are each ascending: merged, not sorted (the same order, in about
+    // half the comparisons of a sort of sixteen, most of the pyramids' build).
+    std::array<float, 2 * kQuantiles> low, high;
+    std::merge(all.begin(), all.begin() + 4, all.begin() + 4, all.begin() + 8, low.begin());
+    std::merge(all.begin() + 8, all.begin() + 12, all.begin() + 12, all.end(), high.begin());
+    std::merge(low.begin(), low.end(), high.begin(), high.end(), all.begin());
     for (int q = 0; q < kQuantiles; ++q) t.quantile[size_t(q)] = all[size_t(4 * q + 2)];
     return t;
 }

@@ -139,6 +139,11 @@ void DepthMap::reset(int resolution, int layerCount) {
     depth.assign(size_t(layers) * res * res, INFINITY);
 }
 
+bool DepthMap::holdsSurface(int layer) const {
+    const auto plane = depth.begin() + ptrdiff_t(layer) * res * res;
+    return std::any_of(plane, plane + ptrdiff_t(res) * res, [](float z) { return z < INFINITY; });
+}
+
 void DepthMap::insert(size_t index, float z, float gap) {
     const size_t plane = size_t(res) * res;
     float* d = &depth[index];

@@ -77,6 +77,8 @@ struct DepthMap {
     std::vector<float> depth;  ///< layer-major: layer * res * res + y * res + x
     void reset(int resolution, int layerCount);
     float at(int x, int y, int layer = 0) const { return depth[(size_t(layer) * res + y) * res + x]; }
+    /// True when some texel of @p layer holds a depth (is not +infinity).
+    bool holdsSurface(int layer) const;
     /// Inserts depth @p z at texel @p index (y * res + x) with merge gap @p gap.
     void insert(size_t index, float z, float gap);
 };

@@ -312,7 +312,11 @@ std::vector<ViewMaps> drawMaps(const LightSamples& samples, int li, const Receiv
     if (options.lookup == PenumbraMapOptions::Lookup::Backprojection) {
         for (ViewMaps& m : maps) m.pyramids.reserve(size_t(m.shadow.layers));
         for (ViewMaps& m : maps)
-            for (int layer = 0; layer < m.shadow.layers; ++layer) m.pyramids.emplace_back(m.shadow, layer);
+            // Layer 0 always, the next ones while they hold a surface: a layer without one
+            // would end every texel's loop over the layers at once (its depths are all +infinity,
+            // and so are the layers' behind it), and its pyramid cost as much as a full one.
+            for (int layer = 0; layer < m.shadow.layers && (layer == 0 || m.shadow.holdsSurface(layer)); ++layer)
+                m.pyramids.emplace_back(m.shadow, layer);
         for (const ViewMaps& m : maps) bytes += m.shadow.layers * DepthPyramid::plannedBytes(m.view.res);
     } else {
         std::vector<std::vector<Run>> perTriangle;
