@@ -317,7 +317,7 @@ std::vector<ViewMaps> drawMaps(const LightSamples& samples, int li, const Receiv
             // and so are the layers' behind it), and its pyramid cost as much as a full one.
             for (int layer = 0; layer < m.shadow.layers && (layer == 0 || m.shadow.holdsSurface(layer)); ++layer)
                 m.pyramids.emplace_back(m.shadow, layer);
-        for (const ViewMaps& m : maps) bytes += m.shadow.layers * DepthPyramid::plannedBytes(m.view.res);
+        for (const ViewMaps& m : maps) bytes += m.pyramids.size() * DepthPyramid::plannedBytes(m.view.res);
     } else {
         std::vector<std::vector<Run>> perTriangle;
         std::vector<Run> runs;
