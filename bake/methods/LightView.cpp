@@ -158,8 +158,6 @@ void DepthMap::insert(size_t index, float z, float gap) {
     d[i * plane] = z;
 }
 
-double LightView::depth(const glm::dvec3& p) const { return glm::dot(p - origin, axis); }
-
 ViewPoint LightView::project(const glm::dvec3& p) const {
     const glm::dvec3 d = p - origin;
     const double z = glm::dot(d, axis), scale = ortho ? halfExtent : z * halfExtent;

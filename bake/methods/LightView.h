@@ -17,6 +17,7 @@
 #include "stream/Triangle.h"
 
 #include <glm/vec2.hpp>
+#include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
 
 #include <cstdint>
@@ -45,7 +46,7 @@ public:
     /// The world size of a texel at depth @p z.
     double texelWorld(double z) const { return ortho ? texel() : z * texel(); }
     /// Depth of @p p; projection is valid only for depth >= zNear.
-    double depth(const glm::dvec3& p) const;
+    double depth(const glm::dvec3& p) const { return glm::dot(p - origin, axis); }
     ViewPoint project(const glm::dvec3& p) const;
     /// The value interpolated linearly across the image: 1/z (perspective) or z (orthographic).
     double linearDepth(double z) const { return ortho ? z : 1.0 / z; }
