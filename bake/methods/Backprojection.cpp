@@ -122,6 +122,11 @@ DepthPyramid::Texel DepthPyramid::at(int level, int x, int y) const {
     return {z, {z, z, z, z}};
 }
 
+DepthPyramid::Level DepthPyramid::level(int l) const {
+    if (l > 0) return {levels_[size_t(l - 1)].data(), nullptr, res_[size_t(l - 1)]};
+    return {nullptr, &shadow_->depth[size_t(layer_) * shadow_->res * shadow_->res], shadow_->res};
+}
+
 float DepthPyramid::nearest() const { return levels_.empty() ? at(0, 0, 0).nearest : levels_.back()[0].nearest; }
 
 float DepthPyramid::nearestIn(int level, glm::dvec2 lo, glm::dvec2 hi) const {
@@ -324,10 +329,13 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
     b.searchBox(nearest, lo, hi);
     const int x0 = clampedTexel(std::floor(lo.x / b.s), 0, res - 1), x1 = clampedTexel(std::floor(hi.x / b.s), 0, res - 1);
     const int y0 = clampedTexel(std::floor(lo.y / b.s), 0, res - 1), y1 = clampedTexel(std::floor(hi.y / b.s), 0, res - 1);
+    std::array<DepthPyramid::Level, 8> layers;  // DepthMap's layers: a few
+    const size_t layerCount = std::min(pyramids.size(), layers.size());
+    for (size_t l = 0; l < layerCount; ++l) layers[l] = pyramids[l].level(level);
     for (int ty = y0; ty <= y1; ++ty)
         for (int tx = x0; tx <= x1; ++tx)
-            for (const DepthPyramid& layer : pyramids) {
-                const DepthPyramid::Texel t = layer.at(level, tx, ty);
+            for (size_t l = 0; l < layerCount; ++l) {
+                const DepthPyramid::Texel t = layers[l].at(tx, ty);
                 if (!(t.nearest < b.p.z)) break;  // nor any layer behind
                 b.addTexel(t, tx, ty);
             }

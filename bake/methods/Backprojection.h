@@ -56,6 +56,18 @@ public:
     int levels() const { return int(levels_.size()) + 1; }
     int resolution(int level) const { return level == 0 ? shadow_->res : res_[size_t(level - 1)]; }
     Texel at(int level, int x, int y) const;
+    /// One level's texels, read without at()'s per-texel choice of level (the lookups' inner loop).
+    struct Level {
+        const Texel* texels;  ///< levels >= 1
+        const float* depth;   ///< level 0: the layer of the shadow map
+        int res;
+        Texel at(int x, int y) const {
+            if (texels) return texels[size_t(y) * res + x];
+            const float z = depth[size_t(y) * res + x];
+            return {z, {z, z, z, z}};
+        }
+    };
+    Level level(int l) const;
     /// The nearest depth of the whole map.
     float nearest() const;
     /// The nearest depth in the fine-texel box [lo, hi], read at @p level (whole texels).
