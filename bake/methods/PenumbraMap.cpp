@@ -290,6 +290,9 @@ uint64_t PenumbraMapOptions::mapBytes() const {
 
 namespace {
 
+/// Reads of the blockers that drawing one light's maps takes (the progress display's unit).
+uint64_t readsPerLight(const PenumbraMapOptions& options) { return options.lookup == PenumbraMapOptions::Lookup::WymanHansen ? 2 : 1; }
+
 /// Draws light @p li's maps over the streamed @p blockers: the shadow map, then the pyramids
 /// (backprojection) or the penumbra map (Wyman-Hansen, a second read). @p observe, if set, sees
 /// the first read.
@@ -379,6 +382,7 @@ std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverPo
         if (li == keptLight && viewsCover(viewsOf(cache->kept->maps), receivers)) {
             maps = std::move(cache->kept->maps);
             ++local.mapsReused;
+            if (progress) progress(readsPerLight(options) * blockers.sizeHint().value_or(0));  // the reads it saves count as done
         } else {
             if (cache) cache->kept.reset();  // its memory, before the next light's maps are drawn
             maps = drawMaps(samples, li, receivers, blockers, options, local, progress, unobserved);
@@ -451,8 +455,7 @@ public:
         Stopwatch watch;
         const ReceiverPoints targets(c_.receivers, first);
         const int lights = c_.samples.lightCount();
-        const uint64_t reads = options_.lookup == PenumbraMapOptions::Lookup::WymanHansen ? 2 : 1;  // per light
-        ProgressReporter progress("penumbra-map", reads * blockers.sizeHint().value_or(0) * uint64_t(lights), c_.quiet);
+        ProgressReporter progress("penumbra-map", readsPerLight(options_) * blockers.sizeHint().value_or(0) * uint64_t(lights), c_.quiet);
         PenumbraMapStats s;
         const std::vector<float> v = castPenumbraMap(c_.samples, targets, std::span<const uint32_t>(c_.sampleSets).subspan(first), blockers,
                                                      receiverEpsilonOf(c_.options), options_, &s, [&](uint64_t n) { progress.update(n); },
