@@ -241,13 +241,13 @@ std::vector<LightView> makeLightViews(const LightSamples& samples, int light, co
     return views;
 }
 
-bool viewsCover(const std::vector<LightView>& views, const ReceiverPoints& receivers) {
+bool viewsCover(const std::vector<LightView>& views, const ReceiverPoints& receivers, bool withinFar) {
     return reduceReceivers(receivers, true, [&](bool& covered, const glm::dvec3& p) {
         if (!covered) return;
         bool inside = false;
         for (const LightView& v : views) {
             const ViewPoint q = v.project(p);
-            inside = inside || (q.z >= v.zNear && q.z <= v.zFar && q.x >= 0 && q.y >= 0 && q.x < v.res && q.y < v.res);
+            inside = inside || (q.z >= v.zNear && (!withinFar || q.z <= v.zFar) && q.x >= 0 && q.y >= 0 && q.x < v.res && q.y < v.res);
         }
         covered = inside;
     }, [](bool& a, bool b) { a = a && b; });

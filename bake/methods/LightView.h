@@ -93,8 +93,8 @@ struct DepthMap {
 void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, DepthMap& map, const AlphaTable* alpha = nullptr);
 
 /// @brief True when every receiver of @p receivers projects into @p views: inside one view's
-/// image (a cube: beyond the near plane), and no farther than its zFar.
-bool viewsCover(const std::vector<LightView>& views, const ReceiverPoints& receivers);
+/// image, beyond its near plane, and (with @p withinFar) no deeper than its zFar.
+bool viewsCover(const std::vector<LightView>& views, const ReceiverPoints& receivers, bool withinFar);
 
 /// @brief Projects @p t's vertices, or returns false when one is nearer than zNear.
 bool projectTriangle(const LightView& view, const Triangle& t, ViewPoint (&out)[3]);

@@ -379,7 +379,10 @@ std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverPo
     for (int step = 0; step < lights; ++step) {
         const int li = keptLight < 0 ? step : step == 0 ? keptLight : step <= keptLight ? step - 1 : step;
         std::vector<ViewMaps> maps;
-        if (li == keptLight && viewsCover(viewsOf(cache->kept->maps), receivers)) {
+        // Only the penumbra map's sheets reach as far as the view's zFar (the farthest receiver it
+        // was drawn for); backprojection reads any depth.
+        const bool sheets = options.lookup == PenumbraMapOptions::Lookup::WymanHansen;
+        if (li == keptLight && viewsCover(viewsOf(cache->kept->maps), receivers, sheets)) {
             maps = std::move(cache->kept->maps);
             ++local.mapsReused;
             if (progress) progress(readsPerLight(options) * blockers.sizeHint().value_or(0));  // the reads it saves count as done
