@@ -41,6 +41,24 @@ uint64_t firstPassReceivers(const json& s) {
     return all - std::min(all, s["antialias"]["added_receivers"].get<uint64_t>());
 }
 
+/// A --methods entry: a caster's name, or "penumbra-map:LOOKUP" for the preview with one of its
+/// lookups (the bake's --penumbra-map-lookup), so both can be measured in one run.
+struct MethodSpec {
+    std::string caster;
+    std::vector<std::string> args;  ///< extra bake flags
+};
+
+MethodSpec methodSpec(const std::string& name) {
+    const size_t colon = name.find(':');
+    if (colon == std::string::npos) return {name, {}};
+    if (name.substr(0, colon) != "penumbra-map")
+        fail("--methods", "\"{}\": only penumbra-map takes a variant (penumbra-map:backprojection or penumbra-map:wyman-hansen)", name);
+    const std::string lookup = name.substr(colon + 1);
+    if (lookup != "backprojection" && lookup != "wyman-hansen")
+        fail("--methods", "\"{}\": the penumbra-map lookup must be backprojection or wyman-hansen", name);
+    return {"penumbra-map", {"--penumbra-map-lookup", lookup}};
+}
+
 /// What the JSON keeps of one timed bake.
 json columns(const json& s, const std::string& method) {
     json c = {{"time_s", methodSeconds(s, method)},
@@ -97,13 +115,16 @@ json mismatches(const fs::path& scene, const fs::path& hpcDump, const std::strin
 /// and, for exact methods, its mismatches against hpc's dump.
 json runMethod(const BenchMethodsOptions& o, const std::string& method, const fs::path& file, const fs::path& work,
                const fs::path& hpcVisibility, const fs::path& hpcDump, uint64_t hpcFirstPass) {
-    std::vector<std::string> extra;
-    if (casterEntry(method).traits.holdsScene) extra = {"--disable", "sort"};  // reads the scene once: no use for buckets
-    const fs::path visibility = work / ("v-" + method + ".npy");
+    const MethodSpec spec = methodSpec(method);
+    std::vector<std::string> extra = spec.args;
+    if (casterEntry(spec.caster).traits.holdsScene) extra.insert(extra.end(), {"--disable", "sort"});  // reads the scene once: no use for buckets
+    std::string fileName = method;
+    std::replace(fileName.begin(), fileName.end(), ':', '-');
+    const fs::path visibility = work / ("v-" + fileName + ".npy");
     std::vector<std::string> timed = extra;
     timed.insert(timed.end(), {"--visibility", visibility.string()});
     json s = bestOf(o.repeat, [&](const json& x) { return methodSeconds(x, method); },
-                    [&] { return bakeChild(file, method, o.threads, work, timed); });
+                    [&] { return bakeChild(file, spec.caster, o.threads, work, timed); });
     if (s.contains("error")) return s;
     json c = columns(s, method);
     if (method == "hpc") return c;
@@ -111,8 +132,8 @@ json runMethod(const BenchMethodsOptions& o, const std::string& method, const fs
     c["error_vs_hpc"] = firstPass == hpcFirstPass
                             ? visibilityError(visibility.string(), hpcVisibility.string(), firstPass)
                             : json{{"error", fmt::format("first passes of {} and {} receivers differ", firstPass, hpcFirstPass)}};
-    if (casterEntry(method).traits.masks && !o.noCompare)
-        c["mismatches_vs_hpc"] = mismatches(file, hpcDump, method, o.threads, work, extra);
+    if (casterEntry(spec.caster).traits.masks && !o.noCompare)
+        c["mismatches_vs_hpc"] = mismatches(file, hpcDump, spec.caster, o.threads, work, extra);
     return c;
 }
 
@@ -178,7 +199,10 @@ CLI::App* addBenchMethodsCommand(CLI::App& bench, BenchMethodsOptions& o) {
     CLI::App* cmd = bench.add_subcommand("methods", "every method on the Table 2 scenes: time, peak RSS, mismatches and errors against hpc");
     cmd->add_option("--scenes", o.scenes, "scene names in --examples or .json paths (default grids,flowers,sponza-like)")->delimiter(',');
     cmd->add_option("--sizes", o.sizes, "camera sizes (default 640x480,1280x960)")->delimiter(',');
-    cmd->add_option("--methods", o.methods, "methods besides hpc (default embree,ssv,penumbra-map,reference,hh)")->delimiter(',');
+    cmd->add_option("--methods", o.methods,
+                    "methods besides hpc (default embree,ssv,penumbra-map,reference,hh); penumbra-map:wyman-hansen or "
+                    "penumbra-map:backprojection bakes the preview with that lookup")
+        ->delimiter(',');
     cmd->add_option("--lightmap", o.lightmap, "the scene hh runs on (default lightmap)");
     cmd->add_option("--hh-samples", o.hhSamples, "light samples for the hh rows (default 64,256,1024)")->delimiter(',');
     cmd->add_option("--scale", o.scale, "resolution factor for a quick run (default 1)");
@@ -213,8 +237,8 @@ void runBenchMethods(const BenchMethodsOptions& o, const std::string& commandLin
     std::vector<std::string> known = casterNames();
     known.erase(std::remove(known.begin(), known.end(), "hpc"), known.end());
     for (const std::string& m : o.methods)
-        if (std::find(known.begin(), known.end(), m) == known.end())
-            fail("--methods", "unknown method \"{}\" (known: {})", m, fmt::join(known, ", "));
+        if (std::find(known.begin(), known.end(), methodSpec(m).caster) == known.end())
+            fail("--methods", "unknown method \"{}\" (known: {}; and penumbra-map:LOOKUP)", m, fmt::join(known, ", "));
     for (int k : o.hhSamples)
         if (k < 1 || k > 65536) fail("--hh-samples", "each count must be in 1..65536, got {}", k);
     std::vector<std::pair<int, int>> sizes;

@@ -169,7 +169,7 @@ TEST_CASE("bench methods reads a scene's files where the scene lives, and compar
       "receivers": {"type": "camera", "eye": [0,5,6], "target": [0,0.5,0], "width": 64, "height": 48,
                     "antialias": {"threshold": 0.1, "samples": 4}},
       "output": "out/aa.exr"})");
-    RunResult r = runPenumbra("bench methods -q --examples " + (dir / "scenes") + " --scenes aa --sizes 64x48 --methods penumbra-map" +
+    RunResult r = runPenumbra("bench methods -q --examples " + (dir / "scenes") + " --scenes aa --sizes 64x48 --methods penumbra-map,penumbra-map:wyman-hansen" +
                               " --threads 1 --no-compare --tmp " + dir.path.string() + " --json " + (dir / "result.json"));
     INFO(r.err);
     REQUIRE(r.exitCode == 0);
@@ -186,6 +186,15 @@ TEST_CASE("bench methods reads a scene's files where the scene lives, and compar
     CHECK(pm.at("first_pass_receivers").get<uint64_t>() == firstPass);
     CHECK(pm.at("error_vs_hpc").at("compared_receivers").get<uint64_t>() == firstPass);
     CHECK(pm.at("error_vs_hpc").at("mean_abs_dv").get<double>() < 0.2);
+    // The variant bakes the preview with the paper's lookup, in a row of its own.
+    const nlohmann::json& wh = row.at("penumbra-map:wyman-hansen");
+    INFO(wh.dump());
+    CHECK(pm.at("penumbra-map").at("lookup") == "backprojection");
+    CHECK(wh.at("penumbra-map").at("lookup") == "wyman-hansen");
+    CHECK(wh.at("error_vs_hpc").at("compared_receivers").get<uint64_t>() == firstPass);
+    CHECK(slurp(dir / "result.json").find("penumbra-map:wyman-hansen") != std::string::npos);
+    requireCleanError(runPenumbra("bench methods -q --methods penumbra-map:soft"), "--methods");
+    requireCleanError(runPenumbra("bench methods -q --methods ssv:fast"), "--methods");
 }
 
 namespace {
