@@ -9,6 +9,7 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <filesystem>
 
 using namespace penumbra::test;
@@ -78,7 +79,10 @@ TEST_CASE("glb and obj at 1M and 10M triangles: flat peak RSS, budgets honoured,
         CHECK(a.stats["counters"]["triangles_read"].get<uint64_t>() > 1'000'000);
         CHECK(b.stats["counters"]["triangles_read"].get<uint64_t>() > 10'000'000);
         INFO("peak RSS 1M: " << a.rss() / 1e6 << " MB, 10M: " << b.rss() / 1e6 << " MB");
-        CHECK(std::abs(b.rss() - a.rss()) < 0.10 * a.rss());
+        // Flat: 10 % of a peak near 20 MB, but at least 4 MiB, the allocator's per-thread noise
+        // (a full ctest -j2 once saw this check fail at 10 %); ten times the triangles held in
+        // memory would add hundreds of MB.
+        CHECK(std::abs(b.rss() - a.rss()) < std::max(0.10 * a.rss(), 4.0 * kMiB));
 
         // Budgets: the 10M file is larger than the budget (360 MB glb, 1.2 GB obj).
         REQUIRE(std::filesystem::file_size(large) > 256 * kMiB);
