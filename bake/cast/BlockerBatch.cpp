@@ -19,15 +19,15 @@ bool facesAway(const BlockerTriangle& t, const ConvexBound& bound) {
     return !bound.vertices.empty();
 }
 
-bool cutInFront(PenumbraVolume& volume, const BlockerTriangle& t, const Box& receivers, const CastOptions& options) {
+bool cutInFront(PenumbraVolume& volume, const BlockerTriangle& t, const Box& receivers, double receiversExtent,
+                const CastOptions& options) {
     if (volume.count >= PenumbraVolume::kMaxPlanes) return true;
     // inFrontOfClosed() culls a box at closedFrontMargin(extent(box), |c - v0|_1), c its corner
     // nearest T's front. Over the boxes inside `receivers` the extent is at most E, the largest
     // |coordinate| of a receiver, and |c - v0|_1 at most 3 (E + V), V that of v0; one more (E + V)
     // covers the rounding of this plane's evaluation (about 1e-15 (E + V)) against
     // distanceBehind()'s.
-    const glm::vec3 far = glm::max(glm::abs(receivers.lo), glm::abs(receivers.hi));
-    const double e = std::max({double(far.x), double(far.y), double(far.z)});
+    const double e = receiversExtent;
     const double v = std::max({std::abs(t.v[0].x), std::abs(t.v[0].y), std::abs(t.v[0].z)});
     const double margin = closedFrontMargin(options, e, 4 * (e + v));
     const Plane behind{-t.plane.n, glm::dot(t.plane.n, t.v[0]) + margin};  // positive side: inside
@@ -38,7 +38,7 @@ bool cutInFront(PenumbraVolume& volume, const BlockerTriangle& t, const Box& rec
 }
 
 BlockerCulls::BlockerCulls(const LightSamples& samples, const CastOptions& options, const Box& receivers)
-    : samples_(samples), options_(options), receivers_(receivers), volumeLevel_(hardShadowKernels(options.simd).level) {
+    : samples_(samples), options_(options), receivers_(receivers), receiversExtent_(largestCoordinate(receivers)), volumeLevel_(hardShadowKernels(options.simd).level) {
     for (const ConvexBound& bound : samples_.lightBounds) reach_.emplace_back(receivers_, bound);
 }
 
@@ -93,7 +93,7 @@ uint64_t BlockerCulls::prepare(BlockerBatch& batch, std::span<const Triangle> bl
             if (!keepLights([&](size_t l) {
                     PenumbraVolume& volume = batch.lightVolumes[i * lights + l];
                     return !buildPenumbraVolume(samples_.lightBounds[l], prepared, volume, &receivers_, volumeLevel_) ||
-                           (prepared.closed && options_.frontPlane && !cutInFront(volume, prepared, receivers_, options_));
+                           (prepared.closed && options_.frontPlane && !cutInFront(volume, prepared, receivers_, receiversExtent_, options_));
                 }))
                 prepared.valid = false;
         }

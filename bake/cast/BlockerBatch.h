@@ -57,6 +57,7 @@ private:
     const LightSamples& samples_;
     const CastOptions& options_;
     Box receivers_;
+    double receiversExtent_;  ///< largestCoordinate(receivers_), for every closed face's cutInFront()
     SimdLevel volumeLevel_;          ///< options_.simd resolved: which code builds V_L
     std::vector<LightReach> reach_;  ///< per light
 };
@@ -68,9 +69,11 @@ private:
 /// inside @p receivers, so every box (or receiver) the plane culls, that test culls too, and the
 /// traversal can skip that test per node: the plane leaves a box's active set once the box is
 /// behind it.
+/// @param receiversExtent largestCoordinate(@p receivers), computed once per cast by the caller
 /// @return false when every receiver in @p receivers lies in front (T casts nothing); true
 /// otherwise, also when the volume is full (frontCulled then stays false).
-bool cutInFront(PenumbraVolume& volume, const BlockerTriangle& t, const Box& receivers, const CastOptions& options);
+bool cutInFront(PenumbraVolume& volume, const BlockerTriangle& t, const Box& receivers, double receiversExtent,
+                const CastOptions& options);
 
 /// @brief Every vertex of @p bound strictly behind T's plane, beyond roundoff of the plane's
 /// evaluation (for a sun, every direction of the cone points away from T's front side).

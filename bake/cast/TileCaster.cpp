@@ -90,10 +90,8 @@ bool TileCaster::inFrontOfClosed(const Box& box) const {
     // receiver's own distance (castReceiver skips a receiver when dist > eps(r)).
     const glm::dvec3& n = tri->plane.n;
     const glm::dvec3 c{n.x > 0 ? box.lo.x : box.hi.x, n.y > 0 ? box.lo.y : box.hi.y, n.z > 0 ? box.lo.z : box.hi.z};
-    const glm::vec3 far = glm::max(glm::abs(box.lo), glm::abs(box.hi));
-    const double extent = std::max({far.x, far.y, far.z});
     const glm::dvec3 d = glm::abs(c - tri->v[0]);
-    return distanceBehind(*tri, c) > closedFrontMargin(options, extent, d.x + d.y + d.z);
+    return distanceBehind(*tri, c) > closedFrontMargin(options, largestCoordinate(box), d.x + d.y + d.z);
 }
 
 bool TileCaster::castTriangle(const BlockerTriangle& t, const PenumbraVolume* lightVolumes, const uint8_t* lightActive) {

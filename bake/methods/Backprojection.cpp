@@ -37,24 +37,6 @@ std::vector<glm::dvec2> convexHull(std::vector<glm::dvec2> points) {
 using Transmission = std::array<float, LightGrid::kCells * LightGrid::kCells>;
 static_assert(LightGrid::kCells * LightGrid::kCells % 8 == 0, "visibleFraction() sums in eight lanes");
 
-/// Blocks the cells of @p grid whose light points lie behind the plane through @p r with normal
-/// @p n; the distance from the plane is linear across the light, so the corners decide at once.
-template <class Cells>
-void blockBehindPlane(const LightView& view, const LightGrid& grid, const glm::dvec3& r, const glm::dvec3& n, Cells&& cellsOf) {
-    const double c0 = glm::dot(view.ortho ? -view.axis : view.origin - r, n), cx = glm::dot(view.e1, n), cy = glm::dot(view.e2, n);
-    const glm::dvec2 hi = grid.hi();
-    if (c0 + std::min(grid.lo.x * cx, hi.x * cx) + std::min(grid.lo.y * cy, hi.y * cy) >= 0) return;  // all in front
-    // The same sums as c0 + l.x cx + l.y cy at each cell centre l, with the column part shared.
-    Transmission& transmitted = cellsOf();
-    std::array<double, LightGrid::kCells> column;
-    for (int i = 0; i < LightGrid::kCells; ++i) column[size_t(i)] = c0 + (grid.lo.x + (i + 0.5) * grid.cell.x) * cx;
-    for (int j = 0; j < LightGrid::kCells; ++j) {
-        const double row = (grid.lo.y + (j + 0.5) * grid.cell.y) * cy;
-        float* cells = &transmitted[size_t(j * LightGrid::kCells)];
-        for (int i = 0; i < LightGrid::kCells; ++i) cells[i] = column[size_t(i)] + row < 0 ? 0.0f : cells[i];
-    }
-}
-
 }  // namespace
 
 DepthPyramid::DepthPyramid(const DepthMap& shadow, int layer) : shadow_(&shadow), layer_(layer) {
@@ -134,17 +116,11 @@ float DepthPyramid::nearestIn(int level, glm::dvec2 lo, glm::dvec2 hi) const {
     const double s = double(1 << level);
     const int x0 = clampedTexel(std::floor(lo.x / s), 0, res - 1), x1 = clampedTexel(std::floor(hi.x / s), 0, res - 1);
     const int y0 = clampedTexel(std::floor(lo.y / s), 0, res - 1), y1 = clampedTexel(std::floor(hi.y / s), 0, res - 1);
-    // Rows of the level read in place (at() per texel cost a fifth of the lookup's search).
+    // Through a Level view (at() per texel cost a fifth of the lookup's search).
+    const Level texels = this->level(level);
     float z = INFINITY;
-    for (int y = y0; y <= y1; ++y) {
-        if (level == 0) {
-            const float* row = &shadow_->depth[(size_t(layer_) * res + y) * res];
-            for (int x = x0; x <= x1; ++x) z = std::min(z, row[x]);
-        } else {
-            const Texel* row = &levels_[size_t(level - 1)][size_t(y) * res];
-            for (int x = x0; x <= x1; ++x) z = std::min(z, row[x].nearest);
-        }
-    }
+    for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x) z = std::min(z, texels.at(x, y).nearest);
     return z;
 }
 
@@ -225,6 +201,24 @@ struct Backprojector {
         const double marginPerDepth = (bias + 0.71 * s) * texel;
         fixedMargin = eps + (view.ortho ? marginPerDepth : 0.0), marginSlope = view.ortho ? 0.0 : marginPerDepth;
     }
+    /// Blocks the cells whose light points lie behind the receiver's plane (normal n, set before
+    /// it faces the centre); the distance from the plane is linear across the light, so the
+    /// corners decide at once, and the cells are touched only when some of the light is behind.
+    void blockBehindPlane() {
+        const double c0 = glm::dot(view.ortho ? -view.axis : view.origin - r, n), cx = glm::dot(view.e1, n), cy = glm::dot(view.e2, n);
+        const glm::dvec2 hi = grid.hi();
+        if (c0 + std::min(grid.lo.x * cx, hi.x * cx) + std::min(grid.lo.y * cy, hi.y * cy) >= 0) return;  // all in front
+        // The same sums as c0 + l.x cx + l.y cy at each cell centre l, with the column part shared.
+        cells();
+        std::array<double, LightGrid::kCells> column;
+        for (int i = 0; i < LightGrid::kCells; ++i) column[size_t(i)] = c0 + (grid.lo.x + (i + 0.5) * grid.cell.x) * cx;
+        for (int j = 0; j < LightGrid::kCells; ++j) {
+            const double row = (grid.lo.y + (j + 0.5) * grid.cell.y) * cy;
+            float* cellRow = &transmitted[size_t(j * LightGrid::kCells)];
+            for (int i = 0; i < LightGrid::kCells; ++i) cellRow[i] = column[size_t(i)] + row < 0 ? 0.0f : cellRow[i];
+        }
+    }
+
     /// The image box (fine texels) that can hold blockers at depth @p z or farther over the light:
     /// the outline's box scaled by k(z) around the receiver, within the square of radiusFor(z).
     void searchBox(double z, glm::dvec2& lo, glm::dvec2& hi) const {
@@ -303,7 +297,7 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
         // meshes: the light behind the receiver's own plane is blocked by the solid. (For an open
         // surface that light would reach it from behind, where it carries no irradiance.)
         b.n = glm::normalize(normal);
-        blockBehindPlane(view, grid, r, b.n, [&]() -> Transmission& { return b.cells(); });
+        b.blockBehindPlane();
         if (glm::dot(b.n, view.ortho ? -view.axis : view.origin - r) < 0) b.n = -b.n;  // the side facing the centre
     }
     b.prepare();

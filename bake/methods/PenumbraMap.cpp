@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <optional>
 
 namespace penumbra {
@@ -375,13 +376,15 @@ std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverPo
     // The kept light first, so that only the last light's maps need keeping for the next cast;
     // each light fills its own slot of every receiver, so the order does not change the result.
     const int keptLight = cache && cache->kept && cache->kept->light < lights ? cache->kept->light : -1;
+    std::vector<int> order(size_t(std::max(lights, 0)));
+    std::iota(order.begin(), order.end(), 0);
+    if (keptLight >= 0) std::rotate(order.begin(), order.begin() + keptLight, order.begin() + keptLight + 1);
+    // Only the penumbra map's sheets reach as far as the view's zFar (the farthest receiver it was
+    // drawn for); backprojection reads any depth.
+    const bool sheets = options.lookup == PenumbraMapOptions::Lookup::WymanHansen;
     std::function<void(std::span<const Triangle>)> unobserved = observe;  // until the first read
-    for (int step = 0; step < lights; ++step) {
-        const int li = keptLight < 0 ? step : step == 0 ? keptLight : step <= keptLight ? step - 1 : step;
+    for (const int li : order) {
         std::vector<ViewMaps> maps;
-        // Only the penumbra map's sheets reach as far as the view's zFar (the farthest receiver it
-        // was drawn for); backprojection reads any depth.
-        const bool sheets = options.lookup == PenumbraMapOptions::Lookup::WymanHansen;
         if (li == keptLight && viewsCover(viewsOf(cache->kept->maps), receivers, sheets)) {
             maps = std::move(cache->kept->maps);
             ++local.mapsReused;
@@ -398,7 +401,7 @@ std::vector<float> castPenumbraMap(const LightSamples& samples, const ReceiverPo
                 visibility[r * lights + li] = lookup(maps, p, glm::dvec3(receivers.normal[r]), options.bias, epsilon.at(p), options.taps);
             });
         }
-        if (cache && step + 1 == lights) {
+        if (cache && li == order.back()) {
             if (!cache->kept) cache->kept = std::make_unique<PenumbraMapCache::Kept>();
             cache->kept->light = li, cache->kept->maps = std::move(maps);
         }

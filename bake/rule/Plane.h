@@ -2,8 +2,11 @@
 /// @file Plane.h
 /// @brief Oriented planes and the box/point classifications that penumbra-volume culling uses.
 
-#include <glm/vec3.hpp>
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
+#include <glm/vec3.hpp>
+
+#include <algorithm>
 
 namespace penumbra {
 
@@ -25,6 +28,13 @@ struct Plane {
 struct Box {
     glm::vec3 lo{0.0f}, hi{0.0f};
 };
+
+/// @brief The largest |coordinate| of any point in @p box: the extent the receiver epsilon
+/// (ReceiverEpsilon::at) takes for every receiver inside it.
+inline double largestCoordinate(const Box& box) {
+    const glm::vec3 far = glm::max(glm::abs(box.lo), glm::abs(box.hi));
+    return std::max({far.x, far.y, far.z});
+}
 
 /// Result of classifying a box against one plane.
 enum class BoxSide { Outside, Straddles, Inside };

@@ -108,7 +108,7 @@ TEST_CASE("a closed face's front plane culls only receivers in front of it", "[h
         const ReceiverEpsilon epsilon = receiverEpsilonOf(options);
         PenumbraVolume v;
         v.count = 0;
-        if (!cutInFront(v, t, receivers, options)) {  // never for these boxes: T lies inside them
+        if (!cutInFront(v, t, receivers, largestCoordinate(receivers), options)) {  // never for these boxes: T lies inside them
             ++wholeCast;
             continue;
         }
@@ -147,13 +147,14 @@ TEST_CASE("a closed face's front plane drops a light when every receiver is in f
     t.closed = true;
     REQUIRE(t.plane.n.y > 0.99);
     CastOptions options;
+    const Box above{{-1, 0.5f, -1}, {1, 2, 1}}, across{{-1, -0.5f, -1}, {1, 2, 1}};
     PenumbraVolume v;
     v.count = 0;
-    CHECK_FALSE(cutInFront(v, t, Box{{-1, 0.5f, -1}, {1, 2, 1}}, options));  // all above: in front
+    CHECK_FALSE(cutInFront(v, t, above, largestCoordinate(above), options));  // all above: in front
     v.count = 0;
-    CHECK(cutInFront(v, t, Box{{-1, -0.5f, -1}, {1, 2, 1}}, options));
+    CHECK(cutInFront(v, t, across, largestCoordinate(across), options));
     CHECK(v.frontCulled);
     v.count = PenumbraVolume::kMaxPlanes, v.frontCulled = false;  // full: nothing appended
-    CHECK(cutInFront(v, t, Box{{-1, 0.5f, -1}, {1, 2, 1}}, options));
+    CHECK(cutInFront(v, t, above, largestCoordinate(above), options));
     CHECK_FALSE(v.frontCulled);
 }
