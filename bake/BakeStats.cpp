@@ -36,6 +36,7 @@ nlohmann::json counters(const BakeStatsInputs& in) {
             {"closed_back_faces_skipped", in.cast.closedBackFaces},
             {"closed_solids_opened", opened.ordinals.size()},
             {"closed_triangles_opened", opened.triangles},
+            {"closed_solids_not_watertight", opened.leakySolids()},
             {"rebuilds", in.cast.rebuilds},
             {"peak_live_masks", in.cast.peakLiveMasks},
             {"hard_shadow_tests", in.cast.hardShadowTests},

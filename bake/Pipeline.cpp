@@ -30,6 +30,7 @@
 #include "stream/util/Progress.h"
 #include "stream/util/StopRequest.h"
 
+#include <fmt/ranges.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
@@ -107,6 +108,30 @@ void reportOpenedSolids(const OpenedSolids& opened, const std::vector<LightDesc>
                       lights[l].where, opened.perLight[l]);
 }
 
+/// One warning per geometry entry marked closed whose solids are not all watertight: a wrong mark
+/// would lose shadows, so those solids are cast as open surfaces (bake/cast/EdgeBalance.h).
+std::vector<std::string> leakySolidWarnings(const OpenedSolids& opened, const SceneDesc& scene) {
+    std::vector<std::string> warnings;
+    for (const OpenedSolids::Leaky& leaky : opened.leaky) {
+        std::string entry = "the geometry";
+        if (leaky.part < scene.geometry.size()) {
+            const GeometryDesc& g = scene.geometry[leaky.part];
+            entry = g.path;
+            if (const auto it = g.params.find("path"); it != g.params.end() && it->is_string())
+                entry += fmt::format(" ({})", std::filesystem::path(it->get<std::string>()).filename().string());
+        }
+        std::vector<std::string> what;
+        if (leaky.solids)
+            what.push_back(fmt::format("{} of its solids {} not watertight (an edge without its reverse: a hole, a crack or a "
+                                       "flipped face)", leaky.solids, leaky.solids == 1 ? "is" : "are"));
+        if (leaky.inward)
+            what.push_back(fmt::format("{} of its solids {} wound inward (or flat)", leaky.inward, leaky.inward == 1 ? "is" : "are"));
+        warnings.push_back(fmt::format("{} is marked closed, but {} ({} triangles); cast as open surfaces, which keeps every shadow",
+                                       entry, fmt::join(what, " and "), leaky.triangles));
+    }
+    return warnings;
+}
+
 /// Every chunk of @p source to the kind's @p pass, with the chunk's geometry entry when the
 /// source is in stream order (@p streamOrder).
 void feedPass(ReceiverKind& kind, StreamPass pass, TriangleSource& source, bool streamOrder, ProgressReporter* progress = nullptr) {
@@ -162,7 +187,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
             check(part);
             histogram.add(part);
             if (scanPass) kind.consume(StreamPass::Scan, StreamChunk{part, source->part()});
-            if (scene.options.closedCasters) solids.scan(part);
+            if (scene.options.closedCasters) solids.scan(part, source->part());
             progress.update(n);
             testPoint("scan");
             throwIfStopRequested("scan");
@@ -174,6 +199,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     }
     reportOpenedSolids(p.openedSolids, p.lights, settings.quiet);
     p.warnings = bakeWarnings(scene.receivers, p.receivers, p.lights);
+    for (std::string& warning : leakySolidWarnings(p.openedSolids, scene)) p.warnings.push_back(std::move(warning));
     for (const std::string& warning : p.warnings) printWarning("{}", warning);
     returnFreedMemory();  // the z-buffer is gone; keep it from inflating the casting phase's RSS
     p.sampleSets.resize(p.receivers.size());

@@ -7,7 +7,7 @@
 
 namespace penumbra {
 
-ClosedSolidScan::ClosedSolidScan(const LightSamples& samples) : result_{{}, 0, std::vector<uint64_t>(samples.lightCount(), 0)} {
+ClosedSolidScan::ClosedSolidScan(const LightSamples& samples) : result_{{}, 0, std::vector<uint64_t>(samples.lightCount(), 0), {}} {
     for (const ConvexBound& bound : samples.lightBounds) {
         Aabb box{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
         if (!bound.directional())
@@ -30,21 +30,30 @@ void ClosedSolidScan::closeSolid() {
                            a.lo.z <= box_.hi.z && a.hi.z >= box_.lo.z;
         if (meets) ++result_.perLight[l], opened = true;
     }
+    const bool balanced = edges_.balanced();
+    if (!balanced || !volume_.outward()) {
+        if (result_.leaky.empty() || result_.leaky.back().part != currentPart_) result_.leaky.push_back({currentPart_, 0, 0, 0});
+        OpenedSolids::Leaky& leaky = result_.leaky.back();
+        ++(balanced ? leaky.inward : leaky.solids), leaky.triangles += currentTriangles_;
+        opened = true;
+    }
     if (opened) result_.ordinals.push_back(current_), result_.triangles += currentTriangles_;
     current_ = SolidSegmenter::kNone;
 }
 
-void ClosedSolidScan::scan(std::span<const Triangle> chunk) {
+void ClosedSolidScan::scan(std::span<const Triangle> chunk, uint32_t part) {
     for (const Triangle& t : chunk) {
         const uint64_t solid = segmenter_.next(t);
         if (solid != current_) {
             closeSolid();
             current_ = solid;
-            currentTriangles_ = 0;
+            currentTriangles_ = 0, currentPart_ = part;
             box_ = {glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+            edges_.reset(), volume_.reset();
         }
         if (solid == SolidSegmenter::kNone) continue;
         ++currentTriangles_;
+        edges_.add(t), volume_.add(t);
         for (const glm::vec3& v : t.v) box_.lo = glm::min(box_.lo, v), box_.hi = glm::max(box_.hi, v);
     }
 }

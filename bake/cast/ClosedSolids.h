@@ -13,9 +13,15 @@
 /// mark in every later pass, which reads the stream in the same order). A sun's samples are at
 /// infinity and are never inside a solid.
 ///
-/// Memory: one box while scanning, plus the ordinals of the opened solids (8 bytes each), which
-/// are only the solids that touch a light's box.
+/// A solid that is not watertight (an edge without its reverse: a hole, a crack, a flipped face;
+/// EdgeBalance.h) or is wound inward (OutwardVolume) is opened as well, whatever the lights: a
+/// wrong `"closed": true` mark would otherwise lose the shadows of the faces it skips. Such solids are counted per geometry entry,
+/// so that the bake can name the entries whose mark was wrong.
+///
+/// Memory: one box and two edge sums while scanning, plus the ordinals of the opened solids
+/// (8 bytes each), which are only the solids that touch a light's box or are not watertight.
 
+#include "bake/cast/EdgeBalance.h"
 #include "bake/light/Light.h"
 #include "stream/TriangleSource.h"
 
@@ -44,19 +50,36 @@ private:
     bool inSolid_ = false;
 };
 
-/// @brief What the scan found: which solids are opened, and for which lights.
+/// @brief What the scan found: which solids are opened, and why.
 struct OpenedSolids {
     std::vector<uint64_t> ordinals;       ///< sorted
     uint64_t triangles = 0;               ///< closed triangles that are cast as open
     std::vector<uint64_t> perLight;       ///< solids each light reaches inside
+    /// Solids that are not watertight or wound inward, per geometry entry (the stream's part()):
+    /// only entries that have one are listed, in stream order.
+    struct Leaky {
+        uint32_t part = 0;
+        uint64_t solids = 0;     ///< of the entry's closed solids, those not watertight
+        uint64_t inward = 0;     ///< those watertight but wound inward (or flat)
+        uint64_t triangles = 0;  ///< the triangles of both
+    };
+    std::vector<Leaky> leaky;
+    uint64_t leakySolids() const {
+        uint64_t n = 0;
+        for (const Leaky& l : leaky) n += l.solids + l.inward;
+        return n;
+    }
 };
 
-/// @brief Scan-pass half: tracks the current solid's box and opens the solids whose box meets a
-/// point light's box (the light's sample bound, with a relative margin).
+/// @brief Scan-pass half: tracks the current solid's box, edge balance and volume, and opens the solids
+/// whose box meets a point light's box (the light's sample bound, with a relative margin) and
+/// those that are not watertight or wound inward.
 class ClosedSolidScan {
 public:
     explicit ClosedSolidScan(const LightSamples& samples);
-    void scan(std::span<const Triangle> chunk);
+    /// @param chunk the next triangles of the stream
+    /// @param part the geometry entry they came from (TriangleSource::part()), for OpenedSolids::leaky
+    void scan(std::span<const Triangle> chunk, uint32_t part = 0);
     /// @brief Ends the scan (closes the last solid) and returns the result.
     OpenedSolids finish();
 
@@ -69,7 +92,10 @@ private:
     std::vector<Aabb> lights_;  ///< per light; empty box for directional lights
     SolidSegmenter segmenter_;
     uint64_t current_ = SolidSegmenter::kNone, currentTriangles_ = 0;
+    uint32_t currentPart_ = 0;  ///< the entry the current solid began in
     Aabb box_{};
+    EdgeBalance edges_;
+    OutwardVolume volume_;
     OpenedSolids result_;
 };
 
