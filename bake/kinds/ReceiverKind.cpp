@@ -95,6 +95,9 @@ std::unique_ptr<ReceiverKind> makeKind(const nlohmann::json& receivers, const Sc
     JsonParams j(receivers, scene.file, "receivers");
     const std::string type = j.string("type");
     const std::optional<KindEntry> entry = findKind(type);
+    if (!entry && isBuiltPlugin(type))
+        fail(j.where("type"), "\"{}\" receivers need the plugin penumbra_{}.so, which is not in {} (copy it with the "
+             "executable, or set PENUMBRA_PLUGIN_DIR)", type, type, pluginSearchPlaces());
     if (!entry) {
         std::lock_guard lock(registryMutex);
         std::vector<std::string> known;

@@ -15,7 +15,7 @@ void registerVolumeSliceWriter(VolumeSliceWriter writer) { registered = writer; 
 void writeVolumeSlicePng(const std::string& vdbPath, const std::string& pngPath, const std::string& gridName,
                          char axis, double at, int minWidth) {
     if (!registered && !loadPlugin("volume"))
-        fail(vdbPath, "reading VDB files needs the volume plugin penumbra_volume.so, which is not installed");
+        fail(vdbPath, "reading VDB files needs the volume plugin penumbra_volume.so, which is not in {}", pluginSearchPlaces());
     if (!registered) fail(vdbPath, "the volume plugin did not register its slice writer");
     registered.load()(vdbPath, pngPath, gridName, axis, at, minWidth);
 }

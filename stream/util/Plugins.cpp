@@ -24,19 +24,34 @@ namespace {
 /// terminates the process when the thread's stack cannot be mapped).
 constexpr size_t kPluginHeadroom = size_t(80) << 20;  // OpenVDB and its libraries map 58 MiB, log4cplus a thread stack
 
-std::string pluginPath(const std::string& name) {
-    const std::string file = "penumbra_" + name + ".so";
+std::vector<fs::path> pluginDirs() {
     std::vector<fs::path> dirs;
     if (const char* dir = std::getenv("PENUMBRA_PLUGIN_DIR"); dir && *dir) dirs.emplace_back(dir);
     std::error_code ec;
     const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    if (!ec) dirs.push_back(exe.parent_path()), dirs.push_back(exe.parent_path() / PENUMBRA_PLUGIN_RELDIR);
-    for (const fs::path& d : dirs)
+    if (!ec) dirs.push_back(exe.parent_path()), dirs.push_back((exe.parent_path() / PENUMBRA_PLUGIN_RELDIR).lexically_normal());
+    return dirs;
+}
+
+std::string pluginPath(const std::string& name) {
+    const std::string file = "penumbra_" + name + ".so";
+    std::error_code ec;
+    for (const fs::path& d : pluginDirs())
         if (fs::is_regular_file(d / file, ec)) return (d / file).lexically_normal().string();
     return {};
 }
 
 }  // namespace
+
+bool isBuiltPlugin(const std::string& name) { return name == "volume"; }
+
+std::string pluginSearchPlaces() {
+    std::string places;
+    const std::vector<fs::path> dirs = pluginDirs();
+    for (size_t i = 0; i < dirs.size(); ++i)
+        places += (i == 0 ? "" : i + 1 == dirs.size() ? " and " : ", ") + dirs[i].string();
+    return places.empty() ? "nowhere (/proc/self/exe is unreadable)" : places;
+}
 
 bool loadPlugin(const std::string& name) {
     static std::mutex mutex;

@@ -178,4 +178,13 @@ TEST_CASE("the CLI loads OpenVDB only for volumes: it is a plugin, not a depende
     INFO(slice.err);
     CHECK(slice.exitCode == 0);
     CHECK(std::filesystem::file_size(dir / "s.png") > 100);
+
+    // A binary copied without its plugin names what is missing and where it looked, in one line.
+    std::filesystem::copy_file(PENUMBRA_BINARY, dir / "penumbra");
+    REQUIRE(runShell("cd " + examples + " && env -u PENUMBRA_PLUGIN_DIR " + dir / "penumbra" + " bake volume.json -q -o " + dir / "w.vdb" + " 2> " +
+                     dir / "err.txt") == 1);
+    const std::string err = slurp(dir / "err.txt");
+    CHECK(lineCount(err) == 1);
+    CHECK_THAT(err, Catch::Contains("\"volume\" receivers need the plugin penumbra_volume.so, which is not in " + dir.path.string()));
+    CHECK_FALSE(std::filesystem::exists(dir / "w.vdb"));
 }
