@@ -1,6 +1,11 @@
 #include "bake/BakeWarnings.h"
 
+#include "bake/Scene.h"
+
+#include <filesystem>
+
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <glm/geometric.hpp>
 
 namespace penumbra {
@@ -47,6 +52,28 @@ std::vector<std::string> bakeWarnings(const nlohmann::json& receivers, const Rec
         warnings.push_back(fmt::format("{}: faces away from every receiver (it emits towards ({:.3g}, {:.3g}, {:.3g})), so it "
                                        "lights nothing; {}",
                                        light.where, n.x, n.y, n.z, howToTurn(light.type)));
+    }
+    return warnings;
+}
+
+std::vector<std::string> leakySolidWarnings(const OpenedSolids& opened, const SceneDesc& scene) {
+    std::vector<std::string> warnings;
+    for (const OpenedSolids::Leaky& leaky : opened.leaky) {
+        std::string entry = "the geometry";
+        if (leaky.part < scene.geometry.size()) {
+            const GeometryDesc& g = scene.geometry[leaky.part];
+            entry = g.path;
+            if (const auto it = g.params.find("path"); it != g.params.end() && it->is_string())
+                entry += fmt::format(" ({})", std::filesystem::path(it->get<std::string>()).filename().string());
+        }
+        std::vector<std::string> what;
+        if (leaky.solids)
+            what.push_back(fmt::format("{} of its solids {} not watertight (an edge without its reverse: a hole, a crack or a "
+                                       "flipped face)", leaky.solids, leaky.solids == 1 ? "is" : "are"));
+        if (leaky.inward)
+            what.push_back(fmt::format("{} of its solids {} wound inward (or flat)", leaky.inward, leaky.inward == 1 ? "is" : "are"));
+        warnings.push_back(fmt::format("{} is marked closed, but {} ({} triangles); cast as open surfaces, which keeps every shadow",
+                                       entry, fmt::join(what, " and "), leaky.triangles));
     }
     return warnings;
 }

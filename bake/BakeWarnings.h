@@ -3,6 +3,7 @@
 /// @brief Warnings that save a bake: inputs that bake without an error but almost certainly not
 /// as meant, found once the scan has made the receivers, before hours of casting.
 
+#include "bake/cast/ClosedSolids.h"
 #include "bake/light/Light.h"
 #include "receivers/ReceiverSet.h"
 
@@ -19,5 +20,12 @@ namespace penumbra {
 /// - no receivers at all: a camera that sees no geometry, receiver meshes that are empty.
 /// @param receivers the "receivers" object (its type names the kind in messages).
 std::vector<std::string> bakeWarnings(const nlohmann::json& receivers, const ReceiverSet& set, const std::vector<LightDesc>& lights);
+
+struct SceneDesc;
+
+/// @brief One warning per geometry entry marked closed whose solids are not all watertight or
+/// are wound inward: such solids are cast as open surfaces, since a wrong mark would lose
+/// shadows (bake/cast/EdgeBalance.h). Each names the entry and its file.
+std::vector<std::string> leakySolidWarnings(const OpenedSolids& opened, const SceneDesc& scene);
 
 }  // namespace penumbra

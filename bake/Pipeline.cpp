@@ -30,7 +30,6 @@
 #include "stream/util/Progress.h"
 #include "stream/util/StopRequest.h"
 
-#include <fmt/ranges.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
@@ -51,6 +50,7 @@ struct Prepared {
     LightSamples samples;
     CastOptions options;            ///< the scene's, with the rule's epsilon length L set
     OpenedSolids openedSolids;      ///< closed solids a light reaches inside: cast as open
+    bool closedCastersOffForScale = false;  ///< closedCastersSafe() turned them off
     ReceiverSet receivers;
     std::vector<uint32_t> sampleSets;
     TriangleSourcePtr blockers;           ///< replayable, largest first when sorting is on
@@ -106,30 +106,6 @@ void reportOpenedSolids(const OpenedSolids& opened, const std::vector<LightDesc>
         if (opened.perLight[l])
             printNote("{} reaches inside {} closed solid(s); their triangles are cast as open surfaces",
                       lights[l].where, opened.perLight[l]);
-}
-
-/// One warning per geometry entry marked closed whose solids are not all watertight: a wrong mark
-/// would lose shadows, so those solids are cast as open surfaces (bake/cast/EdgeBalance.h).
-std::vector<std::string> leakySolidWarnings(const OpenedSolids& opened, const SceneDesc& scene) {
-    std::vector<std::string> warnings;
-    for (const OpenedSolids::Leaky& leaky : opened.leaky) {
-        std::string entry = "the geometry";
-        if (leaky.part < scene.geometry.size()) {
-            const GeometryDesc& g = scene.geometry[leaky.part];
-            entry = g.path;
-            if (const auto it = g.params.find("path"); it != g.params.end() && it->is_string())
-                entry += fmt::format(" ({})", std::filesystem::path(it->get<std::string>()).filename().string());
-        }
-        std::vector<std::string> what;
-        if (leaky.solids)
-            what.push_back(fmt::format("{} of its solids {} not watertight (an edge without its reverse: a hole, a crack or a "
-                                       "flipped face)", leaky.solids, leaky.solids == 1 ? "is" : "are"));
-        if (leaky.inward)
-            what.push_back(fmt::format("{} of its solids {} wound inward (or flat)", leaky.inward, leaky.inward == 1 ? "is" : "are"));
-        warnings.push_back(fmt::format("{} is marked closed, but {} ({} triangles); cast as open surfaces, which keeps every shadow",
-                                       entry, fmt::join(what, " and "), leaky.triangles));
-    }
-    return warnings;
 }
 
 /// Every chunk of @p source to the kind's @p pass, with the chunk's geometry entry when the
@@ -198,6 +174,16 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
         p.options.epsilonLength = epsilonLength(p.receivers, check.box());
     }
     reportOpenedSolids(p.openedSolids, p.lights, settings.quiet);
+    if (const double epsilonMax = p.options.epsilon * p.options.epsilonLength;
+        p.options.closedCasters && !closedCastersSafe(p.openedSolids, epsilonMax)) {
+        p.options.closedCasters = false;
+        p.closedCastersOffForScale = true;
+        if (!settings.quiet)
+            printNote("closed casters are off: the rule's receiver epsilon ({:.3g}) is more than {:g} % of the smallest closed "
+                      "solid ({:.3g} across), where skipping faces could lose shadows (far from the origin, epsilon grows "
+                      "with the coordinates)",
+                      epsilonMax, 100 * kClosedEpsilonShare, p.openedSolids.smallestExtent);
+    }
     p.warnings = bakeWarnings(scene.receivers, p.receivers, p.lights);
     for (std::string& warning : leakySolidWarnings(p.openedSolids, scene)) p.warnings.push_back(std::move(warning));
     for (const std::string& warning : p.warnings) printWarning("{}", warning);
@@ -607,6 +593,7 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total) {
     BakeStatsInputs in{scene, settings.method, b.threads, b.p.receivers, b.p.samples, b.p.options, b.results,
                        b.caster->stats(), b.buckets, b.plan, b.demand};
     in.triangles = b.p.triangleCount, in.replay = b.p.replay, in.openedSolids = &b.p.openedSolids;
+    in.closedCastersOffForScale = b.p.closedCastersOffForScale;
     in.streamSeconds = b.streamSeconds, in.castSeconds = b.castSeconds, in.refineSeconds = b.refineSeconds;
     in.totalSeconds = total.seconds();
     nlohmann::json stats = bakeStats(in);

@@ -38,6 +38,7 @@ void ClosedSolidScan::closeSolid() {
         opened = true;
     }
     if (opened) result_.ordinals.push_back(current_), result_.triangles += currentTriangles_;
+    else result_.smallestExtent = std::min({result_.smallestExtent, box_.hi.x - box_.lo.x, box_.hi.y - box_.lo.y, box_.hi.z - box_.lo.z});
     current_ = SolidSegmenter::kNone;
 }
 
