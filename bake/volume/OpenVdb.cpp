@@ -9,8 +9,13 @@
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
 
+#include <fmt/format.h>
+
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstring>
+#include <fstream>
 #include <mutex>
 #include <vector>
 
@@ -19,6 +24,44 @@ namespace penumbra {
 void initializeOpenVdb() {
     static std::once_flag once;
     std::call_once(once, [] { openvdb::initialize(); });
+}
+
+void stampContentUuid(const std::string& path) {
+    // Header (openvdb/io/Archive.cc, file version 212 and later): int64 magic, uint32 file
+    // version, uint32 library major and minor, one byte "has grid offsets", then the UUID as 36
+    // ASCII characters.
+    constexpr std::streamoff kUuidAt = 21, kUuidSize = 36;
+    std::fstream file(path, std::ios::in | std::ios::out | std::ios::binary);
+    if (!file) fail(path, "cannot reopen the VDB file to finish its header");
+    char header[kUuidAt + kUuidSize];
+    if (!file.read(header, sizeof header)) return;  // shorter than any header: not ours to touch
+    int64_t magic;
+    uint32_t version;
+    std::memcpy(&magic, header, sizeof magic), std::memcpy(&version, header + 8, sizeof version);
+    auto uuidShaped = [&] {
+        for (int i = 0; i < kUuidSize; ++i) {
+            const char c = header[kUuidAt + i];
+            if (i == 8 || i == 13 || i == 18 || i == 23 ? c != '-' : !std::isxdigit(static_cast<unsigned char>(c))) return false;
+        }
+        return true;
+    };
+    if (magic != openvdb::OPENVDB_MAGIC || version < 212 || !uuidShaped()) return;
+    // Two FNV-1a hashes of every byte but the UUID's (the header before it, then the grids).
+    uint64_t h[2] = {0xcbf29ce484222325ull, 0x84222325cbf29ce4ull};
+    auto hash = [&](const char* data, std::streamsize n) {
+        for (std::streamsize i = 0; i < n; ++i)
+            for (uint64_t& x : h) x = (x ^ static_cast<unsigned char>(data[i])) * 0x100000001b3ull;
+    };
+    hash(header, kUuidAt);
+    std::vector<char> block(size_t(1) << 20);
+    while (file.read(block.data(), std::streamsize(block.size())) || file.gcount() > 0) hash(block.data(), file.gcount());
+    // Version 8 (RFC 9562, custom), variant 10.
+    const std::string hex = fmt::format("{:016x}{:016x}", h[0], h[1]);
+    std::string uuid = hex.substr(0, 8) + "-" + hex.substr(8, 4) + "-8" + hex.substr(13, 3) + "-" +
+                       "89ab"[hex[16] % 4] + hex.substr(17, 3) + "-" + hex.substr(20, 12);
+    file.clear();
+    file.seekp(kUuidAt);
+    if (!file.write(uuid.data(), kUuidSize) || !file.flush()) fail(path, "cannot rewrite the VDB file's header");
 }
 
 namespace {

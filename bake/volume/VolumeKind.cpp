@@ -155,6 +155,7 @@ public:
         } catch (const openvdb::Exception& e) {
             fail(c.output, "OpenVDB could not write the file: {}", e.what());
         }
+        stampContentUuid(out.tempPath());  // the same grids, the same bytes
         out.commit();
     }
 

@@ -215,6 +215,33 @@ TEST_CASE("volume: the example bakes with one command", "[volume]") {
     CHECK(grid->tree().activeVoxelCount() > 0);
 }
 
+TEST_CASE("volume: the same grids are the same bytes, on 1 and 2 threads and from run to run", "[volume][cli]") {
+    // OpenVDB writes a random UUID into every file's header; the bake replaces it with one made
+    // from the rest of the file (stampContentUuid), so the determinism rule holds for VDBs too.
+    ScratchDir dir("volume-bytes");
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/examples/volume.json";
+    for (const std::string& run : {"t1", "t2", "t2-again"}) {
+        RunResult r = runPenumbra("bake " + scene + " --quiet --threads " + (run == "t1" ? "1" : "2") + " -o " + (dir / (run + ".vdb")));
+        INFO(r.err);
+        REQUIRE(r.exitCode == 0);
+    }
+    const std::string t1 = slurp(dir / "t1.vdb");
+    CHECK(t1 == slurp(dir / "t2.vdb"));
+    CHECK(t1 == slurp(dir / "t2-again.vdb"));
+    REQUIRE(t1.size() > 57);
+    const std::string uuid = t1.substr(21, 36);
+    INFO(uuid);
+    CHECK(uuid[8] == '-');
+    CHECK(uuid[14] == '8');  // version 8: made by penumbra, not random
+    CHECK(std::string("89ab").find(uuid[19]) != std::string::npos);
+    // Still a file OpenVDB reads, and another scene gets another UUID.
+    auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(readGrid(dir / "t1.vdb", "visibility"));
+    REQUIRE(grid);
+    RunResult other = runPenumbra("bake " + scene + " --quiet --penumbra-map-bias 1 --method penumbra-map -o " + (dir / "pm.vdb"));
+    REQUIRE(other.exitCode == 0);
+    CHECK(slurp(dir / "pm.vdb").substr(21, 36) != uuid);
+}
+
 TEST_CASE("volume: pyopenvdb reads the grid class, the exact voxel size and the baked box as bounds", "[volume]") {
     // Debian's python3-openvdb is a module of the system Python (setup.sh installs it).
     if (runShell("/usr/bin/python3 -c 'import pyopenvdb' >/dev/null 2>&1") != 0) {
