@@ -167,29 +167,30 @@ def against_reference(d, scene, ext, methods=('hpc', 'ssv', 'embree')):
 
 
 def same_bytes(a, b):
-    """Compares output @a with @b, and the files a bake writes beside them (a lightmap's
-    generated atlas is NAME-atlas.exr and NAME-uv1.glb)."""
-    folder, stem_a, stem_b = os.path.dirname(a), os.path.splitext(os.path.basename(a))[0], os.path.splitext(os.path.basename(b))[0]
-    outputs = sorted(f for f in os.listdir(folder) if f.startswith(stem_a + '.') or f.startswith(stem_a + '-'))
-    if not outputs: return 'no output !!!'
-    for f in outputs:
-        other = os.path.join(folder, stem_b + f[len(stem_a):])
-        if not os.path.exists(other) or open(os.path.join(folder, f), 'rb').read() != open(other, 'rb').read():
-            return f'DIFFERENT ({f}) !!!'
-    return 'same'
+    return 'same' if open(a, 'rb').read() == open(b, 'rb').read() else 'DIFFERENT !!!'
 
 
 def threads(d, scene, ext, methods):
+    """Each method on 1 and 2 threads into folders of their own, so that files naming each other
+    (a lightmap's glTF names its atlas) are named alike: every file the same bytes."""
     res = {}
     for m in methods:
-        r1 = run(['bake', scene, '--method', m, '-o', f'{d}/{m}-t1.{ext}', '--threads', '1'])
-        r2 = run(['bake', scene, '--method', m, '-o', f'{d}/{m}-t2.{ext}', '--threads', '2'])
-        refused = 'applies to' in r1.stderr or 'refuse' in r1.stderr
-        if r1.returncode or r2.returncode:
-            res[m + '-threads'] = 'refused' if refused else '!!! ' + (r1.stderr + r2.stderr).strip()[-200:]
+        for t in (1, 2): os.makedirs(f'{d}/{m}-threads{t}', exist_ok=True)  # -o's folder must exist
+        runs = {t: run(['bake', scene, '--method', m, '-o', f'{d}/{m}-threads{t}/out.{ext}', '--threads', str(t)]) for t in (1, 2)}
+        if any(r.returncode for r in runs.values()):
+            refused = 'applies to' in runs[1].stderr or 'refuse' in runs[1].stderr
+            res[m + '-threads'] = 'refused' if refused else '!!! ' + (runs[1].stderr + runs[2].stderr).strip()[-200:]
         else:
-            res[m + '-threads'] = same_bytes(f'{d}/{m}-t1.{ext}', f'{d}/{m}-t2.{ext}')
+            res[m + '-threads'] = same_folders(f'{d}/{m}-threads1', f'{d}/{m}-threads2')
     return res
+
+
+def same_folders(a, b):
+    names = sorted(os.listdir(a))
+    if names != sorted(os.listdir(b)): return 'DIFFERENT (files) !!!'
+    for f in names:
+        if open(os.path.join(a, f), 'rb').read() != open(os.path.join(b, f), 'rb').read(): return f'DIFFERENT ({f}) !!!'
+    return 'same'
 
 
 def determinism(d, scene):
