@@ -83,7 +83,7 @@ inline constexpr double kClosedEpsilonShare = 1e-2;
 /// eps(r) of its plane is not blocked by it (BlockingRule.h). With eps(r) a tiny share of the
 /// solids this takes a segment grazing the entry face within eps(r), and none was seen on the
 /// examples or in random scenes near the origin; far from the origin eps(r) = epsilon |r| grows
-/// to the size of the solids, and a sweep of such scenes lost blocked relations in 7 of 47. So
+/// to the size of the solids, and a sweep of such scenes lost blocked relations in 17 of 91. So
 /// closed casters are turned off when @p epsilonMax (epsilon times L, the largest eps(r)) is more
 /// than kClosedEpsilonShare of @p opened's smallest closed solid.
 inline bool closedCastersSafe(const OpenedSolids& opened, double epsilonMax) {
