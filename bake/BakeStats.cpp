@@ -37,7 +37,7 @@ nlohmann::json counters(const BakeStatsInputs& in) {
             {"closed_solids_opened", opened.ordinals.size()},
             {"closed_triangles_opened", opened.triangles},
             {"closed_solids_not_watertight", opened.leakySolids()},
-            {"closed_casters_off_for_scale", in.closedCastersOffForScale},
+            {"closed_casters_off_for_scale", opened.castersOffForScale},
             {"rebuilds", in.cast.rebuilds},
             {"peak_live_masks", in.cast.peakLiveMasks},
             {"hard_shadow_tests", in.cast.hardShadowTests},

@@ -36,7 +36,6 @@ struct BakeStatsInputs {
     uint64_t triangles = 0;
     const BucketReplaySource* replay = nullptr;  ///< the bucket replay, for its read counters
     const OpenedSolids* openedSolids = nullptr;
-    bool closedCastersOffForScale = false;  ///< ClosedSolids.h, closedCastersSafe()
     double streamSeconds = 0, castSeconds = 0, refineSeconds = 0, totalSeconds = 0;
 };
 

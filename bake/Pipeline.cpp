@@ -50,7 +50,6 @@ struct Prepared {
     LightSamples samples;
     CastOptions options;            ///< the scene's, with the rule's epsilon length L set
     OpenedSolids openedSolids;      ///< closed solids a light reaches inside: cast as open
-    bool closedCastersOffForScale = false;  ///< closedCastersSafe() turned them off
     ReceiverSet receivers;
     std::vector<uint32_t> sampleSets;
     TriangleSourcePtr blockers;           ///< replayable, largest first when sorting is on
@@ -177,7 +176,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     if (const double epsilonMax = p.options.epsilon * p.options.epsilonLength;
         p.options.closedCasters && !closedCastersSafe(p.openedSolids, epsilonMax)) {
         p.options.closedCasters = false;
-        p.closedCastersOffForScale = true;
+        p.openedSolids.castersOffForScale = true;
         if (!settings.quiet)
             printNote("closed casters are off: the rule's receiver epsilon ({:.3g}) is more than {:g} % of the smallest closed "
                       "solid ({:.3g} across), where skipping faces could lose shadows (far from the origin, epsilon grows "
@@ -593,7 +592,6 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total) {
     BakeStatsInputs in{scene, settings.method, b.threads, b.p.receivers, b.p.samples, b.p.options, b.results,
                        b.caster->stats(), b.buckets, b.plan, b.demand};
     in.triangles = b.p.triangleCount, in.replay = b.p.replay, in.openedSolids = &b.p.openedSolids;
-    in.closedCastersOffForScale = b.p.closedCastersOffForScale;
     in.streamSeconds = b.streamSeconds, in.castSeconds = b.castSeconds, in.refineSeconds = b.refineSeconds;
     in.totalSeconds = total.seconds();
     nlohmann::json stats = bakeStats(in);

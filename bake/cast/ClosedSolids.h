@@ -66,6 +66,8 @@ struct OpenedSolids {
     std::vector<Leaky> leaky;
     /// The smallest side of the box of any solid that stays closed (+infinity: none).
     float smallestExtent = INFINITY;
+    /// Set by the bake when closedCastersSafe() turned closed casters off for this scale.
+    bool castersOffForScale = false;
     uint64_t leakySolids() const {
         uint64_t n = 0;
         for (const Leaky& l : leaky) n += l.solids + l.inward;
