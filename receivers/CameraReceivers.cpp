@@ -6,6 +6,11 @@
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
 
+#include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -37,7 +42,7 @@ glm::dvec3 directionThrough(const CameraBasis& b, int w, int h, int x, int y) {
 /// CameraRasterizer::add() for the polygon (sx, sy) of @p m vertices and orientation @p orient,
 /// widened by a pixel each side: the test's rounding moves an edge by far less than a pixel
 /// while the coordinates stay below 1e9 (the caller's guard). Empty (lo > hi) when none can.
-void rowSpan(const double* sx, const double* sy, int m, double orient, double py, double& lo, double& hi) {
+[[gnu::always_inline]] inline void rowSpan(const double* sx, const double* sy, int m, double orient, double py, double& lo, double& hi) {
     for (int i = 0; i < m; ++i) {
         const int j = (i + 1) % m;
         // orient * (a - b (px - sx[i])) >= 0 with a, b below.
@@ -50,6 +55,17 @@ void rowSpan(const double* sx, const double* sy, int m, double orient, double py
         if (b > 0) hi = std::min(hi, edge + 1.0);
         else lo = std::max(lo, edge - 1.0);
     }
+}
+
+/// Row bands of the image drawn in parallel by CameraRasterizer::add(): eight per thread, so
+/// that the cores stay busy where the triangles crowd into part of the image, and one on one
+/// thread (each band boundary a triangle crosses costs a second visit). Any count gives the
+/// same pixels: each band tests its triangles in chunk order.
+int rowBands() {
+    // --threads limits TBB through a global_control, which the arena's concurrency does not show.
+    const int threads = std::min<int>(tbb::this_task_arena::max_concurrency(),
+                                      int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
+    return threads <= 1 ? 1 : std::min(64, 8 * threads);
 }
 
 }  // namespace
@@ -119,92 +135,156 @@ bool CameraRasterizer::opaqueAlong(const Triangle& tri, const glm::dvec3& d) con
     return alpha_->lookupAlong(id, tri.v[0], tri.v[1], tri.v[2], camera_.eye, d).opaque;
 }
 
-void CameraRasterizer::add(std::span<const Triangle> chunk) {
+/// One triangle of a chunk, set up for drawing: its near-clipped polygon on the image (m
+/// vertices), its plane, and the pixel box it can cover (y0 > y1: none).
+struct CameraRasterizer::Projected {
+    double sx[4], sy[4];
+    glm::dvec3 n;
+    double planeD = 0, orient = 1;
+    int m = 0, x0 = 0, x1 = -1, y0 = 0, y1 = -1;
+    bool spans = false;
+};
+
+struct CameraRasterizer::Scratch {
+    std::vector<Projected> projected;
+    std::vector<uint32_t> first, members, fill;
+};
+
+void CameraRasterizer::ScratchDeleter::operator()(Scratch* s) const { delete s; }
+
+[[gnu::always_inline]] inline void CameraRasterizer::project(const Triangle& tri, Projected& q) const {
     const int W = camera_.width, H = camera_.height;
     const double nearZ = 1e-6;
-    for (size_t index = 0; index < chunk.size(); ++index) {
-        const Triangle& tri = chunk[index];
-        glm::dvec3 v[3] = {glm::dvec3(tri.v[0]), glm::dvec3(tri.v[1]), glm::dvec3(tri.v[2])};
-        glm::dvec3 n = glm::cross(v[1] - v[0], v[2] - v[0]);
-        if (!(glm::length(n) > 0.0) || !std::isfinite(glm::length(n))) continue;
-        // Camera space, then clip against the near plane (at most 4 vertices remain).
-        glm::dvec3 c[3];
-        for (int i = 0; i < 3; ++i) {
-            glm::dvec3 q = v[i] - camera_.eye;
-            c[i] = {glm::dot(q, right_), glm::dot(q, up_), glm::dot(q, forward_)};
+    q.y0 = 0, q.y1 = -1;
+    glm::dvec3 v[3] = {glm::dvec3(tri.v[0]), glm::dvec3(tri.v[1]), glm::dvec3(tri.v[2])};
+    q.n = glm::cross(v[1] - v[0], v[2] - v[0]);
+    if (!(glm::length(q.n) > 0.0) || !std::isfinite(glm::length(q.n))) return;
+    // Camera space, then clip against the near plane (at most 4 vertices remain).
+    glm::dvec3 c[3];
+    for (int i = 0; i < 3; ++i) {
+        glm::dvec3 d = v[i] - camera_.eye;
+        c[i] = {glm::dot(d, right_), glm::dot(d, up_), glm::dot(d, forward_)};
+    }
+    glm::dvec3 poly[4];
+    int m = 0;
+    for (int i = 0; i < 3; ++i) {
+        const glm::dvec3 &p = c[i], &r = c[(i + 1) % 3];
+        if (p.z >= nearZ) poly[m++] = p;
+        if ((p.z >= nearZ) != (r.z >= nearZ)) poly[m++] = p + (r - p) * ((nearZ - p.z) / (r.z - p.z));
+    }
+    if (m < 3) return;
+    double xLo = INFINITY, xHi = -INFINITY, yLo = INFINITY, yHi = -INFINITY;
+    for (int i = 0; i < m; ++i) {
+        q.sx[i] = (poly[i].x / poly[i].z / (tanHalf_ * aspect_) + 1.0) * 0.5 * W;
+        q.sy[i] = (1.0 - poly[i].y / poly[i].z / tanHalf_) * 0.5 * H;
+        xLo = std::min(xLo, q.sx[i]), xHi = std::max(xHi, q.sx[i]);
+        yLo = std::min(yLo, q.sy[i]), yHi = std::max(yHi, q.sy[i]);
+    }
+    q.m = m;
+    q.x0 = std::max(0, int(std::ceil(xLo - 0.5))), q.x1 = std::min(W - 1, int(std::floor(xHi - 0.5)));
+    const int y0 = std::max(0, int(std::ceil(yLo - 0.5))), y1 = std::min(H - 1, int(std::floor(yHi - 0.5)));
+    if (q.x0 > q.x1 || y0 > y1) return;
+    double area = 0;
+    for (int i = 0; i < m; ++i) area += q.sx[i] * q.sy[(i + 1) % m] - q.sx[(i + 1) % m] * q.sy[i];
+    if (area == 0) return;
+    q.orient = area > 0 ? 1.0 : -1.0;
+    q.planeD = glm::dot(q.n, v[0] - camera_.eye);
+    q.spans = std::max({std::abs(xLo), std::abs(xHi), std::abs(yLo), std::abs(yHi)}) < 1e9;
+    q.y0 = y0, q.y1 = y1;
+}
+
+[[gnu::always_inline]] inline void CameraRasterizer::drawRows(const Triangle& tri, const Projected& setup, size_t index, int yLo, int yHi) {
+    // A local copy: the stores to the pixels below (class_ is bytes, which may alias anything)
+    // would otherwise make the compiler reload the setup for every pixel.
+    const Projected q = setup;
+    const double *sx = q.sx, *sy = q.sy;
+    const int m = q.m;
+    for (int y = std::max(yLo, q.y0); y <= std::min(yHi, q.y1); ++y) {
+        double py = y + 0.5;
+        int xa = q.x0, xb = q.x1;
+        if (q.spans) {  // only the pixels near the polygon's row span get the exact test
+            double lo = -INFINITY, hi = INFINITY;
+            rowSpan(sx, sy, m, q.orient, py, lo, hi);
+            if (!(lo <= hi)) continue;
+            xa = std::max(q.x0, clampedTexel(std::ceil(lo - 0.5), q.x0, q.x1 + 1));
+            xb = std::min(q.x1, clampedTexel(std::floor(hi - 0.5), q.x0 - 1, q.x1));
         }
-        glm::dvec3 poly[4];
-        int m = 0;
-        for (int i = 0; i < 3; ++i) {
-            const glm::dvec3 &p = c[i], &q = c[(i + 1) % 3];
-            if (p.z >= nearZ) poly[m++] = p;
-            if ((p.z >= nearZ) != (q.z >= nearZ)) poly[m++] = p + (q - p) * ((nearZ - p.z) / (q.z - p.z));
-        }
-        if (m < 3) continue;
-        double sx[4], sy[4];
-        double xLo = INFINITY, xHi = -INFINITY, yLo = INFINITY, yHi = -INFINITY;
-        for (int i = 0; i < m; ++i) {
-            sx[i] = (poly[i].x / poly[i].z / (tanHalf_ * aspect_) + 1.0) * 0.5 * W;
-            sy[i] = (1.0 - poly[i].y / poly[i].z / tanHalf_) * 0.5 * H;
-            xLo = std::min(xLo, sx[i]), xHi = std::max(xHi, sx[i]);
-            yLo = std::min(yLo, sy[i]), yHi = std::max(yHi, sy[i]);
-        }
-        int x0 = std::max(0, int(std::ceil(xLo - 0.5))), x1 = std::min(W - 1, int(std::floor(xHi - 0.5)));
-        int y0 = std::max(0, int(std::ceil(yLo - 0.5))), y1 = std::min(H - 1, int(std::floor(yHi - 0.5)));
-        if (x0 > x1 || y0 > y1) continue;
-        double area = 0;
-        for (int i = 0; i < m; ++i) area += sx[i] * sy[(i + 1) % m] - sx[(i + 1) % m] * sy[i];
-        if (area == 0) continue;
-        double orient = area > 0 ? 1.0 : -1.0;
-        double planeD = glm::dot(n, v[0] - camera_.eye);
-        const bool spans = std::max({std::abs(xLo), std::abs(xHi), std::abs(yLo), std::abs(yHi)}) < 1e9;
-        for (int y = y0; y <= y1; ++y) {
-            double py = y + 0.5;
-            int xa = x0, xb = x1;
-            if (spans) {  // only the pixels near the polygon's row span get the exact test
-                double lo = -INFINITY, hi = INFINITY;
-                rowSpan(sx, sy, m, orient, py, lo, hi);
-                if (!(lo <= hi)) continue;
-                xa = std::max(x0, clampedTexel(std::ceil(lo - 0.5), x0, x1 + 1));
-                xb = std::min(x1, clampedTexel(std::floor(hi - 0.5), x0 - 1, x1));
+        for (int x = xa; x <= xb; ++x) {
+            const size_t base = slotOf(x, y);
+            if (base == SIZE_MAX) continue;
+            double px = x + 0.5;
+            bool inside = true;
+            for (int i = 0; i < m && inside; ++i) {
+                int j = (i + 1) % m;
+                inside = q.orient * ((sx[j] - sx[i]) * (py - sy[i]) - (sy[j] - sy[i]) * (px - sx[i])) >= 0;
             }
-            for (int x = xa; x <= xb; ++x) {
-                const size_t base = slotOf(x, y);
-                if (base == SIZE_MAX) continue;
-                double px = x + 0.5;
-                bool inside = true;
-                for (int i = 0; i < m && inside; ++i) {
-                    int j = (i + 1) % m;
-                    inside = orient * ((sx[j] - sx[i]) * (py - sy[i]) - (sy[j] - sy[i]) * (px - sx[i])) >= 0;
-                }
-                if (!inside) continue;
-                glm::dvec3 d = direction(x, y);
-                double denom = glm::dot(n, d);
-                if (denom == 0.0) continue;
-                double t = planeD / denom;
-                if (!(t > 0.0)) continue;
-                // Slots of a pixel hold its nearest distinct depths, ascending; a depth equal to
-                // one already kept is the same surface again, and the earlier triangle keeps it.
-                const size_t L = size_t(camera_.layers);
-                const float ft = float(t);
-                size_t k = 0;
-                while (k < L && !(ft < depth_[base + k])) ++k;
-                if (k == L || (k > 0 && depth_[base + k - 1] == ft)) continue;
-                if (!opaqueAlong(tri, d)) continue;  // a clear texel: the camera sees what is behind
-                for (size_t j = L - 1; j > k; --j) {
-                    depth_[base + j] = depth_[base + j - 1], normal_[base + j] = normal_[base + j - 1];
-                    if (!triangle_.empty()) triangle_[base + j] = triangle_[base + j - 1];
-                    if (!triangleId_.empty()) triangleId_[base + j] = triangleId_[base + j - 1];
-                    if (!class_.empty()) class_[base + j] = class_[base + j - 1];
-                }
-                depth_[base + k] = ft;
-                normal_[base + k] = glm::vec3(glm::normalize(denom > 0 ? -n : n));
-                if (!triangle_.empty()) triangle_[base + k] = {tri.v[0], tri.v[1], tri.v[2]};
-                if (!triangleId_.empty()) triangleId_[base + k] = (seen_ + index) | (denom > 0 ? kFlippedBit : 0);
-                if (!class_.empty()) class_[base + k] = uint8_t(receiverClassOf(tri.flags));
+            if (!inside) continue;
+            glm::dvec3 d = direction(x, y);
+            double denom = glm::dot(q.n, d);
+            if (denom == 0.0) continue;
+            double t = q.planeD / denom;
+            if (!(t > 0.0)) continue;
+            // Slots of a pixel hold its nearest distinct depths, ascending; a depth equal to
+            // one already kept is the same surface again, and the earlier triangle keeps it.
+            const size_t L = size_t(camera_.layers);
+            const float ft = float(t);
+            size_t k = 0;
+            while (k < L && !(ft < depth_[base + k])) ++k;
+            if (k == L || (k > 0 && depth_[base + k - 1] == ft)) continue;
+            if (!opaqueAlong(tri, d)) continue;  // a clear texel: the camera sees what is behind
+            for (size_t j = L - 1; j > k; --j) {
+                depth_[base + j] = depth_[base + j - 1], normal_[base + j] = normal_[base + j - 1];
+                if (!triangle_.empty()) triangle_[base + j] = triangle_[base + j - 1];
+                if (!triangleId_.empty()) triangleId_[base + j] = triangleId_[base + j - 1];
+                if (!class_.empty()) class_[base + j] = class_[base + j - 1];
             }
+            depth_[base + k] = ft;
+            normal_[base + k] = glm::vec3(glm::normalize(denom > 0 ? -q.n : q.n));
+            if (!triangle_.empty()) triangle_[base + k] = {tri.v[0], tri.v[1], tri.v[2]};
+            if (!triangleId_.empty()) triangleId_[base + k] = (seen_ + index) | (denom > 0 ? kFlippedBit : 0);
+            if (!class_.empty()) class_[base + k] = uint8_t(receiverClassOf(tri.flags));
         }
     }
+}
+
+void CameraRasterizer::add(std::span<const Triangle> chunk) {
+    const int H = camera_.height, rows = (H + rowBands() - 1) / rowBands(), bands = (H + rows - 1) / rows;
+    if (bands == 1) {  // one thread: draw each triangle as it is set up (the setups stay in cache)
+        Projected q;
+        for (size_t i = 0; i < chunk.size(); ++i) {
+            project(chunk[i], q);
+            if (q.y0 <= q.y1) drawRows(chunk[i], q, i, 0, H - 1);
+        }
+        seen_ += chunk.size();
+        return;
+    }
+    // Set up every triangle once, then let bands of rows draw the ones that reach them. A band
+    // owns its rows' pixels, and reads its triangles in chunk order (a counting sort by band),
+    // so each pixel's depth tests run in stream order, as on one thread.
+    // The buffers live as long as the rasterizer: a chunk's setups are half a megabyte, which
+    // malloc would map and unmap (and the kernel zero) for every chunk.
+    if (!scratch_) scratch_.reset(new Scratch);
+    std::vector<Projected>& projected = scratch_->projected;
+    projected.resize(chunk.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, chunk.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t i = range.begin(); i < range.end(); ++i) project(chunk[i], projected[i]);
+    });
+    std::vector<uint32_t>&first = scratch_->first, &members = scratch_->members, &fill = scratch_->fill;
+    first.assign(size_t(bands) + 1, 0);
+    for (const Projected& q : projected)
+        if (q.y0 <= q.y1)
+            for (int band = q.y0 / rows; band <= q.y1 / rows; ++band) ++first[size_t(band) + 1];
+    for (int band = 0; band < bands; ++band) first[size_t(band) + 1] += first[size_t(band)];
+    members.resize(first[size_t(bands)]);
+    fill.assign(first.begin(), first.end() - 1);
+    for (size_t i = 0; i < projected.size(); ++i)
+        if (projected[i].y0 <= projected[i].y1)
+            for (int band = projected[i].y0 / rows; band <= projected[i].y1 / rows; ++band) members[fill[size_t(band)]++] = uint32_t(i);
+    tbb::parallel_for(0, bands, [&](int band) {
+        const int yLo = band * rows, yHi = std::min(H, yLo + rows) - 1;
+        for (uint32_t k = first[size_t(band)]; k < first[size_t(band) + 1]; ++k)
+            drawRows(chunk[members[k]], projected[members[k]], members[k], yLo, yHi);
+    });
     seen_ += chunk.size();
 }
 

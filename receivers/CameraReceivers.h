@@ -55,7 +55,9 @@ public:
     /// Refinement mode: @p pixels (ascending, layer-0 pixel indices y * width + x) get n x n
     /// sub-pixel slots each, n = @p subdivision. Holds 16 bytes per sub-pixel and 4 per pixel.
     CameraRasterizer(const CameraDesc& camera, int subdivision, std::span<const uint32_t> pixels);
-    /// Rasterizes the chunk; triangles are depth-tested in the order given.
+    /// Rasterizes the chunk; triangles are depth-tested in the order given. Bands of rows run in
+    /// parallel, each visiting the chunk's triangles in order, so every pixel sees the same
+    /// sequence of tests and the result does not depend on the thread count.
     void add(std::span<const Triangle> chunk);
     /// The camera sees through cut-outs: a fragment of a triangle with an alpha id is kept only
     /// where @p table's test (AlphaTable::lookup()) at the pixel ray's hit is opaque, exactly as
@@ -88,6 +90,16 @@ public:
     static constexpr uint64_t kBytesPerPixel = 16;
 
 private:
+    struct Projected;
+    struct Scratch;
+    /// Frees the per-chunk buffers of add() (defined where Scratch is complete).
+    struct ScratchDeleter {
+        void operator()(Scratch* s) const;
+    };
+    /// Camera space, near-plane clip and image projection of @p tri (thread-safe: reads only).
+    void project(const Triangle& tri, Projected& out) const;
+    /// Depth-tests @p tri's pixels on rows [@p yLo, @p yHi]; @p index is its place in the chunk.
+    void drawRows(const Triangle& tri, const Projected& q, size_t index, int yLo, int yHi);
     glm::dvec3 direction(int x, int y) const;
     /// Fills columnRay_ and rowOffset_ from the basis and the (fine) image size.
     void tabulateRays();
@@ -111,6 +123,7 @@ private:
     std::vector<glm::vec3> normal_;
     std::vector<std::array<glm::vec3, 3>> triangle_, winners_;
     std::shared_ptr<const AlphaTable> alpha_;  ///< seeThroughCutOuts(); null: alpha is ignored
+    std::unique_ptr<Scratch, ScratchDeleter> scratch_;  ///< add()'s buffers, kept between chunks
 };
 
 /// @brief Rasterizes every triangle of @p source (one pass, streamed) and returns one receiver per

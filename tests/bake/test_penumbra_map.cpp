@@ -17,6 +17,7 @@
 #include "bake/peers/ReferenceCaster.h"
 
 #include "bake/methods/Backprojection.h"
+#include "bake/methods/LightView.h"
 #include "bake/methods/PenumbraMap.h"
 #include "bake/shading/ReceiverShading.h"
 
@@ -24,6 +25,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 
 using namespace penumbra;
 using namespace penumbra::test;
@@ -318,5 +320,47 @@ TEST_CASE("penumbra map: a refinement pass reads the kept light's maps when they
         const std::vector<float> farCached = cast(far, &cache, beyond), farAlone = cast(far, nullptr, farFresh);
         CHECK(beyond.mapsReused == 0);
         CHECK(farCached == farAlone);
+    }
+}
+
+TEST_CASE("penumbra map: the light's view draws every texel whose centre lies inside a triangle, slivers and far vertices included",
+          "[penumbra-map]") {
+    LightView view;  // orthographic, looking down -y onto [-1, 1]^2 at 64 x 64
+    view.ortho = true, view.axis = {0, -1, 0}, view.e1 = {1, 0, 0}, view.e2 = {0, 0, 1};
+    view.origin = {0, 5, 0}, view.halfExtent = 1, view.zNear = -INFINITY, view.res = 64;
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> coord(-1.3f, 1.3f), height(-1.0f, 1.0f), sliver(-0.004f, 0.004f);
+    for (int trial = 0; trial < 200; ++trial) {
+        glm::vec3 a(coord(rng), height(rng), coord(rng)), b(coord(rng), height(rng), coord(rng)), c(coord(rng), height(rng), coord(rng));
+        if (trial % 4 == 1) c = a + (b - a) * 0.43f + glm::vec3(sliver(rng), 0.0f, sliver(rng));  // a sliver across the box
+        if (trial % 4 == 2) a *= 3000.0f;  // one vertex far outside the view
+        const Triangle t{{a, b, c}, 0};
+        DepthMap map;
+        map.reset(view.res, 1);
+        rasterizeDepth(view, std::span<const Triangle>(&t, 1), map);
+        ViewPoint p[3];
+        REQUIRE(projectTriangle(view, t, p));
+        const double area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
+        int inside = 0, drawn = 0;
+        for (int y = 0; y < view.res; ++y)
+            for (int x = 0; x < view.res; ++x) {
+                // Barycentrics of the texel centre in long double, against a margin.
+                const long double cx = x + 0.5L, cy = y + 0.5L;
+                long double w[3];
+                for (int i = 0; i < 3; ++i) {
+                    const ViewPoint &u = p[(i + 1) % 3], &v = p[(i + 2) % 3];
+                    w[i] = ((u.x - cx) * (v.y - cy) - (v.x - cx) * (u.y - cy)) / (long double)area;
+                }
+                const long double margin = 1e-9L;
+                const bool in = w[0] > margin && w[1] > margin && w[2] > margin, out = w[0] < -margin || w[1] < -margin || w[2] < -margin;
+                const bool got = map.at(x, y) < INFINITY;
+                drawn += got;
+                if (in) {
+                    ++inside;
+                    CHECK(got);
+                }
+                if (out) CHECK_FALSE(got);
+            }
+        CHECK(drawn >= inside);
     }
 }

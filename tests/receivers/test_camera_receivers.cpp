@@ -7,6 +7,7 @@
 
 #include <catch2/catch.hpp>
 #include <glm/geometric.hpp>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <random>
@@ -127,4 +128,65 @@ TEST_CASE("each triangle covers exactly the pixels whose rays hit it", "[receive
             }
         CHECK(int(std::count(covered.begin(), covered.end(), 1)) >= inside);
     }
+}
+
+namespace {
+
+/// Everything a rasterizer hands on, from @p chunks of random triangles, with TBB limited to
+/// @p threads (one thread draws each triangle whole; more draw bands of rows in parallel).
+struct RasterResult {
+    ReceiverSet set;
+    std::vector<uint64_t> ids;
+    std::vector<uint8_t> classes;
+};
+RasterResult rasterizeWithThreads(const std::vector<std::vector<Triangle>>& chunks, const CameraDesc& cam, int threads,
+                                  std::span<const uint32_t> refine = {}) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    CameraRasterizer raster = refine.empty() ? CameraRasterizer(cam) : CameraRasterizer(cam, 3, refine);
+    raster.recordTriangleIds();
+    raster.recordClasses();
+    for (const std::vector<Triangle>& chunk : chunks) raster.add(chunk);
+    RasterResult r{raster.finish(), {}, {}};
+    r.ids = raster.takeTriangleIds(), r.classes = raster.takeClasses();
+    return r;
+}
+
+void requireSameRaster(const RasterResult& a, const RasterResult& b) {
+    REQUIRE(a.set.size() == b.set.size());
+    CHECK(a.set.pixel == b.set.pixel);
+    CHECK(a.set.depth == b.set.depth);
+    CHECK(a.set.position == b.set.position);
+    CHECK(a.set.normal == b.set.normal);
+    CHECK(a.ids == b.ids);
+    CHECK(a.classes == b.classes);
+}
+
+}  // namespace
+
+TEST_CASE("the z-buffer is the same for any thread count, layers and refinement included", "[receivers][camera]") {
+    // Overlapping triangles of every size across the row bands, some through the near plane, and
+    // pairs at exactly the same depth (the earlier one keeps the pixel, on any thread count).
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> coord(-5.0f, 5.0f), depth(-3.0f, 4.9f), size(0.01f, 3.0f);
+    std::vector<std::vector<Triangle>> chunks(3);
+    for (int i = 0; i < 900; ++i) {
+        const glm::vec3 a(coord(rng), coord(rng), depth(rng));
+        const float s = i % 10 == 0 ? 8.0f : size(rng);
+        Triangle t{{a, a + glm::vec3(s, 0.3f * s, 0.2f), a + glm::vec3(0.1f * s, s, -0.3f)}, uint32_t(i % 3) << kTriangleClassShift};
+        chunks[size_t(i) % 3].push_back(t);
+        if (i % 3 == 0) chunks[size_t(i) % 3].push_back(Triangle{{t.v[0], t.v[2], t.v[1]}, 0});  // the same plane, flipped
+    }
+    CameraDesc cam = frontCamera(200, 150);
+    cam.layers = 3;
+    const RasterResult one = rasterizeWithThreads(chunks, cam, 1);
+    REQUIRE(one.set.size() > 200 * 150);
+    requireSameRaster(rasterizeWithThreads(chunks, cam, 2), one);
+    requireSameRaster(rasterizeWithThreads(chunks, cam, 2), one);
+
+    cam.layers = 1;
+    std::vector<uint32_t> refine;
+    for (uint32_t p = 5; p < 200 * 150; p += 13) refine.push_back(p);
+    const RasterResult fine = rasterizeWithThreads(chunks, cam, 1, refine);
+    REQUIRE(fine.set.size() > refine.size());
+    requireSameRaster(rasterizeWithThreads(chunks, cam, 2, refine), fine);
 }
