@@ -9,6 +9,7 @@
 
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <cmath>
@@ -219,16 +220,24 @@ void drawRun(ViewMaps& v, const Run& run, double bias, int y0, int y1) {
     }
 }
 
-/// Reads every chunk of @p blockers from the start, calling @p f with each (and @p observe, if
-/// set, with each as read).
+/// Reads every chunk of @p blockers from the start, calling @p f with each chunk's casting
+/// triangles (and @p observe, if set, with each chunk as read). The two run side by side: both
+/// only read the chunk, and @p observe (the receiver kind's pass, smooth shading's vertex table
+/// on FLOWERS: 0.12 s of one thread) still sees the chunks one after another, in order.
 template <class F>
 void forEachChunk(TriangleSource& blockers, PenumbraMapStats& stats, const std::function<void(uint64_t)>& progress, F&& f,
                   const std::function<void(std::span<const Triangle>)>& observe = {}) {
     blockers.rewind();
-    std::vector<Triangle> chunk(kTriangleChunk);
+    std::vector<Triangle> chunk(kTriangleChunk), casting;
     while (size_t n = blockers.read(chunk)) {
-        if (observe) observe(std::span<const Triangle>(chunk.data(), n));
-        f(std::span<const Triangle>(chunk.data(), dropNonCasting(std::span<Triangle>(chunk.data(), n))));
+        const std::span<const Triangle> read(chunk.data(), n);
+        std::span<const Triangle> cast = read;
+        if (std::any_of(read.begin(), read.end(), [](const Triangle& t) { return (t.flags & kTriangleNoCast) != 0; })) {
+            casting.assign(read.begin(), read.end());
+            cast = std::span<const Triangle>(casting.data(), dropNonCasting(casting));
+        }
+        if (observe) tbb::parallel_invoke([&] { observe(read); }, [&] { f(cast); });
+        else f(cast);
         stats.trianglesRead += n;
         if (progress) progress(n);
     }

@@ -309,6 +309,24 @@ TEST_CASE("object controls: methods without the distance test refuse max_distanc
     for (const char* method : {"hpc", "reference", "ssv", "penumbra-map"}) CHECK(shadowed(bake(hidden, method)) == 0);
 }
 
+TEST_CASE("object controls: penumbra-map under a camera sees cast_shadows false while smooth shading reads every face",
+          "[objects][penumbra-map]") {
+    // The camera's smooth shading reads the faces in the same pass as the light's view is drawn
+    // (side by side), so the no-cast box's faces reach the one and not the other.
+    ScratchDir dir("objects");
+    auto floorShadowed = [&](bool casts) {
+        const SceneDesc scene = sceneOf(dir, {floorEntry(), boxes({box({-1, 1, -1}, {1, 1.2f, 1})}, {{"cast_shadows", casts}})}, kCamera);
+        const BakeCapture c = bake(scene, "penumbra-map");
+        size_t floor = 0, shadowed = 0;
+        for (size_t r = 0; r < c.receivers.size(); ++r)
+            if (std::abs(c.receivers.position[r].y) < 1e-3f) ++floor, shadowed += c.results.visibility[r] < 1.0f;
+        REQUIRE(floor > 100);
+        return shadowed;
+    };
+    CHECK(floorShadowed(false) == 0);
+    CHECK(floorShadowed(true) > 50);
+}
+
 TEST_CASE("object controls: vertex and lightmap receivers take their entry's receive_shadows and receiver_offset",
           "[objects][vertices][lightmap]") {
     ScratchDir dir("objects");
