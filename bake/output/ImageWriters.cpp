@@ -5,6 +5,7 @@
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfCompression.h>
+#include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
@@ -179,8 +180,14 @@ ExrStripWriter::ExrStripWriter(const std::string& path, int width, int height, s
 
 ExrStripWriter::~ExrStripWriter() = default;
 
+void setExrCompressionThreads(int threads) {
+    if (Imf::globalThreadCount() != std::max(threads, 0)) Imf::setGlobalThreadCount(std::max(threads, 0));
+}
+
 uint64_t ExrStripWriter::bytes(int width, size_t channels, const ExrFormat& format) {
     // OpenEXR keeps a block (16 lines for ZIP, or one row of tiles) uncompressed and compressed.
+    // Its thread pool keeps two per thread, but bakes that plan their memory compress without it
+    // (runBake()), and this is what they plan.
     const uint64_t rows = format.tileSize > 0 ? uint64_t(format.tileSize) : 16;
     const uint64_t block = 2 * rows * channels * uint64_t(width) * 4;
     // HALF channels: the strip's rounded copy (at most 64 rows or one row of tiles, 2 bytes each).

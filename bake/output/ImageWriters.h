@@ -91,13 +91,19 @@ public:
     /// @brief Finishes the file and renames it into place; every row must have been written.
     void commit();
     /// @brief Heap bytes a writer of @p channels channels holds for a @p width wide image: OpenEXR's
-    /// line or tile buffers and, when tiled, the row of tiles being gathered.
+    /// line or tile buffers (without setExrCompressionThreads(), which adds two per thread) and,
+    /// when tiled, the row of tiles being gathered.
     static uint64_t bytes(int width, size_t channels, const ExrFormat& format);
 
 private:
     struct State;
     std::unique_ptr<State> state_;
 };
+
+/// @brief Compresses the blocks of every EXR written from now on with @p threads threads of
+/// OpenEXR's own pool (0: in the writing thread). The file's bytes do not change: each block is
+/// compressed on its own and the blocks are written in order. Process-wide, as OpenEXR's pool is.
+void setExrCompressionThreads(int threads);
 
 /// @brief Writes an 8-bit PNG strip by strip (zlib deflate as rows arrive, one IDAT chunk per
 /// 64 KiB of compressed data), so that no full-frame buffer is needed. Goes through AtomicFile.

@@ -79,6 +79,27 @@ TEST_CASE("writeExr round-trips channels bit-exactly with ZIP compression and at
         CHECK(it.channel().type == Imf::FLOAT);
 }
 
+TEST_CASE("EXR files are the same bytes whether their blocks are compressed on OpenEXR's threads or not", "[io]") {
+    ScratchDir dir;
+    const int w = 301, h = 203;  // many 16-line blocks and rows of tiles, odd sizes
+    std::vector<float> v(size_t(w) * h), z(v.size());
+    for (size_t i = 0; i < v.size(); ++i) v[i] = std::sin(0.001f * float(i)), z[i] = float(i % 977) * 0.25f;
+    const ExrChannel channels[] = {{"V", v.data()}, {"Z", z.data(), true}};
+    for (const penumbra::ExrFormat format : {penumbra::ExrFormat{}, penumbra::ExrFormat{true, 0}, penumbra::ExrFormat{false, 64}}) {
+        std::vector<std::string> bytes;
+        for (int threads : {0, 2, 3, 0}) {
+            penumbra::setExrCompressionThreads(threads);
+            const std::string path = dir.file("t" + std::to_string(bytes.size()) + ".exr");
+            penumbra::writeExr(path, w, h, channels, {}, format);
+            bytes.push_back(slurp(path));
+        }
+        penumbra::setExrCompressionThreads(0);
+        INFO("half " << format.half << ", tiles " << format.tileSize);
+        for (const std::string& b : bytes) CHECK(b == bytes[0]);
+        CHECK(sameBits(penumbra::readExr(dir.file("t1.exr")).channels["V"], penumbra::readExr(dir.file("t0.exr")).channels["V"]));
+    }
+}
+
 TEST_CASE("writeExr rejects bad arguments and leaves no file", "[io]") {
     ScratchDir dir;
     std::vector<float> px(4, 1.0f);
