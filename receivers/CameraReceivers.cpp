@@ -1,6 +1,7 @@
 #include "receivers/CameraReceivers.h"
 
 #include "stream/util/Error.h"
+#include "stream/util/BandLists.h"
 #include "stream/util/TexelIndex.h"
 
 #include <glm/geometric.hpp>
@@ -147,7 +148,7 @@ struct CameraRasterizer::Projected {
 
 struct CameraRasterizer::Scratch {
     std::vector<Projected> projected;
-    std::vector<uint32_t> first, members, fill;
+    BandLists bands;
 };
 
 void CameraRasterizer::ScratchDeleter::operator()(Scratch* s) const { delete s; }
@@ -269,17 +270,12 @@ void CameraRasterizer::add(std::span<const Triangle> chunk) {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, chunk.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
         for (size_t i = range.begin(); i < range.end(); ++i) project(chunk[i], projected[i]);
     });
-    std::vector<uint32_t>&first = scratch_->first, &members = scratch_->members, &fill = scratch_->fill;
-    first.assign(size_t(bands) + 1, 0);
-    for (const Projected& q : projected)
-        if (q.y0 <= q.y1)
-            for (int band = q.y0 / rows; band <= q.y1 / rows; ++band) ++first[size_t(band) + 1];
-    for (int band = 0; band < bands; ++band) first[size_t(band) + 1] += first[size_t(band)];
-    members.resize(first[size_t(bands)]);
-    fill.assign(first.begin(), first.end() - 1);
-    for (size_t i = 0; i < projected.size(); ++i)
-        if (projected[i].y0 <= projected[i].y1)
-            for (int band = projected[i].y0 / rows; band <= projected[i].y1 / rows; ++band) members[fill[size_t(band)]++] = uint32_t(i);
+    BandLists& lists = scratch_->bands;
+    lists.build(bands, projected.size(), [&](size_t i, int& lo, int& hi) {
+        const Projected& q = projected[i];
+        lo = q.y0 <= q.y1 ? q.y0 / rows : 0, hi = q.y0 <= q.y1 ? q.y1 / rows : -1;
+    });
+    const std::vector<uint32_t>&first = lists.first, &members = lists.members;
     tbb::parallel_for(0, bands, [&](int band) {
         const int yLo = band * rows, yHi = std::min(H, yLo + rows) - 1;
         for (uint32_t k = first[size_t(band)]; k < first[size_t(band) + 1]; ++k)

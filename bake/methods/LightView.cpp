@@ -1,5 +1,6 @@
 #include "bake/methods/LightView.h"
 
+#include "stream/util/BandLists.h"
 #include "stream/util/TexelIndex.h"
 
 #include <glm/geometric.hpp>
@@ -92,10 +93,16 @@ void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1
     // err_i = 8u (|ea_i| + |ey_i| |cy| + |ex_i| |cx|), so the span is widened by err_i / |ex_i|,
     // its own rounding and a texel. The texel test below still decides; the span only skips
     // texels that it would reject.
+    // Per edge, once per triangle: 1/ex_i, and err_i / |ex_i| (with the division's rounding) as
+    // errBase_i + errPerRow_i |cy|.
     constexpr double u = 0x1p-53;
-    double inverseEx[3];
-    for (int i = 0; i < 3; ++i) inverseEx[i] = ex[i] != 0 ? 1.0 / ex[i] : 0.0;
     const double cxMax = std::max(std::abs(xa + 0.5), std::abs(xb + 0.5));
+    double inverseEx[3], errBase[3], errPerRow[3];
+    for (int i = 0; i < 3; ++i) {
+        inverseEx[i] = ex[i] != 0 ? 1.0 / ex[i] : 0.0;
+        const double scale = 8 * u * std::abs(inverseEx[i]) * (1 + 8 * u);
+        errBase[i] = scale * (std::abs(ea[i]) + std::abs(ex[i]) * cxMax), errPerRow[i] = scale * std::abs(ey[i]);
+    }
     for (int y = ya; y <= yb; ++y) {
         const double cy = y + 0.5;
         const double row[3] = {ea[0] + ey[0] * cy, ea[1] + ey[1] * cy, ea[2] + ey[2] * cy};
@@ -106,8 +113,7 @@ void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1
                 continue;
             }
             const double cross = -row[i] * inverseEx[i];
-            const double err = 8 * u * (std::abs(ea[i]) + std::abs(ey[i] * cy) + std::abs(ex[i]) * cxMax);
-            const double widen = err * std::abs(inverseEx[i]) * (1 + 8 * u) + 8 * u * std::abs(cross) + 1.0;
+            const double widen = errBase[i] + errPerRow[i] * cy + 8 * u * std::abs(cross) + 1.0;
             if (ex[i] > 0) lo = std::max(lo, cross - widen);
             else hi = std::min(hi, cross + widen);
         }
@@ -303,17 +309,11 @@ void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, Dept
         q.bandLo = clampedTexel(std::floor((q.ymin - 0.5) / rows) - 1, 0, kBands - 1);
         q.bandHi = clampedTexel(std::floor((q.ymax + 0.5) / rows) + 1, 0, kBands - 1);
     });
-    // Each band's triangles in stream order (a counting sort by band), so a band reads its own
-    // list, not the whole chunk: with 64 bands the scan of every triangle per band cost more than
-    // drawing the small ones.
-    std::vector<uint32_t> first(kBands + 1, 0), members;
-    for (const Projected& q : projected)
-        for (int band = q.bandLo; band <= q.bandHi; ++band) ++first[size_t(band) + 1];
-    for (int band = 0; band < kBands; ++band) first[size_t(band) + 1] += first[size_t(band)];
-    members.resize(first[kBands]);
-    std::vector<uint32_t> fill(first.begin(), first.end() - 1);
-    for (size_t i = 0; i < projected.size(); ++i)
-        for (int band = projected[i].bandLo; band <= projected[i].bandHi; ++band) members[fill[size_t(band)]++] = uint32_t(i);
+    // Each band's triangles in stream order, so a band reads its own list, not the whole chunk:
+    // with 64 bands the scan of every triangle per band cost more than drawing the small ones.
+    BandLists lists;
+    lists.build(kBands, projected.size(), [&](size_t i, int& lo, int& hi) { lo = projected[i].bandLo, hi = projected[i].bandHi; });
+    const std::vector<uint32_t>&first = lists.first, &members = lists.members;
     tbb::parallel_for(0, kBands, [&](int band) {
         const int y0 = band * rows, y1 = std::min(map.res, y0 + rows);
         for (uint32_t m = first[size_t(band)]; m < first[size_t(band) + 1] && y0 < y1; ++m) {
