@@ -39,13 +39,7 @@ double smoothShadingFactor(double lf, double lbend) {
     return std::clamp(s / lf, 0.0, 1.0);
 }
 
-size_t VertexBend::KeyHash::operator()(const Key& k) const {
-    uint64_t h = (uint64_t(k.x) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(k.y) * 0xC2B2AE3D27D4EB4Full) ^
-                 (uint64_t(k.z) * 0x165667B19E3779F9ull);
-    return size_t(h ^ (h >> 29));
-}
-
-VertexBend::Key VertexBend::keyOf(const glm::vec3& p) {
+PositionKey VertexBend::keyOf(const glm::vec3& p) {
     // +0 and -0 are the same vertex.
     auto bits = [](float f) { return std::bit_cast<uint32_t>(f == 0.f ? 0.f : f); };
     return {bits(p.x), bits(p.y), bits(p.z)};
@@ -58,15 +52,16 @@ VertexBend::VertexBend(std::span<const std::array<glm::vec3, 3>> triangles, std:
 }
 
 uint32_t VertexBend::slotOf(const glm::vec3& v, float sign, const glm::vec3& owner) {
-    auto [it, inserted] = index_.try_emplace(keyOf(v), kNone);
-    for (uint32_t s = it->second; s != kNone; s = next_[s])
+    static_assert(kNone == PositionIndex::kEmpty, "a new position's slot list starts empty");
+    uint32_t& latest = index_.findOrInsert(keyOf(v));
+    for (uint32_t s = latest; s != kNone; s = next_[s])
         if (owner_[s] == owner) return s;  // the same face (or an exactly parallel one) owns it already
     const uint32_t slot = uint32_t(sign_.size());
     vertex_.push_back(v);
     owner_.push_back(owner);
     sign_.push_back(sign);
-    next_.push_back(it->second);
-    it->second = slot;
+    next_.push_back(latest);
+    latest = slot;
     bend_.insert(bend_.end(), lights_.size(), 1.f);
     return slot;
 }
@@ -103,6 +98,13 @@ void VertexBend::recover(std::span<const Triangle> chunk) {
         const uint32_t r = order_[cursor_];
         const uint64_t id = ids_[r] & mask;
         if (id >= seen_ + chunk.size()) break;
+        // Receivers on one triangle are neighbours in the id order (six per visible triangle on
+        // SPONZA-LIKE), and cornersOf() would find the same three slots again, one hash probe
+        // each: reuse them (the flip bit is part of the comparison, as it is of the slots).
+        if (cursor_ > 0 && ids_[order_[cursor_ - 1]] == ids_[r]) {
+            corners_[firstWaiting_ + r] = corners_[firstWaiting_ + order_[cursor_ - 1]];
+            continue;
+        }
         const Triangle& t = chunk[id - seen_];
         const float sign = ids_[r] & CameraRasterizer::kFlippedBit ? -1.f : 1.f;
         corners_[firstWaiting_ + r] = cornersOf({t.v[0], t.v[1], t.v[2]}, sign);
@@ -122,8 +124,9 @@ void VertexBend::buildFilter() {
     while (bits < 16 * index_.size()) bits <<= 1;
     filter_.assign(bits / 64, 0);
     filterMask_ = bits - 1;
-    for (const auto& entry : index_) {
-        const uint64_t h = KeyHash{}(entry.first) & filterMask_;
+    for (const PositionIndex::Entry& entry : index_.entries()) {
+        if (entry.value == PositionIndex::kEmpty) continue;
+        const uint64_t h = entry.key.hash() & filterMask_;
         filter_[h >> 6] |= 1ull << (h & 63);
     }
     filterSize_ = index_.size();
@@ -137,13 +140,11 @@ void VertexBend::add(std::span<const Triangle> chunk) {
         bool any = false;
         for (int i = 0; i < 3; ++i) {
             first[i] = kNone;
-            const Key key = keyOf(tri.v[i]);
-            const uint64_t h = KeyHash{}(key) & filterMask_;
+            const PositionKey key = keyOf(tri.v[i]);
+            const uint64_t h = key.hash() & filterMask_;
             if (!(filter_[h >> 6] >> (h & 63) & 1)) continue;
-            auto it = index_.find(key);
-            if (it == index_.end()) continue;
-            first[i] = it->second;
-            any = true;
+            first[i] = index_.find(key);
+            any |= first[i] != kNone;
         }
         if (!any) continue;
         glm::dvec3 n = glm::cross(glm::dvec3(tri.v[1] - tri.v[0]), glm::dvec3(tri.v[2] - tri.v[0]));
@@ -184,11 +185,12 @@ double VertexBend::factor(size_t r, const glm::dvec3& position, const glm::dvec3
 
 uint64_t VertexBend::boundBytes(uint64_t receivers, uint64_t triangles, size_t lights) {
     // Per receiver: its corner slots (12), its triangle id and place in the id order while they
-    // are recovered (12). Per slot, at most three per distinct triangle: a hash-map node and its
-    // bucket (48), next/vertex/owner/sign/bend (32 + 4 per light, twice for vector growth) and
-    // 16 filter bits, with the filter's 8 KiB floor.
+    // are recovered (12). Per slot, at most three per distinct triangle: its position's entry in
+    // the index (at most one per slot, at its peak while the index grows), next/vertex/owner/
+    // sign/bend (32 + 4 per light, twice for vector growth) and 16 filter bits, with the
+    // filter's 8 KiB floor.
     const uint64_t slots = 3 * std::min(receivers, triangles);
-    return receivers * 24 + slots * (48 + 2 * (32 + 4 * uint64_t(lights)) + 2) + (8u << 10);
+    return receivers * 24 + slots * (PositionIndex::kPeakBytesPerKey + 2 * (32 + 4 * uint64_t(lights)) + 2) + (8u << 10);
 }
 
 uint64_t VertexBend::plannedBytes() const {
@@ -205,9 +207,7 @@ uint64_t VertexBend::plannedBytes(uint64_t receivers, uint64_t triangles) const 
 }
 
 uint64_t VertexBend::bytes() const {
-    // An unordered_map node is the key and value plus a next pointer and the cached hash, and
-    // each node has a bucket pointer.
-    return corners_.capacity() * sizeof(corners_[0]) + index_.size() * (sizeof(Key) + sizeof(uint32_t) + 16 + 8) +
+    return corners_.capacity() * sizeof(corners_[0]) + index_.bytes() +
            (vertex_.capacity() + owner_.capacity()) * sizeof(glm::vec3) + sign_.capacity() * sizeof(float) +
            next_.capacity() * sizeof(uint32_t) + bend_.capacity() * sizeof(float) +
            ids_.capacity() * sizeof(uint64_t) + order_.capacity() * sizeof(uint32_t) +

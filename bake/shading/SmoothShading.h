@@ -21,13 +21,13 @@
 /// camera-facing normal), so meshes must be consistently wound for exact results.
 
 #include "bake/light/Light.h"
+#include "bake/shading/PositionIndex.h"
 
 #include <glm/vec3.hpp>
 
 #include <array>
 #include <cstdint>
 #include <span>
-#include <unordered_map>
 #include <vector>
 
 namespace penumbra {
@@ -94,14 +94,7 @@ public:
     size_t vertices() const { return vertex_.size(); }
 
 private:
-    struct Key {
-        uint32_t x, y, z;
-        bool operator==(const Key&) const = default;
-    };
-    struct KeyHash {
-        size_t operator()(const Key& k) const;
-    };
-    static Key keyOf(const glm::vec3& p);
+    static PositionKey keyOf(const glm::vec3& p);
     static constexpr uint32_t kNone = ~0u;
     /// The slot of vertex @p v owned by a face with camera-facing unit normal @p owner (winding
     /// sign @p sign), made if new.
@@ -109,7 +102,7 @@ private:
     std::array<uint32_t, 3> cornersOf(const std::array<glm::vec3, 3>& triangle, float sign);
     std::vector<LightDirection> lights_;
     std::vector<std::array<uint32_t, 3>> corners_;     ///< per receiver: its triangle's vertex slots
-    std::unordered_map<Key, uint32_t, KeyHash> index_;  ///< vertex position -> its latest slot
+    PositionIndex index_;                               ///< vertex position -> its latest slot
     std::vector<uint32_t> next_;                        ///< per slot: the position's previous slot
     std::vector<glm::vec3> vertex_;                     ///< per slot: position
     std::vector<glm::vec3> owner_;                      ///< per slot: its face's camera-facing normal

@@ -183,3 +183,44 @@ TEST_CASE("a deep camera keeps the nearest distinct surfaces per pixel as extra 
     bad.layers = 17;
     CHECK_THROWS_WITH(validateCamera(bad), Catch::Contains("layers"));
 }
+
+TEST_CASE("smooth shading finds the same vertices from triangle ids as from the triangles", "[shading][camera]") {
+    // Two icospheres seen from outside and a floor seen from below (its winding faces away, so
+    // its receivers carry the flipped bit): many receivers share each triangle, and recover()
+    // reuses a triangle's slots for its neighbours in the id order. Read through the stream in
+    // chunks of 97, the ids give the same slots, so every factor is the same bits as the table
+    // built from the triangles themselves.
+    std::vector<Triangle> scene = icosphere(2, {0, 0, 0}, 1.f);
+    const std::vector<Triangle> second = icosphere(1, {1.6f, 0.3f, -0.5f}, 0.7f);
+    scene.insert(scene.end(), second.begin(), second.end());
+    scene.push_back({{glm::vec3(-4, -1.2f, -4), glm::vec3(4, -1.2f, -4), glm::vec3(4, -1.2f, 4)}, 0});  // faces down
+    scene.push_back({{glm::vec3(-4, -1.2f, -4), glm::vec3(4, -1.2f, 4), glm::vec3(-4, -1.2f, 4)}, 0});
+    const LightDesc light = rectLight({3, 4, 2}, {2, 0, 0}, {0, 0, 2}, 64, 1);
+    CameraDesc cam;
+    cam.eye = {0.5, -0.2, 5}, cam.target = {0, -0.5, 0}, cam.width = 80, cam.height = 60, cam.fovDeg = 60;
+    CameraRasterizer raster(cam);
+    raster.recordTriangles();
+    raster.recordTriangleIds();
+    raster.add(scene);
+    const ReceiverSet receivers = raster.finish();
+    const std::vector<uint64_t> ids = raster.takeTriangleIds();
+    REQUIRE(receivers.size() > 2000);
+    REQUIRE(std::count_if(ids.begin(), ids.end(), [](uint64_t id) { return id & CameraRasterizer::kFlippedBit; }) > 100);
+
+    VertexBend fromTriangles(raster.takeTriangles(), receivers.normal, lightDirections({light}));
+    VertexBend fromIds(lightDirections({light}));
+    fromIds.expectTriangleIds(ids);
+    for (size_t at = 0; at < scene.size(); at += 97)
+        fromIds.recover(std::span<const Triangle>(scene).subspan(at, std::min<size_t>(97, scene.size() - at)));
+    fromTriangles.add(scene);
+    fromIds.add(scene);
+    CHECK(fromIds.vertices() == fromTriangles.vertices());
+    int bent = 0;
+    for (size_t r = 0; r < receivers.size(); ++r) {
+        const glm::dvec3 p(receivers.position[r]), n(receivers.normal[r]);
+        const double f = fromTriangles.factor(r, p, n, 0);
+        CHECK(fromIds.factor(r, p, n, 0) == f);
+        bent += f < 1.0;
+    }
+    CHECK(bent > 100);
+}
