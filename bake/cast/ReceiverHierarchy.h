@@ -80,8 +80,18 @@ public:
     size_t receiverBytes() const;
 
 private:
+    /// A receiver while the nodes are built: its position beside its index, so that the splits
+    /// read and move one contiguous array instead of following an order into the positions.
+    struct BuildItem {
+        glm::dvec3 position;
+        uint32_t index;
+        uint32_t unused = 0;  ///< named padding: a swap moves two whole 16-byte halves
+    };
     void buildNodes();
-    uint32_t buildRange(uint32_t node, uint32_t begin, uint32_t end, std::vector<uint32_t>& order);
+    /// Binned SAH over the three axes: the axis and bin of the cheapest split (axis -1: none).
+    static void sahSplit(std::span<const BuildItem> items, const glm::dvec3& lo, const glm::dvec3& ext, int& bestAxis,
+                         int& bestBin);
+    uint32_t buildRange(uint32_t node, uint32_t begin, uint32_t end, std::vector<BuildItem>& items);
 
     HierarchyParams params_;
     int groups_, words_;
