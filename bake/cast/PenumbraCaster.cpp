@@ -8,6 +8,7 @@
 #include "stream/TriangleSource.h"
 
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 #include <tbb/task_group.h>
 
 #include <algorithm>
@@ -21,6 +22,8 @@ namespace {
 
 /// Blockers between two reports of a tile's work within a chunk (two relaxed atomic adds each).
 constexpr size_t kWorkReportEvery = 256;
+/// partitionReceivers() splits ranges at least this large on two threads at once.
+constexpr size_t kParallelPartitionReceivers = 1 << 16;
 
 }  // namespace
 
@@ -61,11 +64,18 @@ struct PenumbraCaster::Impl {
 std::vector<std::vector<uint32_t>> partitionReceivers(const ReceiverSet& receivers, std::span<const uint32_t> ids,
                                                       int count) {
     std::vector<uint32_t> order(ids.begin(), ids.end());
-    std::vector<std::vector<uint32_t>> parts;
-    auto split = [&](auto&& self, size_t begin, size_t end, int pieces) -> void {
-        if (pieces <= 1 || end - begin <= 1) {
-            parts.emplace_back(order.begin() + begin, order.begin() + end);
-            std::sort(parts.back().begin(), parts.back().end());
+    // Part p of the recursion lands in slot p; a range too small to split fills its first slot
+    // and leaves the rest unset, so the parts, in slot order, do not depend on which thread made
+    // them. The two halves of a split run side by side: at 2560x1920 the serial recursion (its
+    // nth_element and each part's sort) was a fifth of the tiles' build wall time on two threads.
+    const int pieces = std::max(1, count);
+    std::vector<std::vector<uint32_t>> slots(static_cast<size_t>(pieces));
+    std::vector<uint8_t> made(static_cast<size_t>(pieces), 0);
+    auto split = [&](auto&& self, size_t begin, size_t end, int parts, int slot) -> void {
+        if (parts <= 1 || end - begin <= 1) {
+            slots[size_t(slot)].assign(order.begin() + begin, order.begin() + end);
+            std::sort(slots[size_t(slot)].begin(), slots[size_t(slot)].end());
+            made[size_t(slot)] = 1;
             return;
         }
         glm::vec3 lo(INFINITY), hi(-INFINITY);
@@ -73,16 +83,21 @@ std::vector<std::vector<uint32_t>> partitionReceivers(const ReceiverSet& receive
             lo = glm::min(lo, receivers.position[order[i]]), hi = glm::max(hi, receivers.position[order[i]]);
         glm::vec3 e = hi - lo;
         int axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
-        int left = pieces / 2;
-        size_t mid = begin + (end - begin) * left / pieces;
+        int left = parts / 2;
+        size_t mid = begin + (end - begin) * left / parts;
         std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end, [&](uint32_t a, uint32_t b) {
             float pa = receivers.position[a][axis], pb = receivers.position[b][axis];
             return pa < pb || (pa == pb && a < b);
         });
-        self(self, begin, mid, left);
-        self(self, mid, end, pieces - left);
+        auto leftHalf = [&] { self(self, begin, mid, left, slot); };
+        auto rightHalf = [&] { self(self, mid, end, parts - left, slot + left); };
+        if (end - begin < kParallelPartitionReceivers) leftHalf(), rightHalf();
+        else tbb::parallel_invoke(leftHalf, rightHalf);
     };
-    split(split, 0, order.size(), std::max(1, count));
+    split(split, 0, order.size(), pieces, 0);
+    std::vector<std::vector<uint32_t>> parts;
+    for (size_t p = 0; p < slots.size(); ++p)
+        if (made[p]) parts.push_back(std::move(slots[p]));
     return parts;
 }
 

@@ -7,7 +7,11 @@
 #include "procedural/GridGenerator.h"
 
 #include <catch2/catch.hpp>
+#include <tbb/global_control.h>
 #include <tbb/task_arena.h>
+
+#include <numeric>
+#include <random>
 
 using namespace penumbra;
 using namespace penumbra::test;
@@ -99,4 +103,63 @@ TEST_CASE("caster: casters dropped mid-cast leave no task behind", "[hpc][caster
             CHECK(castHpc(g.samples, g.receivers, g.sets, g.tris, CastOptions(), 8, 3).words == g.reference.words);
         }
     });
+}
+
+namespace {
+
+/// partitionReceivers() as it was before its halves ran in parallel: one recursion, parts
+/// appended in order. The parallel form must give the same parts (shards depend on it).
+std::vector<std::vector<uint32_t>> serialPartition(const ReceiverSet& receivers, std::vector<uint32_t> order, int count) {
+    std::vector<std::vector<uint32_t>> parts;
+    auto split = [&](auto&& self, size_t begin, size_t end, int pieces) -> void {
+        if (pieces <= 1 || end - begin <= 1) {
+            parts.emplace_back(order.begin() + begin, order.begin() + end);
+            std::sort(parts.back().begin(), parts.back().end());
+            return;
+        }
+        glm::vec3 lo(INFINITY), hi(-INFINITY);
+        for (size_t i = begin; i < end; ++i)
+            lo = glm::min(lo, receivers.position[order[i]]), hi = glm::max(hi, receivers.position[order[i]]);
+        const glm::vec3 e = hi - lo;
+        const int axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
+        const int left = pieces / 2;
+        const size_t mid = begin + (end - begin) * left / pieces;
+        std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end, [&](uint32_t a, uint32_t b) {
+            const float pa = receivers.position[a][axis], pb = receivers.position[b][axis];
+            return pa < pb || (pa == pb && a < b);
+        });
+        self(self, begin, mid, left);
+        self(self, mid, end, pieces - left);
+    };
+    split(split, 0, order.size(), std::max(1, count));
+    return parts;
+}
+
+}  // namespace
+
+TEST_CASE("receivers split into the same tiles on any thread count", "[caster][tiles]") {
+    // 200,000 receivers (the halves run in parallel above 65,536), many on a coarse lattice so
+    // that coordinates tie, and sets too small to split into every part.
+    std::mt19937 rng(5);
+    std::uniform_int_distribution<int> cell(0, 40);
+    std::uniform_real_distribution<float> any(-3.f, 3.f);
+    ReceiverSet big;
+    for (int i = 0; i < 200000; ++i)
+        big.position.push_back(i % 3 == 0 ? glm::vec3(cell(rng), 0.f, cell(rng)) * 0.1f : glm::vec3(any(rng), any(rng) * 0.1f, any(rng)));
+    std::vector<uint32_t> ids(big.position.size());
+    std::iota(ids.begin(), ids.end(), 0u);
+    std::shuffle(ids.begin(), ids.end(), rng);
+    ids.resize(170000);  // a subset, in no order (as a refinement's or a shard's receivers)
+    for (const int count : {1, 2, 3, 8, 13}) {
+        const auto expected = serialPartition(big, ids, count);
+        CHECK(expected.size() == size_t(count));
+        for (const int threads : {1, 2}) {
+            tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+            CHECK(partitionReceivers(big, ids, count) == expected);
+        }
+    }
+    ReceiverSet few;
+    few.position = {glm::vec3(0.f), glm::vec3(1.f, 0.f, 0.f)};
+    for (const std::vector<uint32_t>& small : {std::vector<uint32_t>{}, std::vector<uint32_t>{1}, std::vector<uint32_t>{1, 0}})
+        for (const int count : {1, 2, 8}) CHECK(partitionReceivers(few, small, count) == serialPartition(few, small, count));
 }
