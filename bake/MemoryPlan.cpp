@@ -31,9 +31,10 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string&
     const uint64_t castSources = d.sourceDuringCast ? d.sourceBytes : 0;
     // In a tile, per live receiver: double position 24, epsilon 8, id/set/mask slot 12, umbra
     // 1 + 8 * umbraWords, about one node per 4 receivers (32 bytes + bits), and in the worst case a
-    // mask of one word per group. While a tile's hierarchy is built, its inputs (40 bytes), then
-    // the build's items and order (32 + 4; ReceiverHierarchy::buildNodes()) or one permuted array
-    // copy (8 at most), and the split into sub-tiles (8) exist on top: 68 counted.
+    // mask of one word per group. While a tile's hierarchy is built, the split into sub-tiles (8)
+    // exists on top, and one at a time: the inputs (40 bytes), the build's items and order
+    // (32 + 4; ReceiverHierarchy::buildNodes()), the order and one permuted array (4 + 8 at
+    // most). 40 + 4 + 24, the allowance from before the items, covers each.
     plan.perReceiverBytes = 24 + 8 + 12 + 1 + 8ull * d.umbraWords + (32 + 1 + 8ull * d.umbraWords) / 4 + 8ull * d.groups +
                             40 + 4 + 24 + 8;
     const uint64_t smallestTile = std::min<uint64_t>(std::max<uint64_t>(d.receivers, 1), kMinimumTileReceivers);

@@ -85,7 +85,6 @@ private:
     struct BuildItem {
         glm::dvec3 position;
         uint32_t index;
-        uint32_t unused = 0;  ///< named padding: a swap moves two whole 16-byte halves
     };
     void buildNodes();
     /// Binned SAH over the three axes: the axis and bin of the cheapest split (axis -1: none).

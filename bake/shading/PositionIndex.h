@@ -8,7 +8,6 @@
 /// pointer to a node in another cache line (two to three misses). Here key and value sit side by
 /// side in one array, probed linearly, so a hit costs one miss. Entries are never erased.
 
-#include <bit>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -61,8 +60,8 @@ public:
     /// Every entry, free ones included (value kEmpty): for a pass over the keys.
     const std::vector<Entry>& entries() const { return entries_; }
     uint64_t bytes() const { return entries_.capacity() * sizeof(Entry); }
-    /// The most bytes the table can hold for @p keys keys, counting the moment of growth, when
-    /// the old array (at three quarters) and the new one are both alive: 16 / 0.75 + 32 / 0.75.
+    /// The most bytes the table takes per key, at the moment of growth, when the old array (at
+    /// three quarters) and the new one are both alive: 16 / 0.75 + 32 / 0.75.
     static constexpr uint64_t kPeakBytesPerKey = 64;
 
 private:
