@@ -173,10 +173,15 @@ struct Backprojector {
     /// the open grid and the sum over it were a tenth of the lookup's instructions.
     Transmission transmitted;
     bool touched = false;
+    /// Once touched, at least the number of cells inside the outline still open: a cell leaves
+    /// only when something sets it to 0, so none is left when this reaches 0, and the receiver's
+    /// remaining texels cannot change its result (0) any more.
+    int open = 0;
     Transmission& cells() {
-        if (!touched) transmitted = grid.open(), touched = true;
+        if (!touched) transmitted = grid.open(), touched = true, open = int(grid.insideCells().size());
         return transmitted;
     }
+    bool umbra() const { return touched && open == 0; }
     // Set by prepare(): the texel's size, 1/z_r, the cells' reciprocal sizes, and the plane
     // distance of the point at depth q on a texel's central ray as base + q * along, with base
     // and along linear in the texel's image position.
@@ -217,6 +222,7 @@ struct Backprojector {
             float* cellRow = &transmitted[size_t(j * LightGrid::kCells)];
             for (int i = 0; i < LightGrid::kCells; ++i) cellRow[i] = column[size_t(i)] + row < 0 ? 0.0f : cellRow[i];
         }
+        open = int(std::count_if(transmitted.begin(), transmitted.end(), [](float t) { return t != 0.0f; }));
     }
 
     /// The image box (fine texels) that can hold blockers at depth @p z or farther over the light:
@@ -270,6 +276,15 @@ struct Backprojector {
         // Neighbouring texels at one depth share box edges, so each cell is counted once.
         const float keep = float(1.0 - double(blocking) / DepthPyramid::kQuantiles);
         cells();
+        if (blocking == DepthPyramid::kQuantiles) {  // keep is 0: count the cells it closes
+            for (int j = j0; j < j1; ++j)
+                for (int i = i0; i < i1; ++i) {
+                    float& t = transmitted[size_t(j * LightGrid::kCells + i)];
+                    open -= t != 0.0f;
+                    t = 0.0f;
+                }
+            return;
+        }
         for (int j = j0; j < j1; ++j)
             for (int i = i0; i < i1; ++i) transmitted[size_t(j * LightGrid::kCells + i)] *= keep;
     }
@@ -298,6 +313,7 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
         // surface that light would reach it from behind, where it carries no irradiance.)
         b.n = glm::normalize(normal);
         b.blockBehindPlane();
+        if (b.umbra()) return 0.0f;
         if (glm::dot(b.n, view.ortho ? -view.axis : view.origin - r) < 0) b.n = -b.n;  // the side facing the centre
     }
     b.prepare();
@@ -332,6 +348,10 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
                 const DepthPyramid::Texel t = layers[l].at(tx, ty);
                 if (!(t.nearest < b.p.z)) break;  // nor any layer behind
                 b.addTexel(t, tx, ty);
+                // Every cell closed (the umbra): visibleFraction() would sum zeros, and the
+                // texels left could only multiply them. With the exit above for receivers that
+                // face away from the whole light, a quarter of SPONZA-LIKE's lookups end early.
+                if (b.umbra()) return 0.0f;
             }
     return b.visibleFraction();
 }

@@ -128,6 +128,15 @@ TEST_CASE("penumbra map: backprojection gives a square's and an edge's exact pen
     CHECK(mean <= 0.03);
     for (size_t i = 0; i < receivers.size(); ++i)  // within a row of cells in the umbra and beyond the penumbra
         if (std::abs(std::abs(receivers.position[i].x) - 1.0) > 0.55) CHECK(std::abs(square[i] - exactSquare(receivers.position[i].x)) <= 0.05);
+    // Deep in the umbra every cell of the light is closed, and the lookup says so exactly (it
+    // stops there: the texels left could only multiply zeros).
+    int umbra = 0;
+    for (size_t i = 0; i < receivers.size(); ++i)
+        if (std::abs(receivers.position[i].x) < 0.3) {
+            CHECK(square[i] == 0.0f);
+            ++umbra;
+        }
+    CHECK(umbra > 20);
     // The edge: light x in [-0.5, 0.5] at H = 4, half-plane over x < 0 at h = 2: V = clamp(0.5 + x).
     // The map is fitted to the receivers' directions (plus 3 degrees), so the half-plane beyond
     // them is not in it: receivers whose view of the light crosses the map's border (|x| > 1.2)
