@@ -5,14 +5,19 @@
 
 #include <dlfcn.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <mutex>
+#include <string_view>
 #include <vector>
 
 #ifndef PENUMBRA_PLUGIN_RELDIR
 #define PENUMBRA_PLUGIN_RELDIR "../lib/penumbra"
+#endif
+#ifndef PENUMBRA_BUILT_PLUGINS  // comma-separated, from CMakeLists.txt's penumbra_plugins
+#define PENUMBRA_BUILT_PLUGINS ""
 #endif
 
 namespace penumbra {
@@ -43,7 +48,15 @@ std::string pluginPath(const std::string& name) {
 
 }  // namespace
 
-bool isBuiltPlugin(const std::string& name) { return name == "volume"; }
+bool isBuiltPlugin(const std::string& name) {
+    const std::string_view built = PENUMBRA_BUILT_PLUGINS;
+    for (size_t at = 0; at <= built.size();) {
+        const size_t comma = std::min(built.find(',', at), built.size());
+        if (!name.empty() && built.substr(at, comma - at) == name) return true;
+        at = comma + 1;
+    }
+    return false;
+}
 
 std::string pluginSearchPlaces() {
     std::string places;

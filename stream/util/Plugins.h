@@ -19,8 +19,8 @@ namespace penumbra {
 /// too little address space left to map it).
 bool loadPlugin(const std::string& name);
 
-/// @brief The plugins a full build makes ("volume"), so that a missing one is named as missing
-/// rather than as an unknown name.
+/// @brief The plugins this build makes (CMakeLists.txt's `penumbra_plugins`: "volume"), so that a
+/// missing one is named as missing rather than as an unknown name.
 bool isBuiltPlugin(const std::string& name);
 
 /// @brief Where loadPlugin() looks, for messages: "PENUMBRA_PLUGIN_DIR, /usr/bin and /usr/lib/penumbra".
