@@ -2,9 +2,26 @@
 
 #include "stream/util/Progress.h"
 
+#include <tbb/parallel_pipeline.h>
+
+#include <array>
 #include <vector>
 
 namespace penumbra {
+namespace {
+
+/// Chunks in flight in the bucket pass: one read, one filtered and one written at a time. Each
+/// holds a chunk and what the filter kept of it, so six chunk buffers in all, within the eight
+/// the memory plan allows for the sources' chunks (BakeMemory.cpp).
+constexpr size_t kChunksInFlight = 3;
+
+/// One chunk of the bucket pass, as it moves from the read through the filter to the writer.
+struct PassChunk {
+    std::vector<Triangle> read, kept;
+    size_t count = 0;
+};
+
+}  // namespace
 
 BucketRanges planBucketRanges(const BucketOptions& options, const AreaHistogram* histogram, float largestAreaHint) {
     options.validate();
@@ -19,21 +36,42 @@ BucketSet writeBuckets(TriangleSource& source, const BucketRanges& ranges, const
     double writeSeconds = 0;
     uint64_t culled = 0;
     BucketWriter writer(ranges, options, source.sizeHint());
-    std::vector<Triangle> chunk(kTriangleChunk), kept;
-    if (keep) kept.reserve(kTriangleChunk);
-    while (size_t n = source.read(chunk)) {
-        std::span<const Triangle> got(chunk.data(), n);
-        if (onChunk) onChunk(got);
-        if (keep) {
-            kept.clear();
-            for (const Triangle& t : got)
-                if (keep(t)) kept.push_back(t);
-            culled += got.size() - kept.size();
-            got = kept;
-        }
-        ScopedTimer timer(writeSeconds);
-        writer.write(got);
-    }
+    // Three stages, so that with two threads the reach cull of one chunk overlaps the writes of
+    // the one before and the read of the next (one after the other, the filter was a third of
+    // the pass and the writes two fifths). The read and the writes stay serial and in stream
+    // order, so the files are the same on any thread count.
+    std::array<PassChunk, kChunksInFlight> chunks;
+    size_t next = 0;
+    tbb::parallel_pipeline(
+        kChunksInFlight,
+        tbb::make_filter<void, PassChunk*>(tbb::filter_mode::serial_in_order,
+                                           [&](tbb::flow_control& flow) -> PassChunk* {
+                                               // Slot reuse is safe: chunks leave the last (serial,
+                                               // in-order) stage oldest first.
+                                               PassChunk& c = chunks[next++ % kChunksInFlight];
+                                               c.read.resize(kTriangleChunk);
+                                               c.count = source.read(c.read);
+                                               if (c.count == 0) {
+                                                   flow.stop();
+                                                   return nullptr;
+                                               }
+                                               if (onChunk) onChunk(std::span<const Triangle>(c.read.data(), c.count));
+                                               return &c;
+                                           }) &
+            tbb::make_filter<PassChunk*, PassChunk*>(tbb::filter_mode::parallel,
+                                                     [&](PassChunk* c) {
+                                                         if (!keep) return c;
+                                                         c->kept.clear();
+                                                         for (size_t i = 0; i < c->count; ++i)
+                                                             if (keep(c->read[i])) c->kept.push_back(c->read[i]);
+                                                         return c;
+                                                     }) &
+            tbb::make_filter<PassChunk*, void>(tbb::filter_mode::serial_in_order, [&](PassChunk* c) {
+                std::span<const Triangle> got(c->read.data(), c->count);
+                if (keep) culled += got.size() - c->kept.size(), got = c->kept;
+                ScopedTimer timer(writeSeconds);
+                writer.write(got);
+            }));
     BucketSet set = [&] {
         ScopedTimer timer(writeSeconds);
         return writer.finish();

@@ -59,7 +59,10 @@ BucketRanges planBucketRanges(const BucketOptions& options, const AreaHistogram*
 ///        a hook for checks (finite coordinates) or progress that would otherwise need a pass of
 ///        their own.
 /// @param keep when given, only triangles it returns true for are written (the reach cull of
-///        bake/ReachCull.h: what cannot block is never written to disk).
+///        bake/ReachCull.h: what cannot block is never written to disk). Chunks are filtered
+///        on several threads at once, so it must be safe to call concurrently (a pure function of
+///        the triangle); the files do not depend on the thread count. @p onChunk and the source
+///        are called one chunk at a time, in stream order, but not always on the caller's thread.
 /// @return the finished set; wrap it in a shared_ptr for BucketReplaySource.
 /// @throw InputError from the source, from @p onChunk, or from BucketWriter (full disk, file-size
 ///        limit, unusable temp directory); no bucket file or directory remains afterwards.

@@ -17,6 +17,7 @@
 #include "TestSupport.h"
 
 #include <catch2/catch.hpp>
+#include <tbb/global_control.h>
 
 #include <signal.h>
 #include <sys/resource.h>
@@ -444,6 +445,43 @@ TEST_CASE("writeBuckets streams a source into buckets and reports the pass", "[b
         CHECK(ranges.splits() == AreaHistogram::fixedLog2Boundaries(32, 1.0f));
         BucketSet set = writeBuckets(source, ranges, options);
         CHECK(set.triangles() == 100000);
+    }
+    SECTION("a filter keeps the same triangles in stream order on any thread count") {
+        // The pass filters chunks on several threads at once; what it writes must not depend on
+        // that, and the chunk hook must still see every chunk once, in stream order.
+        BucketRanges ranges = planBucketRanges(options, nullptr, 1.0f);
+        auto keep = [](const Triangle& t) { return int(t.v[0].x) % 3 != 0; };  // about two thirds
+        const std::vector<Triangle> all = generate(100000, 3);
+        std::vector<Triangle> expected;
+        for (const Triangle& t : all)
+            if (keep(t)) expected.push_back(t);
+        REQUIRE(expected.size() > 10000);
+        REQUIRE(expected.size() < 90000);
+        for (int threads : {1, 2}) {
+            INFO(threads << " threads");
+            tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+            source.rewind();
+            std::vector<Triangle> hooked;
+            BucketStats stats;
+            auto set = std::make_shared<BucketSet>(writeBuckets(
+                source, ranges, options, &stats, [&](std::span<const Triangle> c) { hooked.insert(hooked.end(), c.begin(), c.end()); },
+                keep));
+            REQUIRE(hooked.size() == all.size());
+            CHECK(std::equal(hooked.begin(), hooked.end(), all.begin(), sameBytes));
+            CHECK(stats.culledTriangles == all.size() - expected.size());
+            // Each bucket holds its triangles in stream order, so a stable sort of the expected
+            // triangles by bucket gives the replay (largest first: buckets in reverse).
+            std::vector<Triangle> byBucket = expected;
+            auto bucketOrder = [&](const Triangle& t) {
+                return ((t.flags & kTriangleAlphaMatte) ? ranges.count() : 0) + ranges.bucketOf(t.area());
+            };
+            std::stable_sort(byBucket.begin(), byBucket.end(),
+                             [&](const Triangle& a, const Triangle& b) { return bucketOrder(a) < bucketOrder(b); });
+            BucketReplaySource replay(set, options.readBufferBytes);
+            const std::vector<Triangle> replayed = replayAll(replay, kTriangleChunk);
+            REQUIRE(replayed.size() == byBucket.size());
+            CHECK(std::equal(replayed.begin(), replayed.end(), byBucket.begin(), sameBytes));
+        }
     }
     SECTION("an error from the chunk hook removes everything") {
         BucketRanges ranges = planBucketRanges(options, nullptr);
