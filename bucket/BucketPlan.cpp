@@ -11,8 +11,8 @@ namespace penumbra {
 namespace {
 
 /// Chunks in flight in the bucket pass: one read, one filtered and one written at a time. Each
-/// holds a chunk and what the filter kept of it, so six chunk buffers in all, within the eight
-/// the memory plan allows for the sources' chunks (BakeMemory.cpp).
+/// holds a chunk and what the filter kept of it: six chunk buffers, within the eight the memory
+/// plan counts for the replay's read-ahead (BakeMemory.cpp), which starts only after the pass.
 constexpr size_t kChunksInFlight = 3;
 
 /// One chunk of the bucket pass, as it moves from the read through the filter to the writer.
