@@ -176,12 +176,12 @@ struct Backprojector {
     /// Once touched, at least the number of cells inside the outline still open: a cell leaves
     /// only when something sets it to 0, so none is left when this reaches 0, and the receiver's
     /// remaining texels cannot change its result (0) any more.
-    int open = 0;
+    int openCells = 0;
     Transmission& cells() {
-        if (!touched) transmitted = grid.open(), touched = true, open = int(grid.insideCells().size());
+        if (!touched) transmitted = grid.open(), touched = true, openCells = int(grid.insideCells().size());
         return transmitted;
     }
-    bool umbra() const { return touched && open == 0; }
+    bool umbra() const { return touched && openCells == 0; }
     // Set by prepare(): the texel's size, 1/z_r, the cells' reciprocal sizes, and the plane
     // distance of the point at depth q on a texel's central ray as base + q * along, with base
     // and along linear in the texel's image position.
@@ -222,7 +222,7 @@ struct Backprojector {
             float* cellRow = &transmitted[size_t(j * LightGrid::kCells)];
             for (int i = 0; i < LightGrid::kCells; ++i) cellRow[i] = column[size_t(i)] + row < 0 ? 0.0f : cellRow[i];
         }
-        open = int(std::count_if(transmitted.begin(), transmitted.end(), [](float t) { return t != 0.0f; }));
+        openCells = int(std::count_if(transmitted.begin(), transmitted.end(), [](float t) { return t != 0.0f; }));
     }
 
     /// The image box (fine texels) that can hold blockers at depth @p z or farther over the light:
@@ -280,7 +280,7 @@ struct Backprojector {
             for (int j = j0; j < j1; ++j)
                 for (int i = i0; i < i1; ++i) {
                     float& t = transmitted[size_t(j * LightGrid::kCells + i)];
-                    open -= t != 0.0f;
+                    openCells -= t != 0.0f;
                     t = 0.0f;
                 }
             return;

@@ -5,12 +5,10 @@
 
 #include <dlfcn.h>
 
-#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <mutex>
-#include <string_view>
 #include <vector>
 
 #ifndef PENUMBRA_PLUGIN_RELDIR
@@ -49,13 +47,11 @@ std::string pluginPath(const std::string& name) {
 }  // namespace
 
 bool isBuiltPlugin(const std::string& name) {
-    const std::string_view built = PENUMBRA_BUILT_PLUGINS;
-    for (size_t at = 0; at <= built.size();) {
-        const size_t comma = std::min(built.find(',', at), built.size());
-        if (!name.empty() && built.substr(at, comma - at) == name) return true;
-        at = comma + 1;
-    }
-    return false;
+    // Both sides between commas, so that a name matches only a whole entry of the list.
+    static const std::string built = std::string(",") + PENUMBRA_BUILT_PLUGINS + ",";
+    std::string entry = ",";
+    entry.append(name).push_back(',');
+    return !name.empty() && built.find(entry) != std::string::npos;
 }
 
 std::string pluginSearchPlaces() {
