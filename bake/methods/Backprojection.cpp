@@ -9,6 +9,10 @@
 #include <algorithm>
 #include <cmath>
 
+#if defined(__SSE4_1__)
+#include <smmintrin.h>
+#endif
+
 namespace penumbra {
 namespace {
 
@@ -156,6 +160,51 @@ LightGrid::LightGrid(const std::vector<glm::dvec2>& outline) {
 
 namespace {
 
+/// Multiplies the cells of columns [@p i0, @p i1) in rows [@p j0, @p j1) by @p keep, and returns
+/// how many of them it closes (were not 0, and @p keep is 0). A row of twelve cells is three
+/// 4-lane products with the columns outside [i0, i1) multiplied by 1 (exactly themselves): the
+/// scalar loops' variable bounds were a fifth of a FLOWERS lookup. The same bits as the loops.
+int scaleCells(std::array<float, LightGrid::kCells * LightGrid::kCells>& cells, int i0, int i1, int j0, int j1, float keep) {
+    constexpr int n = LightGrid::kCells;
+#if defined(__SSE4_1__)
+    static_assert(n == 12, "three 4-lane vectors per row");
+    const __m128i first = _mm_set1_epi32(i0 - 1), end = _mm_set1_epi32(i1);
+    __m128 in[3];
+    for (int v = 0; v < 3; ++v) {
+        const __m128i column = _mm_setr_epi32(4 * v, 4 * v + 1, 4 * v + 2, 4 * v + 3);
+        in[v] = _mm_castsi128_ps(_mm_and_si128(_mm_cmpgt_epi32(column, first), _mm_cmpgt_epi32(end, column)));
+    }
+    if (keep == 0.0f) {
+        int closed = 0;
+        for (int j = j0; j < j1; ++j)
+            for (int v = 0; v < 3; ++v) {
+                float* at = &cells[size_t(j * n + 4 * v)];
+                const __m128 t = _mm_loadu_ps(at);
+                closed += __builtin_popcount(unsigned(_mm_movemask_ps(_mm_and_ps(in[v], _mm_cmpneq_ps(t, _mm_setzero_ps())))));
+                _mm_storeu_ps(at, _mm_andnot_ps(in[v], t));
+            }
+        return closed;
+    }
+    __m128 factor[3];
+    for (int v = 0; v < 3; ++v) factor[v] = _mm_blendv_ps(_mm_set1_ps(1.0f), _mm_set1_ps(keep), in[v]);
+    for (int j = j0; j < j1; ++j)
+        for (int v = 0; v < 3; ++v) {
+            float* at = &cells[size_t(j * n + 4 * v)];
+            _mm_storeu_ps(at, _mm_mul_ps(_mm_loadu_ps(at), factor[v]));
+        }
+    return 0;
+#else
+    int closed = 0;
+    for (int j = j0; j < j1; ++j)
+        for (int i = i0; i < i1; ++i) {
+            float& t = cells[size_t(j * n + i)];
+            closed += keep == 0.0f && t != 0.0f;
+            t *= keep;
+        }
+    return closed;
+#endif
+}
+
 /// One receiver's backprojection in @p view: the receiver's depth and image position, and the
 /// transformation from a blocker's depth to the scale k of its footprint on the light. Everything
 /// that depends only on the receiver is computed once here, so a texel costs a few products and
@@ -276,17 +325,7 @@ struct Backprojector {
         // Neighbouring texels at one depth share box edges, so each cell is counted once.
         const float keep = float(1.0 - double(blocking) / DepthPyramid::kQuantiles);
         cells();
-        if (blocking == DepthPyramid::kQuantiles) {  // keep is 0: count the cells it closes
-            for (int j = j0; j < j1; ++j)
-                for (int i = i0; i < i1; ++i) {
-                    float& t = transmitted[size_t(j * LightGrid::kCells + i)];
-                    openCells -= t != 0.0f;
-                    t = 0.0f;
-                }
-            return;
-        }
-        for (int j = j0; j < j1; ++j)
-            for (int i = i0; i < i1; ++i) transmitted[size_t(j * LightGrid::kCells + i)] *= keep;
+        openCells -= scaleCells(transmitted, i0, i1, j0, j1, keep);
     }
 
     /// The mean transmission of the cells inside the outline (the others are held at 0), summed
