@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cerrno>
 #include <cstring>
@@ -151,20 +152,35 @@ std::string BucketWriter::slotLabel(size_t index) const {
     return index < ranges_.count() ? fmt::format("bucket {}", range) : fmt::format("alpha-matte bucket {}", range);
 }
 
+uint32_t BucketWriter::bucketOf(const Triangle& t) const {
+    const size_t index = ranges_.bucketOf(t.area());
+    return uint32_t(t.flags & kTriangleAlphaMatte ? index + ranges_.count() : index);
+}
+
 void BucketWriter::write(std::span<const Triangle> triangles) {
     if (failed_) fail(directory_, "cannot write buckets: an earlier write failed");
     if (finished_) throw std::logic_error("BucketWriter::write after finish()");
-    const size_t opaqueCount = ranges_.count();
-    for (const Triangle& t : triangles) {
-        size_t index = ranges_.bucketOf(t.area());
-        if (t.flags & kTriangleAlphaMatte) index += opaqueCount;
+    std::array<uint32_t, 256> buckets;
+    for (size_t first = 0; first < triangles.size(); first += buckets.size()) {
+        const std::span<const Triangle> part = triangles.subspan(first, std::min(buckets.size(), triangles.size() - first));
+        for (size_t i = 0; i < part.size(); ++i) buckets[i] = bucketOf(part[i]);
+        write(part, std::span<const uint32_t>(buckets.data(), part.size()));
+    }
+}
+
+void BucketWriter::write(std::span<const Triangle> triangles, std::span<const uint32_t> buckets) {
+    if (failed_) fail(directory_, "cannot write buckets: an earlier write failed");
+    if (finished_) throw std::logic_error("BucketWriter::write after finish()");
+    if (buckets.size() != triangles.size()) throw std::logic_error("BucketWriter::write: one bucket per triangle");
+    for (size_t i = 0; i < triangles.size(); ++i) {
+        const size_t index = buckets[i];
         Slot& slot = slots_[index];
         if (!slot.buffer) {
             // Allocated on first use: a scene without foliage never pays for alpha buffers.
             slot.buffer = std::make_unique<uint8_t[]>(bufferCapacity_);
             allocatedBufferBytes_ += bufferCapacity_;
         }
-        std::memcpy(slot.buffer.get() + slot.used, &t, kBucketRecordBytes);
+        std::memcpy(slot.buffer.get() + slot.used, &triangles[i], kBucketRecordBytes);
         slot.used += kBucketRecordBytes;
         ++slot.triangles;
         ++accepted_;

@@ -124,6 +124,15 @@ public:
     void write(std::span<const Triangle> triangles);
     /// @brief Appends one triangle.
     void write(const Triangle& triangle) { write(std::span<const Triangle>(&triangle, 1)); }
+    /// @brief write() with each triangle's bucket already found: @p buckets[i] is
+    /// bucketOf(@p triangles[i]). The look-up is the pass's only arithmetic per triangle, so a
+    /// caller with more threads than writers finds it in parallel (bucket/BucketPlan.cpp).
+    /// @pre @p buckets.size() == @p triangles.size()
+    /// @throw InputError as write() does.
+    void write(std::span<const Triangle> triangles, std::span<const uint32_t> buckets);
+    /// @brief The bucket @p t goes to: its area's range, after the opaque ones when it is an
+    /// alpha matte. Thread safe (reads only the ranges).
+    uint32_t bucketOf(const Triangle& t) const;
 
     /// @brief Flushes every buffer, frees them, writes the manifest when keeping, and hands the
     /// files over. The writer is empty afterwards.

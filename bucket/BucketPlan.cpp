@@ -11,15 +11,22 @@ namespace penumbra {
 namespace {
 
 /// Chunks in flight in the bucket pass: one read, one filtered and one written at a time. Each
-/// holds a chunk and what the filter kept of it: six chunk buffers, within the eight the memory
-/// plan counts for the replay's read-ahead (BakeMemory.cpp), which starts only after the pass.
+/// holds a chunk, what the filter kept of it and their buckets (4 bytes a triangle, a tenth of
+/// its 40): under seven chunk buffers, within the eight the memory plan counts for the replay's
+/// read-ahead (BakeMemory.cpp), which starts only after the pass.
 constexpr size_t kChunksInFlight = 3;
 
 /// One chunk of the bucket pass, as it moves from the read through the filter to the writer.
 struct PassChunk {
     std::vector<Triangle> read, kept;
+    std::vector<uint32_t> buckets;  ///< of the triangles written: kept (with a filter) or read
     size_t count = 0;
 };
+
+/// The triangles of @p c that go to the buckets: those the filter kept, or all read.
+std::span<const Triangle> written(const PassChunk& c, bool filtered) {
+    return filtered ? std::span<const Triangle>(c.kept) : std::span<const Triangle>(c.read.data(), c.count);
+}
 
 }  // namespace
 
@@ -60,17 +67,25 @@ BucketSet writeBuckets(TriangleSource& source, const BucketRanges& ranges, const
                                            }) &
             tbb::make_filter<PassChunk*, PassChunk*>(tbb::filter_mode::parallel,
                                                      [&](PassChunk* c) {
-                                                         if (!keep) return c;
-                                                         c->kept.clear();
-                                                         for (size_t i = 0; i < c->count; ++i)
-                                                             if (keep(c->read[i])) c->kept.push_back(c->read[i]);
+                                                         // The filter, and each kept triangle's
+                                                         // bucket (its area and a search of the
+                                                         // ranges), leave the serial writes only
+                                                         // the copies and the write(2) calls.
+                                                         if (keep) {
+                                                             c->kept.clear();
+                                                             for (size_t i = 0; i < c->count; ++i)
+                                                                 if (keep(c->read[i])) c->kept.push_back(c->read[i]);
+                                                         }
+                                                         const std::span<const Triangle> got = written(*c, keep != nullptr);
+                                                         c->buckets.resize(got.size());
+                                                         for (size_t i = 0; i < got.size(); ++i) c->buckets[i] = writer.bucketOf(got[i]);
                                                          return c;
                                                      }) &
             tbb::make_filter<PassChunk*, void>(tbb::filter_mode::serial_in_order, [&](PassChunk* c) {
-                std::span<const Triangle> got(c->read.data(), c->count);
-                if (keep) culled += got.size() - c->kept.size(), got = c->kept;
+                const std::span<const Triangle> got = written(*c, keep != nullptr);
+                culled += c->count - got.size();
                 ScopedTimer timer(writeSeconds);
-                writer.write(got);
+                writer.write(got, c->buckets);
             }));
     BucketSet set = [&] {
         ScopedTimer timer(writeSeconds);

@@ -248,6 +248,33 @@ TEST_CASE("Bucket replay is identical across rewinds, chunk sizes and buffer siz
     }
 }
 
+TEST_CASE("Buckets found ahead (the pass's parallel stage) write what write() alone writes", "[bucket]") {
+    ScratchDir dir;
+    std::vector<Triangle> input = generate(20000, 4);
+    for (size_t i = 0; i < input.size(); i += 5) input[i].flags |= kTriangleAlphaMatte;  // the alpha buckets too
+    BucketOptions options;
+    options.tmpDir = dir.path.string();
+    options.writeBufferBytes = GENERATE(40, 64 * 1024);
+    const BucketRanges ranges(AreaHistogram::fixedLog2Boundaries(12, 16.0f));
+    const auto reference = bucketize(input, ranges, options);
+
+    BucketWriter writer(ranges, options);
+    std::vector<uint32_t> buckets;
+    for (const Triangle& t : input) buckets.push_back(writer.bucketOf(t));
+    CHECK(*std::max_element(buckets.begin(), buckets.end()) >= ranges.count());  // an alpha bucket
+    for (size_t first = 0; first < input.size(); first += 777) {
+        const size_t n = std::min<size_t>(777, input.size() - first);
+        writer.write(std::span<const Triangle>(input).subspan(first, n), std::span<const uint32_t>(buckets).subspan(first, n));
+    }
+    auto ahead = std::make_shared<BucketSet>(writer.finish());
+    BucketReplaySource a(reference), b(ahead);
+    const std::vector<Triangle> want = replayAll(a, kTriangleChunk), got = replayAll(b, kTriangleChunk);
+    REQUIRE(got.size() == input.size());
+    CHECK(std::equal(got.begin(), got.end(), want.begin(), want.end(), sameBytes));
+    CHECK(ahead->bytes() == reference->bytes());
+    CHECK(ahead->alphaMatteTriangles() == reference->alphaMatteTriangles());
+}
+
 TEST_CASE("An empty input gives an empty, replayable bucket set", "[bucket]") {
     ScratchDir dir;
     BucketOptions options;
