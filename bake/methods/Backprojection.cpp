@@ -292,7 +292,10 @@ struct Backprojector {
 
     /// Hides the light behind texel (@p tx, @p ty) of the level set by readLevel(), for the share
     /// of its quantiles that lie in front of the receiver's plane.
-    void addTexel(const DepthPyramid::Texel& t, int tx, int ty) {
+    /// @return true when no layer behind this one can hide anything either: none of its
+    /// quantiles is in front, and c1 <= 0, so the deeper layers' quantiles (each at least this
+    /// layer's: the order statistics of depths that are each at least this layer's) are not.
+    bool addTexel(const DepthPyramid::Texel& t, int tx, int ty) {
         const FrontTest f = frontTest(tx, ty);
         int blocking = 0;
         double depthSum = 0;
@@ -301,17 +304,23 @@ struct Backprojector {
             if (f.c0 + q * f.c1 > 0) ++blocking, depthSum += q;
             else if (f.c1 <= 0) break;
         }
-        if (blocking == 0) return;
+        if (blocking == 0) return f.c1 <= 0;
         static constexpr double kInverseCount[] = {0.0, 1.0, 1.0 / 2, 1.0 / 3, 1.0 / 4};
         hide(f.centre, blocking, depthSum * kInverseCount[blocking]);
+        return false;
     }
     /// addTexel() for a level-0 texel at depth @p z < p.z (the caller's test): its four quantiles
     /// are z, so all of them are in front or none, and their mean is z exactly (z + z + z + z and
     /// the quarter of it round to nothing in double). Two thirds of FLOWERS' texels are read at
     /// level 0, and the Texel copy and the quantile loop were a sixth of their time.
-    void addDepth(float z, int tx, int ty) {
+    /// @return as addTexel(): true when z is not in front and c1 <= 0, so that no deeper layer
+    /// is (c0 + q c1 only falls as q grows, and so do its rounded values). Around a receiver most
+    /// texels are its own surface, whose next layer this saves reading.
+    bool addDepth(float z, int tx, int ty) {
         const FrontTest f = frontTest(tx, ty);
-        if (f.c0 + z * f.c1 > 0) hide(f.centre, DepthPyramid::kQuantiles, double(z));
+        if (!(f.c0 + z * f.c1 > 0)) return f.c1 <= 0;
+        hide(f.centre, DepthPyramid::kQuantiles, double(z));
+        return false;
     }
 
     /// A texel's centre (fine texels) and its front test: depth q is in front when c0 + q c1 > 0,
@@ -404,19 +413,21 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
     for (int ty = y0; ty <= y1; ++ty)
         for (int tx = x0; tx <= x1; ++tx)
             for (size_t l = 0; l < layerCount; ++l) {
+                bool deeperHideNothing;
                 if (level == 0) {
                     const float z = layers[l].depth[size_t(ty) * size_t(res) + size_t(tx)];
                     if (!(z < b.p.z)) break;  // nor any layer behind
-                    b.addDepth(z, tx, ty);
+                    deeperHideNothing = b.addDepth(z, tx, ty);
                 } else {
                     const DepthPyramid::Texel& t = layers[l].texels[size_t(ty) * size_t(res) + size_t(tx)];
                     if (!(t.nearest < b.p.z)) break;
-                    b.addTexel(t, tx, ty);
+                    deeperHideNothing = b.addTexel(t, tx, ty);
                 }
                 // Every cell closed (the umbra): visibleFraction() would sum zeros, and the
                 // texels left could only multiply them. With the exit above for receivers that
                 // face away from the whole light, a quarter of SPONZA-LIKE's lookups end early.
                 if (b.umbra()) return 0.0f;
+                if (deeperHideNothing) break;
             }
     return b.visibleFraction();
 }
