@@ -45,7 +45,7 @@ glm::dvec3 directionThrough(const CameraBasis& b, int w, int h, int x, int y) {
 /// while the coordinates stay below 1e9 (the caller's guard). Empty (lo > hi) when none can.
 [[gnu::always_inline]] inline void rowSpan(const double* sx, const double* sy, int m, double orient, double py, double& lo, double& hi) {
     for (int i = 0; i < m; ++i) {
-        const int j = (i + 1) % m;
+        const int j = i + 1 == m ? 0 : i + 1;  // no idiv per edge: this runs per row
         // orient * (a - b (px - sx[i])) >= 0 with a, b below.
         const double a = (sx[j] - sx[i]) * (py - sy[i]), b = (sy[j] - sy[i]) * orient;
         if (b == 0) {
@@ -216,7 +216,7 @@ void CameraRasterizer::ScratchDeleter::operator()(Scratch* s) const { delete s; 
             double px = x + 0.5;
             bool inside = true;
             for (int i = 0; i < m && inside; ++i) {
-                int j = (i + 1) % m;
+                const int j = i + 1 == m ? 0 : i + 1;  // no idiv per edge and pixel
                 inside = q.orient * ((sx[j] - sx[i]) * (py - sy[i]) - (sy[j] - sy[i]) * (px - sx[i])) >= 0;
             }
             if (!inside) continue;
