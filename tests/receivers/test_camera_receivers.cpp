@@ -130,6 +130,53 @@ TEST_CASE("each triangle covers exactly the pixels whose rays hit it", "[receive
     }
 }
 
+TEST_CASE("in a deep stack of triangles each pixel keeps the nearest surfaces a ray cast finds", "[receivers][camera]") {
+    // Most depth tests lose to a nearer surface (the scan skips their division); none of the
+    // surfaces a ray finds nearest may be lost, in any slot of a deep pixel.
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> coord(-5.0f, 5.0f), depth(-3.0f, 3.0f);
+    CameraDesc cam = frontCamera(80, 60);
+    cam.layers = GENERATE(1, 3);
+    std::vector<Triangle> tris;
+    for (int i = 0; i < 60; ++i)
+        tris.push_back({{glm::vec3(coord(rng), coord(rng), depth(rng)), glm::vec3(coord(rng), coord(rng), depth(rng)),
+                         glm::vec3(coord(rng), coord(rng), depth(rng))},
+                        0});
+    VectorSource source(tris);
+    const ReceiverSet r = rasterizeCamera(source, cam);
+    const size_t pixels = size_t(cam.width) * cam.height;
+    std::vector<std::vector<float>> kept(pixels);
+    for (size_t i = 0; i < r.size(); ++i) kept[r.pixel[i] % pixels].push_back(r.depth[i]);
+    int checked = 0;
+    for (int y = 0; y < cam.height; ++y)
+        for (int x = 0; x < cam.width; ++x) {
+            // Möller–Trumbore against every triangle; a pixel counts only when every hit is
+            // clearly inside or outside, and its hits are clearly apart.
+            const glm::dvec3 d = cam.pixelDirection(x, y);
+            std::vector<double> hits;
+            bool clear = true;
+            for (const Triangle& t : tris) {
+                const glm::dvec3 A(t.v[0]), e1 = glm::dvec3(t.v[1]) - A, e2 = glm::dvec3(t.v[2]) - A, s = cam.eye - A;
+                const glm::dvec3 pv = glm::cross(d, e2), qv = glm::cross(s, e1);
+                const double det = glm::dot(e1, pv);
+                if (std::abs(det) < 1e-9) continue;
+                const double u = glm::dot(s, pv) / det, v = glm::dot(d, qv) / det, w = 1 - u - v, along = glm::dot(e2, qv) / det;
+                const double margin = 1e-6;
+                if (u > margin && v > margin && w > margin && along > 1e-3) hits.push_back(along);
+                else if (!(u < -margin || v < -margin || w < -margin || along < -1e-3)) clear = false;
+            }
+            std::sort(hits.begin(), hits.end());
+            for (size_t k = 1; k < hits.size(); ++k) clear = clear && hits[k] - hits[k - 1] > 1e-4;
+            if (!clear) continue;
+            ++checked;
+            const std::vector<float>& got = kept[size_t(y) * cam.width + x];
+            const size_t want = std::min(hits.size(), size_t(cam.layers));
+            REQUIRE(got.size() == want);
+            for (size_t k = 0; k < want; ++k) CHECK(std::abs(double(got[k]) - hits[k]) <= 1e-5 * hits[k]);
+        }
+    CHECK(checked > int(pixels) / 2);
+}
+
 namespace {
 
 /// Everything a rasterizer hands on, from @p chunks of random triangles, with TBB limited to
