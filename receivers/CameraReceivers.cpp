@@ -13,7 +13,6 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <cfloat>
 #include <cmath>
 #include <limits>
 
@@ -195,9 +194,6 @@ void CameraRasterizer::ScratchDeleter::operator()(Scratch* s) const { delete s; 
     q.y0 = y0, q.y1 = y1;
 }
 
-/// 1 + 2^-48: a margin above the relative rounding of a product and a quotient of doubles.
-constexpr double kBeyondRounding = 1.0 + 0x1p-48;
-
 [[gnu::always_inline]] inline void CameraRasterizer::drawRows(const Triangle& tri, const Projected& setup, size_t index, int yLo, int yHi) {
     // A local copy: the stores to the pixels below (class_ is bytes, which may alias anything)
     // would otherwise make the compiler reload the setup for every pixel.
@@ -226,20 +222,12 @@ constexpr double kBeyondRounding = 1.0 + 0x1p-48;
             if (!inside) continue;
             glm::dvec3 d = direction(x, y);
             double denom = glm::dot(q.n, d);
-            // Slots of a pixel hold its nearest distinct depths, ascending; a depth equal to
-            // one already kept is the same surface again, and the earlier triangle keeps it.
-            const size_t L = size_t(camera_.layers);
-            // Most tests lose to a nearer surface. When |planeD| exceeds the farthest kept depth
-            // times |denom| by more than both roundings (a normal product, so that they are
-            // relative), t = planeD / denom is either negative or beyond that depth, and so is
-            // float(t) (the depth is a float): the pixel would reject the triangle below anyway,
-            // so the division is skipped (measured on FLOWERS' scan).
-            if (const double beyond = double(depth_[base + L - 1]) * std::abs(denom) * kBeyondRounding;
-                beyond >= DBL_MIN && std::abs(q.planeD) > beyond)
-                continue;
             if (denom == 0.0) continue;
             double t = q.planeD / denom;
             if (!(t > 0.0)) continue;
+            // Slots of a pixel hold its nearest distinct depths, ascending; a depth equal to
+            // one already kept is the same surface again, and the earlier triangle keeps it.
+            const size_t L = size_t(camera_.layers);
             const float ft = float(t);
             size_t k = 0;
             while (k < L && !(ft < depth_[base + k])) ++k;
