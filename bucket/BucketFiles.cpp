@@ -158,14 +158,16 @@ uint32_t BucketWriter::bucketOf(const Triangle& t) const {
 }
 
 void BucketWriter::write(std::span<const Triangle> triangles) {
-    if (failed_) fail(directory_, "cannot write buckets: an earlier write failed");
-    if (finished_) throw std::logic_error("BucketWriter::write after finish()");
+    // In parts of 256, and at least one (empty) part, so that the checks of the write below
+    // also run for an empty span.
     std::array<uint32_t, 256> buckets;
-    for (size_t first = 0; first < triangles.size(); first += buckets.size()) {
+    size_t first = 0;
+    do {
         const std::span<const Triangle> part = triangles.subspan(first, std::min(buckets.size(), triangles.size() - first));
         for (size_t i = 0; i < part.size(); ++i) buckets[i] = bucketOf(part[i]);
         write(part, std::span<const uint32_t>(buckets.data(), part.size()));
-    }
+        first += part.size();
+    } while (first < triangles.size());
 }
 
 void BucketWriter::write(std::span<const Triangle> triangles, std::span<const uint32_t> buckets) {

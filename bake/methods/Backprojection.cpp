@@ -267,12 +267,15 @@ struct Backprojector {
         cells();
         std::array<double, LightGrid::kCells> column;
         for (int i = 0; i < LightGrid::kCells; ++i) column[size_t(i)] = c0 + (grid.lo.x + (i + 0.5) * grid.cell.x) * cx;
+        openCells = 0;
         for (int j = 0; j < LightGrid::kCells; ++j) {
             const double row = (grid.lo.y + (j + 0.5) * grid.cell.y) * cy;
             float* cellRow = &transmitted[size_t(j * LightGrid::kCells)];
-            for (int i = 0; i < LightGrid::kCells; ++i) cellRow[i] = column[size_t(i)] + row < 0 ? 0.0f : cellRow[i];
+            for (int i = 0; i < LightGrid::kCells; ++i) {
+                cellRow[i] = column[size_t(i)] + row < 0 ? 0.0f : cellRow[i];
+                openCells += cellRow[i] != 0.0f;
+            }
         }
-        openCells = int(std::count_if(transmitted.begin(), transmitted.end(), [](float t) { return t != 0.0f; }));
     }
 
     /// The image box (fine texels) that can hold blockers at depth @p z or farther over the light:
@@ -416,11 +419,11 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
             for (size_t l = 0; l < layerCount; ++l) {
                 bool deeperHideNothing;
                 if (level == 0) {
-                    const float z = layers[l].depth[size_t(ty) * size_t(res) + size_t(tx)];
+                    const float z = layers[l].depthAt(tx, ty);
                     if (!(z < b.p.z)) break;  // nor any layer behind
                     deeperHideNothing = b.addDepth(z, tx, ty);
                 } else {
-                    const DepthPyramid::Texel& t = layers[l].texels[size_t(ty) * size_t(res) + size_t(tx)];
+                    const DepthPyramid::Texel& t = layers[l].texel(tx, ty);
                     if (!(t.nearest < b.p.z)) break;
                     deeperHideNothing = b.addTexel(t, tx, ty);
                 }

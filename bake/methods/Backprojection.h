@@ -62,10 +62,12 @@ public:
         const float* depth;   ///< level 0: the layer of the shadow map
         int res;
         Texel at(int x, int y) const {
-            if (texels) return texels[size_t(y) * res + x];
-            const float z = depth[size_t(y) * res + x];
+            if (texels) return texel(x, y);
+            const float z = depthAt(x, y);
             return {z, {z, z, z, z}};
         }
+        const Texel& texel(int x, int y) const { return texels[size_t(y) * res + x]; }  ///< levels >= 1
+        float depthAt(int x, int y) const { return depth[size_t(y) * res + x]; }         ///< level 0
     };
     Level level(int l) const;
     /// The nearest depth of the whole map.
