@@ -7,6 +7,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 #if defined(__SSE4_1__)
@@ -154,8 +155,7 @@ LightGrid::LightGrid(const std::vector<glm::dvec2>& outline) {
             }
             if (in) inside_.push_back(uint16_t(j * kCells + i));
         }
-    open_.fill(0.0f);
-    for (const uint16_t c : inside_) open_[c] = 1.0f;
+    for (const uint16_t c : inside_) openRows_[c / kCells] = uint16_t(openRows_[c / kCells] | 1u << (c % kCells));
 }
 
 namespace {
@@ -219,19 +219,49 @@ struct Backprojector {
     /// Leaves the cells unset (an aggregate's braces would zero them for every lookup).
     Backprojector(const LightView& v, const LightGrid& g, const glm::dvec3& receiver, double depthBias, double epsilon)
         : view(v), grid(g), p(v.project(receiver)), r(receiver), n(0.0), bias(depthBias), eps(epsilon) {}
-    /// The cells' transmissions, valid once touched: most lookups block no cell, and the copy of
-    /// the open grid and the sum over it were a tenth of the lookup's instructions.
+    /// The cells' state, valid once touched: most lookups block no cell, and the copy of the open
+    /// grid and the sum over it were a tenth of the lookup's instructions. While every cell is
+    /// open (1) or closed (0), as it is at level 0 (whose texels hide all or nothing), the state
+    /// is a bit per cell (openRows); the first partial hide turns it into transmissions, fractional.
+    std::array<uint16_t, LightGrid::kCells> openRows;
     Transmission transmitted;
-    bool touched = false;
+    bool touched = false, fractional = false;
     /// Once touched, at least the number of cells inside the outline still open: a cell leaves
     /// only when something sets it to 0, so none is left when this reaches 0, and the receiver's
     /// remaining texels cannot change its result (0) any more.
     int openCells = 0;
+    void touch() {
+        if (!touched) openRows = grid.openRows(), touched = true, openCells = int(grid.insideCells().size());
+    }
+    /// The cells as transmissions (an open cell's is exactly 1, a closed one's 0).
     Transmission& cells() {
-        if (!touched) transmitted = grid.open(), touched = true, openCells = int(grid.insideCells().size());
+        touch();
+        if (!fractional) {
+            for (int j = 0; j < LightGrid::kCells; ++j)
+                for (int i = 0; i < LightGrid::kCells; ++i) transmitted[size_t(j * LightGrid::kCells + i)] = openRows[size_t(j)] >> i & 1 ? 1.0f : 0.0f;
+            fractional = true;
+        }
         return transmitted;
     }
+    /// Closes the cells of columns [@p i0, @p i1) in rows [@p j0, @p j1).
+    void close(int i0, int i1, int j0, int j1) {
+        if (fractional) {
+            openCells -= scaleCells(transmitted, i0, i1, j0, j1, 0.0f);
+            return;
+        }
+        touch();
+        const unsigned columns = (1u << i1) - (1u << i0);
+        for (int j = j0; j < j1; ++j) {
+            openCells -= __builtin_popcount(openRows[size_t(j)] & columns);
+            openRows[size_t(j)] = uint16_t(openRows[size_t(j)] & ~columns);
+        }
+    }
     bool umbra() const { return touched && openCells == 0; }
+    int openCount() const {
+        int n = 0;
+        for (const uint16_t row : openRows) n += __builtin_popcount(row);
+        return n;
+    }
     // Set by prepare(): the texel's size, 1/z_r, the cells' reciprocal sizes, and the plane
     // distance of the point at depth q on a texel's central ray as base + q * along, with base
     // and along linear in the texel's image position.
@@ -264,17 +294,16 @@ struct Backprojector {
         const glm::dvec2 hi = grid.hi();
         if (c0 + std::min(grid.lo.x * cx, hi.x * cx) + std::min(grid.lo.y * cy, hi.y * cy) >= 0) return;  // all in front
         // The same sums as c0 + l.x cx + l.y cy at each cell centre l, with the column part shared.
-        cells();
+        touch();  // the first change to the cells: still one bit each
         std::array<double, LightGrid::kCells> column;
         for (int i = 0; i < LightGrid::kCells; ++i) column[size_t(i)] = c0 + (grid.lo.x + (i + 0.5) * grid.cell.x) * cx;
         openCells = 0;
         for (int j = 0; j < LightGrid::kCells; ++j) {
             const double row = (grid.lo.y + (j + 0.5) * grid.cell.y) * cy;
-            float* cellRow = &transmitted[size_t(j * LightGrid::kCells)];
-            for (int i = 0; i < LightGrid::kCells; ++i) {
-                cellRow[i] = column[size_t(i)] + row < 0 ? 0.0f : cellRow[i];
-                openCells += cellRow[i] != 0.0f;
-            }
+            unsigned behind = 0;
+            for (int i = 0; i < LightGrid::kCells; ++i) behind |= unsigned(column[size_t(i)] + row < 0) << i;
+            openRows[size_t(j)] = uint16_t(openRows[size_t(j)] & ~behind);
+            openCells += __builtin_popcount(openRows[size_t(j)]);
         }
     }
 
@@ -290,17 +319,52 @@ struct Backprojector {
     /// The search radius in fine texels for blockers as near as depth @p z.
     double radiusFor(double z) const { return std::clamp(grid.radius * kOf(z) / texel, 0.0, double(view.res)); }
 
+    /// The cells [@p i0, @p i1) x [@p j0, @p j1) whose centres lie in the box [@p a, @p b] of the
+    /// light (firstCellX/Y of its corners); false when there are none. The two axes in one SSE4.1
+    /// register each: the same operations as firstCellX/Y lane by lane, so the same bits (NaN and
+    /// out-of-range values are clamped in double first, as clampedTexel does).
+    bool cellBox(const glm::dvec2& a, const glm::dvec2& b, int& i0, int& i1, int& j0, int& j1) const {
+#if defined(__SSE4_1__)
+        const __m128d lo = _mm_setr_pd(grid.lo.x, grid.lo.y), inverse = _mm_setr_pd(inverseCell.x, inverseCell.y);
+        const __m128d halfCell = _mm_set1_pd(0.5), zero = _mm_setzero_pd(), cells = _mm_set1_pd(LightGrid::kCells);
+        auto first = [&](const glm::dvec2& v) {
+            const __m128d c = _mm_round_pd(_mm_sub_pd(_mm_mul_pd(_mm_sub_pd(_mm_setr_pd(v.x, v.y), lo), inverse), halfCell), _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC);
+            return _mm_cvttpd_epi32(_mm_min_pd(_mm_max_pd(c, zero), cells));  // maxpd gives 0 for NaN
+        };
+        const __m128i from = first(a), to = first(b);
+        i0 = _mm_cvtsi128_si32(from), j0 = _mm_extract_epi32(from, 1), i1 = _mm_cvtsi128_si32(to), j1 = _mm_extract_epi32(to, 1);
+        return (_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(to, from))) & 3) == 3;
+#else
+        i0 = firstCellX(a.x), i1 = firstCellX(b.x), j0 = firstCellY(a.y), j1 = firstCellY(b.y);
+        return i0 < i1 && j0 < j1;
+#endif
+    }
     /// The first index of a cell whose centre is at or past @p value (light units), along x or y.
     int firstCellX(double value) const { return clampedTexel(std::ceil((value - grid.lo.x) * inverseCell.x - 0.5), 0, LightGrid::kCells); }
     int firstCellY(double value) const { return clampedTexel(std::ceil((value - grid.lo.y) * inverseCell.y - 0.5), 0, LightGrid::kCells); }
 
-    /// Hides the light behind texel (@p tx, @p ty) of the level set by readLevel(), for the share
+    /// A texel's centre (fine texels) and its front test: depth q is in front when c0 + q c1 > 0,
+    /// beyond the receiver's plane by the margin (or, without a plane, nearer than the receiver by
+    /// it). Linear in q, so with c1 <= 0 (the usual case: depth runs towards the plane) the
+    /// quantiles in front are a prefix of the ascending four, and the first one out ends the
+    /// texel (most texels around a receiver are its own surface and end at once).
+    struct FrontTest {
+        glm::dvec2 centre;
+        double c0, c1;
+    };
+    FrontTest frontTest(int tx, int ty) const {
+        const glm::dvec2 centre((tx + 0.5) * s, (ty + 0.5) * s);
+        const glm::dvec2 image = centre * texel - view.halfExtent;  // tangent (perspective) or world units
+        const double lateral = image.x * perX + image.y * perY;
+        const double base = view.ortho ? base0 + lateral : base0, along = view.ortho ? along0 : along0 + lateral;
+        return {centre, hasPlane ? base - fixedMargin : p.z - fixedMargin, hasPlane ? along - marginSlope : -(1.0 + marginSlope)};
+    }
+    /// Hides the light behind a texel of the level set by readLevel() (front test @p f), for the share
     /// of its quantiles that lie in front of the receiver's plane.
     /// @return true when no layer behind this one can hide anything either: none of its
     /// quantiles is in front, and c1 <= 0, so the deeper layers' quantiles (each at least this
     /// layer's: the order statistics of depths that are each at least this layer's) are not.
-    bool addTexel(const DepthPyramid::Texel& t, int tx, int ty) {
-        const FrontTest f = frontTest(tx, ty);
+    bool addTexel(const DepthPyramid::Texel& t, const FrontTest& f) {
         int blocking = 0;
         double depthSum = 0;
         for (const float q : t.quantile) {
@@ -320,29 +384,12 @@ struct Backprojector {
     /// @return as addTexel(): true when z is not in front and c1 <= 0, so that no deeper layer
     /// is (c0 + q c1 only falls as q grows, and so do its rounded values). Around a receiver most
     /// texels are its own surface, whose next layer this saves reading.
-    bool addDepth(float z, int tx, int ty) {
-        const FrontTest f = frontTest(tx, ty);
+    bool addDepth(float z, const FrontTest& f) {
         if (!(f.c0 + z * f.c1 > 0)) return f.c1 <= 0;
         hide(f.centre, DepthPyramid::kQuantiles, double(z));
         return false;
     }
 
-    /// A texel's centre (fine texels) and its front test: depth q is in front when c0 + q c1 > 0,
-    /// beyond the receiver's plane by the margin (or, without a plane, nearer than the receiver by
-    /// it). Linear in q, so with c1 <= 0 (the usual case: depth runs towards the plane) the
-    /// quantiles in front are a prefix of the ascending four, and the first one out ends the
-    /// texel (most texels around a receiver are its own surface and end at once).
-    struct FrontTest {
-        glm::dvec2 centre;
-        double c0, c1;
-    };
-    FrontTest frontTest(int tx, int ty) const {
-        const glm::dvec2 centre((tx + 0.5) * s, (ty + 0.5) * s);
-        const glm::dvec2 image = centre * texel - view.halfExtent;  // tangent (perspective) or world units
-        const double lateral = image.x * perX + image.y * perY;
-        const double base = view.ortho ? base0 + lateral : base0, along = view.ortho ? along0 : along0 + lateral;
-        return {centre, hasPlane ? base - fixedMargin : p.z - fixedMargin, hasPlane ? along - marginSlope : -(1.0 + marginSlope)};
-    }
     /// Hides the light behind the texel at @p centre for @p blocking of its quantiles, in front
     /// at mean depth @p z.
     void hide(const glm::dvec2& centre, int blocking, double z) {
@@ -353,9 +400,10 @@ struct Backprojector {
         const double inverseK = view.ortho ? 1.0 / gap : z * p.z / gap;
         const glm::dvec2 offset = (centre - glm::dvec2(p.x, p.y)) * texel, half(halfTexel);
         const glm::dvec2 a = (offset - half) * inverseK, b = (offset + half) * inverseK;
-        const int i0 = firstCellX(a.x), i1 = firstCellX(b.x), j0 = firstCellY(a.y), j1 = firstCellY(b.y);
-        if (i0 >= i1 || j0 >= j1) return;
+        int i0, i1, j0, j1;
+        if (!cellBox(a, b, i0, i1, j0, j1)) return;
         // Neighbouring texels at one depth share box edges, so each cell is counted once.
+        if (blocking == DepthPyramid::kQuantiles) return close(i0, i1, j0, j1);
         const float keep = float(1.0 - double(blocking) / DepthPyramid::kQuantiles);
         cells();
         openCells -= scaleCells(transmitted, i0, i1, j0, j1, keep);
@@ -366,6 +414,8 @@ struct Backprojector {
     /// receiver's texels in the profile.
     float visibleFraction() const {
         if (!touched) return 1.0f;  // every inside cell open: the sum below gives exactly 1 too
+        // Bits: the count of open cells, as the sum of their transmissions (each exactly 1) gives.
+        if (!fractional) return float(double(openCount()) / double(grid.insideCells().size()));
         std::array<float, 8> lane{};
         for (size_t c = 0; c < transmitted.size(); c += lane.size())
             for (size_t l = 0; l < lane.size(); ++l) lane[l] += transmitted[c + l];
@@ -414,25 +464,57 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
     std::array<DepthPyramid::Level, 8> layers;  // DepthMap's layers: a few
     const size_t layerCount = std::min(pyramids.size(), layers.size());
     for (size_t l = 0; l < layerCount; ++l) layers[l] = pyramids[l].level(level);
-    for (int ty = y0; ty <= y1; ++ty)
-        for (int tx = x0; tx <= x1; ++tx)
-            for (size_t l = 0; l < layerCount; ++l) {
-                bool deeperHideNothing;
-                if (level == 0) {
-                    const float z = layers[l].depthAt(tx, ty);
-                    if (!(z < b.p.z)) break;  // nor any layer behind
-                    deeperHideNothing = b.addDepth(z, tx, ty);
-                } else {
-                    const DepthPyramid::Texel& t = layers[l].texel(tx, ty);
-                    if (!(t.nearest < b.p.z)) break;
-                    deeperHideNothing = b.addTexel(t, tx, ty);
-                }
-                // Every cell closed (the umbra): visibleFraction() would sum zeros, and the
-                // texels left could only multiply them. With the exit above for receivers that
-                // face away from the whole light, a quarter of SPONZA-LIKE's lookups end early.
-                if (b.umbra()) return 0.0f;
-                if (deeperHideNothing) break;
+    // One texel's layers, nearest first, from its front test @p f; true once the cells are all
+    // closed (the umbra): visibleFraction() would sum zeros, and the texels left could only
+    // multiply them. With the exit above for receivers that face away from the whole light, a
+    // quarter of SPONZA-LIKE's lookups end early.
+    auto visit = [&](int tx, int ty, const Backprojector::FrontTest& f) {
+        for (size_t l = 0; l < layerCount; ++l) {
+            bool deeperHideNothing;
+            if (level == 0) {
+                const float z = layers[l].depthAt(tx, ty);
+                if (!(z < b.p.z)) break;  // nor any layer behind
+                deeperHideNothing = b.addDepth(z, f);
+            } else {
+                const DepthPyramid::Texel& t = layers[l].texel(tx, ty);
+                if (!(t.nearest < b.p.z)) break;
+                deeperHideNothing = b.addTexel(t, f);
             }
+            if (b.umbra()) return true;
+            if (deeperHideNothing) break;
+        }
+        return false;
+    };
+    constexpr int kRow = 64;
+    if (level == 0 && x1 - x0 < kRow) {
+        // Level 0 (most lookups), a row at a time: which texels need their layers is decided for
+        // the whole row without a branch, and only those are visited; most texels around a
+        // receiver need none, and the branches per texel were most of the loop's time. A texel
+        // needs them when its first layer's depth z is nearer than the receiver and in front, or
+        // not in front with c1 > 0: otherwise visit() changes nothing (every deeper layer's depth
+        // is at least z). Coarser levels read fewer, larger texels, and this measured no gain there.
+        std::array<Backprojector::FrontTest, kRow> tests;
+        for (int ty = y0; ty <= y1; ++ty) {
+            uint64_t needed = 0;
+            for (int tx = x0; tx <= x1; ++tx) {
+                const Backprojector::FrontTest& f = tests[size_t(tx - x0)] = b.frontTest(tx, ty);
+                const float z = layers[0].depthAt(tx, ty);
+                const bool near = z < b.p.z, front = f.c0 + z * f.c1 > 0, deeper = f.c1 > 0;
+                needed |= uint64_t(near & (front | deeper)) << (tx - x0);
+            }
+            for (; needed; needed &= needed - 1) {
+                const int i = std::countr_zero(needed);
+                if (visit(x0 + i, ty, tests[size_t(i)])) return 0.0f;
+            }
+        }
+        return b.visibleFraction();
+    }
+    for (int ty = y0; ty <= y1; ++ty)
+        for (int tx = x0; tx <= x1; ++tx) {
+            // The layers are nearest first: none is in front of the receiver unless the first is.
+            if (!((level == 0 ? layers[0].depthAt(tx, ty) : layers[0].texel(tx, ty).nearest) < b.p.z)) continue;
+            if (visit(tx, ty, b.frontTest(tx, ty))) return 0.0f;  // one front test per texel, for all its layers
+        }
     return b.visibleFraction();
 }
 

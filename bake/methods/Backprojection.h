@@ -91,7 +91,7 @@ private:
 /// lie inside the convex hull of the outline's points.
 class LightGrid {
 public:
-    static constexpr int kCells = 12;  ///< cells per side
+    static constexpr int kCells = 12;  ///< cells per side (a row's cells are the bits of a uint16_t)
 
     /// @param outline the light bound's vertices in image axes (world units; a sun: tangents)
     explicit LightGrid(const std::vector<glm::dvec2>& outline);
@@ -103,12 +103,12 @@ public:
     double radius = 0;                ///< the largest distance of the outline from the centre
     /// The cells inside the outline, as j * kCells + i.
     const std::vector<uint16_t>& insideCells() const { return inside_; }
-    /// Per cell, as j * kCells + i: 1 inside the outline, 0 outside (a lookup's starting state).
-    const std::array<float, kCells * kCells>& open() const { return open_; }
+    /// Per row j, bit i: the cell inside the outline (a lookup's starting state).
+    const std::array<uint16_t, kCells>& openRows() const { return openRows_; }
 
 private:
     std::vector<uint16_t> inside_;
-    std::array<float, kCells * kCells> open_{};
+    std::array<uint16_t, kCells> openRows_{};
 };
 
 /// @brief The visible fraction of receiver @p r (normal @p normal, may be zero) from @p view by
