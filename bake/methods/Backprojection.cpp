@@ -118,9 +118,9 @@ float DepthPyramid::nearest() const { return levels_.empty() ? at(0, 0, 0).neare
 
 float DepthPyramid::nearestIn(int level, glm::dvec2 lo, glm::dvec2 hi) const {
     const int res = resolution(level);
-    const double s = double(1 << level);
-    const int x0 = clampedTexel(std::floor(lo.x / s), 0, res - 1), x1 = clampedTexel(std::floor(hi.x / s), 0, res - 1);
-    const int y0 = clampedTexel(std::floor(lo.y / s), 0, res - 1), y1 = clampedTexel(std::floor(hi.y / s), 0, res - 1);
+    const double perTexel = std::ldexp(1.0, -level);  // x / 2^level exactly, without four divisions
+    const int x0 = clampedTexel(std::floor(lo.x * perTexel), 0, res - 1), x1 = clampedTexel(std::floor(hi.x * perTexel), 0, res - 1);
+    const int y0 = clampedTexel(std::floor(lo.y * perTexel), 0, res - 1), y1 = clampedTexel(std::floor(hi.y * perTexel), 0, res - 1);
     // Through a Level view (at() per texel cost a fifth of the lookup's search).
     const Level texels = this->level(level);
     float z = INFINITY;
@@ -459,8 +459,9 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
     const int level = levelFor(b.radiusFor(nearest), taps), res = nearestLayer.resolution(level);
     b.readLevel(level);
     b.searchBox(nearest, lo, hi);
-    const int x0 = clampedTexel(std::floor(lo.x / b.s), 0, res - 1), x1 = clampedTexel(std::floor(hi.x / b.s), 0, res - 1);
-    const int y0 = clampedTexel(std::floor(lo.y / b.s), 0, res - 1), y1 = clampedTexel(std::floor(hi.y / b.s), 0, res - 1);
+    const double perTexel = std::ldexp(1.0, -level);  // x / 2^level exactly, without four divisions
+    const int x0 = clampedTexel(std::floor(lo.x * perTexel), 0, res - 1), x1 = clampedTexel(std::floor(hi.x * perTexel), 0, res - 1);
+    const int y0 = clampedTexel(std::floor(lo.y * perTexel), 0, res - 1), y1 = clampedTexel(std::floor(hi.y * perTexel), 0, res - 1);
     std::array<DepthPyramid::Level, 8> layers;  // DepthMap's layers: a few
     const size_t layerCount = std::min(pyramids.size(), layers.size());
     for (size_t l = 0; l < layerCount; ++l) layers[l] = pyramids[l].level(level);

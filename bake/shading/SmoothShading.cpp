@@ -135,6 +135,7 @@ void VertexBend::buildFilter() {
 void VertexBend::add(std::span<const Triangle> chunk) {
     if (filterSize_ != index_.size() || filter_.empty()) buildFilter();
     const size_t L = lights_.size();
+    cosines_.resize(L);
     for (const Triangle& tri : chunk) {
         uint32_t first[3];
         bool any = false;
@@ -152,14 +153,17 @@ void VertexBend::add(std::span<const Triangle> chunk) {
         if (!(len > 0) || !std::isfinite(len)) continue;
         n /= len;
         for (int i = 0; i < 3; ++i) {
-            const glm::vec3& v = tri.v[i];
+            // Each light's cosine at the vertex, once for all its slots (a vertex of FLOWERS has
+            // about three, one per surface that meets there).
+            bool lit = false;
             for (uint32_t slot = first[i]; slot != kNone; slot = next_[slot]) {
                 // A face across a crease (normals more than kCreaseDeg apart) is another surface.
                 if (sign_[slot] * glm::dot(n, glm::dvec3(owner_[slot])) < kCreaseCos) continue;
-                for (size_t l = 0; l < L; ++l) {
-                    double d = sign_[slot] * glm::dot(lights_[l].at(glm::dvec3(v)), n);
-                    bend_[slot * L + l] = std::min(bend_[slot * L + l], float(d));
+                if (!lit) {
+                    for (size_t l = 0; l < L; ++l) cosines_[l] = glm::dot(lights_[l].at(glm::dvec3(tri.v[i])), n);
+                    lit = true;
                 }
+                for (size_t l = 0; l < L; ++l) bend_[slot * L + l] = std::min(bend_[slot * L + l], float(sign_[slot] * cosines_[l]));
             }
         }
     }

@@ -108,6 +108,7 @@ private:
     std::vector<glm::vec3> owner_;                      ///< per slot: its face's camera-facing normal
     std::vector<float> sign_;                           ///< per slot: winding sign of its owner
     std::vector<float> bend_;                           ///< per slot and light: min dot(l, n_F)
+    std::vector<double> cosines_;                       ///< add(): each light's cosine at the current vertex
     // Waiting for recover(): receiver r's triangle id, receivers sorted by id, the next one.
     std::vector<uint64_t> ids_;
     /// A one-hash Bloom filter over index_'s keys, rebuilt by add() when slots were added.
