@@ -373,3 +373,28 @@ TEST_CASE("penumbra map: the light's view draws every texel whose centre lies in
         CHECK(drawn >= inside);
     }
 }
+
+TEST_CASE("penumbra map: a light grid's rows hold one bit per cell, set for exactly the cells inside the outline", "[penumbra-map]") {
+    // The lookup starts from these bits and counts the light left with a popcount, so a bit set
+    // outside the outline (or missing inside it) would change every visible fraction.
+    const double pi = std::acos(-1.0);
+    for (const int corners : {3, 4, 6, 12}) {
+        std::vector<glm::dvec2> outline;
+        for (int i = 0; i < corners; ++i) outline.push_back({0.7 * std::cos(2 * pi * i / corners + 0.3), 0.4 * std::sin(2 * pi * i / corners + 0.3)});
+        const LightGrid grid(outline);
+        REQUIRE(grid.hasArea());
+        std::vector<bool> inside(LightGrid::kCells * LightGrid::kCells, false);
+        for (const uint16_t c : grid.insideCells()) inside[c] = true;
+        int bits = 0;
+        for (int j = 0; j < LightGrid::kCells; ++j) {
+            CHECK(grid.openRows()[size_t(j)] >> LightGrid::kCells == 0);  // no bit past the row's cells
+            for (int i = 0; i < LightGrid::kCells; ++i) {
+                const bool bit = (grid.openRows()[size_t(j)] >> i & 1) != 0;
+                CHECK(bit == inside[size_t(j * LightGrid::kCells + i)]);
+                bits += bit;
+            }
+        }
+        CHECK(bits == int(grid.insideCells().size()));
+        CHECK(bits > LightGrid::kCells * LightGrid::kCells / 3);  // the outline fills much of its box
+    }
+}
