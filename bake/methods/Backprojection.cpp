@@ -257,10 +257,11 @@ struct Backprojector {
         }
     }
     bool umbra() const { return touched && openCells == 0; }
+    /// The open cells, counted from the bits (while not fractional).
     int openCount() const {
-        int n = 0;
-        for (const uint16_t row : openRows) n += __builtin_popcount(row);
-        return n;
+        int count = 0;
+        for (const uint16_t row : openRows) count += __builtin_popcount(row);
+        return count;
     }
     // Set by prepare(): the texel's size, 1/z_r, the cells' reciprocal sizes, and the plane
     // distance of the point at depth q on a texel's central ray as base + q * along, with base
