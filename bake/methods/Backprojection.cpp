@@ -117,10 +117,7 @@ DepthPyramid::Level DepthPyramid::level(int l) const {
 float DepthPyramid::nearest() const { return levels_.empty() ? at(0, 0, 0).nearest : levels_.back()[0].nearest; }
 
 float DepthPyramid::nearestIn(int level, glm::dvec2 lo, glm::dvec2 hi) const {
-    const int res = resolution(level);
-    const double perTexel = std::ldexp(1.0, -level);  // x / 2^level exactly, without four divisions
-    const int x0 = clampedTexel(std::floor(lo.x * perTexel), 0, res - 1), x1 = clampedTexel(std::floor(hi.x * perTexel), 0, res - 1);
-    const int y0 = clampedTexel(std::floor(lo.y * perTexel), 0, res - 1), y1 = clampedTexel(std::floor(hi.y * perTexel), 0, res - 1);
+    const auto [x0, x1, y0, y1] = texelsOver(level, lo, hi);
     // Through a Level view (at() per texel cost a fifth of the lookup's search).
     const Level texels = this->level(level);
     float z = INFINITY;
@@ -226,9 +223,9 @@ struct Backprojector {
     std::array<uint16_t, LightGrid::kCells> openRows;
     Transmission transmitted;
     bool touched = false, fractional = false;
-    /// Once touched, at least the number of cells inside the outline still open: a cell leaves
-    /// only when something sets it to 0, so none is left when this reaches 0, and the receiver's
-    /// remaining texels cannot change its result (0) any more.
+    /// Once touched, at least the number of cells inside the outline still open (exactly, while
+    /// not fractional): a cell leaves only when something sets it to 0, so none is left when this
+    /// reaches 0, and the receiver's remaining texels cannot change its result (0) any more.
     int openCells = 0;
     void touch() {
         if (!touched) openRows = grid.openRows(), touched = true, openCells = int(grid.insideCells().size());
@@ -257,12 +254,6 @@ struct Backprojector {
         }
     }
     bool umbra() const { return touched && openCells == 0; }
-    /// The open cells, counted from the bits (while not fractional).
-    int openCount() const {
-        int count = 0;
-        for (const uint16_t row : openRows) count += __builtin_popcount(row);
-        return count;
-    }
     // Set by prepare(): the texel's size, 1/z_r, the cells' reciprocal sizes, and the plane
     // distance of the point at depth q on a texel's central ray as base + q * along, with base
     // and along linear in the texel's image position.
@@ -415,8 +406,9 @@ struct Backprojector {
     /// receiver's texels in the profile.
     float visibleFraction() const {
         if (!touched) return 1.0f;  // every inside cell open: the sum below gives exactly 1 too
-        // Bits: the count of open cells, as the sum of their transmissions (each exactly 1) gives.
-        if (!fractional) return float(double(openCount()) / double(grid.insideCells().size()));
+        // Bits: openCells, exact while every change closed whole cells, is the count that the sum
+        // of their transmissions (each exactly 1) gives.
+        if (!fractional) return float(double(openCells) / double(grid.insideCells().size()));
         std::array<float, 8> lane{};
         for (size_t c = 0; c < transmitted.size(); c += lane.size())
             for (size_t l = 0; l < lane.size(); ++l) lane[l] += transmitted[c + l];
@@ -457,12 +449,11 @@ float backprojectedVisibility(const LightView& view, std::span<const DepthPyrami
         nearest = std::max(nearest, double(nearestLayer.nearestIn(levelFor(b.radiusFor(nearest), kSearchRadius), lo, hi)));
     }
     if (!(nearest < b.p.z)) return b.visibleFraction();
-    const int level = levelFor(b.radiusFor(nearest), taps), res = nearestLayer.resolution(level);
+    const int level = levelFor(b.radiusFor(nearest), taps);
     b.readLevel(level);
     b.searchBox(nearest, lo, hi);
-    const double perTexel = std::ldexp(1.0, -level);  // x / 2^level exactly, without four divisions
-    const int x0 = clampedTexel(std::floor(lo.x * perTexel), 0, res - 1), x1 = clampedTexel(std::floor(hi.x * perTexel), 0, res - 1);
-    const int y0 = clampedTexel(std::floor(lo.y * perTexel), 0, res - 1), y1 = clampedTexel(std::floor(hi.y * perTexel), 0, res - 1);
+    const DepthPyramid::TexelRange range = nearestLayer.texelsOver(level, lo, hi);
+    const int x0 = range.x0, x1 = range.x1, y0 = range.y0, y1 = range.y1;
     std::array<DepthPyramid::Level, 8> layers;  // DepthMap's layers: a few
     const size_t layerCount = std::min(pyramids.size(), layers.size());
     for (size_t l = 0; l < layerCount; ++l) layers[l] = pyramids[l].level(level);

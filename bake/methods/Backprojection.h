@@ -28,11 +28,13 @@
 /// blocker nearer than a few texels to the receiver's own plane is not seen (the bias).
 
 #include "bake/methods/LightView.h"
+#include "stream/util/TexelIndex.h"
 
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -72,6 +74,17 @@ public:
     Level level(int l) const;
     /// The nearest depth of the whole map.
     float nearest() const;
+    /// The texels [x0, x1] x [y0, y1] of @p level that cover the fine-texel box [@p lo, @p hi],
+    /// clamped to the level.
+    struct TexelRange {
+        int x0, x1, y0, y1;
+    };
+    TexelRange texelsOver(int level, glm::dvec2 lo, glm::dvec2 hi) const {  // inline: three calls per lookup
+        const int last = resolution(level) - 1;
+        const double perTexel = std::ldexp(1.0, -level);  // x / 2^level exactly, without four divisions
+        return {clampedTexel(std::floor(lo.x * perTexel), 0, last), clampedTexel(std::floor(hi.x * perTexel), 0, last),
+                clampedTexel(std::floor(lo.y * perTexel), 0, last), clampedTexel(std::floor(hi.y * perTexel), 0, last)};
+    }
     /// The nearest depth in the fine-texel box [lo, hi], read at @p level (whole texels).
     float nearestIn(int level, glm::dvec2 lo, glm::dvec2 hi) const;
     /// Bytes of the coarse levels (the `res²/3` texels of 20 bytes).
