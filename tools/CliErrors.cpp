@@ -17,6 +17,9 @@
 namespace penumbra {
 
 int reportError(std::exception_ptr error, const std::string& context) {
+    // Every message as one printable line, whatever bytes of the input it quotes (InputError's
+    // are already; a library's own what() may quote a token of a damaged file).
+    auto printDiagnostic = [](const std::string& text) { penumbra::printDiagnostic(printableLine(text.substr(0, text.size() - 1)) + "\n"); };
     const std::string prefix = context.empty() ? "penumbra: error: " : "penumbra: error: " + context + ": ";
     try {
         std::rethrow_exception(error);

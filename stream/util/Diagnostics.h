@@ -10,6 +10,8 @@
 /// ends a bake's messages, not the bake. Everything printed to `stderr` after the call (fmt,
 /// stdio, progress lines) goes through the safe stream.
 
+#include "stream/util/Error.h"
+
 #include <fmt/format.h>
 
 #include <string>
@@ -27,7 +29,7 @@ void printDiagnostic(std::string_view text) noexcept;
 template <typename... Args>
 void warning(fmt::format_string<Args...> format, Args&&... args) noexcept {
     try {
-        printDiagnostic("penumbra: warning: " + fmt::format(format, std::forward<Args>(args)...) + "\n");
+        printDiagnostic("penumbra: warning: " + printableLine(fmt::format(format, std::forward<Args>(args)...)) + "\n");
     } catch (...) {
     }
 }
@@ -38,7 +40,7 @@ template <typename... Args>
 void notice(bool quiet, fmt::format_string<Args...> format, Args&&... args) noexcept {
     if (quiet) return;
     try {
-        printDiagnostic("penumbra: note: " + fmt::format(format, std::forward<Args>(args)...) + "\n");
+        printDiagnostic("penumbra: note: " + printableLine(fmt::format(format, std::forward<Args>(args)...)) + "\n");
     } catch (...) {
     }
 }

@@ -10,13 +10,21 @@
 
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <system_error>
 
 namespace penumbra {
 
+/// @brief @p text as one printable line: control bytes (a line break, a carriage return, an
+/// escape sequence) and bytes that are not well-formed UTF-8 become `\xNN`; printable ASCII and
+/// well-formed UTF-8 (file names) are kept. Messages quote tokens from the input, and a damaged
+/// file's token must neither break the error's one line nor write raw bytes to a terminal.
+std::string printableLine(std::string_view text);
+
 class InputError : public std::runtime_error {
 public:
-    explicit InputError(const std::string& message) : std::runtime_error(message) {}
+    /// @param message one line; any byte printableLine() would escape is escaped here.
+    explicit InputError(const std::string& message) : std::runtime_error(printableLine(message)) {}
 };
 
 /// @brief Throws InputError("WHERE: MESSAGE"), formatting MESSAGE with fmt.
@@ -30,7 +38,7 @@ template <typename... Args>
 template <typename... Args>
 void printNote(fmt::format_string<Args...> format, Args&&... args) noexcept {
     try {
-        fmt::print(stderr, "penumbra: note: {}\n", fmt::format(format, std::forward<Args>(args)...));
+        fmt::print(stderr, "penumbra: note: {}\n", printableLine(fmt::format(format, std::forward<Args>(args)...)));
     } catch (...) {
     }
 }
@@ -41,7 +49,7 @@ void printNote(fmt::format_string<Args...> format, Args&&... args) noexcept {
 template <typename... Args>
 void printWarning(fmt::format_string<Args...> format, Args&&... args) noexcept {
     try {
-        fmt::print(stderr, "penumbra: warning: {}\n", fmt::format(format, std::forward<Args>(args)...));
+        fmt::print(stderr, "penumbra: warning: {}\n", printableLine(fmt::format(format, std::forward<Args>(args)...)));
     } catch (...) {
     }
 }

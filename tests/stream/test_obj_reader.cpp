@@ -145,6 +145,10 @@ TEST_CASE("OBJ: errors name the file and line", "[stream][obj]") {
     CHECK(objError(dir, "v 1 2 3.0.0\n") == "mesh.obj:1: unparsable number '3.0.0'");
     CHECK(objError(dir, "v 1 2\n") == "mesh.obj:1: vertex has 2 coordinates (needs 3)");
     CHECK(objError(dir, "v 1 2 3 w\n") == "mesh.obj:1: unparsable number 'w'");
+    // A damaged file's bytes are quoted escaped, so the error stays one printable line.
+    CHECK(objError(dir, "v 0 0 \x01\n") == "mesh.obj:1: unparsable number '\\x01'");
+    CHECK(objError(dir, "v 1 2 3\xff\n") == "mesh.obj:1: unparsable number '3\\xff'");
+    CHECK(objError(dir, "v 0 0 1\xc3\xa9\n") == "mesh.obj:1: unparsable number '1\xc3\xa9'");  // UTF-8 kept
     CHECK(objError(dir, "\nv nan 0 0\n") == "mesh.obj:2: non-finite coordinate 'nan'");
     CHECK(objError(dir, "v 0 inf 0\n") == "mesh.obj:1: non-finite coordinate 'inf'");
     CHECK(objError(dir, "v 0 0 1e39\n") == "mesh.obj:1: non-finite coordinate '1e39'");
