@@ -9,6 +9,7 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <cctype>
 #include <new>
 #include <optional>
 #include <stdexcept>
@@ -56,7 +57,11 @@ int reportUsageError(CLI::App& app, const CLI::ParseError& e, int argc, char** a
                                     fmt::join(commands, ", ")));
         return 2;
     }
-    app.exit(e);
+    // One line, as every other error: the parser's message, and where the usage is explained.
+    std::string message = e.what();
+    if (!message.empty()) message[0] = char(std::tolower(static_cast<unsigned char>(message[0])));
+    const bool command = std::find(commands.begin(), commands.end(), first) != commands.end();
+    printDiagnostic(fmt::format("penumbra: error: {} (see penumbra {}--help)\n", printableLine(message), command ? first + " " : ""));
     return 2;
 }
 

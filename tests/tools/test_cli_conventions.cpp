@@ -27,8 +27,11 @@ TEST_CASE("cli: --version, usage errors exit 2 and an unknown command lists the 
         RunResult usage = runPenumbra(args);
         INFO(args << ": " << usage.err);
         CHECK(usage.exitCode == 2);
-        CHECK(!usage.err.empty());
+        CHECK(lineCount(usage.err) == 1);  // one line, as every other error
+        CHECK_THAT(usage.err, Catch::StartsWith("penumbra: error: ") && Catch::Contains("--help)"));
     }
+    RunResult conversion = runPenumbra("bake scene.json --threads many");
+    CHECK(conversion.err == "penumbra: error: could not convert: --threads = many (see penumbra bake --help)\n");
     CHECK(runPenumbra("--help").exitCode == 0);
     CHECK(runPenumbra("bake --help").exitCode == 0);
 }
