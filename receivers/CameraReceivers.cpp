@@ -186,8 +186,11 @@ void CameraRasterizer::ScratchDeleter::operator()(Scratch* s) const { delete s; 
         yLo = std::min(yLo, q.sy[i]), yHi = std::max(yHi, q.sy[i]);
     }
     q.m = m;
-    q.x0 = std::max(0, int(std::ceil(xLo - 0.5))), q.x1 = std::min(W - 1, int(std::floor(xHi - 0.5)));
-    const int y0 = std::max(0, int(std::ceil(yLo - 0.5))), y1 = std::min(H - 1, int(std::floor(yHi - 0.5)));
+    // Clamped before the conversion: a polygon clipped at the near plane can reach billions of
+    // pixels, and int() of those is undefined (x86 gives INT_MIN, which dropped a triangle that
+    // reaches far to the right or below).
+    q.x0 = clampedTexel(std::ceil(xLo - 0.5), 0, W), q.x1 = clampedTexel(std::floor(xHi - 0.5), -1, W - 1);
+    const int y0 = clampedTexel(std::ceil(yLo - 0.5), 0, H), y1 = clampedTexel(std::floor(yHi - 0.5), -1, H - 1);
     if (q.x0 > q.x1 || y0 > y1) return;
     double area = 0;
     for (int i = 0; i < m; ++i) area += q.sx[i] * q.sy[nextCorner(i, m)] - q.sx[nextCorner(i, m)] * q.sy[i];

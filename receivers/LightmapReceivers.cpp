@@ -1,5 +1,7 @@
 #include "receivers/LightmapReceivers.h"
 
+#include "stream/util/TexelIndex.h"
+
 #include <glm/geometric.hpp>
 
 #include <algorithm>
@@ -113,9 +115,10 @@ LightmapLayout rasterizeLightmap(const IndexedMesh& mesh, int width, int height)
         const glm::dvec2 lo = glm::min(glm::min(v[0], v[1]), v[2]), hi = glm::max(glm::max(v[0], v[1]), v[2]);
         // Texels whose square can overlap the bounds; the part of a triangle outside [0, 1]^2 is
         // dropped (lightmaps do not wrap).
-        const int x0 = int(std::max(0.0, std::floor(lo.x))), y0 = int(std::max(0.0, std::floor(lo.y)));
-        const int x1 = int(std::min(double(width - 1), std::ceil(hi.x) - 1));
-        const int y1 = int(std::min(double(height - 1), std::ceil(hi.y) - 1));
+        // Clamped before the conversion: a file's UVs may lie anywhere, and int() of a value
+        // past its range is undefined (x86 gives INT_MIN, a loop over billions of texels).
+        const int x0 = clampedTexel(std::floor(lo.x), 0, width), y0 = clampedTexel(std::floor(lo.y), 0, height);
+        const int x1 = clampedTexel(std::ceil(hi.x) - 1, -1, width - 1), y1 = clampedTexel(std::ceil(hi.y) - 1, -1, height - 1);
         for (int y = y0; y <= y1; ++y) {
             for (int x = x0; x <= x1; ++x) {
                 const double covered = clippedTriangleArea(v[0], v[1], v[2], glm::dvec2(x, y), glm::dvec2(x + 1, y + 1));

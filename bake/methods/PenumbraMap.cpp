@@ -77,7 +77,7 @@ double halfWidth(const ViewMaps& v, const glm::dvec2& m) {
 }
 
 float depthAt(const DepthMap& m, const glm::dvec2& q) {
-    const int x = int(std::floor(q.x)), y = int(std::floor(q.y));
+    const int x = clampedTexel(std::floor(q.x), -1, m.res), y = clampedTexel(std::floor(q.y), -1, m.res);  // NaN: -1
     if (x < 0 || y < 0 || x >= m.res || y >= m.res) return INFINITY;
     return m.at(x, y);
 }
@@ -277,7 +277,8 @@ float lookup(const std::vector<ViewMaps>& maps, const glm::dvec3& r, const glm::
     }
     const LightView& view = best->view;
     const ViewPoint p = view.project(r);
-    const int x = int(std::floor(p.x)), y = int(std::floor(p.y));
+    // Clamped before the conversion: a receiver behind the light's centre projects anywhere.
+    const int x = clampedTexel(std::floor(p.x), -1, view.res), y = clampedTexel(std::floor(p.y), -1, view.res);
     if (!(p.z >= view.zNear) || x < 0 || y < 0 || x >= view.res || y >= view.res) return 1.0f;
     if (best->grid && best->grid->hasArea()) return backprojectedVisibility(view, best->pyramids, *best->grid, r, normal, bias, eps, taps);
     const glm::dvec3 towards = view.ortho ? -view.axis : glm::normalize(view.origin - r);

@@ -75,6 +75,20 @@ TEST_CASE("triangles behind or through the eye are clipped, not mirrored", "[rec
     }
 }
 
+TEST_CASE("a wide floor through the eye's plane is drawn however far off screen its clipped corners land", "[receivers][camera]") {
+    // Clipped at the near plane (1e-6 in front of the eye), the floor's corners 579 units to
+    // either side project to about 2.4e10 pixels. Before the pixel bounds were clamped ahead of
+    // their conversion to int, the right corner's bound became INT_MIN and the floor vanished.
+    std::vector<Triangle> tris;
+    tris.push_back({{glm::vec3(-600, -1, 7), glm::vec3(600, -1, 7), glm::vec3(0, -1, -50)}, 0});
+    VectorSource source(tris);
+    const ReceiverSet r = rasterizeCamera(source, frontCamera());
+    // Seen from one unit above it, the floor fills the rows below the horizon (row 24.75 of 48)
+    // out to its far corner: 23 rows of 64, less the corners beside the far vertex.
+    CHECK(r.size() > 20 * 64);
+    for (size_t i = 0; i < r.size(); ++i) CHECK(r.position[i].y == Approx(-1.0f).margin(1e-4));
+}
+
 TEST_CASE("bad cameras are rejected with the field named", "[receivers][camera]") {
     CameraDesc c = frontCamera();
     c.where = "scene.json: receivers";

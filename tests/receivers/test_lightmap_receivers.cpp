@@ -154,6 +154,25 @@ TEST_CASE("receivers of a texel cut by an edge are clamped onto the triangle", "
     }
 }
 
+TEST_CASE("UVs far outside the unit square cost no more than the texels they reach", "[lightmap]") {
+    // A damaged file's UVs: before the texel bounds were clamped ahead of their conversion to
+    // int, the first triangle's bounds became INT_MIN and the loop ran over billions of texels.
+    IndexedMesh mesh;
+    mesh.uv0 = {{1e10f, 0.f}, {2e10f, 0.f}, {1e10f, 1.f},     // wholly right of the map: dropped
+                {-1e10f, -1e10f}, {-2e10f, 0.5f}, {-1e10f, 1.f},  // wholly left and below: dropped
+                {0.1f, 0.1f}, {0.9f, 0.1f}, {0.1f, 0.9f}};     // an ordinary triangle
+    for (glm::vec2 uv : mesh.uv0) mesh.position.emplace_back(uv.x, uv.y, 0.f);
+    mesh.indices = {0, 1, 2, 3, 4, 5, 6, 7, 8};
+    IndexedMesh alone;
+    alone.uv0 = {mesh.uv0.begin() + 6, mesh.uv0.end()};
+    alone.position = {mesh.position.begin() + 6, mesh.position.end()};
+    alone.indices = {0, 1, 2};
+    const LightmapLayout layout = rasterizeLightmap(mesh, 16, 16), expected = rasterizeLightmap(alone, 16, 16);
+    CHECK(layout.texel.size() > 20);
+    CHECK(layout.texel == expected.texel);
+    CHECK(layout.coverage == expected.coverage);
+}
+
 TEST_CASE("padding fills the declared margin and no further", "[lightmap]") {
     const int W = 32, H = 32, rings = 3;
     std::vector<float> value(size_t(W) * H, 0.f);
