@@ -1,7 +1,6 @@
 #include "bake/WorkPlan.h"
 
 #include "bucket/BucketOptions.h"
-#include "stream/util/Diagnostics.h"
 #include "stream/util/Error.h"
 #include "stream/util/Memory.h"
 #include "stream/util/Progress.h"
@@ -93,13 +92,13 @@ double estimatedSeconds(uint64_t triangles, int tiles, int threads) {
 void noteLongBake(uint64_t triangles, uint64_t receivers, uint64_t samples, int tiles, int threads, bool quiet) {
     const double streaming = estimatedSeconds(triangles, tiles, threads);
     const double shading = double(receivers) * double(samples) * kSecondsPerReceiverSample / double(std::max(threads, 1));
-    if (std::max(streaming, shading) < 3600) return;
+    if (quiet || std::max(streaming, shading) < 3600) return;
     if (streaming >= shading)
-        notice(quiet, "this bake streams {} triangles {} times; expect about {} on {} thread{} (the plan's estimate)", triangles,
-               2 + std::max(tiles, 1), formatDuration(streaming), threads, threads == 1 ? "" : "s");
+        printNote("this bake streams {} triangles {} times; expect about {} on {} thread{} (the plan's estimate)", triangles,
+                  2 + std::max(tiles, 1), formatDuration(streaming), threads, threads == 1 ? "" : "s");
     else
-        notice(quiet, "this bake has up to {} receivers under {} light samples; expect at least {} on {} thread{} (the plan's "
-               "estimate)", receivers, samples, formatDuration(shading), threads, threads == 1 ? "" : "s");
+        printNote("this bake has up to {} receivers under {} light samples; expect at least {} on {} thread{} (the plan's "
+                  "estimate)", receivers, samples, formatDuration(shading), threads, threads == 1 ? "" : "s");
 }
 
 }  // namespace penumbra

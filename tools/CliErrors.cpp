@@ -20,28 +20,28 @@ namespace penumbra {
 int reportError(std::exception_ptr error, const std::string& context) {
     // Every message as one printable line, whatever bytes of the input it quotes (InputError's
     // are already; a library's own what() may quote a token of a damaged file).
-    auto printDiagnostic = [](const std::string& text) { penumbra::printDiagnostic(printableLine(text.substr(0, text.size() - 1)) + "\n"); };
+    auto say = [](const std::string& line) { printDiagnostic(printableLine(line) + "\n"); };
     const std::string prefix = context.empty() ? "penumbra: error: " : "penumbra: error: " + context + ": ";
     try {
         std::rethrow_exception(error);
     } catch (const StopRequested& e) {  // SIGTERM under --checkpoint: what is saved, and how to go on
-        printDiagnostic(fmt::format("penumbra: {}\n", e.what()));
+        say(fmt::format("penumbra: {}", e.what()));
         return kStoppedExitCode;
     } catch (const InputError& e) {
-        printDiagnostic(fmt::format("penumbra: error: {}\n", e.what()));
+        say(fmt::format("penumbra: error: {}", e.what()));
     } catch (const std::bad_alloc&) {
-        printDiagnostic("penumbra: error: out of memory (try --memory-budget or fewer receivers)\n");
+        say("penumbra: error: out of memory (try --memory-budget or fewer receivers)");
     } catch (const std::length_error& e) {  // a size from the input beyond what a container can hold
-        printDiagnostic(fmt::format("{}too large to hold in memory ({})\n", prefix, e.what()));
+        say(fmt::format("{}too large to hold in memory ({})", prefix, e.what()));
     } catch (const std::exception& e) {
         if (std::optional<std::string> message = libraryErrorMessage(e)) {
-            printDiagnostic(prefix + *message + "\n");
+            say(prefix + *message);
             return 1;
         }
-        printDiagnostic(fmt::format("penumbra: internal error: {}\n", e.what()));
+        say(fmt::format("penumbra: internal error: {}", e.what()));
         return 70;
     } catch (...) {
-        printDiagnostic("penumbra: internal error: an unknown exception\n");
+        say("penumbra: internal error: an unknown exception");
         return 70;
     }
     return 1;

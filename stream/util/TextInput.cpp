@@ -1,6 +1,5 @@
 #include "stream/util/TextInput.h"
 
-#include "stream/util/Diagnostics.h"
 #include "stream/util/Error.h"
 #include "stream/util/InputFile.h"
 
@@ -40,7 +39,7 @@ void warnIfNoFaces(const std::string& path, uint64_t triangles) {
     if (triangles > 0) return;
     struct stat st {};
     if (::stat(path.c_str(), &st) == 0 && st.st_size > 0)
-        warning("{}: no face line was understood (0 triangles)", path);
+        printWarning("{}: no face line was understood (0 triangles)", path);
 }
 
 }  // namespace penumbra
