@@ -2,11 +2,15 @@
 
 #include "bake/Scene.h"
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
+#include <optional>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
 
 namespace penumbra {
 namespace {
@@ -38,6 +42,41 @@ std::string noReceivers(const std::string& type) {
     return "receivers: there are none; nothing is baked";
 }
 
+/// The light's narrowest width: across a rect's shorter side, a disk's or sphere's diameter, a
+/// polygon's area over its longest edge, a sun's disk of directions at unit distance.
+double narrowestWidth(const LightDesc& light) {
+    switch (light.type) {
+        case LightType::Rect: return std::min(glm::length(light.u), glm::length(light.v));
+        case LightType::Disk:
+        case LightType::Sphere: return 2 * light.radius;
+        case LightType::Sun: return 2 * std::tan(glm::radians(light.angularDiameterDeg) * 0.5);
+        case LightType::Polygon: break;
+    }
+    double longest = 0;
+    for (size_t i = 0; i < light.polygon.size(); ++i)
+        longest = std::max(longest, glm::length(light.polygon[(i + 1) % light.polygon.size()] - light.polygon[i]));
+    return longest > 0 ? light.area() / longest : 0.0;
+}
+
+/// A light whose float32 samples cannot stratify it: far from the origin the float grid is
+/// coarser than its strata, so the samples collapse onto a few points or a line. The bake is
+/// then of a different light, and slow: the sample mask table needs samples that span an area.
+std::optional<std::string> sampleSpacingWarning(const LightDesc& light) {
+    const bool sun = light.type == LightType::Sun;
+    // A sun's samples are directions near unit length; other lights' are points.
+    double farthest = sun ? 1.0 : std::max({std::abs(light.center.x), std::abs(light.center.y), std::abs(light.center.z)});
+    for (const glm::dvec3& p : light.outline()) farthest = std::max({farthest, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
+    const float there = float(farthest);
+    const double spacing = std::isfinite(there) ? double(std::nextafter(there, INFINITY)) - double(there) : INFINITY;
+    const double width = narrowestWidth(light), stratum = width / std::sqrt(double(std::max(light.samples, 1)));
+    if (!(width > 0) || !(spacing > stratum)) return std::nullopt;
+    const std::string where = sun ? "as unit directions" : fmt::format("at {:.3g} from the origin", farthest);
+    return fmt::format("{}: its {} samples are float32, which {} are {:.3g} apart: coarser than its strata ({:.3g} across a width of "
+                       "{:.3g}), so they collapse onto a few points or a line, and it bakes as a different and much slower light; {}",
+                       light.where, light.samples, where, spacing, stratum, width,
+                       sun ? "widen its angular_diameter_deg" : "move the scene nearer the origin");
+}
+
 }  // namespace
 
 std::vector<std::string> bakeWarnings(const nlohmann::json& receivers, const ReceiverSet& set, const std::vector<LightDesc>& lights) {
@@ -46,6 +85,8 @@ std::vector<std::string> bakeWarnings(const nlohmann::json& receivers, const Rec
         warnings.push_back(noReceivers(receivers.is_object() ? receivers.value("type", std::string()) : std::string()));
         return warnings;
     }
+    for (const LightDesc& light : lights)
+        if (std::optional<std::string> spacing = sampleSpacingWarning(light)) warnings.push_back(std::move(*spacing));
     for (const LightDesc& light : lights) {
         const glm::dvec3 n = light.emitterNormal();
         if (n == glm::dvec3(0.0) || anyReceiverInFront(light, set)) continue;

@@ -1,0 +1,65 @@
+// bakeWarnings(): lights whose float32 samples cannot stratify them, and lights that face away.
+
+#include "bake/BakeWarnings.h"
+
+#include <catch2/catch.hpp>
+
+using namespace penumbra;
+
+namespace {
+
+ReceiverSet oneFloorReceiver() {
+    ReceiverSet set;
+    set.position.push_back({0, 0, 0});
+    set.normal.push_back({0, 1, 0});
+    return set;
+}
+
+LightDesc downwardRect(glm::dvec3 center, double size) {
+    LightDesc light;
+    light.center = center;
+    light.u = {size, 0, 0}, light.v = {0, 0, size};  // u x v = -y: emits downwards
+    light.where = "scene.json: lights[0]";
+    return light;
+}
+
+std::vector<std::string> warningsFor(const LightDesc& light) {
+    return bakeWarnings(nlohmann::json{{"type", "camera"}}, oneFloorReceiver(), {light});
+}
+
+}  // namespace
+
+TEST_CASE("warnings: a light whose float samples are coarser than its strata", "[warnings]") {
+    // 3e9 from the origin floats are 256 apart; a 2.5-wide light's 256 samples are 0.16 apart.
+    const std::vector<std::string> far = warningsFor(downwardRect({3e9, 6, 0.5}, 2.5));
+    REQUIRE(far.size() == 1);
+    CHECK_THAT(far[0], Catch::StartsWith("scene.json: lights[0]: its 256 samples are float32") && Catch::Contains(" 256 apart") &&
+                           Catch::Contains("3e+09 from the origin") && Catch::Contains("move the scene nearer the origin"));
+    // The same light near the origin, and a small light at a moderate distance, are fine.
+    CHECK(warningsFor(downwardRect({0.5, 6, 0.5}, 2.5)).empty());
+    CHECK(warningsFor(downwardRect({1e4, 6, 0.5}, 0.1)).empty());
+    // A thin rect is judged by its narrow side: 1e4 away floats are 0.001 apart.
+    LightDesc thin = downwardRect({1e4, 6, 0.5}, 100.0);
+    thin.v = {0, 0, 0.004};
+    CHECK(warningsFor(thin).size() == 1);
+}
+
+TEST_CASE("warnings: a sun narrower than float directions can resolve", "[warnings]") {
+    LightDesc sun;
+    sun.type = LightType::Sun;
+    sun.direction = {0.3, -1, 0.2};
+    sun.where = "scene.json: lights[0]";
+    CHECK(warningsFor(sun).empty());  // 0.53 degrees
+    sun.angularDiameterDeg = 1e-5;
+    const std::vector<std::string> narrow = warningsFor(sun);
+    REQUIRE(narrow.size() == 1);
+    CHECK_THAT(narrow[0], Catch::Contains("as unit directions") && Catch::Contains("widen its angular_diameter_deg"));
+}
+
+TEST_CASE("warnings: a planar light facing away from every receiver", "[warnings]") {
+    LightDesc up = downwardRect({0, 4, 0}, 1.0);
+    std::swap(up.u, up.v);
+    const std::vector<std::string> away = warningsFor(up);
+    REQUIRE(away.size() == 1);
+    CHECK_THAT(away[0], Catch::Contains("faces away from every receiver") && Catch::Contains("swap \"u\" and \"v\""));
+}
