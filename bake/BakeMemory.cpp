@@ -77,7 +77,7 @@ void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget) {
     if (budget.bytes >= scanPhaseBytes(demand)) return;  // the scan fits; the exact check follows it
     std::string why;
     if (!demand.sourceDetail.empty() && demand.sourceBytes > worst.minimumBudget / 2) why = fmt::format(" ({})", demand.sourceDetail);
-    throw InputError(fmt::format("{} {} is too small for up to {} receivers with {} mask words each; at least {} is needed{}",
+    throw InputError(fmt::format("{} {} is too small for up to {} receivers of {} light-sample groups each; at least {} is needed{}",
                                  budget.label, formatBytes(budget.bytes + budget.overhead), demand.receivers, demand.groups,
                                  budgetText(worst.minimumBudget + budget.overhead), why));
 }

@@ -55,7 +55,7 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string&
         if (!d.sourceDetail.empty() && d.sourceBytes > plan.minimumBudget / 2) why = fmt::format(" ({})", d.sourceDetail);
         else if (d.refinement.addedReceivers > 0)
             why = fmt::format(" (with the antialiasing pass's up to {} more receivers)", d.refinement.addedReceivers);
-        throw InputError(fmt::format("{} {} is too small for {} receivers with {} mask words each; at least {} is needed{}", label,
+        throw InputError(fmt::format("{} {} is too small for {} receivers of {} light-sample groups each; at least {} is needed{}", label,
                                      formatBytes(budget + overhead), d.receivers, d.groups,
                                      budgetText(plan.minimumBudget + overhead), why));
     }

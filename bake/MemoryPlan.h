@@ -63,7 +63,7 @@ inline constexpr uint64_t kMinimumTileReceivers = 4096;
 /// @brief Plans tiles for @p budget bytes (0 = unlimited: one tile).
 /// @throw InputError when even one smallest tile does not fit, naming the smallest budget that
 /// would, rounded up to a whole MiB so it can be given as it is ("--memory-budget 64.0 MiB is too
-/// small for 2073600 receivers with 4 mask words each; at least 310M is needed").
+/// small for 2073600 receivers of 4 light-sample groups each; at least 310M is needed").
 /// @param label and @p overhead name the limit in the message: a budget derived from an
 ///        address-space limit says so, and counts what the process had mapped before.
 MemoryPlan planMemory(const MemoryDemand& demand, uint64_t budget, const std::string& label = "--memory-budget",

@@ -57,6 +57,13 @@ int reportUsageError(CLI::App& app, const CLI::ParseError& e, int argc, char** a
                                     fmt::join(commands, ", ")));
         return 2;
     }
+    // No command, or an option before any command: say what comes first, not CLI11's "a
+    // subcommand is required".
+    if (dynamic_cast<const CLI::RequiredError*>(&e) && app.get_subcommands().empty()) {
+        const std::string what = first.empty() ? std::string("no command given") : fmt::format("unknown option '{}' before a command", printableLine(first));
+        printDiagnostic(fmt::format("penumbra: error: {} (commands: {}; see penumbra --help)\n", what, fmt::join(commands, ", ")));
+        return 2;
+    }
     // One line, as every other error: the parser's message, and where the usage is explained.
     std::string message = e.what();
     if (!message.empty()) message[0] = char(std::tolower(static_cast<unsigned char>(message[0])));

@@ -30,6 +30,11 @@ TEST_CASE("cli: --version, usage errors exit 2 and an unknown command lists the 
         CHECK(lineCount(usage.err) == 1);  // one line, as every other error
         CHECK_THAT(usage.err, Catch::StartsWith("penumbra: error: ") && Catch::Contains("--help)"));
     }
+    // No command, or an option before one: named as such, with the commands listed.
+    CHECK_THAT(runPenumbra("").err, Catch::StartsWith("penumbra: error: no command given (commands: bake,"));
+    RunResult option = runPenumbra("--bogus");
+    CHECK(option.exitCode == 2);
+    CHECK_THAT(option.err, Catch::StartsWith("penumbra: error: unknown option '--bogus' before a command (commands: bake,"));
     RunResult conversion = runPenumbra("bake scene.json --threads many");
     CHECK(conversion.err == "penumbra: error: could not convert: --threads = many (see penumbra bake --help)\n");
     CHECK(runPenumbra("--help").exitCode == 0);
