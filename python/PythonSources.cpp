@@ -53,7 +53,8 @@ enum class Replay { Call, Iterate, Buffer };
 /// scratch file during the first pass and replayed from there.
 class PythonSource final : public TriangleSource {
 public:
-    explicit PythonSource(std::shared_ptr<SourceSpec> spec) : spec_(std::move(spec)) {
+    /// @param where the scene entry, for messages ("<dict>: geometry[1]")
+    PythonSource(std::shared_ptr<SourceSpec> spec, std::string where) : spec_(std::move(spec)), where_(std::move(where)) {
         py::gil_scoped_acquire gil;
         const py::object& o = spec_->object;
         if (py::isinstance<py::function>(o) || (!py::hasattr(o, "__iter__") && PyCallable_Check(o.ptr())))
@@ -94,7 +95,7 @@ public:
         iterator_ = py::object(), started_ = false, chunk_ = 0;
         pending_.clear(), next_ = 0;
     }
-    std::string name() const override { return "python source " + std::to_string(spec_->id); }
+    std::string name() const override { return where_ + " (add_source)"; }
     std::optional<uint64_t> sizeHint() const override { return spec_->count; }
 
 private:
@@ -170,6 +171,7 @@ private:
     }
 
     std::shared_ptr<SourceSpec> spec_;
+    std::string where_;
     Replay replay_ = Replay::Iterate;
     py::object iterator_;  // touched with the GIL held only
     bool started_ = false;
@@ -247,7 +249,7 @@ void registerPythonSources() {
             const int64_t id = j.integer("source", 1, INT64_MAX);
             j.boolean("alpha", false);  // read by add_source already; consumed so finish() accepts it
             j.finish();
-            return std::make_unique<PythonSource>(lookup(sourceTable(), id, j.where("source")));
+            return std::make_unique<PythonSource>(lookup(sourceTable(), id, j.where("source")), r.where());
         });
         registerReceiverKind("python-points", [](const JsonParams& j, const SceneDesc&, KindUse use) -> std::unique_ptr<ReceiverKind> {
             auto points = lookup(pointsTable(), j.integer("source", 1, INT64_MAX), j.where("source"));

@@ -49,7 +49,8 @@ def good():
 
 
 def test_wrong_dtype_or_shape_names_the_chunk():
-    with pytest.raises(TypeError, match=r"chunk 1: expected dtype float32, got float64"):
+    # The source is named by its scene entry (the first geometry entry here), not an internal id.
+    with pytest.raises(TypeError, match=r"<dict>: geometry\[0\] \(add_source\) chunk 1: expected dtype float32, got float64"):
         bake_chunks([good(), good().astype(np.float64)])
     with pytest.raises(ValueError, match=r"chunk 2: expected shape \(n, 3, 3\) or \(n, 9\), got \(1, 4\)"):
         bake_chunks([good(), good(), np.zeros((1, 4), np.float32)])
