@@ -19,7 +19,10 @@ namespace penumbra {
 /// escape sequence) and bytes that are not well-formed UTF-8 become `\xNN`; printable ASCII and
 /// well-formed UTF-8 (file names) are kept. Messages quote tokens from the input, and a damaged
 /// file's token must neither break the error's one line nor write raw bytes to a terminal.
+/// A line longer than kMaxPrintableLine bytes is cut there and says how much was left out (a
+/// library's message can quote megabytes of a damaged file).
 std::string printableLine(std::string_view text);
+inline constexpr size_t kMaxPrintableLine = 1024;
 
 class InputError : public std::runtime_error {
 public:

@@ -1,5 +1,6 @@
 #include "stream/util/Error.h"
 
+#include <algorithm>
 #include <cstdint>
 
 namespace penumbra {
@@ -27,8 +28,14 @@ size_t utf8Length(std::string_view s, size_t i) {
 
 std::string printableLine(std::string_view text) {
     std::string out;
-    out.reserve(text.size());
+    out.reserve(std::min(text.size(), kMaxPrintableLine + 32));
     for (size_t i = 0; i < text.size();) {
+        // Cut between characters, never inside one; a short rest (the note of an earlier cut)
+        // is kept, so that a cut line passes through again unchanged.
+        if (out.size() >= kMaxPrintableLine && text.size() - i > 64) {
+            out += fmt::format("... ({} more bytes)", text.size() - i);
+            break;
+        }
         const uint8_t b = uint8_t(text[i]);
         if (b >= 0x20 && b < 0x7F) {
             out += char(b), ++i;

@@ -12,9 +12,11 @@
 #include <openvdb/openvdb.h>
 
 #include <catch2/catch.hpp>
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include <cstring>
+#include <fstream>
 
 using namespace penumbra;
 using namespace penumbra::test;
@@ -120,6 +122,21 @@ TEST_CASE("volume: box voxels match a points bake exactly, every baked voxel is 
     RunResult outside = runPenumbra("vdb-slice " + (dir / "out/v.vdb") + " " + (dir / "s.png") + " --axis y --at 7");
     CHECK(outside.exitCode == 1);
     CHECK_THAT(outside.err, Catch::Contains("outside the grid"));
+
+    // Cut or damaged copies: one line naming the file, well inside 2 GB of address space (OpenVDB's
+    // own reader went on past the end of a cut file and filled strings of gigabytes).
+    const std::string whole = slurp(dir / "out/v.vdb");
+    for (int part = 1; part < 16; ++part) {
+        const std::string damaged = dir / fmt::format("cut{}.vdb", part);
+        std::ofstream(damaged, std::ios::binary) << whole.substr(0, whole.size() * size_t(part) / 16);
+        RunResult r = runPenumbra("vdb-slice " + damaged + " " + (dir / "cut.png") + " --axis y --at 0.5", "prlimit --as=2000000000");
+        INFO(part << ": " << r.err);
+        CHECK(r.exitCode == 1);
+        CHECK(lineCount(r.err) == 1);
+        CHECK(r.err.size() < 400);
+        CHECK_THAT(r.err, Catch::StartsWith("penumbra: error: " + damaged + ": "));
+        CHECK(!std::filesystem::exists(dir / "cut.png"));
+    }
 }
 
 TEST_CASE("volume: fully shadowed regions become tiles", "[volume]") {

@@ -4,10 +4,12 @@
 #include "stream/util/Error.h"
 
 #include <catch2/catch.hpp>
+#include <fmt/format.h>
 
 #include <string>
 
 using penumbra::InputError;
+using penumbra::kMaxPrintableLine;
 using penumbra::printableLine;
 
 TEST_CASE("printableLine escapes control bytes and broken UTF-8, and keeps the rest", "[stream][errors]") {
@@ -27,6 +29,23 @@ TEST_CASE("printableLine escapes control bytes and broken UTF-8, and keeps the r
     // Already printable text is left alone, so escaping twice changes nothing.
     const std::string once = printableLine("bad \xff\n");
     CHECK(printableLine(once) == once);
+}
+
+TEST_CASE("printableLine cuts a line of megabytes and says how much it left out", "[stream][errors]") {
+    // OpenVDB quoted 16 MB of a damaged file's bytes in one message.
+    const std::string huge = "KeyError: Map " + std::string(size_t(1) << 24, ' ') + " is not registered";
+    const std::string line = printableLine(huge);
+    CHECK(line.size() < kMaxPrintableLine + 64);
+    CHECK_THAT(line, Catch::StartsWith("KeyError: Map ") && Catch::EndsWith(fmt::format("... ({} more bytes)", huge.size() - kMaxPrintableLine)));
+    CHECK(printableLine(line) == line);  // a cut line passes through again unchanged
+    // Escapes count towards the length, and the cut never splits one.
+    const std::string escaped = printableLine(std::string(4000, '\x01'));
+    CHECK(escaped.size() < kMaxPrintableLine + 64);
+    CHECK_THAT(escaped, Catch::StartsWith("\\x01\\x01") && Catch::Contains("\\x01... ("));
+    CHECK(printableLine(escaped) == escaped);
+    // Lines near the limit are whole.
+    const std::string near(kMaxPrintableLine + 40, 'a');
+    CHECK(printableLine(near) == near);
 }
 
 TEST_CASE("InputError's message is one printable line", "[stream][errors]") {
