@@ -64,11 +64,30 @@ int reportUsageError(CLI::App& app, const CLI::ParseError& e, int argc, char** a
         printDiagnostic(fmt::format("penumbra: error: {} (commands: {}; see penumbra --help)\n", what, fmt::join(commands, ", ")));
         return 2;
     }
+    // A command of commands (bench): name what it takes, and a usage error under one of its
+    // commands points at that command's help.
+    CLI::App* command = nullptr;
+    for (CLI::App* c : app.get_subcommands([&](CLI::App* c) { return c->get_name() == first; })) command = c;
+    std::vector<std::string> subNames;
+    if (command)
+        for (const CLI::App* sub : command->get_subcommands([](CLI::App*) { return true; })) subNames.push_back(sub->get_name());
+    const std::string next = argc > 2 ? argv[2] : "";
+    const bool nextIsSub = std::find(subNames.begin(), subNames.end(), next) != subNames.end();
+    if (!subNames.empty() && !nextIsSub && dynamic_cast<const CLI::RequiredError*>(&e)) {
+        const std::string known = fmt::format("{}", fmt::join(subNames, ", "));
+        if (next.empty() || next[0] == '-')
+            printDiagnostic(fmt::format("penumbra: error: {} needs one of: {} (see penumbra {} --help)\n", first, known, first));
+        else
+            printDiagnostic(fmt::format("penumbra: error: unknown {} '{}' (known: {}; see penumbra {} --help)\n", first,
+                                        printableLine(next), known, first));
+        return 2;
+    }
     // One line, as every other error: the parser's message, and where the usage is explained.
     std::string message = e.what();
     if (!message.empty()) message[0] = char(std::tolower(static_cast<unsigned char>(message[0])));
-    const bool command = std::find(commands.begin(), commands.end(), first) != commands.end();
-    printDiagnostic(fmt::format("penumbra: error: {} (see penumbra {}--help)\n", printableLine(message), command ? first + " " : ""));
+    const std::string where = std::find(commands.begin(), commands.end(), first) == commands.end() ? ""
+                              : nextIsSub ? first + " " + next + " " : first + " ";
+    printDiagnostic(fmt::format("penumbra: error: {} (see penumbra {}--help)\n", printableLine(message), where));
     return 2;
 }
 

@@ -35,6 +35,13 @@ TEST_CASE("cli: --version, usage errors exit 2 and an unknown command lists the 
     RunResult option = runPenumbra("--bogus");
     CHECK(option.exitCode == 2);
     CHECK_THAT(option.err, Catch::StartsWith("penumbra: error: unknown option '--bogus' before a command (commands: bake,"));
+    // A command of commands names what it takes, and a usage error under one of its commands
+    // points at that command's help.
+    RunResult bench = runPenumbra("bench nope");
+    CHECK(bench.exitCode == 2);
+    CHECK(bench.err == "penumbra: error: unknown bench 'nope' (known: generators, table2, methods; see penumbra bench --help)\n");
+    CHECK(runPenumbra("bench").err == "penumbra: error: bench needs one of: generators, table2, methods (see penumbra bench --help)\n");
+    CHECK_THAT(runPenumbra("bench table2 --threads x").err, Catch::EndsWith("(see penumbra bench table2 --help)\n"));
     RunResult conversion = runPenumbra("bake scene.json --threads many");
     CHECK(conversion.err == "penumbra: error: could not convert: --threads = many (see penumbra bake --help)\n");
     CHECK(runPenumbra("--help").exitCode == 0);
