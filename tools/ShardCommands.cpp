@@ -8,6 +8,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <cstdlib>
@@ -15,6 +16,7 @@
 #include <filesystem>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <utility>
 
 namespace penumbra {
 namespace fs = std::filesystem;
@@ -226,7 +228,23 @@ std::string submit(const std::string& args, const std::string& script) {
 
 }  // namespace
 
+namespace {
+
+/// Values that go into the scripts' `#SBATCH` lines as they are: a line break there would start a
+/// line of its own (a shell command, in the script's body), and sbatch ends a value at a space.
+void checkScriptValues(const SlurmOptions& o) {
+    const auto control = [](const std::string& v) { return std::any_of(v.begin(), v.end(), [](char c) { return uint8_t(c) < 0x20 || c == 0x7f; }); };
+    const auto space = [](const std::string& v) { return v.find(' ') != std::string::npos; };
+    for (const auto& [option, value] : {std::pair{"--partition", &o.partition}, std::pair{"--time", &o.time}})
+        if (control(*value) || space(*value)) fail(option, "must be one word without spaces or control characters, got '{}'", printableLine(*value));
+    for (const auto& [option, value] : {std::pair{"--dir", &o.dir}, std::pair{"--tmp", &o.tmp}, std::pair{"scene", &o.scene}, std::pair{"--output", &o.output}})
+        if (control(*value)) fail(option, "a path with a line break or control character cannot go into a job script, got '{}'", printableLine(*value));
+}
+
+}  // namespace
+
 void runSlurm(const SlurmOptions& o) {
+    checkScriptValues(o);
     if (!fs::is_regular_file(o.scene)) fail(o.scene, "not a scene file");
     if (!o.output.empty()) requireOutputFolder("--output", o.output);  // now, not when the merge job runs
     const fs::path scene = fs::absolute(o.scene);

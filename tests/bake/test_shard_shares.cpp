@@ -196,3 +196,21 @@ TEST_CASE("penumbra slurm puts a tree of combine jobs between many shards and th
     REQUIRE(few.exitCode == 0);
     CHECK(few.out.find("combine") == std::string::npos);
 }
+
+TEST_CASE("penumbra slurm refuses values that would break a job script's #SBATCH lines", "[shards][cli]") {
+    ScratchDir dir("slurm-values");
+    write(dir / "grass.json", grassScene("grass").dump());
+    // --dry-run: were a value let through, nothing is submitted.
+    const std::string base = "slurm " + dir / "grass.json" + " --shards 2 --dry-run --dir " + dir / "job";
+    // A line break would start a line of its own in the script (here a command); sbatch ends a
+    // value at a space.
+    RunResult newline = runPenumbra(base + " --partition \"$(printf 'a\\nrm -rf x')\"");
+    CHECK(newline.exitCode == 1);
+    CHECK(newline.err == "penumbra: error: --partition: must be one word without spaces or control characters, got 'a\\x0arm -rf x'\n");
+    CHECK(runPenumbra(base + " --time '1 day'").exitCode == 1);
+    RunResult path = runPenumbra(base.substr(0, base.find(" --dir")) + " --dir \"$(printf '" + dir / "a\\nb')\"");
+    CHECK(path.exitCode == 1);
+    CHECK_THAT(path.err, Catch::StartsWith("penumbra: error: --dir: a path with a line break"));
+    CHECK_FALSE(fs::exists(dir / "job"));
+    CHECK(runPenumbra(base + " --partition gpu,cpu --time 1-12:00:00").exitCode == 0);
+}
