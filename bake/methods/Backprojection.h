@@ -93,6 +93,9 @@ public:
 private:
     /// Texel (@p x, @p y) of level @p l from level l - 1, whose resolution is @p fine.
     Texel coarseTexel(int l, int fine, int x, int y) const;
+    /// Row @p y of level 1 into @p row, four texels at a time where SSE4.1 is built in; returns
+    /// how many texels it made (the rest are coarseTexel()'s). The same bits as coarseTexel().
+    int firstLevelRow(int fine, int y, Texel* row) const;
 
     const DepthMap* shadow_;
     int layer_;
