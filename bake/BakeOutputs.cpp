@@ -52,20 +52,28 @@ void checkOutputAgainstInputs(const SceneDesc& scene, const std::string& output)
     refuseInputs(output, sceneInputs(scene));
 }
 
-void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, const std::string& dumpDir) {
+void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, const std::string& dumpDir,
+                      const std::string& visibilityPath) {
     checkSceneOutput(scene);
     std::vector<std::string> outputs{scene.output};
     if (!statsPath.empty()) outputs.push_back(statsPath);
-    if (!dumpDir.empty())
-        for (const char* name : {"receivers.npy", "samples.npy", "masks.npy"}) outputs.push_back((fs::path(dumpDir) / name).string());
+    if (!visibilityPath.empty()) outputs.push_back(visibilityPath);
+    const size_t files = outputs.size();
+    if (!dumpDir.empty()) {
+        outputs.push_back(dumpDir);  // a directory of its own: not another output's name
+        for (const char* name : {"receivers.npy", "samples.npy", "masks.npy", "rule.json"})
+            outputs.push_back((fs::path(dumpDir) / name).string());
+    }
     const std::vector<std::string> inputs = sceneInputs(scene);
+    auto normal = [](const std::string& path) {  // "d/" and "d" name one directory
+        const fs::path p = fs::absolute(path).lexically_normal();
+        return p.has_filename() ? p : p.parent_path();
+    };
     for (size_t i = 0; i < outputs.size(); ++i) {
-        checkOutputPath(outputs[i]);
-        refuseInputs(outputs[i], inputs);
-        const fs::path a = fs::absolute(outputs[i]).lexically_normal();
+        if (i != files) checkOutputPath(outputs[i]), refuseInputs(outputs[i], inputs);
+        const fs::path a = normal(outputs[i]);
         for (size_t j = 0; j < i; ++j)
-            if (a == fs::absolute(outputs[j]).lexically_normal())
-                fail(outputs[i], "is named for two outputs of this bake; give each its own file");
+            if (a == normal(outputs[j])) fail(outputs[i], "is named for two outputs of this bake; give each its own file");
     }
 }
 

@@ -12,11 +12,14 @@
 namespace penumbra {
 
 /// @brief Checks every output location of a bake of @p scene: the scene's output (which must stay
-/// in the scene's directory unless -o named it, Scene.h), @p statsPath and the dump files in
-/// @p dumpDir (either may be empty), and that no two of them, and none of them and an input the
-/// scene names (its geometry and points files, the scene file itself), are the same file.
+/// in the scene's directory unless -o named it, Scene.h), @p statsPath, the dump directory
+/// @p dumpDir and its files, and @p visibilityPath (any may be empty), and that no two of them,
+/// and none of them and an input the scene names (its geometry and points files, the scene file
+/// itself), are the same file. Files a receiver kind derives from the output (a camera's PNG, a
+/// lightmap's glTF) are checked when they are finished (OutputSet::commit()).
 /// @throw InputError naming the output and what is wrong with it.
-void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, const std::string& dumpDir);
+void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, const std::string& dumpDir,
+                      const std::string& visibilityPath = "");
 
 /// @brief Checks one output path against the files the scene reads (checkOutputPath() and the
 /// device-and-inode comparison), for commands with a single output (`generate`).

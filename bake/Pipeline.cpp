@@ -541,8 +541,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     InputScope inputs;  // no output may replace a file this bake reads
     if (settings.threads < 0 || settings.threads > kMaxThreads)
         fail("--threads", "must be in 0..{} (0: all cores), got {}", kMaxThreads, settings.threads);
-    checkBakeOutputs(scene, settings.statsPath, settings.dumpDir);
-    if (!settings.visibilityPath.empty()) checkOutputAgainstInputs(scene, settings.visibilityPath);
+    checkBakeOutputs(scene, settings.statsPath, settings.dumpDir, settings.visibilityPath);
     Stopwatch total;
     Bake b(scene, settings);
     try {

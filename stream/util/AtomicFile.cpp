@@ -384,6 +384,13 @@ void OutputSet::commit() {
     open_ = false;
     SignalsHeld held;
     try {
+        // Two files of the set for one path (a stats file named like the camera's PNG): one would
+        // replace the other without a word. The up-front checks cannot know every file a receiver
+        // kind derives from the output; this one sees them all.
+        for (size_t i = 0; i < files_.size(); ++i)
+            for (size_t j = 0; j < i; ++j)
+                if (files_[i]->target == AtomicFile::Target::Regular && files_[i]->targetPath == files_[j]->targetPath)
+                    fail(files_[i]->finalPath, "is named for two outputs of this bake; give each its own file");
         // Every rename is staged first, so a failure to link one leaves no file of the set in place.
         for (auto& f : files_)
             if (f->target == AtomicFile::Target::Regular && f->tempName.empty() && ::access(f->targetPath.c_str(), F_OK) == 0)

@@ -111,6 +111,24 @@ TEST_CASE("an output that is also an input is refused, by device and inode", "[c
     requireCleanError(runPenumbra("generate " + (dir / "scene.json") + " -o " + (dir / "alias.obj")), "is also an input");
     requireCleanError(runPenumbra("bake " + (dir / "scene.json") + " -q --stats " + (dir / "out/x.exr")), "named for two outputs");
     CHECK(slurp(dir / "quad.obj") == before);
+}
+
+TEST_CASE("two outputs of one bake never share a file, the derived ones included", "[cli][paths]") {
+    ScratchDir dir("two-outputs");
+    write(dir / "quad.obj", kQuad);
+    write(dir / "scene.json", sceneOf("quad.obj").dump());
+    const std::string bake = "bake " + (dir / "scene.json") + " -q -o " + (dir / "x.exr");
+    // --visibility and --dump are checked before the bake; the camera's PNG, which the receiver
+    // kind names, when the outputs are put in place. Either way nothing is written.
+    for (const std::string& args : {" --visibility " + (dir / "x.exr"), " --dump " + (dir / "x.exr"), " --stats " + (dir / "x.png"),
+                                    " --visibility " + (dir / "x.png"), " --dump " + (dir / "d/") + " --stats " + (dir / "d")}) {
+        INFO(args);
+        requireCleanError(runPenumbra(bake + args), "is named for two outputs of this bake");
+        for (const char* name : {"x.exr", "x.png", "d"}) CHECK_FALSE(std::filesystem::exists(dir / name));
+    }
+    RunResult apart = runPenumbra(bake + " --visibility " + (dir / "v.npy") + " --stats " + (dir / "s.json") + " --dump " + (dir / "d"));
+    CHECK(apart.exitCode == 0);
+    for (const char* name : {"x.exr", "x.png", "v.npy", "s.json", "d/masks.npy"}) CHECK(std::filesystem::exists(dir / name));
     CHECK(slurp(dir / "scene.json") == sceneOf("quad.obj").dump());
 }
 
