@@ -5,6 +5,7 @@
 #include "bake/output/VolumeSlice.h"
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
+#include "stream/util/InputFile.h"
 
 #include <openvdb/io/File.h>
 #include <openvdb/io/Stream.h>
@@ -73,6 +74,7 @@ namespace {
 /// whatever its length fields then held, and filled strings of gigabytes (14 GB of RSS for one
 /// cut file before any error).
 openvdb::FloatGrid::Ptr readFloatGrid(const std::string& vdbPath, const std::string& gridName) {
+    checkInputFile(vdbPath);  // a regular file, and recorded: the slice's PNG may not replace it
     std::ifstream in(vdbPath, std::ios::binary);
     if (!in) fail(vdbPath, "cannot open: {}", std::strerror(errno));
     in.exceptions(std::ios::failbit | std::ios::badbit);

@@ -123,6 +123,11 @@ TEST_CASE("volume: box voxels match a points bake exactly, every baked voxel is 
     CHECK(outside.exitCode == 1);
     CHECK_THAT(outside.err, Catch::Contains("outside the grid"));
 
+    // The slice never replaces its input, by any name, and reads regular files only.
+    requireCleanError(runPenumbra("vdb-slice " + (dir / "out/v.vdb") + " " + (dir / "out/v.vdb") + " --axis y --at 0.5"), "is also an input");
+    CHECK(slurp(dir / "out/v.vdb").compare(0, 4, " BDV") == 0);  // still a VDB (its magic number)
+    requireCleanError(runPenumbra("vdb-slice /dev/zero " + (dir / "z.png")), "is a character device");
+
     // Cut or damaged copies: one line naming the file, well inside 2 GB of address space (OpenVDB's
     // own reader went on past the end of a cut file and filled strings of gigabytes).
     const std::string whole = slurp(dir / "out/v.vdb");
