@@ -92,6 +92,17 @@ void writeText(const std::string& path, const std::string& text) {
     writeFileAtomically(path, std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
 }
 
+void checkDistinctFiles(const std::vector<std::pair<std::string, std::string>>& files) {
+    for (size_t i = 0; i < files.size(); ++i)
+        for (size_t j = 0; j < i; ++j) {
+            if (files[i].second.empty() || files[j].second.empty()) continue;
+            std::error_code ec;
+            const bool same = fs::absolute(files[i].second).lexically_normal() == fs::absolute(files[j].second).lexically_normal() ||
+                              fs::equivalent(files[i].second, files[j].second, ec);
+            if (same) fail(files[i].first, "names the same file as {} ({}); give each its own file", files[j].first, files[i].second);
+        }
+}
+
 json machineInfo() {
     std::string os;
     std::ifstream osRelease("/etc/os-release");

@@ -18,6 +18,11 @@ namespace penumbra {
 std::string slurpFile(const std::string& path);
 /// Writes @p text to @p path atomically, creating its folder.
 void writeText(const std::string& path, const std::string& text);
+/// @brief Refuses two of a bench's files naming one file (`--json X --markdown X` wrote the JSON
+/// and spliced the Markdown section into it, losing the document): pairs of option and path,
+/// empty paths ignored.
+/// @throw InputError naming the second option.
+void checkDistinctFiles(const std::vector<std::pair<std::string, std::string>>& files);
 /// CPU, cores, RAM, OS, compiler and commit, for the record.
 nlohmann::json machineInfo();
 /// The 1-minute load average: on a shared machine it says how many cores the bench really had.

@@ -223,6 +223,7 @@ CLI::App* addBenchMethodsCommand(CLI::App& bench, BenchMethodsOptions& o) {
 void runBenchMethods(const BenchMethodsOptions& given, const std::string& commandLine) {
     BenchMethodsOptions o = given;  // "hpc" in --methods is no error: every row runs it as the baseline
     o.methods.erase(std::remove(o.methods.begin(), o.methods.end(), "hpc"), o.methods.end());
+    checkDistinctFiles({{"--render", o.renderPath}, {"--json", o.jsonPath}, {"--markdown", o.markdownPath}});
     if (!o.renderPath.empty()) {
         json result;
         try {

@@ -6,6 +6,7 @@
 #include "stream/util/Npy.h"
 
 #include <catch2/catch.hpp>
+#include <fmt/format.h>
 
 #include <csignal>
 #include <filesystem>
@@ -195,6 +196,13 @@ TEST_CASE("bench methods reads a scene's files where the scene lives, and compar
     CHECK(wh.at("error_vs_hpc").at("compared_receivers").get<uint64_t>() == firstPass);
     CHECK(slurp(dir / "result.json").find("penumbra-map:wyman-hansen") != std::string::npos);
     requireCleanError(runPenumbra("bench methods -q --methods penumbra-map:soft"), "--methods");
+    // One file for the JSON and the Markdown would lose the document the section goes into.
+    write(dir / "doc.md", "# notes\n");
+    for (const char* bench : {"methods", "table2"}) {
+        RunResult same = runPenumbra(fmt::format("bench {} -q --json {} --markdown {}", bench, dir / "doc.md", dir / "./doc.md"));
+        requireCleanError(same, "--markdown: names the same file as --json");
+        CHECK(slurp(dir / "doc.md") == "# notes\n");
+    }
     requireCleanError(runPenumbra("bench methods -q --methods ssv:fast"), "--methods");
 }
 
