@@ -53,16 +53,18 @@ void checkOutputAgainstInputs(const SceneDesc& scene, const std::string& output)
 }
 
 void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, const std::string& dumpDir,
-                      const std::string& visibilityPath) {
+                      const std::string& visibilityPath, const std::vector<std::string>& directories) {
     checkSceneOutput(scene);
     std::vector<std::string> outputs{scene.output};
     if (!statsPath.empty()) outputs.push_back(statsPath);
     if (!visibilityPath.empty()) outputs.push_back(visibilityPath);
-    const size_t files = outputs.size();
+    std::vector<bool> folder(outputs.size(), false);  // folders of their own: not another output's name
+    for (const std::string& d : directories)
+        if (!d.empty()) outputs.push_back(d), folder.push_back(true);
     if (!dumpDir.empty()) {
-        outputs.push_back(dumpDir);  // a directory of its own: not another output's name
+        outputs.push_back(dumpDir), folder.push_back(true);
         for (const char* name : {"receivers.npy", "samples.npy", "masks.npy", "rule.json"})
-            outputs.push_back((fs::path(dumpDir) / name).string());
+            outputs.push_back((fs::path(dumpDir) / name).string()), folder.push_back(false);
     }
     const std::vector<std::string> inputs = sceneInputs(scene);
     auto normal = [](const std::string& path) {  // "d/" and "d" name one directory
@@ -70,7 +72,7 @@ void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, cons
         return p.has_filename() ? p : p.parent_path();
     };
     for (size_t i = 0; i < outputs.size(); ++i) {
-        if (i != files) checkOutputPath(outputs[i]), refuseInputs(outputs[i], inputs);
+        if (!folder[i]) checkOutputPath(outputs[i]), refuseInputs(outputs[i], inputs);
         const fs::path a = normal(outputs[i]);
         for (size_t j = 0; j < i; ++j)
             if (a == normal(outputs[j])) fail(outputs[i], "is named for two outputs of this bake; give each its own file");

@@ -8,6 +8,7 @@
 #include "bake/Scene.h"
 
 #include <string>
+#include <vector>
 
 namespace penumbra {
 
@@ -18,8 +19,10 @@ namespace penumbra {
 /// itself), are the same file. Files a receiver kind derives from the output (a camera's PNG, a
 /// lightmap's glTF) are checked when they are finished (OutputSet::commit()).
 /// @throw InputError naming the output and what is wrong with it.
+/// @param directories other folders the bake writes into (checkpoints, shard files): none may
+///        share a name with an output.
 void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, const std::string& dumpDir,
-                      const std::string& visibilityPath = "");
+                      const std::string& visibilityPath = "", const std::vector<std::string>& directories = {});
 
 /// @brief Checks one output path against the files the scene reads (checkOutputPath() and the
 /// device-and-inode comparison), for commands with a single output (`generate`).

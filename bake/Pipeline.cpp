@@ -541,7 +541,8 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     InputScope inputs;  // no output may replace a file this bake reads
     if (settings.threads < 0 || settings.threads > kMaxThreads)
         fail("--threads", "must be in 0..{} (0: all cores), got {}", kMaxThreads, settings.threads);
-    checkBakeOutputs(scene, settings.statsPath, settings.dumpDir, settings.visibilityPath);
+    checkBakeOutputs(scene, settings.statsPath, settings.dumpDir, settings.visibilityPath,
+                     {settings.shard.checkpointDir, settings.shard.dir});
     Stopwatch total;
     Bake b(scene, settings);
     try {

@@ -121,7 +121,8 @@ TEST_CASE("two outputs of one bake never share a file, the derived ones included
     // --visibility and --dump are checked before the bake; the camera's PNG, which the receiver
     // kind names, when the outputs are put in place. Either way nothing is written.
     for (const std::string& args : {" --visibility " + (dir / "x.exr"), " --dump " + (dir / "x.exr"), " --stats " + (dir / "x.png"),
-                                    " --visibility " + (dir / "x.png"), " --dump " + (dir / "d/") + " --stats " + (dir / "d")}) {
+                                    " --visibility " + (dir / "x.png"), " --dump " + (dir / "d/") + " --stats " + (dir / "d"),
+                                    " --checkpoint " + (dir / "x.exr"), " --checkpoint " + (dir / "d") + " --stats " + (dir / "d")}) {
         INFO(args);
         requireCleanError(runPenumbra(bake + args), "is named for two outputs of this bake");
         for (const char* name : {"x.exr", "x.png", "d"}) CHECK_FALSE(std::filesystem::exists(dir / name));
