@@ -47,48 +47,52 @@ int reportError(std::exception_ptr error, const std::string& context) {
     return 1;
 }
 
+namespace {
+
+/// The names of @p app's commands, in the order they were added.
+std::vector<std::string> commandNames(CLI::App& app) {
+    std::vector<std::string> names;
+    for (const CLI::App* command : app.get_subcommands([](CLI::App*) { return true; })) names.push_back(command->get_name());
+    return names;
+}
+
+bool contains(const std::vector<std::string>& names, const std::string& name) {
+    return std::find(names.begin(), names.end(), name) != names.end();
+}
+
+int usageLine(const std::string& text) {
+    printDiagnostic("penumbra: error: " + printableLine(text) + "\n");
+    return 2;
+}
+
+}  // namespace
+
 int reportUsageError(CLI::App& app, const CLI::ParseError& e, int argc, char** argv) {
     if (e.get_exit_code() == 0) return app.exit(e);
-    std::vector<std::string> commands;
-    for (const CLI::App* command : app.get_subcommands([](CLI::App*) { return true; })) commands.push_back(command->get_name());
-    const std::string first = argc > 1 ? argv[1] : "";
-    if (!first.empty() && first[0] != '-' && std::find(commands.begin(), commands.end(), first) == commands.end()) {
-        printDiagnostic(fmt::format("penumbra: error: unknown command '{}' (commands: {}; see penumbra --help)\n", first,
-                                    fmt::join(commands, ", ")));
-        return 2;
-    }
-    // No command, or an option before any command: say what comes first, not CLI11's "a
-    // subcommand is required".
-    if (dynamic_cast<const CLI::RequiredError*>(&e) && app.get_subcommands().empty()) {
-        const std::string what = first.empty() ? std::string("no command given") : fmt::format("unknown option '{}' before a command", printableLine(first));
-        printDiagnostic(fmt::format("penumbra: error: {} (commands: {}; see penumbra --help)\n", what, fmt::join(commands, ", ")));
-        return 2;
-    }
-    // A command of commands (bench): name what it takes, and a usage error under one of its
-    // commands points at that command's help.
-    CLI::App* command = nullptr;
-    for (CLI::App* c : app.get_subcommands([&](CLI::App* c) { return c->get_name() == first; })) command = c;
-    std::vector<std::string> subNames;
-    if (command)
-        for (const CLI::App* sub : command->get_subcommands([](CLI::App*) { return true; })) subNames.push_back(sub->get_name());
-    const std::string next = argc > 2 ? argv[2] : "";
-    const bool nextIsSub = std::find(subNames.begin(), subNames.end(), next) != subNames.end();
-    if (!subNames.empty() && !nextIsSub && dynamic_cast<const CLI::RequiredError*>(&e)) {
-        const std::string known = fmt::format("{}", fmt::join(subNames, ", "));
-        if (next.empty() || next[0] == '-')
-            printDiagnostic(fmt::format("penumbra: error: {} needs one of: {} (see penumbra {} --help)\n", first, known, first));
-        else
-            printDiagnostic(fmt::format("penumbra: error: unknown {} '{}' (known: {}; see penumbra {} --help)\n", first,
-                                        printableLine(next), known, first));
-        return 2;
+    const std::vector<std::string> commands = commandNames(app);
+    const std::string first = argc > 1 ? argv[1] : "", next = argc > 2 ? argv[2] : "";
+    const std::string listed = fmt::format("{}", fmt::join(commands, ", "));
+    if (!first.empty() && first[0] != '-' && !contains(commands, first))
+        return usageLine(fmt::format("unknown command '{}' (commands: {}; see penumbra --help)", first, listed));
+    // No command, or an option before any command, or a command of commands (bench) without one
+    // of its own: say what is missing, not CLI11's "a subcommand is required".
+    const bool required = dynamic_cast<const CLI::RequiredError*>(&e) != nullptr;
+    if (required && app.get_subcommands().empty())
+        return usageLine(fmt::format("{} (commands: {}; see penumbra --help)",
+                                     first.empty() ? std::string("no command given") : "unknown option '" + first + "' before a command", listed));
+    std::vector<std::string> subcommands;
+    for (CLI::App* c : app.get_subcommands([&](CLI::App* c) { return c->get_name() == first; })) subcommands = commandNames(*c);
+    const bool nextIsSub = contains(subcommands, next);
+    if (required && !subcommands.empty() && !nextIsSub) {
+        const std::string known = fmt::format("{}", fmt::join(subcommands, ", "));
+        if (next.empty() || next[0] == '-') return usageLine(fmt::format("{} needs one of: {} (see penumbra {} --help)", first, known, first));
+        return usageLine(fmt::format("unknown {} '{}' (known: {}; see penumbra {} --help)", first, next, known, first));
     }
     // One line, as every other error: the parser's message, and where the usage is explained.
     std::string message = e.what();
     if (!message.empty()) message[0] = char(std::tolower(static_cast<unsigned char>(message[0])));
-    const std::string where = std::find(commands.begin(), commands.end(), first) == commands.end() ? ""
-                              : nextIsSub ? first + " " + next + " " : first + " ";
-    printDiagnostic(fmt::format("penumbra: error: {} (see penumbra {}--help)\n", printableLine(message), where));
-    return 2;
+    const std::string where = !contains(commands, first) ? "" : nextIsSub ? first + " " + next + " " : first + " ";
+    return usageLine(fmt::format("{} (see penumbra {}--help)", message, where));
 }
 
 }  // namespace penumbra
