@@ -632,6 +632,11 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total) {
 }  // namespace
 
 void writeCapturedOutputs(const SceneDesc& scene, const BakeCapture& c, const std::string& output) {
+    // The kind's own check of the new name: a camera's outputs named x.png were an EXR and a PNG
+    // for one file.
+    SceneDesc renamed = scene;
+    renamed.output = output, renamed.outputFromScene = false;
+    validateReceiverKind(scene.receivers, renamed);
     InputScope inputs;
     OutputSet outputs;
     c.kind->write(OutputContext{scene, c.receivers, c.samples, c.results, output, c.firstPass});

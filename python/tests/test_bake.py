@@ -50,6 +50,12 @@ def test_write_equals_cli_outputs(cli, examples, tmp_path, name, files, receiver
         assert cli_files[key] == py_files[key], key
     np.testing.assert_array_equal(result.masks, np.load(tmp_path / "dump" / "masks.npy"))
     assert result.stats["receivers"] == len(result)
+    # A name of the wrong kind is refused as the CLI refuses it (a camera's x.png held both its
+    # EXR and its PNG), and nothing is written.
+    wrong = str(tmp_path / "wrong" / (output.rsplit(".", 1)[0] + ".bad"))
+    with pytest.raises(penumbra.Error, match="name the output with that extension"):
+        result.write(wrong)
+    assert not (tmp_path / "wrong").exists()
 
 
 def pathlib_name(output):
