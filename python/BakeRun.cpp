@@ -214,9 +214,18 @@ BakeSettings settingsOf(const std::string& method, std::optional<int> threads, c
     settings.threads = threads.value_or(0);
     settings.quiet = true;
     if (!memoryBudget.is_none()) {
-        settings.memoryBudget = py::isinstance<py::str>(memoryBudget)
-                                    ? translateErrors([&] { return parseByteSize(memoryBudget.cast<std::string>(), "memory_budget"); })
-                                    : memoryBudget.cast<uint64_t>();
+        if (py::isinstance<py::str>(memoryBudget)) {
+            settings.memoryBudget = translateErrors([&] { return parseByteSize(memoryBudget.cast<std::string>(), "memory_budget"); });
+        } else {
+            // An int of bytes; anything else (a negative or float count, a list) is named here,
+            // not as pybind11's "Unable to cast Python instance to C++ type".
+            const py::int_ whole = py::isinstance<py::int_>(memoryBudget) && !py::isinstance<py::bool_>(memoryBudget)
+                                       ? py::reinterpret_borrow<py::int_>(memoryBudget) : py::int_(-1);
+            if (whole < py::int_(0) || whole > py::int_(INT64_MAX))
+                throw py::value_error(fmt::format("memory_budget: expected bytes as a non-negative int or a size such as '512M', got {}",
+                                                  std::string(py::repr(memoryBudget))));
+            settings.memoryBudget = whole.cast<uint64_t>();
+        }
         if (settings.memoryBudget == 0) throw py::value_error("memory_budget: must be more than 0 (None for no budget)");
     }
     settings.tmpDir = tmpDir.value_or("");

@@ -36,11 +36,21 @@ py::tuple chunkArrays(const std::vector<Triangle>& chunk, size_t n) {
     return py::make_tuple(tris, flags);
 }
 
+/// Triangles per chunk that generate() hands out at most: 2^24 (a 1.5 GB buffer with flags).
+constexpr size_t kMaxGenerateChunk = size_t(1) << 24;
+
+/// generate()'s chunk size: 0 is the bake's own; checked before the buffer is allocated.
+size_t checkedChunk(size_t chunk) {
+    if (chunk > kMaxGenerateChunk)
+        throw py::value_error(fmt::format("generate(): chunk must be at most {} triangles, got {}", kMaxGenerateChunk, chunk));
+    return chunk ? chunk : kTriangleChunk;
+}
+
 /// `penumbra.generate(scene)`: the scene's triangles, chunk by chunk, as a bake streams them.
 class GenerateIterator {
 public:
     GenerateIterator(std::shared_ptr<PyScene> scene, size_t chunk, bool flags)
-        : scene_(std::move(scene)), chunk_(chunk ? chunk : kTriangleChunk), flags_(flags) {
+        : scene_(std::move(scene)), chunk_(checkedChunk(chunk)), flags_(flags) {
         source_ = translateErrors([&] { return openSceneGeometry(scene_->desc); });
     }
     py::object next() {

@@ -60,6 +60,15 @@ def test_wrong_dtype_or_shape_names_the_chunk():
         penumbra.Scene(grid_scene()).add_source(42)
 
 
+def test_bad_budget_or_chunk_is_named_before_any_work():
+    scene = penumbra.Scene(grid_scene())
+    for budget in (-5, 1.5, True, [1], 2**70):
+        with pytest.raises(ValueError, match=r"memory_budget: expected bytes as a non-negative int or a size such as '512M'"):
+            penumbra.bake(scene, memory_budget=budget)
+    with pytest.raises(ValueError, match=r"generate\(\): chunk must be at most 16777216 triangles"):
+        penumbra.generate(scene, chunk=2**40)
+
+
 def test_nan_vertex_raises_as_the_cli_does():
     bad = good()
     bad[0, 1, 2] = np.nan
