@@ -2,6 +2,7 @@
 
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
+#include "stream/util/PathText.h"
 
 #include <sys/stat.h>
 
@@ -67,15 +68,11 @@ void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, cons
             outputs.push_back((fs::path(dumpDir) / name).string()), folder.push_back(false);
     }
     const std::vector<std::string> inputs = sceneInputs(scene);
-    auto normal = [](const std::string& path) {  // "d/" and "d" name one directory
-        const fs::path p = fs::absolute(path).lexically_normal();
-        return p.has_filename() ? p : p.parent_path();
-    };
     for (size_t i = 0; i < outputs.size(); ++i) {
         if (!folder[i]) checkOutputPath(outputs[i]), refuseInputs(outputs[i], inputs);
-        const fs::path a = normal(outputs[i]);
+        const std::string a = comparablePath(outputs[i]);
         for (size_t j = 0; j < i; ++j)
-            if (a == normal(outputs[j])) fail(outputs[i], "is named for two outputs of this bake; give each its own file");
+            if (a == comparablePath(outputs[j])) fail(outputs[i], "is named for two outputs of this bake; give each its own file");
     }
 }
 

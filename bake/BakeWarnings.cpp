@@ -10,7 +10,6 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <glm/geometric.hpp>
-#include <glm/trigonometric.hpp>
 
 namespace penumbra {
 namespace {
@@ -49,7 +48,7 @@ double narrowestWidth(const LightDesc& light) {
         case LightType::Rect: return std::min(glm::length(light.u), glm::length(light.v));
         case LightType::Disk:
         case LightType::Sphere: return 2 * light.radius;
-        case LightType::Sun: return 2 * std::tan(glm::radians(light.angularDiameterDeg) * 0.5);
+        case LightType::Sun: return 2 * sunDirectionDisk(light).radius;
         case LightType::Polygon: break;
     }
     double longest = 0;

@@ -3,6 +3,7 @@
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
 #include "stream/util/JsonParams.h"
+#include "stream/util/PathText.h"
 #include "stream/util/StopRequest.h"
 #include "stream/util/TempRegistry.h"
 
@@ -97,8 +98,8 @@ void checkDistinctFiles(const std::vector<std::pair<std::string, std::string>>& 
         for (size_t j = 0; j < i; ++j) {
             if (files[i].second.empty() || files[j].second.empty()) continue;
             std::error_code ec;
-            const bool same = fs::absolute(files[i].second).lexically_normal() == fs::absolute(files[j].second).lexically_normal() ||
-                              fs::equivalent(files[i].second, files[j].second, ec);
+            const bool same = comparablePath(files[i].second) == comparablePath(files[j].second) ||
+                              fs::equivalent(files[i].second, files[j].second, ec);  // links to one existing file
             if (same) fail(files[i].first, "names the same file as {} ({}); give each its own file", files[j].first, files[i].second);
         }
 }

@@ -226,10 +226,6 @@ std::string submit(const std::string& args, const std::string& script) {
     return out.substr(0, out.find(';'));
 }
 
-}  // namespace
-
-namespace {
-
 /// Values that go into the scripts' `#SBATCH` lines as they are: a line break there would start a
 /// line of its own (a shell command, in the script's body), and sbatch ends a value at a space.
 void checkScriptValues(const SlurmOptions& o) {

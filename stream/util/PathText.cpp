@@ -11,4 +11,9 @@ std::string lowercaseExtension(const std::string& path) {
     return ext;
 }
 
+std::string comparablePath(const std::string& path) {
+    const std::filesystem::path p = std::filesystem::absolute(path).lexically_normal();
+    return (p.has_filename() ? p : p.parent_path()).string();
+}
+
 }  // namespace penumbra

@@ -1,7 +1,8 @@
 #pragma once
 /// @file PathText.h
 /// @brief The one way a file name's extension is read: lower-cased, so that `.VDB`, `.Glb` and
-/// `.OBJ` choose the same reader or writer as their lower-case spellings.
+/// `.OBJ` choose the same reader or writer as their lower-case spellings; and the one way two
+/// output names are compared before anything exists.
 
 #include <string>
 
@@ -9,5 +10,9 @@ namespace penumbra {
 
 /// @brief The extension of @p path with its dot, lower-cased ("scene.GLB" -> ".glb"; "" if none).
 std::string lowercaseExtension(const std::string& path);
+
+/// @brief @p path absolute and lexically normal, without a trailing separator ("d/" and "./d"
+/// name what "d" names): equal for two names of one output, as far as the text can tell.
+std::string comparablePath(const std::string& path);
 
 }  // namespace penumbra
