@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdio>
 #include <new>
 #include <optional>
 #include <stdexcept>
@@ -68,7 +69,20 @@ int usageLine(const std::string& text) {
 }  // namespace
 
 int reportUsageError(CLI::App& app, const CLI::ParseError& e, int argc, char** argv) {
-    if (e.get_exit_code() == 0) return app.exit(e);
+    if (e.get_exit_code() == 0) {
+        // `merge` runs as `bake --merge` (rewriteMergeCommand): its help names it, not bake.
+        if (argc > 1 && std::string(argv[1]) == "merge" && dynamic_cast<const CLI::CallForHelp*>(&e))
+            for (CLI::App* bake : app.get_subcommands([](CLI::App* c) { return c->get_name() == "bake"; })) {
+                std::string help = bake->help();
+                for (int line = 0; line < 2 && help.find('\n') != std::string::npos; ++line) help.erase(0, help.find('\n') + 1);
+                std::fputs("merge shard files into a bake's outputs (the bake's options; --shard-dir is required)\n"
+                           "Usage: penumbra merge [OPTIONS] scene\n",
+                           stdout);
+                std::fputs(help.c_str(), stdout);
+                return 0;
+            }
+        return app.exit(e);
+    }
     const std::vector<std::string> commands = commandNames(app);
     const std::string first = argc > 1 ? argv[1] : "", next = argc > 2 ? argv[2] : "";
     const std::string listed = fmt::format("{}", fmt::join(commands, ", "));

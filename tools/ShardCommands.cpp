@@ -1,6 +1,9 @@
 #include "ShardCommands.h"
 #include "BakeCommand.h"
 
+#include "bake/BakeMemory.h"
+#include "bake/Scene.h"
+#include "bake/SceneAlpha.h"
 #include "bake/shard/ShardFiles.h"
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
@@ -237,11 +240,28 @@ void checkScriptValues(const SlurmOptions& o) {
         if (control(*value)) fail(option, "a path with a line break or control character cannot go into a job script, got '{}'", printableLine(*value));
 }
 
+/// What every shard would find wrong before its work, found now, on the submitting host, instead
+/// of by N array tasks on the nodes: the scene's errors (the scene is parsed, its files opened, no
+/// geometry read), and a --memory-budget below what a shard's scan pass needs (every shard scans
+/// the whole scene). A budget that passes may still fail a shard's exact check after its scan.
+void checkShardBakes(const SlurmOptions& o) {
+    const SceneDesc scene = loadScene(o.scene);
+    if (o.memoryBudget.empty()) return;
+    BakeBudget budget;
+    budget.bytes = parseByteSize(o.memoryBudget, "--memory-budget");
+    if (budget.bytes == 0) fail("--memory-budget", "must be more than 0 (leave it out for no budget)");
+    checkSceneAlphaBudget(scene, budget.bytes, budget.label);
+    const std::unique_ptr<ReceiverKind> kind = makeReceiverKind(scene.receivers, scene);
+    const TriangleSourcePtr geometry = openSceneGeometry(scene);
+    checkBeforeScan(demandBeforeScan(scene, *kind, *geometry, /*dump=*/true), budget);  // shards keep their masks
+}
+
 }  // namespace
 
 void runSlurm(const SlurmOptions& o) {
     checkScriptValues(o);
     if (!fs::is_regular_file(o.scene)) fail(o.scene, "not a scene file");
+    checkShardBakes(o);
     if (!o.output.empty()) requireOutputFolder("--output", o.output);  // now, not when the merge job runs
     const fs::path scene = fs::absolute(o.scene);
     const std::string dir = absolute(o.dir.empty() ? (scene.parent_path() / (scene.stem().string() + ".slurm")).string() : o.dir);

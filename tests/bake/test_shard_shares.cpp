@@ -197,6 +197,25 @@ TEST_CASE("penumbra slurm puts a tree of combine jobs between many shards and th
     CHECK(few.out.find("combine") == std::string::npos);
 }
 
+TEST_CASE("penumbra slurm finds the scene's errors and a budget too small for a shard before it submits", "[shards][cli]") {
+    ScratchDir dir("slurm-checks");
+    write(dir / "grass.json", grassScene("grass").dump());
+    // Every array task would fail with these; the command fails first, with the bake's message,
+    // and writes no job directory.
+    write(dir / "bad.json", R"({"geometry": [{"type": "grid"}], "lights": [], "receivers": {"type": "camera", "eye": [0,3,5], "target": [0,0,0]}})");
+    RunResult bad = runPenumbra("slurm " + dir / "bad.json" + " --shards 2 --dir " + dir / "job");
+    CHECK(bad.exitCode == 1);
+    CHECK(bad.err == "penumbra: error: " + dir / "bad.json" + ": lights: expected a non-empty array of lights\n");
+    RunResult tiny = runPenumbra("slurm " + dir / "grass.json" + " --shards 2 --memory-budget 1K --dir " + dir / "job");
+    CHECK(tiny.exitCode == 1);
+    CHECK_THAT(tiny.err, Catch::StartsWith("penumbra: error: --memory-budget 1.00 KiB is too small for up to ") && Catch::Contains("is needed"));
+    CHECK(lineCount(tiny.err) == 1);
+    CHECK(runPenumbra("slurm " + dir / "grass.json" + " --shards 2 --memory-budget 0 --dir " + dir / "job").exitCode == 1);
+    CHECK_FALSE(fs::exists(dir / "job"));
+    // A budget the scan fits is left to each shard's exact check, as a bake does.
+    CHECK(runPenumbra("slurm " + dir / "grass.json" + " --shards 2 --memory-budget 2G --dry-run --dir " + dir / "job").exitCode == 0);
+}
+
 TEST_CASE("penumbra slurm refuses values that would break a job script's #SBATCH lines", "[shards][cli]") {
     ScratchDir dir("slurm-values");
     write(dir / "grass.json", grassScene("grass").dump());

@@ -46,6 +46,12 @@ TEST_CASE("cli: --version, usage errors exit 2 and an unknown command lists the 
     CHECK(conversion.err == "penumbra: error: could not convert: --threads = many (see penumbra bake --help)\n");
     CHECK(runPenumbra("--help").exitCode == 0);
     CHECK(runPenumbra("bake --help").exitCode == 0);
+    // merge runs as bake --merge, but its help names merge, with the bake's options.
+    RunResult merge = runPenumbra("merge --help");
+    CHECK(merge.exitCode == 0);
+    CHECK_THAT(merge.out, Catch::StartsWith("merge shard files into a bake's outputs") &&
+                              Catch::Contains("Usage: penumbra merge [OPTIONS] scene") && Catch::Contains("--shard-dir"));
+    CHECK_THAT(merge.out, !Catch::Contains("bake [OPTIONS]"));
 }
 
 TEST_CASE("cli: -o names the format by its extension and a bake refuses one its receivers cannot write", "[cli]") {
