@@ -23,13 +23,18 @@ struct ExrSettings {
 };
 
 /// @brief Reads the "exr" object: {"pixel_type": "float"|"half", "tile_size": 0|16..1024,
-/// "rgb": "irradiance"|"visibility"}.
+/// "compression": "zip"|..., "zip_level": 1..9, "rgb": "irradiance"|"visibility"}.
 /// @throw InputError naming the key for a bad value or an unknown key.
 ExrSettings parseExrSettings(const JsonParams& j);
 
 /// @brief "float" or "half" (exr.pixel_type, --exr-pixel-type) as ExrFormat::half.
 /// @throw InputError naming @p where for anything else.
 bool parseExrPixelType(const std::string& value, const std::string& where);
+
+/// @brief "none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa" or "dwab"
+/// (exr.compression), OpenEXR's names in lower case.
+/// @throw InputError naming @p where for anything else.
+ExrCompression parseExrCompression(const std::string& value, const std::string& where);
 
 /// @brief Checks a tile size (exr.tile_size, --exr-tile-size): 0 (scanlines) or 16..1024.
 /// @throw InputError naming @p where when it is out of range.

@@ -89,7 +89,15 @@ Imf::Header makeHeader(const std::string& path, int width, int height, std::span
     if (channels.empty()) fail(path, "cannot write an EXR without channels");
     if (format.tileSize < 0 || format.tileSize > (1 << 16)) fail(path, "EXR tile size {} is out of range", format.tileSize);
     Imf::Header header(width, height);
-    header.compression() = Imf::ZIP_COMPRESSION;  // lossless, and 16-line blocks read fast
+    static constexpr Imf::Compression kCompression[] = {Imf::NO_COMPRESSION,    Imf::RLE_COMPRESSION,  Imf::ZIPS_COMPRESSION,
+                                                        Imf::ZIP_COMPRESSION,   Imf::PIZ_COMPRESSION,  Imf::PXR24_COMPRESSION,
+                                                        Imf::B44_COMPRESSION,   Imf::B44A_COMPRESSION, Imf::DWAA_COMPRESSION,
+                                                        Imf::DWAB_COMPRESSION};
+    header.compression() = kCompression[size_t(format.compression)];
+    if (format.zipLevel != 0) {
+        if (format.zipLevel < 1 || format.zipLevel > 9) fail(path, "EXR zip level {} is not in 1..9", format.zipLevel);
+        header.zipCompressionLevel() = format.zipLevel;
+    }
     header.lineOrder() = Imf::INCREASING_Y;
     if (format.tileSize > 0) header.setTileDescription(Imf::TileDescription(unsigned(format.tileSize), unsigned(format.tileSize), Imf::ONE_LEVEL));
     for (const ExrChannelSpec& c : channels) {
@@ -184,12 +192,30 @@ void setExrCompressionThreads(int threads) {
     if (Imf::globalThreadCount() != std::max(threads, 0)) Imf::setGlobalThreadCount(std::max(threads, 0));
 }
 
+int exrLinesPerBlock(ExrCompression compression) {
+    switch (compression) {
+        case ExrCompression::None:
+        case ExrCompression::Rle:
+        case ExrCompression::Zips: return 1;
+        case ExrCompression::Zip:
+        case ExrCompression::Pxr24: return 16;
+        case ExrCompression::Piz:
+        case ExrCompression::B44:
+        case ExrCompression::B44a:
+        case ExrCompression::Dwaa: return 32;
+        case ExrCompression::Dwab: return 256;
+    }
+    return 256;
+}
+
 uint64_t ExrStripWriter::bytes(int width, size_t channels, const ExrFormat& format) {
-    // OpenEXR keeps a block (16 lines for ZIP, or one row of tiles) uncompressed and compressed.
-    // Its thread pool keeps two per thread, but bakes that plan their memory compress without it
-    // (runBake()), and this is what they plan.
-    const uint64_t rows = format.tileSize > 0 ? uint64_t(format.tileSize) : 16;
-    const uint64_t block = 2 * rows * channels * uint64_t(width) * 4;
+    // OpenEXR keeps a block (exrLinesPerBlock() lines, or one row of tiles) uncompressed and
+    // compressed. Its thread pool keeps two per thread, but bakes that plan their memory compress
+    // without it (runBake()), and this is what they plan.
+    const uint64_t rows = format.tileSize > 0 ? uint64_t(format.tileSize) : uint64_t(exrLinesPerBlock(format.compression));
+    // DWA keeps its planar and DCT buffers besides the two copies; four covers them.
+    const bool dwa = format.compression == ExrCompression::Dwaa || format.compression == ExrCompression::Dwab;
+    const uint64_t block = (dwa ? 4 : 2) * rows * channels * uint64_t(width) * 4;
     // HALF channels: the strip's rounded copy (at most 64 rows or one row of tiles, 2 bytes each).
     const uint64_t halves = format.half ? std::max<uint64_t>(rows, 64) * channels * uint64_t(width) * 2 : 0;
     return block + halves + (format.tileSize > 0 ? rows * channels * uint64_t(width) * 4 : 0);

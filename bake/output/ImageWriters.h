@@ -50,14 +50,25 @@ struct ExrChannelSpec {
     bool keepFloat = false;  ///< stays 32-bit FLOAT when ExrFormat::half is set
 };
 
-/// How an EXR is stored: 32-bit FLOAT or 16-bit HALF channels, scanlines or square tiles.
-/// ZIP compression (lossless) either way.
+/// OpenEXR's compression methods (exr.compression). Lossless: None, Rle, Zips (one line a
+/// block), Zip (16 lines, the default), Piz (wavelet, 32 lines). Lossy: Pxr24 (FLOAT rounded to
+/// 24 bits), B44 and B44a (HALF channels only; FLOAT ones are stored as they are), Dwaa and Dwab
+/// (DCT, 32 and 256 lines).
+enum class ExrCompression { None, Rle, Zips, Zip, Piz, Pxr24, B44, B44a, Dwaa, Dwab };
+
+/// @brief Scanlines in one compressed block of a scanline file (what OpenEXR buffers per block).
+int exrLinesPerBlock(ExrCompression compression);
+
+/// How an EXR is stored: 32-bit FLOAT or 16-bit HALF channels, scanlines or square tiles, and
+/// the compression (ZIP by default).
 struct ExrFormat {
     bool half = false;  ///< HALF for every channel that is not marked keepFloat
     int tileSize = 0;   ///< 0: scanlines; else tiles of tileSize x tileSize pixels (one level)
+    ExrCompression compression = ExrCompression::Zip;
+    int zipLevel = 0;   ///< deflate level 1..9 of Zip and Zips; 0: OpenEXR's default
 };
 
-/// @brief Writes an OpenEXR file (ZIP compression) with the channels given.
+/// @brief Writes an OpenEXR file with the channels given (compression: ExrFormat).
 ///
 /// Channels may be given in any order (OpenEXR stores them sorted by name).
 /// @param path final file path; its directory must exist.
@@ -65,7 +76,7 @@ struct ExrFormat {
 /// @param channels at least one, with distinct non-empty names.
 /// @param attributes extra header attributes; names must not clash with the core header
 ///        attributes (channels, compression, dataWindow, ...) or each other.
-/// @param format FLOAT or HALF, scanlines or tiles.
+/// @param format FLOAT or HALF, scanlines or tiles, the compression.
 /// @throw InputError naming @p path for invalid arguments, an OpenEXR (Iex) error or an I/O
 ///        failure; no file is left at @p path or next to it in that case.
 void writeExr(const std::string& path, int width, int height, std::span<const ExrChannel> channels,

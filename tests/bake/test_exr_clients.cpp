@@ -106,6 +106,14 @@ TEST_CASE("exr: half and tiled output as oiiotool sees it, depth kept float", "[
     CHECK(img.channelTypes["R"] == "half");
     CHECK(img.channelTypes["depth.Z"] == "float");
     CHECK(img.tileWidth == 16);
+
+    // The scene's compression reaches the file, and a lossless one keeps the pixels.
+    std::ofstream(dir / "piz.json") << smallScene(R"("exr": {"pixel_type": "half", "tile_size": 16, "compression": "piz"},)");
+    RunResult piz = runPenumbra("bake " + (dir / "piz.json") + " -q -o " + (dir / "piz.exr"));
+    INFO(piz.err);
+    REQUIRE(piz.exitCode == 0);
+    CHECK_THAT(oiiotool(dir, "--info -v " + (dir / "piz.exr")), Catch::Contains("compression: \"piz\""));
+    CHECK(readExr(dir / "piz.exr").channels == img.channels);
 }
 
 TEST_CASE("exr: rgb visibility puts V in R, G, B and the irradiance in its own layer, bad settings name the key", "[exr][cli]") {
@@ -126,7 +134,10 @@ TEST_CASE("exr: rgb visibility puts V in R, G, B and the irradiance in its own l
     for (const auto& [settings, key] : {std::pair{R"("exr": {"pixel_type": "double"},)", "exr.pixel_type"},
                                         {R"("exr": {"tile_size": 8},)", "exr.tile_size"},
                                         {R"("exr": {"rgb": "red"},)", "exr.rgb"},
-                                        {R"("exr": {"tiles": 16},)", "exr.tiles"}}) {
+                                        {R"("exr": {"tiles": 16},)", "exr.tiles"},
+                                        {R"("exr": {"compression": "lzma"},)", "exr.compression"},
+                                        {R"("exr": {"compression": "piz", "zip_level": 3},)", "exr.zip_level"},
+                                        {R"("exr": {"zip_level": 12},)", "exr.zip_level"}}) {
         std::ofstream(dir / "bad.json") << smallScene(settings);
         RunResult bad = runPenumbra("bake " + (dir / "bad.json") + " -q -o " + (dir / "bad.exr"));
         requireCleanError(bad, key);

@@ -79,13 +79,61 @@ TEST_CASE("writeExr round-trips channels bit-exactly with ZIP compression and at
         CHECK(it.channel().type == Imf::FLOAT);
 }
 
+TEST_CASE("writeExr stores every compression the scene can name, and the lossless ones round-trip bit-exactly", "[io]") {
+    using penumbra::ExrCompression;
+    ScratchDir dir;
+    const int w = 67, h = 301;  // more than one block of every method (DWAB: 256 lines)
+    std::vector<float> v(size_t(w) * h), z(v.size());
+    for (size_t i = 0; i < v.size(); ++i) v[i] = 0.5f + 0.5f * std::sin(0.01f * float(i)), z[i] = 1.0f + float(i % 977) * 0.25f;
+    const ExrChannel channels[] = {{"V", v.data()}, {"Z", z.data(), true}};
+    const std::pair<ExrCompression, Imf::Compression> methods[] = {
+        {ExrCompression::None, Imf::NO_COMPRESSION},   {ExrCompression::Rle, Imf::RLE_COMPRESSION},
+        {ExrCompression::Zips, Imf::ZIPS_COMPRESSION}, {ExrCompression::Zip, Imf::ZIP_COMPRESSION},
+        {ExrCompression::Piz, Imf::PIZ_COMPRESSION},   {ExrCompression::Pxr24, Imf::PXR24_COMPRESSION},
+        {ExrCompression::B44, Imf::B44_COMPRESSION},   {ExrCompression::B44a, Imf::B44A_COMPRESSION},
+        {ExrCompression::Dwaa, Imf::DWAA_COMPRESSION}, {ExrCompression::Dwab, Imf::DWAB_COMPRESSION}};
+    for (const auto& [compression, stored] : methods) {
+        for (const int tiles : {0, 32}) {
+            penumbra::ExrFormat format;
+            format.compression = compression, format.tileSize = tiles;
+            const std::string path = dir.file("c.exr");
+            penumbra::writeExr(path, w, h, channels, {}, format);
+            INFO("method " << int(stored) << ", tiles " << tiles);
+            CHECK(Imf::InputFile(path.c_str()).header().compression() == stored);
+            const penumbra::ExrImage image = penumbra::readExr(path);
+            const bool lossless = stored <= Imf::PIZ_COMPRESSION || stored == Imf::B44_COMPRESSION || stored == Imf::B44A_COMPRESSION;
+            if (lossless) {  // B44 compresses HALF channels only: these FLOAT ones are stored as they are
+                CHECK(sameBits(image.channels.at("V"), v));
+                CHECK(sameBits(image.channels.at("Z"), z));
+            }
+            for (size_t i = 0; i < v.size(); ++i) {
+                if (std::abs(image.channels.at("V")[i] - v[i]) > 0.05f) FAIL("V of pixel " << i << " is " << image.channels.at("V")[i]);
+            }
+            CHECK(penumbra::ExrStripWriter::bytes(w, 2, format) > 0);
+        }
+    }
+    // The deflate level changes the bytes, not the pixels.
+    penumbra::ExrFormat fast, small;
+    fast.zipLevel = 1, small.zipLevel = 9;
+    penumbra::writeExr(dir.file("fast.exr"), w, h, channels, {}, fast);
+    penumbra::writeExr(dir.file("small.exr"), w, h, channels, {}, small);
+    CHECK(fs::file_size(dir.file("fast.exr")) >= fs::file_size(dir.file("small.exr")));
+    CHECK(sameBits(penumbra::readExr(dir.file("fast.exr")).channels.at("V"), penumbra::readExr(dir.file("small.exr")).channels.at("V")));
+    penumbra::ExrFormat bad;
+    bad.zipLevel = 10;
+    CHECK_THROWS_AS(penumbra::writeExr(dir.file("bad.exr"), w, h, channels, {}, bad), InputError);
+    CHECK_FALSE(fs::exists(dir.file("bad.exr")));
+}
+
 TEST_CASE("EXR files are the same bytes whether their blocks are compressed on OpenEXR's threads or not", "[io]") {
     ScratchDir dir;
     const int w = 301, h = 203;  // many 16-line blocks and rows of tiles, odd sizes
     std::vector<float> v(size_t(w) * h), z(v.size());
     for (size_t i = 0; i < v.size(); ++i) v[i] = std::sin(0.001f * float(i)), z[i] = float(i % 977) * 0.25f;
     const ExrChannel channels[] = {{"V", v.data()}, {"Z", z.data(), true}};
-    for (const penumbra::ExrFormat format : {penumbra::ExrFormat{}, penumbra::ExrFormat{true, 0}, penumbra::ExrFormat{false, 64}}) {
+    penumbra::ExrFormat dwa, piz;
+    dwa.compression = penumbra::ExrCompression::Dwaa, piz.compression = penumbra::ExrCompression::Piz, piz.tileSize = 64;
+    for (const penumbra::ExrFormat format : {penumbra::ExrFormat{}, penumbra::ExrFormat{true, 0}, penumbra::ExrFormat{false, 64}, dwa, piz}) {
         std::vector<std::string> bytes;
         for (int threads : {0, 2, 3, 0}) {
             penumbra::setExrCompressionThreads(threads);
