@@ -320,7 +320,10 @@ void scanScene(Bake& b) {
     if (b.settings.shard.casting() && b.dump()) fail("--dump", "a shard writes no outputs; give --dump to penumbra merge");
     // A texture that alone does not fit is refused before it is decoded (opening builds the table).
     checkSceneAlphaBudget(scene, b.budget.bytes, b.budget.label);
-    TriangleSourcePtr geometry = openSceneGeometry(scene);
+    TriangleSourcePtr geometry = [&] {
+        OpeningProgress opening(b.settings.quiet);  // an OBJ's check pass shows as a phase
+        return openSceneGeometry(scene);
+    }();
     b.demand = demandBeforeScan(scene, *b.kind, *geometry, b.keepMasks());
     checkBeforeScan(b.demand, b.budget);
     // Without a budget the machine is the bound: refuse before any work what it cannot hold.

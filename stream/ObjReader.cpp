@@ -1,6 +1,7 @@
 #include "stream/ObjReader.h"
 
 #include "stream/util/Error.h"
+#include "stream/util/Progress.h"
 #include "stream/ObjTokenizer.h"
 #include "stream/util/RegularFile.h"
 #include "stream/VertexStore.h"
@@ -11,8 +12,10 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <string_view>
 
 namespace penumbra {
@@ -156,12 +159,21 @@ bool ObjSource::selected(std::string_view part) const {
 void ObjSource::scan() {
     scanned_ = true;
     lines_.open();
+    // A phase of its own where the opener asked for one (OpeningProgress) and the file is large
+    // enough to be waited for (about 120 MB/s: from a quarter second up; a 20 GB file takes
+    // minutes here, before any triangle is handed out). Its bytes are the work.
+    constexpr uint64_t kShownFromBytes = 32ull << 20;
+    std::optional<ProgressReporter> progress;
+    if (const std::optional<bool> quiet = OpeningProgress::active(); quiet && fileBytes_ >= kShownFromBytes)
+        progress.emplace("check " + std::filesystem::path(path_).filename().string(), fileBytes_, *quiet);
+    uint64_t reported = 0;
     std::string_view line;
     std::vector<ObjCorner> corners;
     uint64_t counts[3] = {0, 0, 0};  // v, vt, vn defined so far
     std::string part;
     std::vector<std::string> seen;  // part names, for the error about a missing one
     while (lines_.next(line)) {
+        if (progress && lines_.lineStart() - reported >= (1u << 20)) progress->update(lines_.lineStart() - reported), reported = lines_.lineStart();
         ObjTokens tokens(line);
         std::string_view keyword = tokens.next();
         if (keyword == "v") {
@@ -187,6 +199,7 @@ void ObjSource::scan() {
             if (selected(part)) triangleCount_ += corners.size() - 2;
         }
     }
+    if (progress) progress->update(fileBytes_ - std::min(reported, fileBytes_));
     for (const std::string& wanted : parts_)
         if (std::find(seen.begin(), seen.end(), wanted) == seen.end())
             fail(path_, "has no o/g group named \"{}\" (it has {} group{})", wanted, seen.size(), seen.size() == 1 ? "" : "s");

@@ -8,6 +8,7 @@
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
 #include "stream/util/Memory.h"
+#include "stream/util/Progress.h"
 
 #include <fmt/format.h>
 
@@ -241,9 +242,10 @@ void checkScriptValues(const SlurmOptions& o) {
 }
 
 /// What every shard would find wrong before its work, found now, on the submitting host, instead
-/// of by N array tasks on the nodes: the scene's errors (the scene is parsed, its files opened, no
-/// geometry read), and a --memory-budget below what a shard's scan pass needs (every shard scans
-/// the whole scene). A budget that passes may still fail a shard's exact check after its scan.
+/// of by N array tasks on the nodes: the scene's errors (the scene is parsed), and a
+/// --memory-budget below what a shard's scan pass needs (every shard scans the whole scene; its
+/// files are opened as a bake opens them, which reads an OBJ through once to check it). A budget
+/// that passes may still fail a shard's exact check after its scan.
 void checkShardBakes(const SlurmOptions& o) {
     const SceneDesc scene = loadScene(o.scene);
     if (o.memoryBudget.empty()) return;
@@ -252,7 +254,10 @@ void checkShardBakes(const SlurmOptions& o) {
     if (budget.bytes == 0) fail("--memory-budget", "must be more than 0 (leave it out for no budget)");
     checkSceneAlphaBudget(scene, budget.bytes, budget.label);
     const std::unique_ptr<ReceiverKind> kind = makeReceiverKind(scene.receivers, scene);
-    const TriangleSourcePtr geometry = openSceneGeometry(scene);
+    const TriangleSourcePtr geometry = [&] {
+        OpeningProgress opening(false);  // a large OBJ's check pass is not minutes of silence
+        return openSceneGeometry(scene);
+    }();
     checkBeforeScan(demandBeforeScan(scene, *kind, *geometry, /*dump=*/true), budget);  // shards keep their masks
 }
 

@@ -163,4 +163,12 @@ void ProgressReporter::print(const std::string& line, bool final) {
     std::fflush(stderr);
 }
 
+namespace {
+thread_local std::optional<bool> openingQuiet;
+}  // namespace
+
+OpeningProgress::OpeningProgress(bool quiet) : outer_(openingQuiet) { openingQuiet = quiet; }
+OpeningProgress::~OpeningProgress() { openingQuiet = outer_; }
+std::optional<bool> OpeningProgress::active() { return openingQuiet; }
+
 }  // namespace penumbra

@@ -132,6 +132,25 @@ std::string formatProgressLine(std::string_view phase, uint64_t done, uint64_t t
 std::string formatProgressLine(std::string_view phase, uint64_t done, uint64_t total, double elapsedSeconds,
                                double fraction, std::optional<double> remainingSeconds);
 
+/// @brief While one is alive on a thread, readers that check a whole file when they are opened
+/// there (an OBJ of 32 MiB or more: every statement before the first triangle) show that pass as
+/// a phase of its own, `[check mesh.obj] 42.0% (bytes/bytes) ...`, quiet or not as given (quiet
+/// still feeds currentProgress(), the Python module's callback). A bake opens its sources inside
+/// one, so that a 20 GB OBJ is not minutes of silence before its scan; elsewhere (tests, tools)
+/// readers stay silent.
+class OpeningProgress {
+public:
+    explicit OpeningProgress(bool quiet);
+    ~OpeningProgress();
+    OpeningProgress(const OpeningProgress&) = delete;
+    OpeningProgress& operator=(const OpeningProgress&) = delete;
+    /// @brief The innermost scope's quiet flag on this thread; nullopt outside any scope.
+    static std::optional<bool> active();
+
+private:
+    std::optional<bool> outer_;
+};
+
 /// @brief Short duration for humans: "3.1s", "2m05s", "1h02m".
 std::string formatDuration(double seconds);
 

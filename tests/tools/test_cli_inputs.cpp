@@ -9,6 +9,7 @@
 #include "stream/util/Npy.h"
 
 #include <catch2/catch.hpp>
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include <sys/stat.h>
@@ -223,4 +224,32 @@ TEST_CASE("requests that cannot fit in memory are refused before any work, with 
     requireCleanError(r, "the scan pass needs at least ");
     CHECK_THAT(r.err, Catch::Contains("of memory, but this machine has"));
     CHECK(r.err.find("[scan]") == std::string::npos);
+}
+
+TEST_CASE("a large OBJ's check pass on opening is a phase of its own on stderr, silent with -q", "[cli][inputs][progress]") {
+    ScratchDir dir("obj-check-progress");
+    // Files from 32 MiB on show the pass (smaller ones take under a quarter second); a 20 GB file
+    // spent minutes here in silence.
+    std::string text;
+    for (int i = 0; text.size() < (33u << 20); ++i) text += fmt::format("v {} 0 -1\nv {} 0 1\nv {} 0.5 0\nf -3 -2 -1\n", i * 1e-3, i * 1e-3, i * 1e-3 + 5e-4);
+    write(dir / "strips.obj", text);
+    nlohmann::json s = nlohmann::json::parse(kScene);
+    s["geometry"][0]["path"] = "strips.obj";
+    RunResult loud = bake(dir, s.dump(), "");
+    INFO(loud.err);
+    REQUIRE(loud.exitCode == 0);
+    const std::string done = fmt::format("[check strips.obj] 100.0% ({0}/{0}) done in ", text.size());
+    CHECK_THAT(loud.err, Catch::Contains(done));
+    CHECK(loud.err.find(done) < loud.err.find("[scan]"));  // before the scan pass, which it delays
+    RunResult quiet = bake(dir, s.dump(), "-q");
+    CHECK(quiet.exitCode == 0);
+    CHECK(quiet.err.empty());
+    // A small file's pass is not shown.
+    CHECK(bake(dir, kScene, "").err.find("[check") == std::string::npos);
+    // A file that fails its check ends the phase without a "done" line, with the one error line.
+    write(dir / "strips.obj", text + "f 1 2 99999999\n");
+    RunResult bad = bake(dir, s.dump(), "");
+    CHECK(bad.exitCode == 1);
+    CHECK(bad.err.find("done in") == std::string::npos);
+    CHECK_THAT(bad.err, Catch::Contains("strips.obj:") && Catch::EndsWith("\n"));
 }
