@@ -7,6 +7,7 @@
 #include "bucket/BucketOptions.h"
 #include "stream/util/Error.h"
 #include "stream/util/Memory.h"
+#include "stream/util/Progress.h"
 #include "stream/PrefetchSource.h"
 
 #include <fmt/format.h>
@@ -80,6 +81,18 @@ void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget) {
     throw InputError(fmt::format("{} {} is too small for up to {} receivers of {} light-sample groups each; at least {} is needed{}",
                                  budget.label, formatBytes(budget.bytes + budget.overhead), demand.receivers, demand.groups,
                                  budgetText(worst.minimumBudget + budget.overhead), why));
+}
+
+TriangleSourcePtr openCheckedBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const BakeBudget& budget, bool keepMasks,
+                                        bool quiet, MemoryDemand& demand) {
+    checkSceneAlphaBudget(scene, budget.bytes, budget.label);  // before a texture is decoded (opening builds the table)
+    TriangleSourcePtr geometry = [&] {
+        OpeningProgress opening(quiet);  // an OBJ's check pass shows as a phase
+        return openSceneGeometry(scene);
+    }();
+    demand = demandBeforeScan(scene, kind, *geometry, keepMasks);
+    checkBeforeScan(demand, budget);
+    return geometry;
 }
 
 }  // namespace penumbra

@@ -56,4 +56,15 @@ void addSampleDemand(MemoryDemand& demand, const LightSamples& samples, const Sc
 /// @brief Check 1 above. @throw InputError naming the worst-case minimum.
 void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget);
 
+/// @brief Opens the scene's geometry as a bake does before its scan, and makes check 1: a texture
+/// that alone does not fit @p budget is refused before it is decoded, then the sources are opened
+/// (a large OBJ's check pass shown as a phase unless @p quiet: OpeningProgress) and the demand
+/// before the scan is checked. Shared by the bake and `penumbra slurm`, which runs it for its shards.
+/// @param keepMasks every receiver's masks are kept (a dump, a shard file, checkpoints)
+/// @param demand set to demandBeforeScan()
+/// @return the opened geometry
+/// @throw InputError as checkSceneAlphaBudget(), the sources and checkBeforeScan()
+TriangleSourcePtr openCheckedBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const BakeBudget& budget, bool keepMasks,
+                                        bool quiet, MemoryDemand& demand);
+
 }  // namespace penumbra

@@ -8,7 +8,6 @@
 #include "bake/BakeOutputs.h"
 #include "bake/BakeStats.h"
 #include "bake/MemoryPlan.h"
-#include "bake/SceneAlpha.h"
 #include "bake/kinds/ReceiverKind.h"
 #include "bake/shading/ReceiverShading.h"
 #include "bake/WorkPlan.h"
@@ -318,14 +317,7 @@ void scanScene(Bake& b) {
         fail(b.settings.shard.count ? "--shard" : "--checkpoint", "--method {} gives visible fractions, not per-sample masks to merge",
              b.method.name);
     if (b.settings.shard.casting() && b.dump()) fail("--dump", "a shard writes no outputs; give --dump to penumbra merge");
-    // A texture that alone does not fit is refused before it is decoded (opening builds the table).
-    checkSceneAlphaBudget(scene, b.budget.bytes, b.budget.label);
-    TriangleSourcePtr geometry = [&] {
-        OpeningProgress opening(b.settings.quiet);  // an OBJ's check pass shows as a phase
-        return openSceneGeometry(scene);
-    }();
-    b.demand = demandBeforeScan(scene, *b.kind, *geometry, b.keepMasks());
-    checkBeforeScan(b.demand, b.budget);
+    TriangleSourcePtr geometry = openCheckedBeforeScan(scene, *b.kind, b.budget, b.keepMasks(), b.settings.quiet, b.demand);
     // Without a budget the machine is the bound: refuse before any work what it cannot hold.
     checkMemoryFits(scene.file, "the scan pass", scanPhaseBytes(b.demand));
     checkAddressSpaceLeft(scene.file, "the scan pass", scanPhaseBytes(b.demand));

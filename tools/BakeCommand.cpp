@@ -119,8 +119,7 @@ BakeSettings settingsOf(const BakeCommand& c) {
     settings.visibilityPath = c.visibilityPath;
     settings.quiet = c.quiet;
     if (c.budgetOption->count()) {
-        settings.memoryBudget = parseByteSize(c.memoryBudget, "--memory-budget");
-        if (settings.memoryBudget == 0) throw InputError("--memory-budget: must be more than 0 (leave it out for no budget)");
+        settings.memoryBudget = parseMemoryBudget(c.memoryBudget);
     }
     settings.tmpDir = c.tmpDir;
     settings.keepBuckets = c.keepBuckets;
@@ -129,6 +128,12 @@ BakeSettings settingsOf(const BakeCommand& c) {
 }
 
 }  // namespace
+
+uint64_t parseMemoryBudget(const std::string& text) {
+    const uint64_t bytes = parseByteSize(text, "--memory-budget");
+    if (bytes == 0) throw InputError("--memory-budget: must be more than 0 (leave it out for no budget)");
+    return bytes;
+}
 
 void requireOutputFolder(const std::string& option, const std::string& path) {
     const std::filesystem::path parent = std::filesystem::path(path).parent_path();

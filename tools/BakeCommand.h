@@ -43,4 +43,8 @@ void runBakeCommand(const BakeCommand& command);
 /// @throw InputError naming the option, the path and the folder.
 void requireOutputFolder(const std::string& option, const std::string& path);
 
+/// @brief A --memory-budget as typed ("256M", "2G"), in bytes (bake, merge, slurm).
+/// @throw InputError for text parseByteSize() refuses, or 0.
+uint64_t parseMemoryBudget(const std::string& text);
+
 }  // namespace penumbra

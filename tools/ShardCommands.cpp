@@ -3,12 +3,10 @@
 
 #include "bake/BakeMemory.h"
 #include "bake/Scene.h"
-#include "bake/SceneAlpha.h"
 #include "bake/shard/ShardFiles.h"
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
 #include "stream/util/Memory.h"
-#include "stream/util/Progress.h"
 
 #include <fmt/format.h>
 
@@ -156,7 +154,7 @@ std::string scriptHead(const SlurmOptions& o) {
     head += fmt::format("#SBATCH --cpus-per-task={}\n", o.threads);
     if (!o.memoryBudget.empty()) {
         // The budget bounds the bake; the process itself (code, stacks, TBB) needs a little more.
-        const uint64_t bytes = parseByteSize(o.memoryBudget, "--memory-budget");
+        const uint64_t bytes = parseMemoryBudget(o.memoryBudget);
         head += fmt::format("#SBATCH --mem={}M\n", (bytes + bytes / 8) / (1 << 20) + 256);
     }
     return head;
@@ -250,15 +248,9 @@ void checkShardBakes(const SlurmOptions& o) {
     const SceneDesc scene = loadScene(o.scene);
     if (o.memoryBudget.empty()) return;
     BakeBudget budget;
-    budget.bytes = parseByteSize(o.memoryBudget, "--memory-budget");
-    if (budget.bytes == 0) fail("--memory-budget", "must be more than 0 (leave it out for no budget)");
-    checkSceneAlphaBudget(scene, budget.bytes, budget.label);
-    const std::unique_ptr<ReceiverKind> kind = makeReceiverKind(scene.receivers, scene);
-    const TriangleSourcePtr geometry = [&] {
-        OpeningProgress opening(false);  // a large OBJ's check pass is not minutes of silence
-        return openSceneGeometry(scene);
-    }();
-    checkBeforeScan(demandBeforeScan(scene, *kind, *geometry, /*dump=*/true), budget);  // shards keep their masks
+    budget.bytes = parseMemoryBudget(o.memoryBudget);
+    MemoryDemand demand;
+    openCheckedBeforeScan(scene, *makeReceiverKind(scene.receivers, scene), budget, /*keepMasks=*/true, /*quiet=*/false, demand);
 }
 
 }  // namespace
