@@ -59,17 +59,21 @@ public:
     int resolution(int level) const { return level == 0 ? shadow_->res : res_[size_t(level - 1)]; }
     Texel at(int level, int x, int y) const;
     /// One level's texels, read without at()'s per-texel choice of level (the lookups' inner loop).
+    /// The nearest depths and the quantiles are separate planes, so that the search, which reads
+    /// only the nearest, reads 4 bytes per texel, not 20.
     struct Level {
-        const Texel* texels;  ///< levels >= 1
-        const float* depth;   ///< level 0: the layer of the shadow map
+        const float* nearest;                           ///< levels >= 1
+        const std::array<float, kQuantiles>* quantile;  ///< levels >= 1
+        const float* depth;                             ///< level 0: the layer of the shadow map
         int res;
         Texel at(int x, int y) const {
-            if (texels) return texel(x, y);
+            if (nearest) return texel(x, y);
             const float z = depthAt(x, y);
             return {z, {z, z, z, z}};
         }
-        const Texel& texel(int x, int y) const { return texels[size_t(y) * res + x]; }  ///< levels >= 1
-        float depthAt(int x, int y) const { return depth[size_t(y) * res + x]; }         ///< level 0
+        Texel texel(int x, int y) const { return {nearest[size_t(y) * res + x], quantile[size_t(y) * res + x]}; }  ///< levels >= 1
+        float nearestAt(int x, int y) const { return (nearest ? nearest : depth)[size_t(y) * res + x]; }
+        float depthAt(int x, int y) const { return depth[size_t(y) * res + x]; }  ///< level 0
     };
     Level level(int l) const;
     /// The nearest depth of the whole map.
@@ -93,14 +97,21 @@ public:
 private:
     /// Texel (@p x, @p y) of level @p l from level l - 1, whose resolution is @p fine.
     Texel coarseTexel(int l, int fine, int x, int y) const;
-    /// Row @p y of level 1 into @p row, four texels at a time where SSE4.1 is built in; returns
-    /// how many texels it made (the rest are coarseTexel()'s). The same bits as coarseTexel().
-    int firstLevelRow(int fine, int y, Texel* row) const;
+    /// One coarse level's texels as two planes.
+    struct Planes {
+        std::vector<float> nearest;
+        std::vector<std::array<float, kQuantiles>> quantile;
+        void set(size_t i, const Texel& t) { nearest[i] = t.nearest, quantile[i] = t.quantile; }
+    };
+    /// Row @p y of level 1 into @p level from its texel @p first, four texels at a time where
+    /// SSE4.1 is built in; returns how many texels it made (the rest are coarseTexel()'s). The
+    /// same bits as coarseTexel().
+    int firstLevelRow(int fine, int y, Planes& level, size_t first) const;
 
     const DepthMap* shadow_;
     int layer_;
     std::vector<int> res_;
-    std::vector<std::vector<Texel>> levels_;
+    std::vector<Planes> levels_;
 };
 
 /// @brief The light's outline seen from its centre, as a grid of cells: the cells whose centres

@@ -70,14 +70,16 @@ struct CutOut {
 /// Scan-converts one projected triangle into rows [y0, y1) of @p map; with @p cutOut, only its
 /// opaque texels.
 void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1, DepthMap& map, const CutOut* cutOut) {
-    const double area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
-    if (!(std::abs(area) > 1e-12)) return;
-    double lin[3];
-    for (int i = 0; i < 3; ++i) lin[i] = view.linearDepth(p[i].z);
     const double xmin = std::min({p[0].x, p[1].x, p[2].x}), xmax = std::max({p[0].x, p[1].x, p[2].x});
     const double ymin = std::min({p[0].y, p[1].y, p[2].y}), ymax = std::max({p[0].y, p[1].y, p[2].y});
     const int ya = clampedTexel(std::ceil(ymin - 0.5), y0, y1), yb = clampedTexel(std::floor(ymax - 0.5), y0 - 1, y1 - 1);
     const int xa = clampedTexel(std::ceil(xmin - 0.5), 0, map.res), xb = clampedTexel(std::floor(xmax - 0.5), -1, map.res - 1);
+    // No texel centre in the box (an eighth of FLOWERS' small triangles): nothing below is needed.
+    if (ya > yb || xa > xb) return;
+    const double area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
+    if (!(std::abs(area) > 1e-12)) return;
+    double lin[3];
+    for (int i = 0; i < 3; ++i) lin[i] = view.linearDepth(p[i].z);
     // Edge i's function (u.x - cx)(v.y - cy) - (v.x - cx)(u.y - cy), u and v the other two
     // vertices, is a + bx cx + by cy; its sign against the area's says inside (a texel centre on an
     // edge is inside), and over the area it is the barycentric of vertex i.
@@ -295,19 +297,26 @@ void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, Dept
     // Project each triangle once, then let row bands draw the ones that reach them.
     struct Projected {
         ViewPoint p[3];
-        double ymin, ymax;
         bool clip;     ///< crosses the near plane: drawn through drawClipped
-        int bandLo, bandHi;  ///< the row bands it may reach, a band to spare each side
+        int bandLo, bandHi;  ///< the row bands holding its texel rows (lo > hi: none)
     };
     const int rows = (map.res + kBands - 1) / kBands;
     std::vector<Projected> projected(chunk.size());
     tbb::parallel_for(size_t(0), chunk.size(), [&](size_t i) {
         Projected& q = projected[i];
         q.clip = !projectTriangle(view, chunk[i], q.p);
-        q.ymin = q.clip ? -INFINITY : std::min({q.p[0].y, q.p[1].y, q.p[2].y});
-        q.ymax = q.clip ? INFINITY : std::max({q.p[0].y, q.p[1].y, q.p[2].y});
-        q.bandLo = clampedTexel(std::floor((q.ymin - 0.5) / rows) - 1, 0, kBands - 1);
-        q.bandHi = clampedTexel(std::floor((q.ymax + 0.5) / rows) + 1, 0, kBands - 1);
+        if (q.clip) {  // its pieces may reach any row
+            q.bandLo = 0, q.bandHi = kBands - 1;
+            return;
+        }
+        // The rows and columns of texel centres in its box, as drawTriangle() finds them: the
+        // bands beside them would draw nothing (they were a quarter of FLOWERS' calls), and a
+        // box without a texel centre (an eighth of its triangles) reaches no band at all.
+        const int ya = clampedTexel(std::ceil(std::min({q.p[0].y, q.p[1].y, q.p[2].y}) - 0.5), 0, map.res);
+        const int yb = clampedTexel(std::floor(std::max({q.p[0].y, q.p[1].y, q.p[2].y}) - 0.5), -1, map.res - 1);
+        const int xa = clampedTexel(std::ceil(std::min({q.p[0].x, q.p[1].x, q.p[2].x}) - 0.5), 0, map.res);
+        const int xb = clampedTexel(std::floor(std::max({q.p[0].x, q.p[1].x, q.p[2].x}) - 0.5), -1, map.res - 1);
+        q.bandLo = ya / rows, q.bandHi = ya <= yb && xa <= xb ? yb / rows : -1;
     });
     // Each band's triangles in stream order, so a band reads its own list, not the whole chunk:
     // with 64 bands the scan of every triangle per band cost more than drawing the small ones.
@@ -319,7 +328,6 @@ void rasterizeDepth(const LightView& view, std::span<const Triangle> chunk, Dept
         for (uint32_t m = first[size_t(band)]; m < first[size_t(band) + 1] && y0 < y1; ++m) {
             const size_t i = members[m];
             const Projected& q = projected[i];
-            if (q.ymax < y0 - 0.5 || q.ymin > y1 + 0.5) continue;
             const CutOut cutOut{view, chunk[i], alpha, alpha ? alphaIdOf(chunk[i].flags) : 0};
             const CutOut* c = cutOut.id ? &cutOut : nullptr;
             if (q.clip) drawClipped(view, chunk[i], y0, y1, map, c);
