@@ -11,6 +11,7 @@
 #include "stream/ObjReader.h"
 #include "stream/util/TextInput.h"
 #include "stream/PtriFormat.h"
+#include "stream/ProgressSource.h"
 
 #include <tiny_gltf.h>
 
@@ -185,9 +186,11 @@ void convertGeometry(TriangleSource& in, const std::string& outPath) {
     fail(outPath, "unknown output extension '{}' (expected .obj, .gltf, .glb or .ptri)", ext);
 }
 
-void convertGeometryFile(const std::string& inPath, const std::string& outPath) {
+void convertGeometryFile(const std::string& inPath, const std::string& outPath, std::optional<bool> progressQuiet) {
     const std::string out = lowercaseExtension(outPath);
     const std::optional<GeometryFormat> in = geometryFormatOf(inPath);
+    std::optional<OpeningProgress> opening;  // the readers' own passes ([check], [load])
+    if (progressQuiet) opening.emplace(*progressQuiet);
     if ((out == ".glb" || out == ".gltf") && in && *in != GeometryFormat::Ptri) {
         // Meshes keep their normals, texture coordinates and names; corners are welded.
         checkInputFile(inPath);
@@ -196,6 +199,8 @@ void convertGeometryFile(const std::string& inPath, const std::string& outPath) 
         return writeIndexedGltf(meshes, outPath, out == ".glb");
     }
     TriangleSourcePtr source = openGeometryFile(inPath);
+    if (progressQuiet)
+        source = std::make_unique<ProgressSource>(std::move(source), "convert " + std::filesystem::path(inPath).filename().string(), *progressQuiet);
     if (out == ".glb" || out == ".gltf")  // a triangle stream: corners shared by position
         return writeIndexedGltf({meshOfTriangles(*source, std::filesystem::path(outPath).stem().string())}, outPath, out == ".glb");
     convertGeometry(*source, outPath);

@@ -67,7 +67,10 @@ void convertGeometry(TriangleSource& in, const std::string& outPath);
 /// coordinates (in glTF's convention), with identical corners welded; a .ptri
 /// written as glTF is one indexed mesh whose corners with bit-identical positions are shared
 /// (GltfMeshWriter.h); every other pair goes through convertGeometry().
+/// @param progressQuiet set: each pass over the input shows as a phase on stderr (`[check
+/// mesh.obj]` and `[load mesh.obj]` for a large OBJ, `[convert mesh.obj]` for the streamed
+/// pass), printed or quiet as given; unset (library callers, tests): no display.
 /// @throw InputError naming the file that is malformed or cannot be written.
-void convertGeometryFile(const std::string& inPath, const std::string& outPath);
+void convertGeometryFile(const std::string& inPath, const std::string& outPath, std::optional<bool> progressQuiet = std::nullopt);
 
 }  // namespace penumbra

@@ -162,9 +162,8 @@ void ObjSource::scan() {
     // A phase of its own where the opener asked for one (OpeningProgress) and the file is large
     // enough to be waited for (about 120 MB/s: from a quarter second up; a 20 GB file takes
     // minutes here, before any triangle is handed out). Its bytes are the work.
-    constexpr uint64_t kShownFromBytes = 32ull << 20;
     std::optional<ProgressReporter> progress;
-    if (const std::optional<bool> quiet = OpeningProgress::active(); quiet && fileBytes_ >= kShownFromBytes)
+    if (const std::optional<bool> quiet = OpeningProgress::active(); quiet && fileBytes_ >= OpeningProgress::kShownFromBytes)
         progress.emplace("check " + std::filesystem::path(path_).filename().string(), fileBytes_, *quiet);
     uint64_t reported = 0;
     std::string_view line;

@@ -2,6 +2,7 @@
 
 #include "bake/output/VolumeSlice.h"
 #include "stream/GeometryFile.h"
+#include "stream/ProgressSource.h"
 #include "stream/util/Error.h"
 
 #include <fmt/format.h>
@@ -9,6 +10,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 
 namespace penumbra {
 namespace {
@@ -32,9 +34,15 @@ int runCompare(const CompareOptions& options) {
     return same ? 0 : 3;
 }
 
-void runInfo(const std::string& path) {
-    TriangleSourcePtr source = openGeometryFile(path);
-    GeometryInfo g = scanGeometry(*source);
+void runInfo(const std::string& path, bool quiet) {
+    TriangleSourcePtr source;
+    {
+        OpeningProgress opening(quiet);  // a large OBJ's check pass: [check mesh.obj]
+        source = openGeometryFile(path);
+    }
+    // The pass over the triangles, a phase of its own: a 20 GB file takes minutes.
+    ProgressSource shown(std::move(source), "read " + std::filesystem::path(path).filename().string(), quiet);
+    GeometryInfo g = scanGeometry(shown);
     printResult(fmt::format("triangles {}\nbounds_min {} {} {}\nbounds_max {} {} {}\narea {}\n", g.triangles, g.lo.x, g.lo.y,
                             g.lo.z, g.hi.x, g.hi.y, g.hi.z, g.area));
 }
@@ -51,10 +59,12 @@ void addFileCommands(CLI::App& app, FileCommands& c) {
 
     c.infoCommand = app.add_subcommand("info", "print triangle count, bounds and total area of a geometry file");
     c.infoCommand->add_option("file", c.infoPath)->required();
+    c.infoCommand->add_flag("-q,--quiet", c.infoQuiet, "no progress on stderr");
 
     c.convertCommand = app.add_subcommand("convert", "convert geometry between .obj, .gltf/.glb and .ptri");
     c.convertCommand->add_option("input", c.convertIn)->required();
     c.convertCommand->add_option("output", c.convertOut)->required();
+    c.convertCommand->add_flag("-q,--quiet", c.convertQuiet, "no progress on stderr");
 
     c.sliceCommand = app.add_subcommand("vdb-slice", "render an axis-aligned slice of a .vdb float grid to a PNG");
     c.sliceCommand->add_option("input", c.sliceIn)->required();
@@ -68,12 +78,12 @@ std::optional<int> runFileCommand(const FileCommands& c, std::string& context) {
     if (*c.compareCommand) return context = c.compare.dirA, runCompare(c.compare);
     if (*c.infoCommand) {
         context = c.infoPath;
-        runInfo(c.infoPath);
+        runInfo(c.infoPath, c.infoQuiet);
         return 0;
     }
     if (*c.convertCommand) {
         context = c.convertIn;
-        convertGeometryFile(c.convertIn, c.convertOut);
+        convertGeometryFile(c.convertIn, c.convertOut, c.convertQuiet);
         return 0;
     }
     if (*c.sliceCommand) {

@@ -17,6 +17,7 @@ struct FileCommands {
     CompareOptions compare;
     std::string infoPath;
     std::string convertIn, convertOut;
+    bool infoQuiet = false, convertQuiet = false;  ///< no progress on stderr
     std::string sliceIn, sliceOut, sliceGrid = "visibility", sliceAxis = "y";
     double sliceAt = 0;
     CLI::App *compareCommand = nullptr, *infoCommand = nullptr, *convertCommand = nullptr, *sliceCommand = nullptr;

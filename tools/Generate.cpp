@@ -6,6 +6,8 @@
 #include "bake/Scene.h"
 #include "stream/util/Error.h"
 #include "stream/GeometryFile.h"
+#include "stream/ProgressSource.h"
+#include "stream/util/Progress.h"
 #include "stream/util/InputFile.h"
 
 #include <fmt/format.h>
@@ -21,7 +23,7 @@ CLI::App* addGenerateCommand(CLI::App& app, GenerateOptions& options) {
     cmd->add_option("scene", options.scene, "scene file (JSON)")->required();
     cmd->add_option("-o,--output", options.output, "output file; the format follows the extension")->required();
     cmd->add_option("--threads", options.threads, "worker threads (default: all cores); the output is the same for any value");
-    cmd->add_flag("-q,--quiet", options.quiet, "no summary on stderr");
+    cmd->add_flag("-q,--quiet", options.quiet, "no progress or summary on stderr");
     return cmd;
 }
 
@@ -38,7 +40,13 @@ uint64_t runGenerate(const GenerateOptions& options) {
     const Stopwatch watch;
     SceneDesc scene = loadScene(options.scene);
     checkOutputAgainstInputs(scene, options.output);
-    TriangleSourcePtr source = openSceneGeometryForExport(scene);
+    TriangleSourcePtr source;
+    {
+        OpeningProgress opening(options.quiet);  // a large OBJ's check pass: [check mesh.obj]
+        source = openSceneGeometryForExport(scene);
+    }
+    // Generation and the write are one pass, shown as a phase: a billion blades take minutes.
+    source = std::make_unique<ProgressSource>(std::move(source), "generate", options.quiet);
     convertGeometry(*source, options.output);
     // convertGeometry does not report a count; the stream's size is known for every generator,
     // and for files it equals what was written, so ask the source rather than reading it again.

@@ -85,6 +85,9 @@ public:
     /// @brief Stops the display thread and prints the final line with the total time.
     /// Idempotent.
     void done();
+    /// @brief Stops the display thread without the final line: the phase did not finish (it was
+    /// left before its end). Idempotent, and done() after it prints nothing.
+    void abandon() { stop(false); }
 
     /// Units of work reported so far.
     uint64_t workDone() const { return done_.load(std::memory_order_relaxed); }
@@ -134,12 +137,15 @@ std::string formatProgressLine(std::string_view phase, uint64_t done, uint64_t t
 
 /// @brief While one is alive on a thread, readers that check a whole file when they are opened
 /// there (an OBJ of 32 MiB or more: every statement before the first triangle) show that pass as
-/// a phase of its own, `[check mesh.obj] 42.0% (bytes/bytes) ...`, quiet or not as given (quiet
+/// a phase of its own, `[check mesh.obj] 42.0% (bytes/bytes) ...`, and so does the load of an
+/// OBJ's indexed meshes (`[load mesh.obj]`: receivers, `convert` to glTF), quiet or not as given (quiet
 /// still feeds currentProgress(), the Python module's callback). A bake opens its sources inside
 /// one, so that a 20 GB OBJ is not minutes of silence before its scan; elsewhere (tests, tools)
 /// readers stay silent.
 class OpeningProgress {
 public:
+    /// Files from this size on show their opening passes (about 120 MB/s: from a quarter second up).
+    static constexpr uint64_t kShownFromBytes = 32ull << 20;
     explicit OpeningProgress(bool quiet);
     ~OpeningProgress();
     OpeningProgress(const OpeningProgress&) = delete;

@@ -253,3 +253,54 @@ TEST_CASE("a large OBJ's check pass on opening is a phase of its own on stderr, 
     CHECK(bad.err.find("done in") == std::string::npos);
     CHECK_THAT(bad.err, Catch::Contains("strips.obj:") && Catch::EndsWith("\n"));
 }
+
+TEST_CASE("info, convert and generate show their passes over a large input as phases, silent with -q", "[cli][inputs][progress]") {
+    ScratchDir dir("tool-progress");
+    std::string text;
+    int strips = 0;
+    for (; text.size() < (33u << 20); ++strips) text += fmt::format("v {} 0 -1\nv {} 0 1\nv {} 0.5 0\nf -3 -2 -1\n", strips * 1e-3, strips * 1e-3, strips * 1e-3 + 5e-4);
+    write(dir / "strips.obj", text);
+    const std::string check = fmt::format("[check strips.obj] 100.0% ({0}/{0}) done in ", text.size());
+    // info: the check pass on opening, then the pass over the triangles; stdout is the result alone.
+    RunResult info = runPenumbra("info " + (dir / "strips.obj"));
+    INFO(info.err);
+    REQUIRE(info.exitCode == 0);
+    CHECK_THAT(info.out, Catch::StartsWith(fmt::format("triangles {}\n", strips)));
+    CHECK_THAT(info.err, Catch::Contains(check));
+    CHECK(info.err.find(check) < info.err.find(fmt::format("[read strips.obj] 100.0% ({0}/{0}) done in ", strips)));
+    // convert: the streamed pass, or the indexed meshes' load for glTF.
+    RunResult ptri = runPenumbra("convert " + (dir / "strips.obj") + " " + (dir / "strips.ptri"));
+    CHECK(ptri.exitCode == 0);
+    CHECK_THAT(ptri.err, Catch::Contains(check) && Catch::Contains(fmt::format("[convert strips.obj] 100.0% ({0}/{0}) done in ", strips)));
+    RunResult glb = runPenumbra("convert " + (dir / "strips.obj") + " " + (dir / "strips.glb"));
+    CHECK(glb.exitCode == 0);
+    CHECK_THAT(glb.err, Catch::Contains(fmt::format("[load strips.obj] 100.0% ({0}/{0}) done in ", text.size())));
+    // generate: the scene's one pass, with its summary line after it.
+    nlohmann::json scene = nlohmann::json::parse(kScene);
+    scene["geometry"][0]["path"] = "strips.obj";
+    write(dir / "scene.json", scene.dump());
+    RunResult generated = runPenumbra("generate " + (dir / "scene.json") + " -o " + (dir / "all.ptri"));
+    INFO(generated.err);
+    CHECK(generated.exitCode == 0);
+    CHECK_THAT(generated.err, Catch::Contains(fmt::format("[generate] 100.0% ({0}/{0}) done in ", strips)) &&
+                                  Catch::Contains(fmt::format("penumbra: {} triangles -> ", strips)));
+    // -q: nothing on stderr, the same results.
+    for (const std::string& quiet : {"info -q " + (dir / "strips.obj"), "convert -q " + (dir / "strips.obj") + " " + (dir / "q.ptri"),
+                                     "convert -q " + (dir / "strips.obj") + " " + (dir / "q.glb"),
+                                     "generate -q " + (dir / "scene.json") + " -o " + (dir / "q-all.ptri")}) {
+        RunResult r = runPenumbra(quiet);
+        INFO(quiet);
+        CHECK(r.exitCode == 0);
+        CHECK(r.err.empty());
+    }
+    CHECK(runPenumbra("info -q " + (dir / "q.ptri")).out == runPenumbra("info -q " + (dir / "strips.ptri")).out);
+    // A file that fails in the pass ends it without "done", with the one error line.
+    write(dir / "strips.obj", text + "f 1 2 99999999\n");
+    for (const std::string& args : {"info " + (dir / "strips.obj"), "convert " + (dir / "strips.obj") + " " + (dir / "bad.glb")}) {
+        RunResult bad = runPenumbra(args);
+        INFO(args << "\n" << bad.err);
+        CHECK(bad.exitCode == 1);
+        CHECK(bad.err.find("done in") == std::string::npos);
+        CHECK_THAT(bad.err, Catch::Contains("strips.obj:") && Catch::EndsWith("\n"));
+    }
+}
