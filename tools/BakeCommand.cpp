@@ -6,6 +6,7 @@
 #include "bake/shard/ShardRun.h"
 #include "stream/util/Error.h"
 #include "stream/util/Memory.h"
+#include "stream/util/Progress.h"
 
 #include <fmt/format.h>
 
@@ -91,7 +92,12 @@ std::string writtenFiles(const nlohmann::json& stats, const std::string& statsPa
 
 /// The scene with the command line's overrides applied.
 SceneDesc sceneOf(const BakeCommand& c) {
-    SceneDesc scene = loadScene(c.scenePath);
+    // Parsing checks the receivers, which loads a lightmap's meshes: a large OBJ's load shows as
+    // its own phase ([load mesh.obj]), as it does for convert.
+    SceneDesc scene = [&] {
+        OpeningProgress opening(c.quiet);
+        return loadScene(c.scenePath);
+    }();
     if (c.outputOption->count()) {
         requireOutputFolder("--output", c.output);
         scene.output = c.output, scene.outputFromScene = false;

@@ -304,3 +304,24 @@ TEST_CASE("info, convert and generate show their passes over a large input as ph
         CHECK_THAT(bad.err, Catch::Contains("strips.obj:") && Catch::EndsWith("\n"));
     }
 }
+
+TEST_CASE("a bake shows the load of a large OBJ that a lightmap's receivers come from", "[cli][inputs][progress]") {
+    ScratchDir dir("lightmap-load-progress");
+    std::string text;
+    while (text.size() < (33u << 20)) text += "# a comment line that pads the file past the size from which its passes are shown\n";
+    text += "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n";
+    write(dir / "padded.obj", text);
+    nlohmann::json s = nlohmann::json::parse(kScene);
+    s["geometry"][0]["path"] = "padded.obj";
+    s["receivers"] = {{"type", "lightmap"}, {"meshes", {0}}, {"resolution", 16}};
+    write(dir / "scene.json", s.dump());
+    RunResult loud = runPenumbra("bake " + (dir / "scene.json"));
+    INFO(loud.err);
+    REQUIRE(loud.exitCode == 0);
+    const std::string load = fmt::format("[load padded.obj] 100.0% ({0}/{0}) done in ", text.size());
+    CHECK_THAT(loud.err, Catch::Contains(load) && Catch::Contains("[check padded.obj] 100.0%"));
+    CHECK(loud.err.find(load) < loud.err.find("[scan]"));
+    RunResult quiet = runPenumbra("bake -q " + (dir / "scene.json"));
+    CHECK(quiet.exitCode == 0);
+    CHECK(quiet.err.empty());
+}
