@@ -93,8 +93,11 @@ void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1
     // row first narrows its columns to where every edge can be >= 0: edge i crosses 0 at
     // cx = -row_i / ex_i, and the computed e_i of a texel differs from the exact one by less than
     // err_i = 8u (|ea_i| + |ey_i| |cy| + |ex_i| |cx|), so the span is widened by err_i / |ex_i|,
-    // its own rounding and a texel. The texel test below still decides; the span only skips
-    // texels that it would reject.
+    // its own rounding and a hundredth of a texel (for the rounding of its conversion to
+    // columns). The texel test below still decides; the span only skips texels that it would
+    // reject (a test pins that on ties, slivers and near-axis edges). The whole texel of slack it
+    // had before made FLOWERS' rows test 6.8 M texels to draw 2.1 M, and the shadow map 12 %
+    // slower.
     // Per edge, once per triangle: 1/ex_i, and err_i / |ex_i| (with the division's rounding) as
     // errBase_i + errPerRow_i |cy|.
     constexpr double u = 0x1p-53;
@@ -115,7 +118,7 @@ void drawTriangle(const LightView& view, const ViewPoint (&p)[3], int y0, int y1
                 continue;
             }
             const double cross = -row[i] * inverseEx[i];
-            const double widen = errBase[i] + errPerRow[i] * cy + 8 * u * std::abs(cross) + 1.0;
+            const double widen = errBase[i] + errPerRow[i] * cy + 8 * u * std::abs(cross) + 0.01;
             if (ex[i] > 0) lo = std::max(lo, cross - widen);
             else hi = std::min(hi, cross + widen);
         }

@@ -332,6 +332,66 @@ TEST_CASE("penumbra map: a refinement pass reads the kept light's maps when they
     }
 }
 
+TEST_CASE("penumbra map: the rasterizer's row spans skip no texel that its edge test accepts", "[penumbra-map]") {
+    // drawTriangle() narrows each row to a span around the edges' crossings, widened by a bound on
+    // the rounding: this pins that the span never drops a texel that the test inside it (the same
+    // edge functions in double, as written below) would draw. Edges through texel centres (ties,
+    // where e_i is exactly 0), near-horizontal and near-vertical edges and slivers are the cases
+    // where the crossing and the test round differently.
+    LightView view;
+    view.ortho = true, view.axis = {0, -1, 0}, view.e1 = {1, 0, 0}, view.e2 = {0, 0, 1};
+    view.origin = {0, 5, 0}, view.halfExtent = 1, view.zNear = -INFINITY, view.res = 64;
+    std::mt19937 rng(17);
+    std::uniform_real_distribution<float> coord(-1.2f, 1.2f), tiny(-1e-5f, 1e-5f);
+    std::uniform_int_distribution<int> texel(0, view.res - 1);
+    auto centre = [&](int x, int y) { return glm::vec3(float((x + 0.5) / 32.0 - 1.0), 0.0f, float((y + 0.5) / 32.0 - 1.0)); };
+    int accepted = 0;
+    for (int trial = 0; trial < 3000; ++trial) {
+        glm::vec3 v[3];
+        for (glm::vec3& q : v) q = glm::vec3(coord(rng), 0.0f, coord(rng));
+        switch (trial % 5) {
+            case 1:  // vertices on texel centres: edges through centres, e_i = 0 exactly
+                for (glm::vec3& q : v) q = centre(texel(rng), texel(rng));
+                break;
+            case 2:  // a near-horizontal edge
+                v[1] = glm::vec3(v[0].x + 0.9f, 0.0f, v[0].z + tiny(rng));
+                break;
+            case 3:  // a near-vertical edge
+                v[1] = glm::vec3(v[0].x + tiny(rng), 0.0f, v[0].z + 0.9f);
+                break;
+            case 4:  // a sliver
+                v[2] = v[0] + (v[1] - v[0]) * 0.37f + glm::vec3(tiny(rng), 0.0f, tiny(rng));
+                break;
+            default:
+                break;
+        }
+        for (glm::vec3& q : v) q.y = coord(rng) * 0.5f;
+        const Triangle t{{v[0], v[1], v[2]}, 0};
+        DepthMap map;
+        map.reset(view.res, 1);
+        rasterizeDepth(view, std::span<const Triangle>(&t, 1), map);
+        ViewPoint p[3];
+        REQUIRE(projectTriangle(view, t, p));
+        const double area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
+        if (!(std::abs(area) > 1e-12)) continue;
+        const double orient = area > 0 ? 1.0 : -1.0;
+        double ea[3], ex[3], ey[3];
+        for (int i = 0; i < 3; ++i) {
+            const ViewPoint &u = p[(i + 1) % 3], &w = p[(i + 2) % 3];
+            ea[i] = (u.x * w.y - w.x * u.y) * orient, ex[i] = (u.y - w.y) * orient, ey[i] = (w.x - u.x) * orient;
+        }
+        for (int y = 0; y < view.res; ++y)
+            for (int x = 0; x < view.res; ++x) {
+                const double cx = x + 0.5, cy = y + 0.5;
+                bool in = true;
+                for (int i = 0; i < 3; ++i) in = in && (ea[i] + ey[i] * cy) + ex[i] * cx >= 0;
+                accepted += in;
+                if (in != (map.at(x, y) < INFINITY)) FAIL("trial " << trial << " texel " << x << "," << y << ": edge test " << in);
+            }
+    }
+    CHECK(accepted > 100000);
+}
+
 TEST_CASE("penumbra map: the light's view draws every texel whose centre lies inside a triangle, slivers and far vertices included",
           "[penumbra-map]") {
     LightView view;  // orthographic, looking down -y onto [-1, 1]^2 at 64 x 64
