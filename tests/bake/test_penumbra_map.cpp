@@ -332,15 +332,42 @@ TEST_CASE("penumbra map: a refinement pass reads the kept light's maps when they
     }
 }
 
+namespace {
+
+/// The 64 x 64 orthographic view down -y onto [-1, 1]^2 that the rasterizer tests draw into.
+LightView downView() {
+    LightView view;
+    view.ortho = true, view.axis = {0, -1, 0}, view.e1 = {1, 0, 0}, view.e2 = {0, 0, 1};
+    view.origin = {0, 5, 0}, view.halfExtent = 1, view.zNear = -INFINITY, view.res = 64;
+    return view;
+}
+
+/// @p t drawn alone into a one-layer map of @p view, with its projected corners and their
+/// doubled signed area.
+struct DrawnAlone {
+    DepthMap map;
+    ViewPoint p[3];
+    double area = 0;
+};
+DrawnAlone drawAlone(const LightView& view, const Triangle& t) {
+    DrawnAlone d;
+    d.map.reset(view.res, 1);
+    rasterizeDepth(view, std::span<const Triangle>(&t, 1), d.map);
+    REQUIRE(projectTriangle(view, t, d.p));
+    const ViewPoint* p = d.p;
+    d.area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
+    return d;
+}
+
+}  // namespace
+
 TEST_CASE("penumbra map: the rasterizer's row spans skip no texel that its edge test accepts", "[penumbra-map]") {
     // drawTriangle() narrows each row to a span around the edges' crossings, widened by a bound on
     // the rounding: this pins that the span never drops a texel that the test inside it (the same
     // edge functions in double, as written below) would draw. Edges through texel centres (ties,
     // where e_i is exactly 0), near-horizontal and near-vertical edges and slivers are the cases
     // where the crossing and the test round differently.
-    LightView view;
-    view.ortho = true, view.axis = {0, -1, 0}, view.e1 = {1, 0, 0}, view.e2 = {0, 0, 1};
-    view.origin = {0, 5, 0}, view.halfExtent = 1, view.zNear = -INFINITY, view.res = 64;
+    const LightView view = downView();
     std::mt19937 rng(17);
     std::uniform_real_distribution<float> coord(-1.2f, 1.2f), tiny(-1e-5f, 1e-5f);
     std::uniform_int_distribution<int> texel(0, view.res - 1);
@@ -366,13 +393,9 @@ TEST_CASE("penumbra map: the rasterizer's row spans skip no texel that its edge 
                 break;
         }
         for (glm::vec3& q : v) q.y = coord(rng) * 0.5f;
-        const Triangle t{{v[0], v[1], v[2]}, 0};
-        DepthMap map;
-        map.reset(view.res, 1);
-        rasterizeDepth(view, std::span<const Triangle>(&t, 1), map);
-        ViewPoint p[3];
-        REQUIRE(projectTriangle(view, t, p));
-        const double area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
+        const DrawnAlone drawn = drawAlone(view, Triangle{{v[0], v[1], v[2]}, 0});
+        const ViewPoint* p = drawn.p;
+        const double area = drawn.area;
         if (!(std::abs(area) > 1e-12)) continue;
         const double orient = area > 0 ? 1.0 : -1.0;
         double ea[3], ex[3], ey[3];
@@ -386,7 +409,7 @@ TEST_CASE("penumbra map: the rasterizer's row spans skip no texel that its edge 
                 bool in = true;
                 for (int i = 0; i < 3; ++i) in = in && (ea[i] + ey[i] * cy) + ex[i] * cx >= 0;
                 accepted += in;
-                if (in != (map.at(x, y) < INFINITY)) FAIL("trial " << trial << " texel " << x << "," << y << ": edge test " << in);
+                if (in != (drawn.map.at(x, y) < INFINITY)) FAIL("trial " << trial << " texel " << x << "," << y << ": edge test " << in);
             }
     }
     CHECK(accepted > 100000);
@@ -394,22 +417,17 @@ TEST_CASE("penumbra map: the rasterizer's row spans skip no texel that its edge 
 
 TEST_CASE("penumbra map: the light's view draws every texel whose centre lies inside a triangle, slivers and far vertices included",
           "[penumbra-map]") {
-    LightView view;  // orthographic, looking down -y onto [-1, 1]^2 at 64 x 64
-    view.ortho = true, view.axis = {0, -1, 0}, view.e1 = {1, 0, 0}, view.e2 = {0, 0, 1};
-    view.origin = {0, 5, 0}, view.halfExtent = 1, view.zNear = -INFINITY, view.res = 64;
+    const LightView view = downView();
     std::mt19937 rng(3);
     std::uniform_real_distribution<float> coord(-1.3f, 1.3f), height(-1.0f, 1.0f), sliver(-0.004f, 0.004f);
     for (int trial = 0; trial < 200; ++trial) {
         glm::vec3 a(coord(rng), height(rng), coord(rng)), b(coord(rng), height(rng), coord(rng)), c(coord(rng), height(rng), coord(rng));
         if (trial % 4 == 1) c = a + (b - a) * 0.43f + glm::vec3(sliver(rng), 0.0f, sliver(rng));  // a sliver across the box
         if (trial % 4 == 2) a *= 3000.0f;  // one vertex far outside the view
-        const Triangle t{{a, b, c}, 0};
-        DepthMap map;
-        map.reset(view.res, 1);
-        rasterizeDepth(view, std::span<const Triangle>(&t, 1), map);
-        ViewPoint p[3];
-        REQUIRE(projectTriangle(view, t, p));
-        const double area = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
+        const DrawnAlone alone = drawAlone(view, Triangle{{a, b, c}, 0});
+        const DepthMap& map = alone.map;
+        const ViewPoint* p = alone.p;
+        const double area = alone.area;
         int inside = 0, drawn = 0;
         for (int y = 0; y < view.res; ++y)
             for (int x = 0; x < view.res; ++x) {
