@@ -21,7 +21,6 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <optional>
 #include <string_view>
 
 namespace penumbra {
@@ -121,20 +120,17 @@ std::vector<IndexedMesh> loadObjMeshes(const std::string& path, const std::vecto
     ObjParser parser(path);
     // A phase of its own inside an OpeningProgress scope, for a large file (ObjSource's check
     // pass does the same); its bytes are the work.
-    std::optional<ProgressReporter> progress;
     std::error_code sizeError;
     const uint64_t fileBytes = std::filesystem::file_size(path, sizeError);
-    if (const std::optional<bool> quiet = OpeningProgress::active(); quiet && !sizeError && fileBytes >= OpeningProgress::kShownFromBytes)
-        progress.emplace("load " + std::filesystem::path(path).filename().string(), fileBytes, *quiet);
-    uint64_t line = 0, bytes = 0, reported = 0;
+    OpeningPhase progress("load " + std::filesystem::path(path).filename().string(), sizeError ? 0 : fileBytes);
+    uint64_t line = 0, bytes = 0;
     for (std::string text; std::getline(in, text);) {
         parser.where.line = ++line;
         parser.statement(text);
-        bytes = std::min(fileBytes, bytes + text.size() + 1);  // with its '\n' (a last line may have none)
-        if (progress && bytes - reported >= (1u << 20)) progress->update(bytes - reported), reported = bytes;
+        progress.advance(bytes += text.size() + 1);  // with its '\n'
     }
     if (in.bad()) fail(path, "read error");
-    if (progress) progress->update(fileBytes - reported);
+    progress.finish();
     for (const std::string& name : wanted)
         if (std::none_of(parser.parts.begin(), parser.parts.end(), [&](const ObjPart& p) { return p.name == name; }))
             fail(path, "has no o/g group named \"{}\" (it has {})", name, parser.parts.size() - 1);

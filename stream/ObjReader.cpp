@@ -162,17 +162,14 @@ void ObjSource::scan() {
     // A phase of its own where the opener asked for one (OpeningProgress) and the file is large
     // enough to be waited for (about 120 MB/s: from a quarter second up; a 20 GB file takes
     // minutes here, before any triangle is handed out). Its bytes are the work.
-    std::optional<ProgressReporter> progress;
-    if (const std::optional<bool> quiet = OpeningProgress::active(); quiet && fileBytes_ >= OpeningProgress::kShownFromBytes)
-        progress.emplace("check " + std::filesystem::path(path_).filename().string(), fileBytes_, *quiet);
-    uint64_t reported = 0;
+    OpeningPhase progress("check " + std::filesystem::path(path_).filename().string(), fileBytes_);
     std::string_view line;
     std::vector<ObjCorner> corners;
     uint64_t counts[3] = {0, 0, 0};  // v, vt, vn defined so far
     std::string part;
     std::vector<std::string> seen;  // part names, for the error about a missing one
     while (lines_.next(line)) {
-        if (progress && lines_.lineStart() - reported >= (1u << 20)) progress->update(lines_.lineStart() - reported), reported = lines_.lineStart();
+        progress.advance(lines_.lineStart());
         ObjTokens tokens(line);
         std::string_view keyword = tokens.next();
         if (keyword == "v") {
@@ -198,7 +195,7 @@ void ObjSource::scan() {
             if (selected(part)) triangleCount_ += corners.size() - 2;
         }
     }
-    if (progress) progress->update(fileBytes_ - std::min(reported, fileBytes_));
+    progress.finish();
     for (const std::string& wanted : parts_)
         if (std::find(seen.begin(), seen.end(), wanted) == seen.end())
             fail(path_, "has no o/g group named \"{}\" (it has {} group{})", wanted, seen.size(), seen.size() == 1 ? "" : "s");

@@ -157,7 +157,7 @@ float DepthPyramid::nearestIn(int level, glm::dvec2 lo, glm::dvec2 hi) const {
     const auto [x0, x1, y0, y1] = texelsOver(level, lo, hi);
     // The plane of nearest depths (at() per texel cost a fifth of the lookup's search).
     const Level texels = this->level(level);
-    const float* plane = texels.nearest ? texels.nearest : texels.depth;
+    const float* plane = texels.nearestPlane();
     float z = INFINITY;
     for (int y = y0; y <= y1; ++y)
         for (int x = x0; x <= x1; ++x) z = std::min(z, plane[size_t(y) * texels.res + x]);

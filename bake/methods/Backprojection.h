@@ -72,7 +72,9 @@ public:
             return {z, {z, z, z, z}};
         }
         Texel texel(int x, int y) const { return {nearest[size_t(y) * res + x], quantile[size_t(y) * res + x]}; }  ///< levels >= 1
-        float nearestAt(int x, int y) const { return (nearest ? nearest : depth)[size_t(y) * res + x]; }
+        /// The nearest depth of every texel, row after row (level 0: the depths themselves).
+        const float* nearestPlane() const { return nearest ? nearest : depth; }
+        float nearestAt(int x, int y) const { return nearestPlane()[size_t(y) * res + x]; }
         float depthAt(int x, int y) const { return depth[size_t(y) * res + x]; }  ///< level 0
     };
     Level level(int l) const;

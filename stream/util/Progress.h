@@ -10,6 +10,7 @@
 #include "stream/util/ProgressEstimate.h"
 #include "stream/util/Timer.h"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -155,6 +156,32 @@ public:
 
 private:
     std::optional<bool> outer_;
+};
+
+/// @brief A reader's pass over a file's bytes on opening, shown as a phase (`[check mesh.obj]`,
+/// `[load mesh.obj]`) inside an OpeningProgress scope when the file has at least
+/// OpeningProgress::kShownFromBytes; otherwise nothing. Positions are reported in 1 MiB steps.
+class OpeningPhase {
+public:
+    OpeningPhase(const std::string& phase, uint64_t fileBytes) : total_(fileBytes) {
+        if (const std::optional<bool> quiet = OpeningProgress::active(); quiet && fileBytes >= OpeningProgress::kShownFromBytes)
+            reporter_.emplace(phase, fileBytes, *quiet);
+    }
+    /// @brief The pass has read up to byte @p position.
+    void advance(uint64_t position) {
+        position = std::min(position, total_);  // a last line without its newline counts one past the end
+        if (reporter_ && position > reported_ && position - reported_ >= (1u << 20))
+            reporter_->update(position - reported_), reported_ = position;
+    }
+    /// @brief The whole file was read: the count reaches the total (the "done" line follows
+    /// when this goes out of scope, unless an error is unwinding).
+    void finish() {
+        if (reporter_ && total_ > reported_) reporter_->update(total_ - reported_), reported_ = total_;
+    }
+
+private:
+    uint64_t total_, reported_ = 0;
+    std::optional<ProgressReporter> reporter_;
 };
 
 /// @brief Short duration for humans: "3.1s", "2m05s", "1h02m".

@@ -33,6 +33,21 @@ void write(const std::string& path, const std::string& text) { std::ofstream(pat
 /// `[[[...0...]]]`, @p depth levels deep, as JSON text.
 std::string nested(int depth) { return std::string(size_t(depth), '[') + "0" + std::string(size_t(depth), ']'); }
 
+/// An OBJ of separate triangle strips of at least @p bytes; @p strips gets their count.
+std::string stripsObj(size_t bytes, int& strips) {
+    std::string text;
+    for (strips = 0; text.size() < bytes; ++strips)
+        text += fmt::format("v {} 0 -1\nv {} 0 1\nv {} 0.5 0\nf -3 -2 -1\n", strips * 1e-3, strips * 1e-3, strips * 1e-3 + 5e-4);
+    return text;
+}
+
+/// A command that failed in a shown pass: the phase ends without "done", with the one error line.
+void requireFailedPass(const RunResult& r) {
+    CHECK(r.exitCode == 1);
+    CHECK(r.err.find("done in") == std::string::npos);
+    CHECK_THAT(r.err, Catch::Contains("strips.obj:") && Catch::EndsWith("\n"));
+}
+
 /// A scene in @p dir with the quad, and the bake's result.
 RunResult bake(const ScratchDir& dir, const std::string& sceneText, const std::string& flags = "-q") {
     write(dir / "quad.obj", kQuad);
@@ -230,8 +245,8 @@ TEST_CASE("a large OBJ's check pass on opening is a phase of its own on stderr, 
     ScratchDir dir("obj-check-progress");
     // Files from 32 MiB on show the pass (smaller ones take under a quarter second); a 20 GB file
     // spent minutes here in silence.
-    std::string text;
-    for (int i = 0; text.size() < (33u << 20); ++i) text += fmt::format("v {} 0 -1\nv {} 0 1\nv {} 0.5 0\nf -3 -2 -1\n", i * 1e-3, i * 1e-3, i * 1e-3 + 5e-4);
+    int strips = 0;
+    const std::string text = stripsObj(33u << 20, strips);
     write(dir / "strips.obj", text);
     nlohmann::json s = nlohmann::json::parse(kScene);
     s["geometry"][0]["path"] = "strips.obj";
@@ -248,17 +263,13 @@ TEST_CASE("a large OBJ's check pass on opening is a phase of its own on stderr, 
     CHECK(bake(dir, kScene, "").err.find("[check") == std::string::npos);
     // A file that fails its check ends the phase without a "done" line, with the one error line.
     write(dir / "strips.obj", text + "f 1 2 99999999\n");
-    RunResult bad = bake(dir, s.dump(), "");
-    CHECK(bad.exitCode == 1);
-    CHECK(bad.err.find("done in") == std::string::npos);
-    CHECK_THAT(bad.err, Catch::Contains("strips.obj:") && Catch::EndsWith("\n"));
+    requireFailedPass(bake(dir, s.dump(), ""));
 }
 
 TEST_CASE("info, convert and generate show their passes over a large input as phases, silent with -q", "[cli][inputs][progress]") {
     ScratchDir dir("tool-progress");
-    std::string text;
     int strips = 0;
-    for (; text.size() < (33u << 20); ++strips) text += fmt::format("v {} 0 -1\nv {} 0 1\nv {} 0.5 0\nf -3 -2 -1\n", strips * 1e-3, strips * 1e-3, strips * 1e-3 + 5e-4);
+    const std::string text = stripsObj(33u << 20, strips);
     write(dir / "strips.obj", text);
     const std::string check = fmt::format("[check strips.obj] 100.0% ({0}/{0}) done in ", text.size());
     // info: the check pass on opening, then the pass over the triangles; stdout is the result alone.
@@ -299,9 +310,7 @@ TEST_CASE("info, convert and generate show their passes over a large input as ph
     for (const std::string& args : {"info " + (dir / "strips.obj"), "convert " + (dir / "strips.obj") + " " + (dir / "bad.glb")}) {
         RunResult bad = runPenumbra(args);
         INFO(args << "\n" << bad.err);
-        CHECK(bad.exitCode == 1);
-        CHECK(bad.err.find("done in") == std::string::npos);
-        CHECK_THAT(bad.err, Catch::Contains("strips.obj:") && Catch::EndsWith("\n"));
+        requireFailedPass(bad);
     }
 }
 
