@@ -1,4 +1,5 @@
 #include "receivers/CameraReceivers.h"
+#include "receivers/PolygonSpan.h"
 
 #include "stream/util/Error.h"
 #include "stream/util/BandLists.h"
@@ -37,29 +38,6 @@ double rowOffset(const CameraBasis& b, int h, int y) { return (1.0 - 2.0 * (y + 
 /// Unit direction of the ray through the centre of pixel (x, y) of a w x h image.
 glm::dvec3 directionThrough(const CameraBasis& b, int w, int h, int x, int y) {
     return glm::normalize(b.forward + columnOffset(b, w, x) * b.right + rowOffset(b, h, y) * b.up);
-}
-
-/// The corner after @p i of a polygon of @p m corners, without `(i + 1) % m`: an integer
-/// division per edge and pixel was 3 % of FLOWERS' scan.
-inline int nextCorner(int i, int m) { return i + 1 == m ? 0 : i + 1; }
-
-/// The x range [lo, hi] of pixel centres on row centre @p py that can pass the inside test of
-/// CameraRasterizer::add() for the polygon (sx, sy) of @p m vertices and orientation @p orient,
-/// widened by a pixel each side: the test's rounding moves an edge by far less than a pixel
-/// while the coordinates stay below 1e9 (the caller's guard). Empty (lo > hi) when none can.
-[[gnu::always_inline]] inline void rowSpan(const double* sx, const double* sy, int m, double orient, double py, double& lo, double& hi) {
-    for (int i = 0; i < m; ++i) {
-        const int j = nextCorner(i, m);
-        // orient * (a - b (px - sx[i])) >= 0 with a, b below.
-        const double a = (sx[j] - sx[i]) * (py - sy[i]), b = (sy[j] - sy[i]) * orient;
-        if (b == 0) {
-            if (orient * a < -1e-9 * (std::abs(a) + 1)) lo = INFINITY;  // the whole row is outside this edge
-            continue;
-        }
-        const double edge = sx[i] + orient * a / b;  // the test holds for px <= edge when b > 0
-        if (b > 0) hi = std::min(hi, edge + 1.0);
-        else lo = std::max(lo, edge - 1.0);
-    }
 }
 
 /// Row bands of the image drawn in parallel by CameraRasterizer::add(): eight per thread, so
@@ -145,10 +123,38 @@ bool CameraRasterizer::opaqueAlong(const Triangle& tri, const glm::dvec3& d) con
 struct CameraRasterizer::Projected {
     double sx[4], sy[4];
     glm::dvec3 n;
+    /// normalize(n) as a float vector: normalize(-n) is its negation exactly (the same scale).
+    glm::vec3 unitNormal{0.0f};
     double planeD = 0, orient = 1;
+    /// No depth this triangle writes is below it (0: no bound), so a pixel whose kept depths are
+    /// all at most this cannot take it (depthFloorOf()).
+    float depthFloor = 0;
     int m = 0, x0 = 0, x1 = -1, y0 = 0, y1 = -1;
     bool spans = false;
 };
+
+namespace {
+
+/// A float at most every depth drawRows() can compute for triangle @p v seen from @p eye, with
+/// @p n its (unnormalised) normal and @p planeD = n . (v0 - eye); 0 when there is none worth having.
+///
+/// A pixel's depth is t = planeD / (n . d), d the pixel's unit ray, and in real arithmetic, for
+/// a ray through the triangle, t is the distance to a point of it, so at least `near`, the
+/// distance from the eye to the triangle's box. The computed t differs from that by far less
+/// than a millionth while n . d is not tiny: |n . d| = |planeD| / t >= |planeD| / far, with far
+/// the farthest vertex, and a triangle seen within 1e-3 of edge-on gets no bound. (The pixel
+/// test also admits rays a rounding error outside the triangle: a relative displacement of a
+/// few ulps over that cosine, again far below a millionth.) So near (1 - 1e-6), rounded to
+/// float (a relative 6e-8), is below every computed t, and float(t) cannot be below it.
+float depthFloorOf(const glm::dvec3 (&v)[3], const glm::dvec3& eye, const glm::dvec3& n, double planeD) {
+    const glm::dvec3 lo = glm::min(glm::min(v[0], v[1]), v[2]), hi = glm::max(glm::max(v[0], v[1]), v[2]);
+    const double near = glm::length(glm::max(lo - eye, 0.0) + glm::max(eye - hi, 0.0));
+    const double far = std::max({glm::length(v[0] - eye), glm::length(v[1] - eye), glm::length(v[2] - eye)});
+    if (!(std::abs(planeD) >= 1e-3 * glm::length(n) * far) || !(near > 0)) return 0.0f;
+    return float(near * (1.0 - 1e-6));
+}
+
+}  // namespace
 
 struct CameraRasterizer::Scratch {
     std::vector<Projected> projected;
@@ -197,6 +203,8 @@ void CameraRasterizer::ScratchDeleter::operator()(Scratch* s) const { delete s; 
     if (area == 0) return;
     q.orient = area > 0 ? 1.0 : -1.0;
     q.planeD = glm::dot(q.n, v[0] - camera_.eye);
+    q.depthFloor = depthFloorOf(v, camera_.eye, q.n, q.planeD);
+    q.unitNormal = glm::vec3(glm::normalize(q.n));
     q.spans = std::max({std::abs(xLo), std::abs(xHi), std::abs(yLo), std::abs(yHi)}) < 1e9;
     q.y0 = y0, q.y1 = y1;
 }
@@ -207,26 +215,27 @@ void CameraRasterizer::ScratchDeleter::operator()(Scratch* s) const { delete s; 
     const Projected q = setup;
     const double *sx = q.sx, *sy = q.sy;
     const int m = q.m;
-    for (int y = std::max(yLo, q.y0); y <= std::min(yHi, q.y1); ++y) {
+    const int yFirst = std::max(yLo, q.y0), yLast = std::min(yHi, q.y1);
+    PolygonSpans spans;
+    if (q.spans) setUpSpans(sx, sy, m, q.orient, yFirst + 0.5, yLast + 0.5, std::max(std::abs(q.x0 + 0.5), std::abs(q.x1 + 0.5)), spans);
+    for (int y = yFirst; y <= yLast; ++y) {
         double py = y + 0.5;
         int xa = q.x0, xb = q.x1;
-        if (q.spans) {  // only the pixels near the polygon's row span get the exact test
+        if (q.spans) {  // only the pixels in the polygon's row span get the exact test
             double lo = -INFINITY, hi = INFINITY;
-            rowSpan(sx, sy, m, q.orient, py, lo, hi);
+            rowSpan(spans, py, lo, hi);
             if (!(lo <= hi)) continue;
             xa = std::max(q.x0, clampedTexel(std::ceil(lo - 0.5), q.x0, q.x1 + 1));
             xb = std::min(q.x1, clampedTexel(std::floor(hi - 0.5), q.x0 - 1, q.x1));
         }
+        const size_t L = size_t(camera_.layers);
         for (int x = xa; x <= xb; ++x) {
             const size_t base = slotOf(x, y);
             if (base == SIZE_MAX) continue;
-            double px = x + 0.5;
-            bool inside = true;
-            for (int i = 0; i < m && inside; ++i) {
-                const int j = nextCorner(i, m);
-                inside = q.orient * ((sx[j] - sx[i]) * (py - sy[i]) - (sy[j] - sy[i]) * (px - sx[i])) >= 0;
-            }
-            if (!inside) continue;
+            // Behind every surface the pixel keeps (most of dense grass' inside tests): the depth
+            // test below would refuse it; the ray and its division are not needed to know that.
+            if (q.depthFloor >= depth_[base + L - 1]) continue;
+            if (!insidePolygon(sx, sy, m, q.orient, x + 0.5, py)) continue;
             glm::dvec3 d = direction(x, y);
             double denom = glm::dot(q.n, d);
             if (denom == 0.0) continue;
@@ -234,7 +243,6 @@ void CameraRasterizer::ScratchDeleter::operator()(Scratch* s) const { delete s; 
             if (!(t > 0.0)) continue;
             // Slots of a pixel hold its nearest distinct depths, ascending; a depth equal to
             // one already kept is the same surface again, and the earlier triangle keeps it.
-            const size_t L = size_t(camera_.layers);
             const float ft = float(t);
             size_t k = 0;
             while (k < L && !(ft < depth_[base + k])) ++k;
@@ -247,7 +255,7 @@ void CameraRasterizer::ScratchDeleter::operator()(Scratch* s) const { delete s; 
                 if (!class_.empty()) class_[base + j] = class_[base + j - 1];
             }
             depth_[base + k] = ft;
-            normal_[base + k] = glm::vec3(glm::normalize(denom > 0 ? -q.n : q.n));
+            normal_[base + k] = denom > 0 ? -q.unitNormal : q.unitNormal;
             if (!triangle_.empty()) triangle_[base + k] = {tri.v[0], tri.v[1], tri.v[2]};
             if (!triangleId_.empty()) triangleId_[base + k] = (seen_ + index) | (denom > 0 ? kFlippedBit : 0);
             if (!class_.empty()) class_[base + k] = uint8_t(receiverClassOf(tri.flags));
