@@ -81,14 +81,30 @@ void VertexBend::addTriangles(std::span<const std::array<glm::vec3, 3>> triangle
     }
 }
 
+std::vector<uint32_t> VertexBend::sortedByTriangle(const std::vector<uint64_t>& ids) {
+    // A stable LSD radix sort, 11 bits a pass over the bits the largest id has: a serial
+    // std::stable_sort of FLOWERS' 1.2 M receivers took 70 ms at the end of the scan.
+    const uint64_t mask = ~CameraRasterizer::kFlippedBit;
+    uint64_t largest = 0;
+    for (const uint64_t id : ids) largest = std::max(largest, id & mask);
+    std::vector<uint32_t> order(ids.size()), other(ids.size());
+    std::iota(order.begin(), order.end(), 0u);
+    constexpr int kBits = 11;
+    for (int shift = 0; shift < 64 && (largest >> shift) != 0; shift += kBits) {
+        std::array<uint32_t, (1u << kBits) + 1> start{};
+        for (const uint32_t r : order) ++start[((ids[r] & mask) >> shift & ((1u << kBits) - 1)) + 1];
+        for (size_t d = 1; d < start.size(); ++d) start[d] += start[d - 1];
+        for (const uint32_t r : order) other[start[(ids[r] & mask) >> shift & ((1u << kBits) - 1)]++] = r;
+        order.swap(other);
+    }
+    return order;
+}
+
 void VertexBend::expectTriangleIds(std::vector<uint64_t> ids) {
     firstWaiting_ = corners_.size();
     corners_.resize(corners_.size() + ids.size(), {kNone, kNone, kNone});
     ids_ = std::move(ids);
-    order_.resize(ids_.size());
-    std::iota(order_.begin(), order_.end(), 0u);
-    const uint64_t mask = ~CameraRasterizer::kFlippedBit;
-    std::stable_sort(order_.begin(), order_.end(), [&](uint32_t a, uint32_t b) { return (ids_[a] & mask) < (ids_[b] & mask); });
+    order_ = sortedByTriangle(ids_);
     cursor_ = 0, seen_ = 0;
 }
 

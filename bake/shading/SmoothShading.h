@@ -90,6 +90,9 @@ public:
     /// @brief plannedBytes() once the table holds @p receivers receivers: more than it holds now
     /// are appended by addTriangles() (a refinement's), among any of the scene's @p triangles.
     uint64_t plannedBytes(uint64_t receivers, uint64_t triangles) const;
+    /// @brief The indices of @p ids in ascending order of the ids without
+    /// CameraRasterizer::kFlippedBit, equal ids in index order (recover()'s order).
+    static std::vector<uint32_t> sortedByTriangle(const std::vector<uint64_t>& ids);
     /// Vertex slots (distinct visible vertices, once per distinct owner face normal).
     size_t vertices() const { return vertex_.size(); }
 

@@ -17,6 +17,8 @@
 
 #include <fstream>
 #include <map>
+#include <numeric>
+#include <random>
 
 using namespace penumbra;
 using namespace penumbra::test;
@@ -223,4 +225,20 @@ TEST_CASE("smooth shading finds the same vertices from triangle ids as from the 
         bent += f < 1.0;
     }
     CHECK(bent > 100);
+}
+
+TEST_CASE("receivers are put in triangle order for the id recovery, equal ids in receiver order", "[shading][camera]") {
+    // The radix passes cover the largest id's bits: ids past 2^22 and 2^33 take three and four,
+    // and the flip bit is no part of the order.
+    std::mt19937_64 rng(9);
+    for (const uint64_t range : {uint64_t(7), uint64_t(5000), uint64_t(1) << 23, uint64_t(1) << 34}) {
+        std::vector<uint64_t> ids(20000);
+        for (uint64_t& id : ids) id = (rng() % range) | (rng() % 3 == 0 ? CameraRasterizer::kFlippedBit : 0);
+        std::vector<uint32_t> expected(ids.size());
+        std::iota(expected.begin(), expected.end(), 0u);
+        const uint64_t mask = ~CameraRasterizer::kFlippedBit;
+        std::stable_sort(expected.begin(), expected.end(), [&](uint32_t a, uint32_t b) { return (ids[a] & mask) < (ids[b] & mask); });
+        CHECK(VertexBend::sortedByTriangle(ids) == expected);
+    }
+    CHECK(VertexBend::sortedByTriangle({}).empty());
 }
