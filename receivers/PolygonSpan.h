@@ -42,9 +42,10 @@ inline int nextCorner(int i, int m) { return i + 1 == m ? 0 : i + 1; }
 /// added. An edge with dy = 0 leaves the test the value orient dx (py - sy_i) exactly: a row on
 /// its outside is empty.
 struct PolygonSpans {
-    /// Per edge: corner i's x and y, the slope s, and the widening; the upper bounds first.
+    /// Per edge: corner i's x and y, the slope s, and the widening. Edges [0, upper) bound the
+    /// span from above, edges [lower, 4) from below.
     double x[4], y[4], slope[4], widen[4];
-    int upper = 0, edges = 0;  ///< edges [0, upper) bound the span from above, [upper, edges) from below
+    int upper = 0, lower = 4;
     /// Edges with dy = 0: corner i's y and orient dx.
     double flatY[4], flatDx[4];
     int flat = 0;
@@ -55,35 +56,26 @@ struct PolygonSpans {
 inline void setUpSpans(const double* sx, const double* sy, int m, double orient, double pyLo, double pyHi, double pxMax,
                        PolygonSpans& out, double slack = 0.01) {
     constexpr double u = 0x1p-53;
-    double slope[4], widen[4];
-    int side[4];  // +1 upper bound, -1 lower bound, 0 flat
+    out.upper = 0, out.lower = 4, out.flat = 0;
     for (int i = 0; i < m; ++i) {
         const int j = nextCorner(i, m);
         const double dx = sx[j] - sx[i], dy = sy[j] - sy[i];
         if (dy == 0) {
-            side[i] = 0;
+            out.flatY[out.flat] = sy[i], out.flatDx[out.flat++] = orient * dx;
             continue;
         }
-        side[i] = orient * dy > 0 ? 1 : -1;
-        slope[i] = dx / dy;
+        const int k = orient * dy > 0 ? out.upper++ : --out.lower;
         const double reach = std::max(std::abs(pyLo - sy[i]), std::abs(pyHi - sy[i]));
-        widen[i] = 16 * u * (std::abs(sx[i]) + std::abs(slope[i]) * reach + pxMax) + slack;
+        out.x[k] = sx[i], out.y[k] = sy[i], out.slope[k] = dx / dy;
+        out.widen[k] = 16 * u * (std::abs(sx[i]) + std::abs(out.slope[k]) * reach + pxMax) + slack;
     }
-    out.upper = out.edges = out.flat = 0;
-    for (const int wanted : {1, -1}) {
-        for (int i = 0; i < m; ++i)
-            if (side[i] == wanted) out.x[out.edges] = sx[i], out.y[out.edges] = sy[i], out.slope[out.edges] = slope[i], out.widen[out.edges++] = widen[i];
-        if (wanted == 1) out.upper = out.edges;
-    }
-    for (int i = 0; i < m; ++i)
-        if (side[i] == 0) out.flatY[out.flat] = sy[i], out.flatDx[out.flat++] = orient * (sx[nextCorner(i, m)] - sx[i]);
 }
 
 /// @brief Narrows [@p lo, @p hi] to the x of row centre @p py that can pass insidePolygon();
 /// empty (lo > hi) when none can.
 [[gnu::always_inline]] inline void rowSpan(const PolygonSpans& p, double py, double& lo, double& hi) {
     for (int k = 0; k < p.upper; ++k) hi = std::min(hi, p.x[k] + p.slope[k] * (py - p.y[k]) + p.widen[k]);
-    for (int k = p.upper; k < p.edges; ++k) lo = std::max(lo, p.x[k] + p.slope[k] * (py - p.y[k]) - p.widen[k]);
+    for (int k = p.lower; k < 4; ++k) lo = std::max(lo, p.x[k] + p.slope[k] * (py - p.y[k]) - p.widen[k]);
     for (int k = 0; k < p.flat; ++k)
         if (p.flatDx[k] * (py - p.flatY[k]) < 0) lo = INFINITY;  // the whole row is outside this edge
 }
