@@ -8,6 +8,7 @@
 #include "bake/BakeOutputs.h"
 #include "bake/BakeStats.h"
 #include "bake/MemoryPlan.h"
+#include "bake/TbbControl.h"
 #include "bake/kinds/ReceiverKind.h"
 #include "bake/shading/ReceiverShading.h"
 #include "bake/WorkPlan.h"
@@ -35,6 +36,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <mutex>
 #include <optional>
@@ -83,6 +85,18 @@ private:
     uint64_t seen_ = 0;
     glm::vec3 lo_{INFINITY}, hi_{-INFINITY};
 };
+
+/// Rejects a receiver that a receiver_offset moved past the float range (the kinds check their own
+/// inputs, but an offset of 1e39 along a normal makes an infinite receiver out of a finite one,
+/// and the hierarchy cannot hold it).
+void checkReceiversFinite(const SceneDesc& scene, const ReceiverSet& receivers) {
+    for (size_t r = 0; r < receivers.size(); ++r) {
+        const glm::vec3& p = receivers.position[r];
+        if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+            fail(scene.file, "receiver {} lies at a non-finite position: a geometry entry's receiver_offset moves it past "
+                             "the float range (about 3.4e38)", r);
+    }
+}
 
 /// L of the rule's receiver epsilon (BlockingRule.h): the largest |coordinate| of any receiver,
 /// else of any triangle (a bake whose receivers all sit at the origin), else 1.
@@ -168,6 +182,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
             throwIfStopRequested("scan");
         }
         p.receivers = kind.receivers();
+        checkReceiversFinite(scene, p.receivers);
         progress.done();
         p.openedSolids = solids.finish();
         p.options.epsilonLength = epsilonLength(p.receivers, check.box());
@@ -510,14 +525,6 @@ void castStages(Bake& b) {
 namespace {
 nlohmann::json bakeScene(Bake& b, const Stopwatch& total);
 
-/// Whether @p e says that a thread could not be started: std::thread's system_error, or the
-/// runtime_error TBB throws when pthread_create fails.
-bool isThreadStartFailure(const std::exception& e) {
-    if (const auto* se = dynamic_cast<const std::system_error*>(&e))
-        return se->code() == std::errc::resource_unavailable_try_again;
-    return std::string_view(e.what()).starts_with("pthread_create has failed");
-}
-
 /// The plan let through what the allocator could not give (the plan estimates what a bake maps;
 /// the process maps more): one line with the least the bake needs, as the plan's refusals say.
 [[noreturn]] void failOutOfMemory(const Bake& b) {
@@ -541,7 +548,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     Stopwatch total;
     Bake b(scene, settings);
     try {
-        tbb::global_control parallelism(tbb::global_control::max_allowed_parallelism, size_t(b.threads));
+        const ScopedTbbControl parallelism(tbb::global_control::max_allowed_parallelism, size_t(b.threads));
         // EXR blocks compressed on as many threads (on FLOWERS at 1280x960 the EXR's deflate was
         // 0.58 s of a 0.7 s output phase, on one core). Not under a memory budget or an
         // address-space limit: the pool's buffers (two blocks per thread) and thread stacks would
@@ -555,7 +562,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         // control restarts TBB's thread pool, which throws from a destructor, and so aborts, when
         // the bake ends by running out of address space.
         if (b.threads == 1) return bakeScene(b, total);
-        tbb::global_control stacks(tbb::global_control::thread_stack_size, size_t(kWorkerStackBytes));
+        const ScopedTbbControl stacks(tbb::global_control::thread_stack_size, size_t(kWorkerStackBytes));
         return bakeScene(b, total);
     } catch (const std::bad_alloc&) {
         failOutOfMemory(b);
@@ -563,6 +570,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         // TBB could not start its workers (an address-space or process limit): nothing is
         // committed yet, so bake again on one thread, which starts none.
         if (b.threads == 1 || !isThreadStartFailure(e)) throw;
+        noteThreadStartFailure();
         printWarning("could not start {} threads ({}); baking on one", b.threads, e.what());
         BakeSettings one = settings;
         one.threads = 1;

@@ -31,7 +31,9 @@ int reportError(std::exception_ptr error, const std::string& context) {
     } catch (const InputError& e) {
         say(fmt::format("penumbra: error: {}", e.what()));
     } catch (const std::bad_alloc&) {
-        say("penumbra: error: out of memory (try --memory-budget or fewer receivers)");
+        // A bake under an address-space limit says what it needs before this; what gets here ran
+        // out where no plan reaches (a command without one, or the allocator's own overhead).
+        say(prefix + "out of memory (give the process more memory; a bake can take --memory-budget or fewer receivers)");
     } catch (const std::length_error& e) {  // a size from the input beyond what a container can hold
         say(fmt::format("{}too large to hold in memory ({})", prefix, e.what()));
     } catch (const std::exception& e) {

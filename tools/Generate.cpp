@@ -1,7 +1,9 @@
 #include "Generate.h"
 
+#include "bake/BakeMemory.h"
 #include "bake/BakeOutputs.h"
 #include "stream/util/Timer.h"
+#include "bake/TbbControl.h"
 #include "bake/Pipeline.h"
 #include "bake/Scene.h"
 #include "stream/util/Error.h"
@@ -11,10 +13,12 @@
 #include "stream/util/InputFile.h"
 
 #include <fmt/format.h>
-#include <tbb/global_control.h>
 
 #include <chrono>
+#include <algorithm>
 #include <memory>
+#include <thread>
+#include <string>
 
 namespace penumbra {
 
@@ -27,15 +31,21 @@ CLI::App* addGenerateCommand(CLI::App& app, GenerateOptions& options) {
     return cmd;
 }
 
-uint64_t runGenerate(const GenerateOptions& options) {
-    if (options.threads < 0 || options.threads > kMaxThreads)
-        throw InputError(fmt::format("--threads: must be in 0..{} (0: all cores), got {}", kMaxThreads, options.threads));
-    if (options.output.empty()) throw InputError("--output: must not be empty");
+namespace {
+
+/// One attempt at the whole command with options.threads workers.
+uint64_t generateOnce(const GenerateOptions& options) {
     InputScope inputs;  // the output must not replace a file the scene reads
-    // Generators split chunks across TBB workers; this caps how many there are.
-    std::unique_ptr<tbb::global_control> limit;
-    if (options.threads > 0)
-        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
+    // Generators split chunks across TBB workers; this caps how many there are. Under an
+    // address-space limit, as many as leave the bake's room (as a bake plans them), with the
+    // bake's worker stacks: at 64 MiB two threads could not start.
+    int threads = options.threads;
+    if (addressSpaceLimit() != 0) {
+        if (threads == 0) threads = int(std::max(1u, std::thread::hardware_concurrency()));
+        fitAddressSpace(0, threads, options.quiet);
+    }
+    const ScopedTbbControl limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    const ScopedTbbControl stacks(tbb::global_control::thread_stack_size, threads > 1 && addressSpaceLimit() != 0 ? size_t(kWorkerStackBytes) : 0);
 
     const Stopwatch watch;
     SceneDesc scene = loadScene(options.scene);
@@ -57,6 +67,28 @@ uint64_t runGenerate(const GenerateOptions& options) {
         fmt::print(stderr, "penumbra: {} triangles -> {} ({:.2f} s)\n", written, options.output, seconds);
     }
     return written;
+}
+
+}  // namespace
+
+uint64_t runGenerate(const GenerateOptions& options) {
+    if (options.threads < 0 || options.threads > kMaxThreads)
+        throw InputError(fmt::format("--threads: must be in 0..{} (0: all cores), got {}", kMaxThreads, options.threads));
+    if (options.output.empty()) throw InputError("--output: must not be empty");
+    try {
+        return generateOnce(options);
+    } catch (const std::exception& e) {
+        // TBB could not start its workers (an address-space or process limit): the output is
+        // written as a whole or not at all, and its bytes do not depend on the thread count, so
+        // generate again on one thread, which starts none (as a bake does).
+        if (options.threads == 1 || !isThreadStartFailure(e)) throw;
+        noteThreadStartFailure();
+        printWarning("could not start {} threads ({}); generating on one", options.threads == 0 ? "all" : std::to_string(options.threads),
+                     e.what());
+        GenerateOptions one = options;
+        one.threads = 1;
+        return generateOnce(one);
+    }
 }
 
 }  // namespace penumbra

@@ -14,6 +14,7 @@
 #include "TableBench.h"
 
 #include "bake/Scene.h"
+#include "bake/TbbControl.h"
 #include "procedural/Generators.h"
 #include "stream/util/Diagnostics.h"
 #include "stream/util/InputFile.h"
@@ -23,6 +24,8 @@
 #include <CLI/CLI.hpp>
 
 #include <csignal>
+#include <cstdio>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -116,9 +119,15 @@ int main(int argc, char** argv) {
     InputScope inputs;  // inputs of the command are recorded, so that no output replaces one (InputFile.h)
     setOutsidePathsAllowed(commands.allowOutside);
     std::string context;
+    int code = 0;
     try {
-        return runCommand(commands, argc, argv, context);
+        code = runCommand(commands, argc, argv, context);
     } catch (...) {
-        return reportError(std::current_exception(), context);
+        code = reportError(std::current_exception(), context);
     }
+    if (threadStartFailed()) {  // TBB's exit handlers would wait for a worker that never started
+        std::fflush(nullptr);
+        std::_Exit(code);
+    }
+    return code;
 }

@@ -165,6 +165,29 @@ TEST_CASE("under an address-space limit a bake completes or says in one line wha
         }
 }
 
+TEST_CASE("under a tight address-space limit a scene whose generator used TBB still fails in one line", "[outofcore][memory]") {
+    // A terrain builds its height field with TBB while the scene opens, before the bake caps its
+    // threads; lifting that cap again, as the failed bake unwound, started workers that the limit
+    // did not allow, and TBB's throw from the cap's destructor aborted (64-70 MiB). bake and
+    // generate, one thread and two.
+    ScratchDir dir("as-terrain");
+    std::ofstream(dir / "terrain.json")
+        << scene({{"type", "terrain"}, {"area", {{-4, -4}, {4, 4}}}, {"resolution", 1}, {"amplitude", 0.25}}, 8, 8).dump();
+    for (const std::string& command : {"bake " + dir / "terrain.json" + " -o " + dir / "t.exr" + " --tmp " + dir.path.string(),
+                                       "generate " + dir / "terrain.json" + " -o " + dir / "t.ptri"})
+        for (const char* threads : {"1", "2"})
+            for (int mib : {64, 66, 68, 70, 72}) {
+                INFO(command << " --threads " << threads << " under " << mib << " MiB");
+                RunResult r = runPenumbra(command + " -q --threads " + threads, "prlimit --as=" + std::to_string(uint64_t(mib) << 20));
+                INFO(r.err);
+                if (r.exitCode == 0) continue;
+                CHECK(r.exitCode == 1);
+                // One error line, after a warning when two threads could not start and one was tried.
+                CHECK(lineCount(r.err) <= 2);
+                CHECK_THAT(r.err, Catch::Contains("penumbra: error: ") && !Catch::Contains("terminate") && !Catch::Contains("internal"));
+            }
+}
+
 TEST_CASE("the CLI loads OpenVDB only for volumes: it is a plugin, not a dependency of the binary", "[outofcore][cli]") {
     ScratchDir dir("vdb-plugin");
     REQUIRE(runShell("readelf -d " + std::string(PENUMBRA_BINARY) + " > " + dir / "needed.txt") == 0);

@@ -299,6 +299,17 @@ TEST_CASE("object controls: bad values are one-line errors naming the key", "[ob
     CHECK_THROWS_WITH(sceneOf(dir, many, points), Catch::Contains("receiver_offset"));
 }
 
+TEST_CASE("object controls: a receiver_offset past the float range is a one-line error, not a crash", "[objects][scene]") {
+    // 1e39 is a finite double, so the scene accepts it; the receivers it moves are infinite as
+    // floats, which the hierarchy cannot hold (this crashed hpc). Every method refuses it.
+    ScratchDir dir("objects");
+    for (double offset : {1e39, -1e39, 1e300}) {
+        const SceneDesc scene = sceneOf(dir, {floorEntry({{"receiver_offset", offset}}), boxes({box({-1, 1, -1}, {1, 1.2f, 1})})}, kCamera);
+        for (const char* method : {"hpc", "reference", "penumbra-map"})
+            CHECK_THROWS_WITH(bake(scene, method), Catch::Contains("non-finite position") && Catch::Contains("receiver_offset"));
+    }
+}
+
 TEST_CASE("object controls: methods without the distance test refuse max_distance", "[objects]") {
     ScratchDir dir("objects");
     const SceneDesc scene = sceneOf(dir, {floorEntry(), boxes({box({-1, 1, -1}, {1, 1.2f, 1})}, {{"max_distance", 2}})}, floorPoints(dir));
