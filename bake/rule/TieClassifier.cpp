@@ -15,6 +15,9 @@ namespace {
 
 constexpr double kFloatUlp = 0x1p-24;
 constexpr uint32_t kLeaf = 4;
+/// Float ulps of the coordinates' magnitude in every tolerance, besides the ulps of T's distance
+/// from r (the constructor's ulps).
+constexpr double kWorldUlps = 4;
 
 double maxAbs(const glm::dvec3& p) { return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
 
@@ -154,29 +157,40 @@ TieClassifier::Judged TieClassifier::judge(uint32_t index, const glm::dvec3& l, 
     const double dist = distanceBehind(t, r), eps = epsilon_.at(r);
     const glm::dvec3 span = l - w * r;  // the segment (or the ray's direction)
     const double spanLength = glm::length(span);
-    const double lightTerm = w != 0.0 ? lAbs / spanLength : 1.0;
+    // The direction's roundoff as an angle: k ulps of its own, and for a point sample, the world
+    // ulps of l over the segment's length (a float implementation subtracting l - r).
+    const double directionTolerance = uf + (w != 0.0 ? kFloatUlp * kWorldUlps * lAbs / spanLength : 0.0);
     const double floorDistance = kFloatUlp * std::max(rAbs, mT);
+    // Where the segment's line meets T's plane, as a distance from r (infinite when parallel).
+    const double along = std::abs(glm::dot(t.plane.n, span));
+    const double toHit = std::max(along > 0.0 ? std::abs(dist) * spanLength / along : INFINITY, floorDistance);
+    // The scale of T's roundoff as an independent test sees it: its vertices relative to r. A
+    // float ray tracer works relative to the ray's origin (r), so its error near T grows with T's
+    // distance from r, not with the coordinates' magnitude: a scene far from the origin keeps
+    // ties as narrow as at the origin (with |T| instead, every edge of a small mesh at 1e4 was
+    // a tie, and compare --scene passed a dump with every mask zeroed).
+    const double local = std::max({maxAbs(t.v[0] - r), maxAbs(t.v[1] - r), maxAbs(t.v[2] - r)});
+    // Plus a few ulps of the coordinates themselves: a float ray tracer's box tests subtract
+    // the origin times the reciprocal direction (Embree's org_rdir), whose error is that of the
+    // world position (a far sweep scene had Embree miss a hit 9 local tolerances inside an edge).
+    const double world = kFloatUlp * kWorldUlps * std::max(rAbs, mT);
 
     // The rule's quantities for edge orientation s (the sample's side, or its opposite when the
     // sample is within roundoff of T's plane). An edge's value E = s det(span, b - a, r - a) is
     // the signed distance between the segment's line and the edge's line times |span x (b - a)|;
-    // divided by the distance from r to the closest point, it is the angle seen from r.
+    // divided by the distance from r to the point where the segment meets T's plane, it is the
+    // angle seen from r.
     auto quantities = [&](double s, Quantity q[4]) {
         const HardShadowVolume h = makeHardShadowVolume(l, w, t);
-        q[0] = {RuleQuantity::Band, -1, -s * dist, eps, uf * std::max(rAbs, mT), -s * dist > eps};
+        q[0] = {RuleQuantity::Band, -1, -s * dist, eps, uf * local + world, -s * dist > eps};
         for (int e = 0; e < 3; ++e) {
             const glm::dvec3& a = t.v[e];
             const glm::dvec3& b = t.v[(e + 1) % 3];
             const glm::dvec3 n = h.side != 0.0 && s == -h.side ? h.edge[e] : s * glm::cross(l - w * a, b - a);
             const double value = glm::dot(n, r - a);
-            const glm::dvec3 edge = b - a, w0 = r - a;
-            const double A = glm::dot(span, span), B = glm::dot(span, edge), C = glm::dot(edge, edge);
-            const double denom = A * C - B * B;
-            const double tClosest = denom > 0.0 ? (B * glm::dot(edge, w0) - C * glm::dot(span, w0)) / denom : 0.0;
-            const double toClosest = std::max(std::abs(tClosest) * spanLength, floorDistance);
-            const double skew = glm::length(glm::cross(span, edge));
-            const double angle = skew > 0.0 ? value / skew / toClosest : 0.0;
-            const double tol = uf * (std::max({rAbs, maxAbs(a), maxAbs(b)}) / toClosest + lightTerm);
+            const double skew = glm::length(glm::cross(span, b - a));
+            const double angle = skew > 0.0 && std::isfinite(toHit) ? value / skew / toHit : 0.0;
+            const double tol = (uf * std::max(maxAbs(a - r), maxAbs(b - r)) + world) / toHit + directionTolerance;
             q[1 + e] = {RuleQuantity::Edge, e, angle, 0.0, tol, value >= 0.0};
         }
     };

@@ -11,12 +11,18 @@
 ///  - SampleInPlane: s = N̂ . (l - w v0) against 0 (a point sample in T's plane, or a sun direction
 ///    parallel to it). Tolerance k u (|l|_inf + |T|_inf) for a point, k u |l| for a direction.
 ///  - Band: the receiver's distance behind T's plane against eps(r). Tolerance
-///    k u max(|r|_inf, |T|_inf).
+///    k u |T - r|_inf + 4 u max(|r|_inf, |T|_inf).
 ///  - Edge: how far the segment passes inside (positive) or outside an edge, as the angle seen
-///    from the receiver (the edge plane's distance at the crossing point divided by the distance
-///    from r to that point). Tolerance k u (max(|r|, |a|, |b|)_inf / |c - r| + |l|_inf / |l - r|)
-///    for a point sample, with the last term 1 for a direction.
-/// with u = 2^-24 (float) and k = ulps (default 32). A triangle's decision is *robust* when it
+///    from the receiver (the distance between the segment's line and the edge's line divided by
+///    the distance from r to the point c where the segment meets T's plane). Tolerance
+///    (k u |{a, b} - r|_inf + 4 u max(|r|, |T|)_inf) / |c - r| + k u + 4 u |l|_inf / |l - r| for a
+///    point sample, without the last term for a direction.
+/// with u = 2^-24 (float) and k = ulps (default 32). The main term is T's distance from r, since
+/// a float ray tracer works relative to the ray's origin, so ties stay as narrow far from the
+/// origin as near it; the 4 ulps of the coordinates cover its box tests, which subtract the
+/// origin at the world's scale. (With k ulps of the coordinates, a small mesh at 1e4 had every
+/// edge within tolerance, and a dump with every mask zeroed compared as all ties.)
+/// A triangle's decision is *robust* when it
 /// blocks with every quantity beyond its tolerance, or fails one quantity beyond its tolerance.
 /// A relation the rule blocks is a tie only when no blocking triangle is robust; a relation the
 /// rule does not block is a tie only when some triangle is not robust. Everything else is a real

@@ -65,6 +65,36 @@ TEST_CASE("classifier: a receiver on its own triangle is not a tie, a segment th
     CHECK_FALSE(v.tie);
 }
 
+TEST_CASE("classifier: far from the origin, ties stay as narrow as T's roundoff relative to the receiver", "[tie]") {
+    // A mesh of 5 cm triangles 1 m above a floor receiver, at (1e4, 0, -1e4), where a float is
+    // 1e-3 apart. A segment through a triangle 5 mm from its nearest edge is robustly blocked
+    // (32 ulps of the coordinates, the old tolerance, were 2 cm: every relation was a tie, and a
+    // dump with every mask zeroed compared as ties), one 0.1 mm from an edge is a tie, and one
+    // 5 mm outside the mesh is robustly not blocked.
+    const float X = 1e4f, Z = -1e4f, h = 0.05f;
+    std::vector<Triangle> mesh;
+    for (int i = 0; i < 8; ++i)
+        for (int k = 0; k < 8; ++k) {
+            const float x0 = X + h * float(i), z0 = Z + h * float(k);
+            addQuad(mesh, {x0, 1, z0}, {x0 + h, 1, z0}, {x0 + h, 1, z0 + h}, {x0, 1, z0 + h});
+        }
+    const TieClassifier c(mesh, ReceiverEpsilon{1e-5, 1.5e4});
+    const glm::dvec3 r{double(X) + 0.2, 0, double(Z) + 0.2};  // under the mesh
+    auto through = [&](double dx, double dz) {  // the segment from r straight up through (r.x + dx, 1, r.z + dz)
+        return c.classify(glm::dvec3(r.x + 4 * dx, 4, r.z + 4 * dz), 1.0, r);
+    };
+    // r's column meets the mesh at a cell corner (0.2 = 4 cells); 0.0125 inward is a quarter cell.
+    const RelationVerdict inside = through(0.0125, 0.0325);
+    CHECK(inside.ruleBlocks);
+    CHECK_FALSE(inside.tie);
+    const RelationVerdict nearEdge = through(0.0125, 0.0001);
+    CHECK(nearEdge.tie);
+    const RelationVerdict outside = c.classify(glm::dvec3(double(X) - 0.005, 4, r.z), 1.0, glm::dvec3(double(X) - 0.005, 0, r.z));
+    INFO(outside.describe());
+    CHECK_FALSE(outside.ruleBlocks);
+    CHECK_FALSE(outside.tie);
+}
+
 TEST_CASE("classifier: the epsilon band and a sample in the blocker's plane", "[tie]") {
     std::vector<Triangle> quad;
     addQuad(quad, {-1, 1, -1}, {1, 1, -1}, {1, 1, 1}, {-1, 1, 1});
