@@ -34,7 +34,7 @@ public:
     LineReader(const LineReader&) = delete;
     LineReader& operator=(const LineReader&) = delete;
 
-    /// @brief The next line without its "\n" or "\r\n"; false at the end of the file.
+    /// @brief The next line as objLineText() gives it; false at the end of the file.
     bool next(std::string_view& line) {
         lineStart_ = offset_;
         ssize_t length = ::getline(&buffer_, &capacity_, file_);
@@ -44,9 +44,7 @@ public:
         }
         offset_ += static_cast<uint64_t>(length);
         ++lineNumber_;
-        size_t end = static_cast<size_t>(length);
-        while (end > 0 && (buffer_[end - 1] == '\n' || buffer_[end - 1] == '\r')) --end;
-        line = std::string_view(buffer_, end);
+        line = objLineText(std::string_view(buffer_, static_cast<size_t>(length)), lineNumber_);
         return true;
     }
 

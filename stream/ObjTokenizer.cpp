@@ -32,12 +32,20 @@ int64_t resolve(int64_t index, uint64_t count, int field, const ObjLocation& whe
     return resolved;
 }
 
+constexpr const char* kSpace = " \t\v\f";
+
 }  // namespace
 
+std::string_view objLineText(std::string_view raw, uint64_t lineNumber) {
+    while (!raw.empty() && (raw.back() == '\n' || raw.back() == '\r')) raw.remove_suffix(1);
+    if (lineNumber == 1 && raw.starts_with("\xEF\xBB\xBF")) raw.remove_prefix(3);
+    return raw;
+}
+
 std::string_view ObjTokens::next() {
-    size_t begin = rest_.find_first_not_of(" \t\v\f\r");
+    size_t begin = rest_.find_first_not_of(kSpace);
     if (begin == std::string_view::npos) return {};
-    size_t end = rest_.find_first_of(" \t\v\f\r", begin);
+    size_t end = rest_.find_first_of(kSpace, begin);
     if (end == std::string_view::npos) end = rest_.size();
     std::string_view token = rest_.substr(begin, end - begin);
     rest_.remove_prefix(end);
@@ -45,9 +53,9 @@ std::string_view ObjTokens::next() {
 }
 
 std::string_view ObjTokens::rest() const {
-    const size_t begin = rest_.find_first_not_of(" \t\v\f\r");
+    const size_t begin = rest_.find_first_not_of(kSpace);
     if (begin == std::string_view::npos) return {};
-    const size_t end = rest_.find_last_not_of(" \t\v\f\r");
+    const size_t end = rest_.find_last_not_of(kSpace);
     return rest_.substr(begin, end + 1 - begin);
 }
 

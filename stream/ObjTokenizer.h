@@ -29,7 +29,13 @@ struct ObjLocation {
     std::string text() const { return path + ":" + std::to_string(line); }
 };
 
-/// Splits a line into whitespace-separated tokens, stopping at a '#' comment.
+/// @brief An OBJ line as its statements see it: without its line end ("\n", "\r\n", more "\r"s)
+/// and, on line 1, without a UTF-8 byte order mark, which Windows tools write (kept, it made the
+/// first vertex an unknown statement, and every face index then pointed one vertex later).
+/// A "\r" anywhere else is not whitespace: `1.7\r960` is an unparsable number, not two.
+std::string_view objLineText(std::string_view raw, uint64_t lineNumber);
+
+/// Splits a line into whitespace-separated tokens (spaces, tabs, \v, \f), stopping at a '#' comment.
 class ObjTokens {
 public:
     explicit ObjTokens(std::string_view line) : rest_(line.substr(0, line.find('#'))) {}

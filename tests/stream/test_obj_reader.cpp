@@ -102,6 +102,23 @@ TEST_CASE("OBJ: other statements, comments, CRLF and number spellings", "[stream
     CHECK(std::signbit(tris[0].v[0].y));
 }
 
+TEST_CASE("OBJ: a UTF-8 byte order mark is skipped, a carriage return inside a line is no space", "[stream][obj]") {
+    // Windows tools start files with a BOM. Kept, it made line 1 an unknown statement: the first
+    // vertex was lost, and every face index pointed one vertex later (exit 0, wrong geometry).
+    ScratchDir dir("obj");
+    const std::string bom = "\xEF\xBB\xBF";
+    auto tris = readObjText(dir, bom + "v 0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\nv 5 5 5\r\nf 1 2 3\r\n");
+    REQUIRE(tris.size() == 1);
+    CHECK(sameBits(tris[0], tri({0, 0, 0}, {1, 0, 0}, {0, 1, 0})));
+    // Only at the start of the file: later, the bytes are a damaged token.
+    CHECK(objError(dir, "v 0 0 0\n" + bom + "v 1 0 0\n") == "no error");  // an unknown statement, as before
+    CHECK(objError(dir, "v 0 0 " + bom + "1\n") == "mesh.obj:1: unparsable number '" + bom + "1'");  // UTF-8, kept
+    // A CR inside a line is damage, not a separator (the README's example of a quoted token).
+    CHECK(objError(dir, "v 1.7\r960 0 0\n") == "mesh.obj:1: unparsable number '1.7\\x0d960'");
+    // Line ends with several CRs still read (CR CR LF, from a file converted twice).
+    CHECK(readObjText(dir, "v 0 0 0\r\r\nv 1 0 0\r\r\nv 0 1 0\r\r\nf 1 2 3\r\r\n").size() == 1);
+}
+
 TEST_CASE("OBJ: sizeHint, chunked reads and rewind", "[stream][obj]") {
     ScratchDir dir("obj");
     std::string text;
