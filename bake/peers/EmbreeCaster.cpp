@@ -436,6 +436,20 @@ uint64_t traceReceiver(RTCScene scene, FilterContext& fc, Packet& packet, const 
     return traced;
 }
 
+/// Embree's rays hold coordinates and direction components up to its FLT_LARGE (1.844e18); a ray
+/// beyond that fails an assertion inside Embree, which aborts. Lights stay within 1e15 of the
+/// origin (the scene refuses more), so a receiver within half of it keeps l - r within it too.
+constexpr double kEmbreeRayRange = 0.9e18;
+
+void checkRayRange(const ReceiverSet& receivers) {
+    for (size_t r = 0; r < receivers.size(); ++r) {
+        const glm::vec3& p = receivers.position[r];
+        if (std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}) > kEmbreeRayRange)
+            fail("--method embree", "receiver {} at ({:.3g}, {:.3g}, {:.3g}) is beyond the range of Embree's rays (coordinates up "
+                 "to {:.2g}); use another method", r, p.x, p.y, p.z, kEmbreeRayRange);
+    }
+}
+
 }  // namespace
 
 VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& receivers,
@@ -443,6 +457,7 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
                            const ReceiverEpsilon& epsilon, EmbreeStats* stats,
                            const std::function<void(uint64_t)>& progress, bool ruleFilter, const AlphaTable* alpha,
                            std::vector<std::unique_ptr<uint32_t[]>>* depths) {
+    checkRayRange(receivers);
     EmbreeStats local;
     if (!alpha) alpha = AlphaTable::builtin().get();
     const Stopwatch buildWatch;

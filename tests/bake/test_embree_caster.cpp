@@ -261,6 +261,20 @@ TEST_CASE("embree: random triangle soups agree with the reference up to ties", "
     }
 }
 
+TEST_CASE("embree: a receiver or sample beyond Embree's ray range is a one-line error, not an assertion", "[embree]") {
+    // Embree asserts that ray origins and directions stay within 1.8e18 (an abort, exit 134);
+    // the other methods bake these relations, so Embree refuses them up front. (Lights cannot be
+    // that far: the scene refuses coordinates beyond 1e15.)
+    std::vector<LightDesc> lights{rectLight({0, 3, 0}, 1.0, 16, 1)};
+    LightSamples samples = generateLightSamples(lights, 16, 9);
+    for (float far : {1e19f, -1e20f}) {
+        ReceiverSet receivers = makeReceivers({glm::vec3(0, 0, 0), glm::vec3(0, far, 0)});
+        auto sets = assignSets(receivers.size(), samples.sets, 9);
+        CHECK_THROWS_WITH(castEmbree(samples, receivers, sets, {}, ReceiverEpsilon{1e-5, 1.0}),
+                          Catch::Contains("--method embree: receiver 1") && Catch::Contains("beyond the range of Embree's rays"));
+    }
+}
+
 TEST_CASE("embree: no triangles gives all-zero masks", "[embree]") {
     std::vector<LightDesc> lights{rectLight({0, 3, 0}, 1.0, 64, 2)};
     LightSamples samples = generateLightSamples(lights, 64, 9);
