@@ -3,10 +3,9 @@
 #include "stream/util/Error.h"
 #include "stream/GltfBytes.h"
 #include "stream/GltfDocument.h"
+#include "stream/GltfInstancing.h"
 #include "stream/GltfPrimitive.h"
 
-#include <glm/gtc/matrix_transform.hpp>
-#include <glm/gtc/quaternion.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>
 
@@ -25,8 +24,7 @@ constexpr size_t kBlockTriangles = 1024;
 struct Placement {
     int node = 0;
     glm::dmat4 world{1.0};
-    int translation = -1, rotation = -1, scale = -1;
-    uint64_t instances = 1;
+    GltfInstancing instancing;
 };
 
 /// A primitive and every placement of it: its triangles are read once per pass, block by block,
@@ -57,7 +55,6 @@ public:
 
 private:
     void placeScene();
-    void checkInstancing(const GltfNodeDesc& node, int index, Placement& p) const;
     void loadBlock();
     Instance instance(const Placement& p, uint64_t i);
     void advance();
@@ -92,27 +89,6 @@ GltfSource::GltfSource(std::string path, std::shared_ptr<const GltfAlphaIds> alp
     block_.reserve(kBlockTriangles);
 }
 
-void GltfSource::checkInstancing(const GltfNodeDesc& node, int index, Placement& p) const {
-    const std::string where = fmt::format("{}: node {} EXT_mesh_gpu_instancing", doc_.path, index);
-    p.translation = node.instanceTranslation, p.rotation = node.instanceRotation, p.scale = node.instanceScale;
-    int first = -1;
-    auto check = [&](int accessor, const char* name, int components) {
-        if (accessor < 0) return;
-        const GltfAccessor& a = doc_.accessors[size_t(accessor)];
-        if (a.components != components) fail(where, "{} accessor {} is not VEC{}", name, accessor, components);
-        if (a.sparse || (a.bufferView < 0 && a.count > 0))
-            fail(where, "{} accessor {} must be dense, with a bufferView", name, accessor);
-        if (a.componentType == kGltfUnsignedInt)
-            fail(where, "{} accessor {} has componentType {}, which glTF does not allow", name, accessor, a.componentType);
-        if (first >= 0 && a.count != p.instances)
-            fail(where, "{} accessor {} has {} elements, accessor {} has {}", name, accessor, a.count, first, p.instances);
-        if (first < 0) first = accessor, p.instances = a.count;
-    };
-    check(p.translation, "TRANSLATION", 3);
-    check(p.rotation, "ROTATION", 4);
-    check(p.scale, "SCALE", 3);
-}
-
 void GltfSource::placeScene() {
     GltfSkipped skipped;
     std::vector<std::vector<size_t>> meshLayouts(doc_.meshes.size());
@@ -127,16 +103,15 @@ void GltfSource::placeScene() {
     for (const GltfMeshNode& placed : walkGltfScene(doc_)) {
         Placement p;
         p.node = placed.node, p.world = placed.world;
-        const GltfNodeDesc& node = doc_.nodes[size_t(placed.node)];
-        if (node.instanced()) checkInstancing(node, placed.node, p);
+        p.instancing = gltfInstancingOf(doc_, placed.node);
         for (size_t l : meshLayouts[size_t(placed.mesh)]) {
-            if (layouts_[l].triangles == 0 || p.instances == 0) continue;
+            if (layouts_[l].triangles == 0 || p.instancing.instances == 0) continue;
             auto [it, fresh] = drawOf.emplace(l, draws_.size());
             if (fresh) draws_.push_back(Draw{l, {}, 0});
             Draw& d = draws_[it->second];
             d.placements.push_back(p);
-            d.instances += p.instances;
-            triangleCount_ += layouts_[l].triangles * p.instances;
+            d.instances += p.instancing.instances;
+            triangleCount_ += layouts_[l].triangles * p.instancing.instances;
         }
     }
     for (const Draw& d : draws_)
@@ -187,24 +162,7 @@ Instance GltfSource::instance(const Placement& p, uint64_t i) {
     Instance out;
     out.node = p.node;
     out.matrix = p.world;
-    if (p.translation >= 0 || p.rotation >= 0 || p.scale >= 0) {
-        auto element = [&](int accessor) {
-            const GltfAccessor& a = doc_.accessors[size_t(accessor)];
-            return decodeGltfElement(bytes_->at(a.bufferView, a.byteOffset + i * a.stride, a.elementBytes), a);
-        };
-        glm::dmat4 local(1.0);  // T * R * S, as for node TRS; applied before the node's transform
-        if (p.translation >= 0) local = glm::translate(local, glm::dvec3(glm::vec3(element(p.translation))));
-        if (p.rotation >= 0) {
-            const glm::dvec4 q(element(p.rotation));
-            if (glm::length(q) > 0) local *= glm::mat4_cast(glm::normalize(glm::dquat(q.w, q.x, q.y, q.z)));
-        }
-        if (p.scale >= 0) local = glm::scale(local, glm::dvec3(glm::vec3(element(p.scale))));
-        for (int c = 0; c < 4; ++c)
-            for (int r = 0; r < 4; ++r)
-                if (!std::isfinite(local[c][r]))
-                    fail(doc_.path, "node {} EXT_mesh_gpu_instancing: instance {} has a non-finite transform", p.node, i);
-        out.matrix = p.world * local;
-    }
+    if (p.instancing.any()) out.matrix = p.world * gltfInstanceLocal(doc_, *bytes_, p.instancing, p.node, i);
     out.identity = out.matrix == glm::dmat4(1.0);
     out.mirrored = glm::determinant(glm::dmat3(out.matrix)) < 0.0;
     return out;
@@ -216,7 +174,7 @@ void GltfSource::advance() {
     next_ = 0;
     currentReady_ = false;
     const Draw& d = draws_[draw_];
-    if (++instance_ < d.placements[placement_].instances) return;
+    if (++instance_ < d.placements[placement_].instancing.instances) return;
     instance_ = 0;
     if (++placement_ < d.placements.size()) return;
     placement_ = 0;

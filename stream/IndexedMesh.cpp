@@ -5,6 +5,7 @@
 #include "stream/util/Progress.h"
 #include "stream/GltfBytes.h"
 #include "stream/GltfDocument.h"
+#include "stream/GltfInstancing.h"
 #include "stream/GltfPrimitive.h"
 #include "stream/ObjTokenizer.h"
 #include "stream/Transform.h"
@@ -126,7 +127,7 @@ std::vector<IndexedMesh> loadObjMeshes(const std::string& path, const std::vecto
     uint64_t line = 0, bytes = 0;
     for (std::string text; std::getline(in, text);) {
         parser.where.line = ++line;
-        parser.statement(text);
+        parser.statement(objLineText(text, line));
         progress.advance(bytes += text.size() + 1);  // with its '\n'
     }
     if (in.bad()) fail(path, "read error");
@@ -162,12 +163,20 @@ public:
     std::vector<IndexedMesh> read(const glm::dmat4& transform) {
         std::vector<IndexedMesh> meshes;
         for (const GltfMeshNode& placed : walkGltfScene(doc_)) {
+            const GltfInstancing instancing = gltfInstancingOf(doc_, placed.node);
+            if (instancing.instances == 0) continue;
             IndexedMesh mesh = meshOf(placed.mesh);
             if (mesh.indices.empty()) continue;
             const std::string& meshName = doc_.meshes[size_t(placed.mesh)].name;
             mesh.name = !meshName.empty() ? meshName : doc_.nodes[size_t(placed.node)].name;
-            place(mesh, transform * placed.world, doc_.path);
-            meshes.push_back(std::move(mesh));
+            // EXT_mesh_gpu_instancing: a mesh per instance, where the blockers are (it was placed
+            // once, at the node, and `convert` to glTF dropped the instances).
+            for (uint64_t i = 0; i < instancing.instances; ++i) {
+                IndexedMesh copy = i + 1 < instancing.instances ? mesh : std::move(mesh);
+                if (instancing.instances > 1) copy.name += fmt::format(" instance {}", i);
+                place(copy, transform * placed.world * gltfInstanceLocal(doc_, bytes_, instancing, placed.node, i), doc_.path);
+                meshes.push_back(std::move(copy));
+            }
         }
         return meshes;
     }

@@ -8,6 +8,7 @@
 
 #include "stream/util/Error.h"
 #include "stream/GltfReader.h"
+#include "stream/IndexedMesh.h"
 #include "stream/util/Npy.h"
 
 #include <catch2/catch.hpp>
@@ -197,6 +198,32 @@ TEST_CASE("node instancing and EXT_mesh_gpu_instancing give the masks of the fla
     CHECK(ext.first == flat.first);
     CHECK(nodes.first == flat.first);
     CHECK(flat.second["blocked_relations"].get<uint64_t>() > 0);
+}
+
+TEST_CASE("receiver meshes and convert to glTF place every EXT_mesh_gpu_instancing instance", "[gltf][instancing]") {
+    // The meshes that vertex and lightmap receivers are made on, and that `convert` writes as glTF,
+    // were placed once at the node: the instances were dropped (2 triangles in, 1 out, exit 0).
+    ScratchDir dir("instances");
+    const std::string base = baseMesh(dir, 20);
+    writeInstanced(dir, base, 6, "6", false);
+    const std::vector<IndexedMesh> ext = loadIndexedMeshes(dir / "ext-6.glb", glm::mat4(1.0f), {});
+    const std::vector<IndexedMesh> nodes = loadIndexedMeshes(dir / "nodes-6.glb", glm::mat4(1.0f), {});
+    REQUIRE(ext.size() == 6);
+    REQUIRE(nodes.size() == 6);
+    for (size_t i = 0; i < 6; ++i) {
+        INFO("instance " << i);
+        REQUIRE(ext[i].position.size() == nodes[i].position.size());
+        for (size_t v = 0; v < ext[i].position.size(); ++v) CHECK(glm::length(ext[i].position[v] - nodes[i].position[v]) < 1e-5f);
+        CHECK(ext[i].indices == nodes[i].indices);  // mirrored instances flip the winding alike
+    }
+    // convert keeps them: the same triangle count and bounds as the file converted to .ptri.
+    REQUIRE(runPenumbra("convert -q " + (dir / "ext-6.glb") + " " + (dir / "ext-6-out.glb")).exitCode == 0);
+    REQUIRE(runPenumbra("convert -q " + (dir / "ext-6.glb") + " " + (dir / "ext-6-out.ptri")).exitCode == 0);
+    RunResult in = runPenumbra("info -q " + (dir / "ext-6.glb"));
+    RunResult a = runPenumbra("info -q " + (dir / "ext-6-out.glb")), b = runPenumbra("info -q " + (dir / "ext-6-out.ptri"));
+    CHECK_THAT(in.out, Catch::StartsWith("triangles "));
+    CHECK(a.out == in.out);
+    CHECK(b.out == in.out);
 }
 
 TEST_CASE("peak RSS does not grow with the instance count", "[gltf][instancing][outofcore][memory]") {
