@@ -28,6 +28,7 @@
 #include "stream/util/Npy.h"
 #include "stream/BlockCyclicSource.h"
 #include "stream/PrefetchSource.h"
+#include "stream/Translucency.h"
 #include "stream/util/Progress.h"
 #include "stream/util/StopRequest.h"
 
@@ -57,6 +58,8 @@ struct Prepared {
     TriangleSourcePtr blockers;           ///< replayable, largest first when sorting is on
     BucketReplaySource* replay = nullptr; ///< inside `blockers` when bucketed, for I/O counters
     uint64_t triangleCount = 0;
+    /// Translucent triangles the scan saw (casting ones): the translucent pass holds at most these.
+    uint64_t translucentScanned = 0;
     uint64_t blockersCast = 0;            ///< triangleCount, or a by-blockers shard's share of it
     std::vector<std::string> warnings;    ///< BakeWarnings.h, printed and in the stats
 };
@@ -85,6 +88,16 @@ private:
     uint64_t seen_ = 0;
     glm::vec3 lo_{INFINITY}, hi_{-INFINITY};
 };
+
+/// What the translucent pass holds for @p triangles translucent blockers: each twice (the copy the
+/// replay view collects and the cast form), and a row of depths per thread. Counted in the scan,
+/// so that the plan made after it already holds it: with every cut-out counted after the bucket
+/// pass instead, a budget that the first refusal named was refused again, with a larger number.
+uint64_t translucentBytes(uint64_t triangles, int threads, const LightSamples& samples) {
+    if (triangles == 0) return 0;
+    return triangles * (sizeof(Triangle) + TranslucentBlockers::bytesFor(1)) +
+           uint64_t(threads) * uint64_t(samples.sampleCount) * 3 * sizeof(uint32_t);
+}
 
 /// Rejects a receiver that a receiver_offset moved past the float range (the kinds check their own
 /// inputs, but an offset of 1e39 along a normal makes an infinite receiver out of a finite one,
@@ -175,6 +188,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
             std::span<const Triangle> part(chunk.data(), n);
             check(part);
             histogram.add(part);
+            for (const Triangle& t : part) p.translucentScanned += !(t.flags & kTriangleNoCast) && isTranslucentId(alphaIdOf(t.flags));
             if (scanPass) kind.consume(StreamPass::Scan, StreamChunk{part, source->part()});
             if (scene.options.closedCasters) solids.scan(part, source->part());
             progress.update(n);
@@ -199,6 +213,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
                       epsilonMax, 100 * kClosedEpsilonShare, p.openedSolids.smallestExtent);
     }
     p.warnings = bakeWarnings(scene.receivers, p.receivers, p.lights);
+    if (auto far = epsilonWarning(p.receivers, p.options.epsilon, p.options.epsilonLength)) p.warnings.push_back(std::move(*far));
     for (std::string& warning : leakySolidWarnings(p.openedSolids, scene)) p.warnings.push_back(std::move(warning));
     for (const std::string& warning : p.warnings) printWarning("{}", warning);
     returnFreedMemory();  // the z-buffer is gone; keep it from inflating the casting phase's RSS
@@ -343,14 +358,12 @@ void scanScene(Bake& b) {
         b.demand.outputBytes = b.kind->outputBytes(b.demand.receivers);
         if (b.method.memory) b.demand.methodBytes = b.method.memory(triangles, prepared.receivers.size(), prepared.samples, scene.bakeOptions);
         addSampleDemand(b.demand, prepared.samples, scene);
+        b.demand.translucentBytes = translucentBytes(prepared.translucentScanned, b.threads, prepared.samples);
         b.minimum = b.budget.plan(b.demand).minimumBudget;
     };
     b.p = prepare(scene, b.settings, *b.kind, std::move(geometry), afterScan, b.streamSeconds, b.buckets);
     b.demand.kindBytes = b.kind->residentBytes();
-    // Translucent triangles are alpha-matte ones: at worst all of them, kept twice (the copy the
-    // replay view collects and the cast form), and a row of depths per thread.
-    b.demand.translucentBytes = b.buckets.alphaMatteTriangles * (sizeof(Triangle) + TranslucentBlockers::bytesFor(1)) +
-                                uint64_t(b.threads) * uint64_t(b.p.samples.sampleCount) * 3 * sizeof(uint32_t);
+    b.demand.translucentBytes = translucentBytes(b.p.translucentScanned, b.threads, b.p.samples);
     b.replan();
     checkMemoryFits(scene.file, "casting", b.plan.minimumBudget);
     b.results.resize(b.p.receivers.size(), int(b.p.lights.size()));
