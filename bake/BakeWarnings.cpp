@@ -96,6 +96,20 @@ std::vector<std::string> bakeWarnings(const nlohmann::json& receivers, const Rec
     return warnings;
 }
 
+std::optional<std::string> epsilonWarning(const ReceiverSet& set, double epsilon, double length) {
+    if (set.size() == 0 || !(epsilon > 0)) return std::nullopt;
+    glm::vec3 lo(INFINITY), hi(-INFINITY);
+    for (const glm::vec3& p : set.position) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    const glm::vec3 size = hi - lo;
+    const double extent = std::max({double(size.x), double(size.y), double(size.z)});
+    const double eps = epsilon * length;
+    if (!(extent > 0) || !(eps > 0.01 * extent)) return std::nullopt;
+    return fmt::format("the rule's receiver epsilon is {:.3g} (bake.epsilon {:g} times the largest receiver coordinate, {:.3g}), "
+                       "{:.3g} % of the receivers' extent ({:.3g}): a blocker nearer than that to a receiver casts no shadow on it; "
+                       "move the scene nearer the origin or lower bake.epsilon",
+                       eps, epsilon, length, 100 * eps / extent, extent);
+}
+
 std::vector<std::string> leakySolidWarnings(const OpenedSolids& opened, const SceneDesc& scene) {
     std::vector<std::string> warnings;
     for (const OpenedSolids::Leaky& leaky : opened.leaky) {

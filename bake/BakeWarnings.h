@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -20,6 +21,12 @@ namespace penumbra {
 /// - no receivers at all: a camera that sees no geometry, receiver meshes that are empty.
 /// @param receivers the "receivers" object (its type names the kind in messages).
 std::vector<std::string> bakeWarnings(const nlohmann::json& receivers, const ReceiverSet& set, const std::vector<LightDesc>& lights);
+
+/// @brief A warning when the rule's receiver epsilon at the largest receiver coordinate,
+/// @p epsilon x @p length (BlockingRule.h), is more than 1 % of the receivers' extent: blockers
+/// nearer than that to a receiver cast nothing on it, so a scene far from the origin loses its
+/// contact shadows (a mesh at 1e6 with the default 1e-5 lost every shadow, silently).
+std::optional<std::string> epsilonWarning(const ReceiverSet& set, double epsilon, double length);
 
 struct SceneDesc;
 

@@ -63,3 +63,20 @@ TEST_CASE("warnings: a planar light facing away from every receiver", "[warnings
     REQUIRE(away.size() == 1);
     CHECK_THAT(away[0], Catch::Contains("faces away from every receiver") && Catch::Contains("swap \"u\" and \"v\""));
 }
+
+TEST_CASE("warnings: a receiver epsilon that is a large part of the receivers' extent", "[warnings]") {
+    // A 5 m patch of receivers at 1e6: eps = 1e-5 x 1e6 = 10 m, twice the patch, so every
+    // contact shadow is lost (a bunny there baked with no shadow at all, and no word).
+    ReceiverSet far;
+    for (float d : {0.0f, 5.0f}) far.position.push_back({1e6f + d, 0, 0}), far.normal.push_back({0, 1, 0});
+    const auto warning = epsilonWarning(far, 1e-5, 1e6 + 5);
+    REQUIRE(warning);
+    CHECK_THAT(*warning, Catch::Contains("receiver epsilon is 10") && Catch::Contains("lower bake.epsilon"));
+    // At the origin, or with a small enough epsilon, or one receiver alone: nothing.
+    ReceiverSet near;
+    for (float d : {0.0f, 5.0f}) near.position.push_back({d, 0, 0}), near.normal.push_back({0, 1, 0});
+    CHECK_FALSE(epsilonWarning(near, 1e-5, 5));
+    CHECK_FALSE(epsilonWarning(far, 1e-9, 1e6 + 5));
+    CHECK_FALSE(epsilonWarning(far, 0, 1e6 + 5));
+    CHECK_FALSE(epsilonWarning(oneFloorReceiver(), 1e-5, 1e6));
+}
