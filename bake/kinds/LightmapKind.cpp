@@ -7,6 +7,7 @@
 #include "stream/util/PathText.h"
 #include "stream/util/Timer.h"
 #include "bake/Scene.h"
+#include "bake/WorkPlan.h"
 #include "receivers/CreaseNormals.h"
 #include "receivers/LightmapAtlas.h"
 #include "receivers/LightmapReceivers.h"
@@ -139,6 +140,29 @@ public:
         return all;
     }
 
+    /// texels_per_unit beyond what a max_resolution square holds even packed perfectly: the packer
+    /// would lower the density to fill that square, after minutes of bisection over thousands of
+    /// charts, and the plan would then refuse the square if this machine cannot hold it
+    /// (texels_per_unit 1e9 on a 6,000-triangle mesh: 7.5 minutes, then "needs 33 GiB"). That
+    /// refusal now comes first.
+    void checkDensityFits(const std::vector<IndexedMesh>& meshes) const {
+        if (!(settings_.density > 0)) return;
+        double area = 0;
+        for (const IndexedMesh& mesh : meshes)
+            for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
+                const glm::dvec3 a(mesh.position[mesh.indices[t]]), b(mesh.position[mesh.indices[t + 1]]),
+                    c(mesh.position[mesh.indices[t + 2]]);
+                area += 0.5 * glm::length(glm::cross(b - a, c - a));
+            }
+        const double square = double(settings_.maxSide) * double(settings_.maxSide);
+        if (!(area * settings_.density * settings_.density > square)) return;
+        const std::string what = fmt::format("a lightmap at texels_per_unit {} ({:.3g} texels for {:.3g} square units of "
+                                             "surface, more than a {}x{} atlas holds: the density would be lowered to fill one)",
+                                             settings_.density, area * settings_.density * settings_.density, area,
+                                             settings_.maxSide, settings_.maxSide);
+        checkMemoryFits(settings_.where, what.c_str(), uint64_t(square) * (kBytesPerTexel + 64));
+    }
+
     /// Every texel of every map, when the sizes are known before the scan: the per-mesh maps', and
     /// an atlas of a given resolution (one sized by texels_per_unit is sized by its packing).
     std::optional<uint64_t> receiverBound() const override {
@@ -260,6 +284,7 @@ private:
         options.pack.texelsPerUnit = settings_.density;
         options.pack.width = settings_.width, options.pack.height = settings_.height;
         options.pack.maxSide = settings_.maxSide, options.pack.powerOfTwo = settings_.powerOfTwo;
+        checkDensityFits(meshes);
         const Stopwatch watch;
         LightmapAtlas atlas = buildLightmapAtlas(meshes, options);
         const double seconds = watch.seconds();

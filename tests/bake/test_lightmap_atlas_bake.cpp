@@ -8,6 +8,7 @@
 #include "LightmapTestMeshes.h"
 #include "GltfValidator.h"
 
+#include "bake/WorkPlan.h"
 #include "bake/output/ImageWriters.h"
 #include "receivers/LightmapReceivers.h"
 #include "stream/IndexedMesh.h"
@@ -176,6 +177,24 @@ TEST_CASE("lightmap atlas: charts that cannot fit are an error naming the key", 
     RunResult r = runPenumbra("bake " + (dir / "scene.json") + " --quiet");
     CHECK(r.exitCode == 1);
     CHECK_THAT(r.err, Catch::Contains("receivers") && Catch::Contains("do not fit a 8x8 atlas with padding 4"));
+    CHECK(lineCount(r.err) == 1);
+    CHECK(dir.find("lightmap").empty());
+}
+
+TEST_CASE("lightmap atlas: a texels_per_unit no atlas can hold is refused before the packing", "[lightmap][atlas][cli]") {
+    // A 16384² atlas, which the density would be lowered to fill, needs about 52 GiB; on a machine
+    // with less, the refusal came after minutes of packing. (On a larger machine the bake goes on.)
+    if (machineMemoryBytes() >= (60ull << 30)) {
+        WARN("not checked: this machine could hold a 16384x16384 lightmap");
+        return;
+    }
+    ScratchDir dir("atlas-density");
+    writeText(dir / "quad.obj", kQuadObj);
+    writeText(dir / "box.obj", kBoxObj);
+    writeText(dir / "scene.json", sceneJson(R"({"type": "lightmap", "meshes": [1], "texels_per_unit": 1e9})"));
+    RunResult r = runPenumbra("bake " + (dir / "scene.json") + " --quiet");
+    CHECK(r.exitCode == 1);
+    CHECK_THAT(r.err, Catch::Contains("receivers: a lightmap at texels_per_unit 1000000000") && Catch::Contains("needs at least"));
     CHECK(lineCount(r.err) == 1);
     CHECK(dir.find("lightmap").empty());
 }
