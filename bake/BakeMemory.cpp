@@ -79,7 +79,7 @@ void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget) {
     std::string why;
     if (!demand.sourceDetail.empty() && demand.sourceBytes > worst.minimumBudget / 2) why = fmt::format(" ({})", demand.sourceDetail);
     throw InputError(fmt::format("{} {} is too small for up to {} receivers of {} light-sample groups each; at least {} is needed{}",
-                                 budget.label, formatBytes(budget.bytes + budget.overhead), demand.receivers, demand.groups,
+                                 budget.subject(), formatBytes(budget.bytes + budget.overhead), demand.receivers, demand.groups,
                                  budgetText(worst.minimumBudget + budget.overhead), why));
 }
 

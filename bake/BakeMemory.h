@@ -33,8 +33,13 @@ struct BakeBudget {
     /// messages about an address-space limit.
     uint64_t overhead = 0;
     std::string label = "--memory-budget";
+    /// The scene, named before an address-space limit's refusals (a --memory-budget one names the
+    /// option, which is enough).
+    std::string where;
 
-    MemoryPlan plan(const MemoryDemand& demand) const { return planMemory(demand, bytes, label, overhead); }
+    /// What a refusal starts with: "--memory-budget", or "SCENE: the address-space limit ... of".
+    std::string subject() const { return where.empty() || label == "--memory-budget" ? label : where + ": " + label; }
+    MemoryPlan plan(const MemoryDemand& demand) const { return planMemory(demand, bytes, subject(), overhead); }
 };
 
 /// Stack reserved per TBB worker (set through tbb::global_control) and per read-ahead thread.

@@ -318,7 +318,9 @@ struct Bake {
     Bake(const SceneDesc& s, const BakeSettings& b)
         : scene(s), settings(b), method(casterEntry(b.method)),
           threads(b.threads > 0 ? b.threads : int(tbb::info::default_concurrency())),
-          budget(fitAddressSpace(b.memoryBudget, threads, b.quiet)) {}
+          budget(fitAddressSpace(b.memoryBudget, threads, b.quiet)) {
+        budget.where = s.file;
+    }
     bool dump() const { return !settings.dumpDir.empty(); }
     /// Every receiver's masks are kept: for the dump, a shard file, checkpoints, or a library
     /// caller that asked.

@@ -95,9 +95,13 @@ GltfBuffer parseBuffer(const std::string& path, const Json& j, size_t i, const s
         const size_t comma = uri.find(',');
         if (comma == std::string::npos || uri.substr(0, comma).find(";base64") == std::string::npos)
             fail(path, "buffer {}: only base64 data URIs are supported", i);
-        if (b.byteLength > kMaxDataUriBytes || (uri.size() - comma) / 4 * 3 > kMaxDataUriBytes + 3)
+        // The larger of what byteLength claims and what the URI holds (its base64 decodes to
+        // three bytes per four characters), so that the message names the size that is too large.
+        const uint64_t held = (uri.size() - comma - 1) / 4 * 3;
+        if (b.byteLength > kMaxDataUriBytes || held > kMaxDataUriBytes + 3)
             fail(path, "buffer {}: an embedded data: URI of {} bytes is above the {} MiB limit for embedded buffers (they "
-                 "cannot be read in windows); store it as a .bin file or write a .glb", i, b.byteLength, kMaxDataUriBytes >> 20);
+                 "cannot be read in windows); store it as a .bin file or write a .glb", i, std::max<uint64_t>(b.byteLength, held),
+                 kMaxDataUriBytes >> 20);
         if (!decodeGltfBase64(std::string_view(uri).substr(comma + 1), b.bytes))
             fail(path, "buffer {}: malformed base64 in its data: URI", i);
         if (b.bytes.size() < b.byteLength)

@@ -153,9 +153,12 @@ PartialFile readPartialFile(const std::string& path) {
         partial += f.state[i] == uint8_t(ReceiverState::Partial);
     }
     size_t wordBytes = 0;
-    if (__builtin_mul_overflow(partial, size_t(f.header.groups) * sizeof(uint64_t), &wordBytes) || r.remaining() != wordBytes)
+    if (__builtin_mul_overflow(partial, size_t(f.header.groups) * sizeof(uint64_t), &wordBytes) || r.remaining() < wordBytes)
         fail(path, "truncated partial file ({} bytes of masks; {} receivers of {} groups in partial shadow need more)",
              r.remaining(), partial, f.header.groups);
+    if (r.remaining() > wordBytes)
+        fail(path, "damaged partial file: {} bytes after the masks that {} receivers of {} groups in partial shadow need",
+             r.remaining() - wordBytes, partial, f.header.groups);
     f.words.resize(partial * f.header.groups);
     r.bytes(f.words.data(), wordBytes);
     uint64_t stored;

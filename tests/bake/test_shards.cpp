@@ -7,6 +7,8 @@
 #include <catch2/catch.hpp>
 
 #include <filesystem>
+#include <fstream>
+#include <vector>
 
 using namespace penumbra::test;
 namespace fs = std::filesystem;
@@ -136,6 +138,14 @@ TEST_CASE("merge refuses other scenes, other settings, missing, duplicate and tr
             f.put('\x5a');
         }
         requireCleanError(merge(s), "checksum mismatch");
+        // Bytes appended before the checksum: too long, not "truncated" (the masks end early).
+        {
+            std::vector<char> bytes(size);
+            std::ifstream(dir / "good/shard-0-of-3.pnpart", std::ios::binary).read(bytes.data(), std::streamsize(size));
+            bytes.insert(bytes.end() - 8, 16, '\0');
+            std::ofstream(file, std::ios::binary | std::ios::trunc).write(bytes.data(), std::streamsize(bytes.size()));
+        }
+        requireCleanError(merge(s), "16 bytes after the masks");
     }
     CHECK_FALSE(fs::exists(dir / "out/scene.exr.tmp"));
     CHECK_FALSE(hasTempFiles(dir.path));

@@ -323,4 +323,11 @@ TEST_CASE("a data: URI buffer above the limit is refused, naming the buffer", "[
     std::ofstream(dir / "big.gltf") << doc.dump();
     CHECK_THAT(errorOf([&] { openGltf(dir / "big.gltf"); }),
                Catch::StartsWith(dir / "big.gltf: buffer 0: an embedded data: URI of 20000000 bytes is above the 16 MiB limit"));
+    // A URI longer than its byteLength claims: the message names what the URI holds (it named
+    // byteLength, 44 bytes "above the 16 MiB limit").
+    const Json small = {{"asset", {{"version", "2.0"}}},
+                        {"buffers", {{{"byteLength", 44}, {"uri", "data:application/octet-stream;base64," + std::string(24'000'000, 'A')}}}}};
+    std::ofstream(dir / "long.gltf") << small.dump();
+    CHECK_THAT(errorOf([&] { openGltf(dir / "long.gltf"); }),
+               Catch::StartsWith(dir / "long.gltf: buffer 0: an embedded data: URI of 18000000 bytes is above the 16 MiB limit"));
 }
