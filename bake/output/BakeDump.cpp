@@ -11,12 +11,34 @@
 
 namespace penumbra {
 
+namespace {
+
+void writeDumpFiles(const std::filesystem::path& base, const ReceiverSet& receivers, std::span<const uint32_t> sampleSets,
+                    const LightSamples& samples, const VisibilityMasks& masks, const ReceiverEpsilon& epsilon);
+
+}  // namespace
+
 void writeBakeDump(const std::string& dir, const ReceiverSet& receivers, std::span<const uint32_t> sampleSets,
                    const LightSamples& samples, const VisibilityMasks& masks, const ReceiverEpsilon& epsilon) {
     std::filesystem::path base(dir);
     std::error_code ec;
+    const bool existed = std::filesystem::exists(base, ec);
     std::filesystem::create_directories(base, ec);
     if (ec) fail(dir, "cannot create dump directory: {}", ec.message());
+    try {
+        writeDumpFiles(base, receivers, sampleSets, samples, masks, epsilon);
+    } catch (...) {
+        // No output appears half-written: a directory made for a dump that failed (a full disk)
+        // goes too (remove() takes it only if it is empty, as the files are linked at the end).
+        if (!existed) std::filesystem::remove(base, ec);
+        throw;
+    }
+}
+
+namespace {
+
+void writeDumpFiles(const std::filesystem::path& base, const ReceiverSet& receivers, std::span<const uint32_t> sampleSets,
+                    const LightSamples& samples, const VisibilityMasks& masks, const ReceiverEpsilon& epsilon) {
     const uint64_t n = receivers.size(), k = uint64_t(samples.sampleCount);
     std::vector<float> rec(n * 7);
     for (size_t i = 0; i < n; ++i) {
@@ -46,8 +68,6 @@ void writeBakeDump(const std::string& dir, const ReceiverSet& receivers, std::sp
     writeFileAtomically((base / "rule.json").string(),
                         std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
 }
-
-namespace {
 
 ReceiverEpsilon readRule(const std::string& path) {
     const nlohmann::json rule = readJsonFile(path);

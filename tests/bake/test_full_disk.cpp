@@ -162,3 +162,22 @@ TEST_CASE("full disk: every output hitting ENOSPC in turn leaves the earlier out
         CHECK(failedOn.size() >= 2);  // more than one output had its turn
     }
 }
+
+TEST_CASE("full disk: a dump directory the bake made is gone when the dump does not fit", "[cli][full-disk]") {
+    // Outputs appear whole or not at all: the files were never linked, but the directory made
+    // for them stayed, empty. One that existed before stays.
+    SmallDisk disk(1 << 20);
+    REQUIRE_DISK(disk);
+    const std::string scene = disk.scratch() / "scene.json";
+    std::ofstream(scene) << grassScene(200, disk.scratch() / "x.exr").dump();
+    disk.fillLeaving(4096);
+    for (bool existed : {false, true}) {
+        if (existed) fs::create_directories(disk / "dump");
+        RunResult r = runPenumbra("bake " + scene + " -q --allow-outside-uris --dump " + (disk / "dump"));
+        INFO(r.err);
+        requireCleanError(r, disk.path());
+        CHECK(fs::exists(disk / "dump") == existed);
+        if (existed) CHECK(fs::is_empty(disk / "dump"));
+        CHECK_FALSE(hasTempFiles(disk.path()));
+    }
+}
