@@ -2,6 +2,7 @@
 
 #include "stream/GlbBuilder.h"
 #include "stream/util/Error.h"
+#include "stream/util/PathText.h"
 
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
@@ -118,6 +119,9 @@ CLI::App* addMakeExampleCommand(CLI::App& app, MakeExampleOptions& options) {
 
 void runMakeExample(const MakeExampleOptions& options) {
     if (options.name != "gltf-tree") throw InputError(fmt::format("make-example: unknown example \"{}\" (known: gltf-tree)", options.name));
+    // The example is a binary glTF: another extension (x.obj) got GLB bytes under a name that says otherwise.
+    if (lowercaseExtension(options.output) != ".glb")
+        throw InputError(fmt::format("{}: make-example gltf-tree writes a binary glTF; give the output a .glb extension", options.output));
     writeGltfTree(options.output);
 }
 

@@ -109,6 +109,11 @@ TEST_CASE("bad input gives one clean line and a non-zero exit", "[cli]") {
     requireCleanError(runPenumbra("bake " + (dir / "ok.json") + " --method magic"), "--method");
     write(dir / "afile", "x");
     requireCleanError(runPenumbra("bake " + (dir / "ok.json") + " -q -o " + (dir / "afile") + "/sub/out.exr"), "afile");
+    // make-example writes a .glb: GLB bytes under another extension are refused, not written.
+    requireCleanError(runPenumbra("make-example gltf-tree -o " + (dir / "tree.obj")), "tree.obj: make-example gltf-tree writes a binary glTF");
+    CHECK_FALSE(std::filesystem::exists(dir / "tree.obj"));
+    REQUIRE(runPenumbra("make-example gltf-tree -o " + (dir / "tree.glb")).exitCode == 0);
+    CHECK(runPenumbra("info -q " + (dir / "tree.glb")).exitCode == 0);
     CHECK_FALSE(hasTempFiles(dir.path));
 }
 
