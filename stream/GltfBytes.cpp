@@ -42,7 +42,7 @@ int GltfBytes::descriptor(int buffer) {
     if (fd < 0) {
         const std::string& file = doc_.buffers[size_t(buffer)].file;
         fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
-        if (fd < 0) fail(file, "cannot open: {}", std::strerror(errno));
+        if (fd < 0) fail(file, "cannot open: {} (buffer {} of {})", std::strerror(errno), buffer, doc_.path);
     }
     return fd;
 }

@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <limits>
 
 
@@ -115,8 +116,16 @@ GltfBuffer parseBuffer(const std::string& path, const Json& j, size_t i, const s
     // The URI must stay in the model's directory (SafePath.h), and is recorded as an input so
     // that no output of the bake replaces it.
     b.file = containedPath(base, gltfPercentDecoded(uri), fmt::format("{}: buffers[{}].uri", path, i), "the model's directory");
-    checkInputFile(b.file);
-    RegularFile file(b.file);  // a regular file, or an error naming it
+    // A missing or unreadable buffer file is named with the model that wants it ("nope.bin:
+    // cannot open" said nothing of which glTF, or which scene entry, that was).
+    std::optional<RegularFile> opened;
+    try {
+        checkInputFile(b.file);
+        opened.emplace(b.file);  // a regular file, or an error naming it
+    } catch (const InputError& e) {
+        throw InputError(fmt::format("{} (buffer {} of {})", e.what(), i, path));
+    }
+    const RegularFile& file = *opened;
     if (file.size() < b.byteLength)
         fail(path, "buffer {} ({}) has {} bytes, but its byteLength is {}", i, uri, file.size(), b.byteLength);
     b.source = GltfBuffer::Source::File;
