@@ -97,6 +97,12 @@ std::vector<std::vector<double>> readCsvNumbers(const std::string& path, size_t 
         // Only the first content line may be a header such as "x,y,z", and only if it has a
         // word in it: "1,,3" or "nan,0,0" are broken data rows, not column names.
         if (hasText && !sawContent) {
+            // A header names every column. One of another width is more likely data in another
+            // separator ("0;0;0;0;1;0" was taken as a header, and the file as empty).
+            if (expectedColumns != 0 && fields.size() != expectedColumns)
+                fail(where, "expected {} comma-separated columns but found {}{}", expectedColumns, fields.size(),
+                     line.find_first_of(";\t") != std::string_view::npos ? " (fields are separated by commas, not ';' or tabs)"
+                                                                           : "");
             sawContent = true;
             continue;
         }

@@ -47,6 +47,15 @@ TEST_CASE("readCsvNumbers with expectedColumns 0 takes the first row's width", "
     CHECK(errorOf([&] { readCsvNumbers(g.path, 0); }) == g.path + ":2: expected 2 columns but found 3");
 }
 
+TEST_CASE("readCsvNumbers refuses a first line of another width, which is data in another separator", "[io]") {
+    // Taken as a header, it left a file of data rows in ';' silently empty.
+    CsvFile semicolons("0;0;0\n1;2;3\n");
+    CHECK(errorOf([&] { readCsvNumbers(semicolons.path, 3); }) ==
+          semicolons.path + ":1: expected 3 comma-separated columns but found 1 (fields are separated by commas, not ';' or tabs)");
+    CsvFile title("my points\n1,2,3\n");
+    CHECK(errorOf([&] { readCsvNumbers(title.path, 3); }) == title.path + ":1: expected 3 comma-separated columns but found 1");
+}
+
 TEST_CASE("readCsvNumbers of an empty or header-only file gives no rows", "[io]") {
     CsvFile empty("");
     CHECK(readCsvNumbers(empty.path, 3).empty());
