@@ -361,6 +361,18 @@ void findRoots(const Json& root, GltfDocument& doc) {
         if (!isChild[n]) doc.roots.push_back(int(n));
 }
 
+/// glTF 2.0 requires "asset" with a "version". Without the check a file lacking it baked as
+/// blockers, but a vertex bake, whose output is written through tinygltf, failed only after its
+/// cast; and a glTF 1.0 file (another format) read as if it were 2.0.
+void checkAsset(const std::string& path, const Json& root) {
+    const auto asset = root.find("asset");
+    if (asset == root.end() || !asset->is_object()) fail(path, "has no \"asset\" object, which glTF 2.0 requires");
+    const auto version = asset->find("version");
+    if (version == asset->end() || !version->is_string()) fail(path, "asset.version must be a string such as \"2.0\"");
+    const std::string v = version->get<std::string>();
+    if (v.rfind("2.", 0) != 0) fail(path, "is glTF version \"{}\"; penumbra reads glTF 2.x", v);
+}
+
 void checkRequiredExtensions(const std::string& path, const Json& root) {
     static const char* known[] = {"KHR_mesh_quantization", "EXT_mesh_gpu_instancing", "EXT_meshopt_compression",
                                   "KHR_draco_mesh_compression", "KHR_materials_unlit", "KHR_texture_transform",
@@ -422,6 +434,7 @@ GltfDocument loadGltfDocument(const std::string& path) {
         }
     }
     if (!root.is_object()) fail(path, "the glTF JSON is not an object");
+    checkAsset(path, root);
     checkRequiredExtensions(path, root);
     const Json& buffers = gltfArrayOf(path, root, "buffers");
     for (size_t i = 0; i < buffers.size(); ++i) doc.buffers.push_back(parseBuffer(path, buffers[i], i, bin));

@@ -524,6 +524,21 @@ TEST_CASE("glTF: non-finite positions are input errors", "[stream][gltf]") {
     CHECK_THROWS_WITH(readAll(*source), path + ": mesh 0 primitive 0: POSITION accessor 0 element 4 is not finite");
 }
 
+TEST_CASE("glTF: the asset object and a 2.x version are required", "[stream][gltf]") {
+    // Without them the blocker stream read the file while a vertex bake failed in tinygltf after
+    // its cast, and a glTF 1.0 file read as 2.0.
+    ScratchDir dir("gltf");
+    const std::string rest = R"("scenes":[{"nodes":[]}],"nodes":[])";
+    writeText(dir.file("none.gltf"), "{" + rest + "}");
+    CHECK(gltfError(dir.file("none.gltf")) == dir.file("none.gltf") + ": has no \"asset\" object, which glTF 2.0 requires");
+    writeText(dir.file("noversion.gltf"), R"({"asset":{},)" + rest + "}");
+    CHECK(gltfError(dir.file("noversion.gltf")) == dir.file("noversion.gltf") + ": asset.version must be a string such as \"2.0\"");
+    writeText(dir.file("v1.gltf"), R"({"asset":{"version":"1.0"},)" + rest + "}");
+    CHECK(gltfError(dir.file("v1.gltf")) == dir.file("v1.gltf") + ": is glTF version \"1.0\"; penumbra reads glTF 2.x");
+    writeText(dir.file("v21.gltf"), R"({"asset":{"version":"2.1"},)" + rest + "}");
+    CHECK(gltfError(dir.file("v21.gltf")) == "no error");
+}
+
 TEST_CASE("glTF: load failures carry tinygltf's first error line", "[stream][gltf]") {
     ScratchDir dir("gltf");
     CHECK(gltfError(dir.file("missing.gltf")).rfind(dir.file("missing.gltf") + ": cannot open", 0) == 0);
