@@ -9,17 +9,6 @@
 namespace penumbra {
 namespace {
 
-double surfaceArea(const IndexedMesh& mesh) {
-    double area = 0;
-    for (size_t t = 0; t < mesh.triangleCount(); ++t) {
-        const glm::dvec3 a(mesh.position[mesh.indices[3 * t]]), b(mesh.position[mesh.indices[3 * t + 1]]),
-            c(mesh.position[mesh.indices[3 * t + 2]]);
-        const double x = 0.5 * glm::length(glm::cross(b - a, c - a));
-        if (std::isfinite(x)) area += x;
-    }
-    return area;
-}
-
 /// The density the packing will end near: the given one, or a fixed-size atlas about two-thirds full.
 double expectedDensity(std::span<const IndexedMesh> meshes, const AtlasPackOptions& pack) {
     if (pack.texelsPerUnit > 0) return pack.texelsPerUnit;
@@ -80,6 +69,17 @@ void addStretch(const IndexedMesh& mesh, glm::dvec2 size, double& sum, double& w
 }
 
 }  // namespace
+
+double surfaceArea(const IndexedMesh& mesh) {
+    double area = 0;
+    for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+        const glm::dvec3 a(mesh.position[mesh.indices[3 * t]]), b(mesh.position[mesh.indices[3 * t + 1]]),
+            c(mesh.position[mesh.indices[3 * t + 2]]);
+        const double x = 0.5 * glm::length(glm::cross(b - a, c - a));
+        if (std::isfinite(x)) area += x;
+    }
+    return area;
+}
 
 LightmapAtlas buildLightmapAtlas(std::span<const IndexedMesh> meshes, const AtlasOptions& options) {
     const double density = expectedDensity(meshes, options.pack);

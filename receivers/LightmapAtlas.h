@@ -50,4 +50,7 @@ struct LightmapAtlas {
 /// @brief Cuts, flattens and packs @p meshes into one atlas.
 LightmapAtlas buildLightmapAtlas(std::span<const IndexedMesh> meshes, const AtlasOptions& options);
 
+/// @brief The area of @p mesh's triangles (non-finite ones skipped).
+double surfaceArea(const IndexedMesh& mesh);
+
 }  // namespace penumbra

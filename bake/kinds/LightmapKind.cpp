@@ -148,12 +148,7 @@ public:
     void checkDensityFits(const std::vector<IndexedMesh>& meshes) const {
         if (!(settings_.density > 0)) return;
         double area = 0;
-        for (const IndexedMesh& mesh : meshes)
-            for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
-                const glm::dvec3 a(mesh.position[mesh.indices[t]]), b(mesh.position[mesh.indices[t + 1]]),
-                    c(mesh.position[mesh.indices[t + 2]]);
-                area += 0.5 * glm::length(glm::cross(b - a, c - a));
-            }
+        for (const IndexedMesh& mesh : meshes) area += surfaceArea(mesh);
         const double square = double(settings_.maxSide) * double(settings_.maxSide);
         if (!(area * settings_.density * settings_.density > square)) return;
         const std::string what = fmt::format("a lightmap at texels_per_unit {} ({:.3g} texels for {:.3g} square units of "
