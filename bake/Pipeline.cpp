@@ -64,8 +64,9 @@ struct Prepared {
     std::vector<std::string> warnings;    ///< BakeWarnings.h, printed and in the stats
 };
 
-/// Rejects NaN/inf vertices as they stream by, naming the triangle's position in the stream, and
-/// grows the scene's bounding box.
+/// Rejects NaN/inf vertices as they stream by, naming the triangle's position in the stream, grows
+/// the scene's bounding box and counts the casting translucent triangles (the translucent pass's
+/// memory), all in one visit of each triangle.
 class FiniteCheck {
 public:
     explicit FiniteCheck(const SceneDesc& scene) : scene_(scene) {}
@@ -74,6 +75,7 @@ public:
             if (!isFinite(chunk[i]))
                 fail(scene_.file, "geometry triangle {} has a non-finite (NaN or infinite) vertex", seen_ + i);
             for (const glm::vec3& v : chunk[i].v) lo_ = glm::min(lo_, v), hi_ = glm::max(hi_, v);
+            translucent_ += !(chunk[i].flags & kTriangleNoCast) && isTranslucentId(alphaIdOf(chunk[i].flags));
         }
         seen_ += chunk.size();
     }
@@ -82,10 +84,12 @@ public:
         if (seen_) b.add(glm::dvec3(lo_)), b.add(glm::dvec3(hi_));
         return b;
     }
+    uint64_t translucent() const { return translucent_; }
 
 private:
     const SceneDesc& scene_;
     uint64_t seen_ = 0;
+    uint64_t translucent_ = 0;
     glm::vec3 lo_{INFINITY}, hi_{-INFINITY};
 };
 
@@ -188,7 +192,6 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
             std::span<const Triangle> part(chunk.data(), n);
             check(part);
             histogram.add(part);
-            for (const Triangle& t : part) p.translucentScanned += !(t.flags & kTriangleNoCast) && isTranslucentId(alphaIdOf(t.flags));
             if (scanPass) kind.consume(StreamPass::Scan, StreamChunk{part, source->part()});
             if (scene.options.closedCasters) solids.scan(part, source->part());
             progress.update(n);
@@ -200,6 +203,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
         progress.done();
         p.openedSolids = solids.finish();
         p.options.epsilonLength = epsilonLength(p.receivers, check.box());
+        p.translucentScanned = check.translucent();
     }
     reportOpenedSolids(p.openedSolids, p.lights, settings.quiet);
     if (const double epsilonMax = p.options.epsilon * p.options.epsilonLength;
@@ -573,20 +577,15 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
             explicit ExrThreads(int n) { setExrCompressionThreads(n); }
             ~ExrThreads() { setExrCompressionThreads(0); }
         } exrThreads(b.threads > 1 && settings.memoryBudget == 0 && addressSpaceLimit() == 0 ? b.threads : 0);
-        // One thread (what a tight address-space limit leaves) sets no stack size: undoing that
-        // control restarts TBB's thread pool, which throws from a destructor, and so aborts, when
-        // the bake ends by running out of address space.
-        if (b.threads == 1) return bakeScene(b, total);
-        const ScopedTbbControl stacks(tbb::global_control::thread_stack_size, size_t(kWorkerStackBytes));
+        // The workers' stacks; one thread starts no worker, so it sets none.
+        const ScopedTbbControl stacks(tbb::global_control::thread_stack_size, b.threads > 1 ? size_t(kWorkerStackBytes) : 0);
         return bakeScene(b, total);
     } catch (const std::bad_alloc&) {
         failOutOfMemory(b);
     } catch (const std::exception& e) {
         // TBB could not start its workers (an address-space or process limit): nothing is
         // committed yet, so bake again on one thread, which starts none.
-        if (b.threads == 1 || !isThreadStartFailure(e)) throw;
-        noteThreadStartFailure();
-        printWarning("could not start {} threads ({}); baking on one", b.threads, e.what());
+        if (!retryOnOneThread(e, b.threads, "baking")) throw;
         BakeSettings one = settings;
         one.threads = 1;
         return runBake(scene, one);

@@ -12,6 +12,7 @@
 /// command-line process ends right after; a library caller under such a limit keeps the
 /// smallest thread count it asked for (TBB applies the smallest active cap).
 
+#include "stream/util/Error.h"
 #include "stream/util/Memory.h"
 
 #include <tbb/global_control.h>
@@ -20,6 +21,7 @@
 #include <cstddef>
 #include <exception>
 #include <memory>
+#include <string>
 #include <string_view>
 #include <system_error>
 
@@ -58,6 +60,20 @@ inline bool isThreadStartFailure(const std::exception& e) {
     if (const auto* se = dynamic_cast<const std::system_error*>(&e))
         return se->code() == std::errc::resource_unavailable_try_again;
     return std::string_view(e.what()).starts_with("pthread_create has failed");
+}
+
+/// @brief Whether a command that failed with @p e should run again on one thread, which starts no
+/// worker: true for a thread-start failure of a multi-threaded run, which is then noted and warned
+/// about. The caller's outputs appear whole or not at all, and their bytes do not depend on the
+/// thread count, so the retry loses nothing.
+/// @param threads the count that could not start (0: all cores)
+/// @param doing what runs again, for the warning ("baking", "generating")
+inline bool retryOnOneThread(const std::exception& e, int threads, std::string_view doing) {
+    if (threads == 1 || !isThreadStartFailure(e)) return false;
+    noteThreadStartFailure();
+    printWarning("could not start {} threads ({}); {} on one", threads == 0 ? std::string("all") : std::to_string(threads),
+                 e.what(), doing);
+    return true;
 }
 
 }  // namespace penumbra

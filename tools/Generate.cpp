@@ -81,10 +81,7 @@ uint64_t runGenerate(const GenerateOptions& options) {
         // TBB could not start its workers (an address-space or process limit): the output is
         // written as a whole or not at all, and its bytes do not depend on the thread count, so
         // generate again on one thread, which starts none (as a bake does).
-        if (options.threads == 1 || !isThreadStartFailure(e)) throw;
-        noteThreadStartFailure();
-        printWarning("could not start {} threads ({}); generating on one", options.threads == 0 ? "all" : std::to_string(options.threads),
-                     e.what());
+        if (!retryOnOneThread(e, options.threads, "generating")) throw;
         GenerateOptions one = options;
         one.threads = 1;
         return generateOnce(one);
