@@ -238,6 +238,16 @@ std::vector<std::pair<std::string, int>> indexMap(const std::string& path, const
     return out;
 }
 
+/// The VEC size glTF 2.0 requires of a vertex attribute that penumbra reads (POSITION, NORMAL,
+/// TEXCOORD_n), or 0 for others. Checked as the file opens, so that every command refuses the same
+/// file: a MASK material's TEXCOORD_0 of VEC3 went unread by a bake when the texture was uniform,
+/// while convert to glTF refused it.
+int requiredComponents(const std::string& attribute) {
+    if (attribute == "POSITION" || attribute == "NORMAL") return 3;
+    if (attribute.starts_with("TEXCOORD_")) return 2;
+    return 0;
+}
+
 GltfMeshDesc parseMesh(const GltfDocument& doc, const Json& j, size_t i) {
     const std::string& path = doc.path;
     Members m{path, j, fmt::format("mesh {}", i)};
@@ -255,6 +265,8 @@ GltfMeshDesc parseMesh(const GltfDocument& doc, const Json& j, size_t i) {
         for (const auto& [name, accessor] : prim.attributes)
             if (size_t(accessor) >= doc.accessors.size())
                 fail(path, "{}: attribute {} refers to accessor {} (file has {})", where, name, accessor, doc.accessors.size());
+            else if (const int want = requiredComponents(name); want && doc.accessors[size_t(accessor)].components != want)
+                fail(path, "{}: {} accessor {} is not VEC{}", where, name, accessor, want);
         prim.indices = pm.index("indices");
         if (prim.indices >= int(doc.accessors.size()))
             fail(path, "{}: indices refer to accessor {} (file has {})", where, prim.indices, doc.accessors.size());

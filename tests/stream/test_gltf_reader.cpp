@@ -466,6 +466,22 @@ TEST_CASE("glTF: validation names the file and the offending object", "[stream][
         expectError(b, "mesh 0 primitive 0: POSITION accessor 0 is not VEC3");
     }
     {
+        // Checked as the file opens, for every command: a bake of a uniform MASK texture never
+        // read the coordinates, while convert to glTF refused the same file.
+        ModelBuilder b;
+        tinygltf::Primitive p = primitive(b.positions(kFive));
+        p.attributes["TEXCOORD_0"] = 0;  // the VEC3 positions
+        single(b, dir, p);
+        expectError(b, "mesh 0 primitive 0: TEXCOORD_0 accessor 0 is not VEC2");
+    }
+    {
+        ModelBuilder b;
+        tinygltf::Primitive p = primitive(b.positions(kFive));
+        p.attributes["NORMAL"] = b.accessor(b.view(std::vector<float>(10, 0.5f)), TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC2, 5);
+        single(b, dir, p);
+        expectError(b, "mesh 0 primitive 0: NORMAL accessor 1 is not VEC3");
+    }
+    {
         ModelBuilder b;
         int pos = b.positions(kFive);
         int idx = b.accessor(b.view(std::vector<float>{0, 1, 2}), TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, 3);
