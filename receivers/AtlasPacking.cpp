@@ -1,6 +1,8 @@
 #include "receivers/AtlasPacking.h"
 
 #include <tbb/parallel_for.h>
+#include <tbb/global_control.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <array>
@@ -28,9 +30,13 @@ struct RowRuns {
 struct Mask {
     int width = 0, height = 0;
     RowRuns raw, dilated;
-    std::vector<int> widest;  ///< per raw row: its longest run
-    int widestRow = 0;        ///< the row with the longest run (the first of them)
-    int narrowest = 0;        ///< the shortest longest run of a non-empty row
+    /// Per dilated row: its longest run, which a free run of that atlas row must hold (a
+    /// necessary condition, tested before the runs themselves).
+    std::vector<int> widest;
+    int widestRow = 0;         ///< the dilated row with the longest run (the first of them)
+    int narrowest = 0;         ///< the shortest longest run of a dilated row
+    bool contiguous = true;    ///< no empty dilated row between non-empty ones
+    int firstRow = 0;          ///< the first non-empty dilated row
 };
 
 /// Points of polygon @p in with y in [y0, y1] (Sutherland-Hodgman on the two lines).
@@ -102,6 +108,29 @@ private:
     std::vector<uint64_t> bits_;
 };
 
+/// The per-row widths of @p mask's reservation that findInRows() tests first.
+void measureRows(Mask& mask) {
+    const RowRuns& d = mask.dilated;
+    mask.widest.assign(size_t(d.rows()), 0);
+    int first = -1, last = -1;
+    for (int k = 0; k < d.rows(); ++k) {
+        for (uint32_t r = d.start[size_t(k)]; r < d.start[size_t(k) + 1]; ++r)
+            mask.widest[size_t(k)] = std::max(mask.widest[size_t(k)], d.runs[r].second - d.runs[r].first);
+        if (mask.widest[size_t(k)] == 0) continue;
+        if (first < 0) first = k;
+        last = k;
+    }
+    mask.narrowest = INT32_MAX;
+    for (int k = std::max(first, 0); k <= last; ++k) {
+        const int w = mask.widest[size_t(k)];
+        if (w > mask.widest[size_t(mask.widestRow)]) mask.widestRow = k;
+        if (w == 0) mask.contiguous = false;
+        else mask.narrowest = std::min(mask.narrowest, w);
+    }
+    if (mask.narrowest == INT32_MAX) mask.narrowest = 0;
+    mask.firstRow = std::max(first, 0);
+}
+
 Mask makeMask(const Chart& chart, double s, int turns, int padding) {
     Mask mask;
     const glm::dvec2 extent = (turns % 2 ? glm::dvec2(chart.size.y, chart.size.x) : chart.size) * s;
@@ -132,30 +161,24 @@ Mask makeMask(const Chart& chart, double s, int turns, int padding) {
     for (int j = 0; j < mask.height; ++j) {
         const size_t first = mask.raw.runs.size();
         raw.runs(j + padding, padding, mask.raw);
-        mask.widest.push_back(0);
-        for (size_t r = first; r < mask.raw.runs.size(); ++r) {
+        for (size_t r = first; r < mask.raw.runs.size(); ++r)
             wide.set(j + padding, mask.raw.runs[r].first, mask.raw.runs[r].second + 2 * padding);
-            mask.widest.back() = std::max(mask.widest.back(), mask.raw.runs[r].second - mask.raw.runs[r].first);
-        }
     }
-    mask.narrowest = INT32_MAX;
-    for (int j = 0; j < mask.height; ++j) {
-        if (mask.widest[size_t(j)] > mask.widest[size_t(mask.widestRow)]) mask.widestRow = j;
-        if (mask.widest[size_t(j)] > 0) mask.narrowest = std::min(mask.narrowest, mask.widest[size_t(j)]);
-    }
-    if (mask.narrowest == INT32_MAX) mask.narrowest = 0;
     mask.dilated.start.push_back(0);
     for (int d = 0; d < rows; ++d) {
         for (int j = std::max(padding, d - padding); j <= std::min(rows - 1 - padding, d + padding); ++j) dilated.orRow(d, wide, j);
         dilated.runs(d, padding, mask.dilated);
     }
+    measureRows(mask);
     return mask;
 }
 
 /// Occupied texels of the atlas, one bit each; rows are added as the packing grows upwards.
 class Occupancy {
 public:
-    Occupancy(int width, int height) : width_(width), height_(height), words_((width + 63) / 64) {}
+    /// @param overhang how far a reservation may hang over the left and right borders (the padding)
+    Occupancy(int width, int height, int overhang)
+        : width_(width), height_(height), words_((width + 63) / 64), overhang_(overhang) {}
     int width() const { return width_; }
     int height() const { return height_; }
     /// First set bit in [a, b) of row y, or -1.
@@ -183,12 +206,13 @@ public:
         }
         return width_;
     }
-    /// The longest run of clear bits in row y.
-    int longestFree(int y) const { return size_t(y) < longest_.size() ? longest_[size_t(y)] : width_; }
+    /// The longest reservation run that row y can hold: its longest run of clear bits, counting
+    /// the overhang beyond a border that the run touches (a reservation's run may hang over it).
+    int longestFree(int y) const { return size_t(y) < longest_.size() ? longest_[size_t(y)] : width_ + 2 * overhang_; }
     void set(int y, int a, int b) {
         if (rows_.size() <= size_t(y)) {
             rows_.resize(size_t(y) + 1, std::vector<uint64_t>(size_t(words_), 0));
-            longest_.resize(size_t(y) + 1, width_);
+            longest_.resize(size_t(y) + 1, width_ + 2 * overhang_);
         }
         uint64_t* row = rows_[size_t(y)].data();
         for (int x = a; x < b;) {
@@ -200,38 +224,45 @@ public:
         for (int x = firstClear(y, 0); x < width_;) {
             const int end = firstSet(y, x, width_);
             const int stop = end < 0 ? width_ : end;
-            longest = std::max(longest, stop - x);
+            longest = std::max(longest, stop - x + (x == 0 ? overhang_ : 0) + (stop == width_ ? overhang_ : 0));
             x = stop < width_ ? firstClear(y, stop) : width_;
         }
         longest_[size_t(y)] = longest;
     }
 
 private:
-    int width_, height_, words_;
+    int width_, height_, words_, overhang_;
     std::vector<std::vector<uint64_t>> rows_;
     std::vector<int> longest_;  ///< per row: longestFree()
 };
 
-/// The lowest (at most @p yLimit), then leftmost position where @p mask's reservation is free
-/// and the mask inside the atlas; false when there is none.
-bool findPosition(const Occupancy& occupied, const Mask& mask, int padding, int yLimit, int& px, int& py) {
-    const int W = occupied.width(), H = occupied.height();
+/// The lowest, then leftmost position with its lower row in [@p yBegin, @p yEnd) where @p mask's
+/// reservation is free and the mask inside the atlas; false when there is none.
+bool findInRows(const Occupancy& occupied, const Mask& mask, int padding, int yBegin, int yEnd, int& px, int& py) {
+    const int W = occupied.width();
+    const int H = occupied.height();
     const RowRuns& d = mask.dilated;
-    for (int y = 0; y + mask.height <= H && y <= yLimit; ++y) {
-        // An atlas row too full for even the narrowest row of the mask rules out every position
-        // that covers it: continue above the highest such row (in the filled part of the atlas
-        // this steps a mask height at a time).
+    for (int y = yBegin; y < yEnd; ++y) {
+        // Both tests below read the reservation's rows (dilated by the padding, so wider and more
+        // of them than the mask's own), against atlas rows inside the atlas: rows outside it are
+        // free. An atlas row too full for even the narrowest row rules out every position that
+        // covers it: continue above the highest such row (in the filled part of the atlas this
+        // steps a reservation's height at a time).
+        auto atlasRow = [&](int k) { return y + k - padding; };
         int above = -1;
-        for (int j = mask.height - 1; j >= 0 && above < 0; --j)
-            if (occupied.longestFree(y + j) < mask.narrowest) above = y + j;
+        for (int k = d.rows() - 1; k >= mask.firstRow && above < 0; --k)
+            if (atlasRow(k) >= 0 && atlasRow(k) < H && occupied.longestFree(atlasRow(k)) < mask.narrowest) above = k;
         if (above >= 0) {
-            y = above;  // the loop's ++y moves past it
+            if (mask.contiguous) y += above - mask.firstRow;  // the loop's ++y moves past it
             continue;
         }
-        // Quick rejection: a row of the mask wider than the longest free run of its atlas row
-        // (the widest row first: in a filling atlas it is the one that fails most often).
-        bool room = occupied.longestFree(y + mask.widestRow) >= mask.widest[size_t(mask.widestRow)];
-        for (int j = 0; j < mask.height && room; ++j) room = occupied.longestFree(y + j) >= mask.widest[size_t(j)];
+        // Quick rejection: a row wider than the longest free run of its atlas row (the widest row
+        // first: in a filling atlas it is the one that fails most often).
+        auto fits = [&](int k) {
+            return atlasRow(k) < 0 || atlasRow(k) >= H || occupied.longestFree(atlasRow(k)) >= mask.widest[size_t(k)];
+        };
+        bool room = fits(mask.widestRow);
+        for (int k = 0; k < d.rows() && room; ++k) room = fits(k);
         if (!room) continue;
         int hint = 0;  // the row that blocked the last x: likely to block the next one too
         for (int x = 0; x + mask.width <= W;) {
@@ -254,6 +285,40 @@ bool findPosition(const Occupancy& occupied, const Mask& mask, int padding, int 
             }
             x = next;
         }
+    }
+    return false;
+}
+
+/// Rows per task of the position search, and tasks per wave.
+constexpr int kSearchRows = 16, kSearchBlocks = 8;
+
+/// The lowest (at most @p yLimit), then leftmost position where @p mask's reservation is free
+/// and the mask inside the atlas; false when there is none.
+///
+/// Blocks of rows are searched in parallel, a wave of them at a time from the bottom, and the
+/// lowest block with a position wins: the position the sequential search finds, for any thread
+/// count. On beast.obj (1,881 charts in 1024 x 1024) the search was 90 % of the bake.
+bool findPosition(const Occupancy& occupied, const Mask& mask, int padding, int yLimit, int& px, int& py) {
+    const int last = std::min(occupied.height() - mask.height, yLimit);  // the highest lower row
+    struct Found {
+        bool found = false;
+        int x = 0, y = 0;
+    };
+    std::array<Found, kSearchBlocks> wave;
+    // Two blocks per thread (blocks above the first hit are wasted work), one on one thread.
+    const int threads = std::min(tbb::this_task_arena::max_concurrency(),
+                                 int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
+    const int perWave = threads > 1 ? std::min(2 * threads, kSearchBlocks) : 1;
+    for (int base = 0; base <= last; base += kSearchRows * perWave) {
+        const int blocks = std::min(perWave, (last - base) / kSearchRows + 1);
+        auto search = [&](int b) {
+            const int begin = base + b * kSearchRows, end = std::min(begin + kSearchRows, last + 1);
+            wave[size_t(b)].found = findInRows(occupied, mask, padding, begin, end, wave[size_t(b)].x, wave[size_t(b)].y);
+        };
+        if (blocks == 1) search(0);
+        else tbb::parallel_for(0, blocks, search);
+        for (int b = 0; b < blocks; ++b)
+            if (wave[size_t(b)].found) return px = wave[size_t(b)].x, py = wave[size_t(b)].y, true;
     }
     return false;
 }
@@ -302,7 +367,7 @@ Masks makeMasks(std::span<const Chart> charts, double s, int padding) {
 /// height is returned in @p usedHeight, the used width in @p usedWidth); false when one does not fit.
 bool placeAll(const Masks& masks, int padding, int width, int height, std::vector<ChartPlacement>& placement,
               int& usedWidth, int& usedHeight) {
-    Occupancy occupied(width, height);
+    Occupancy occupied(width, height, padding);
     placement.assign(masks.of.size(), ChartPlacement{});
     usedWidth = usedHeight = 0;
     for (uint32_t c : masks.order) {
