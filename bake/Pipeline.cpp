@@ -198,9 +198,9 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
             testPoint("scan");
             throwIfStopRequested("scan");
         }
+        progress.done();  // the kind's own work after the scan (an atlas) is a phase of its own
         p.receivers = kind.receivers();
         checkReceiversFinite(scene, p.receivers);
-        progress.done();
         p.openedSolids = solids.finish();
         p.options.epsilonLength = epsilonLength(p.receivers, check.box());
         p.translucentScanned = check.translucent();
@@ -344,6 +344,7 @@ struct Bake {
 void scanScene(Bake& b) {
     const SceneDesc& scene = b.scene;
     b.kind = makeReceiverKind(scene.receivers, scene);
+    b.kind->setQuiet(b.settings.quiet);
     if (b.method.traits.needsPolygons && !b.kind->receiverPolygons())
         fail("--method " + b.method.name, "applies to lightmap receivers only (this scene's receivers are \"{}\")",
              scene.receivers.value("type", std::string("?")));

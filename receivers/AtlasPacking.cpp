@@ -1,5 +1,7 @@
 #include "receivers/AtlasPacking.h"
 
+#include "stream/util/Progress.h"
+
 #include <tbb/parallel_for.h>
 #include <tbb/global_control.h>
 #include <tbb/task_arena.h>
@@ -366,7 +368,7 @@ Masks makeMasks(std::span<const Chart> charts, double s, int padding) {
 /// Places every chart into a width x height atlas (height may be a generous cap: the used
 /// height is returned in @p usedHeight, the used width in @p usedWidth); false when one does not fit.
 bool placeAll(const Masks& masks, int padding, int width, int height, std::vector<ChartPlacement>& placement,
-              int& usedWidth, int& usedHeight) {
+              int& usedWidth, int& usedHeight, ProgressReporter* progress) {
     Occupancy occupied(width, height, padding);
     placement.assign(masks.of.size(), ChartPlacement{});
     usedWidth = usedHeight = 0;
@@ -383,6 +385,7 @@ bool placeAll(const Masks& masks, int padding, int width, int height, std::vecto
             const std::array<int, 3> key{y + maskHeight, y, x};
             if (bestTurn < 0 || key < best) best = key, bestTurn = turn, placement[c] = ChartPlacement{x, y, turn};
         }
+        if (progress) progress->update();
         if (bestTurn < 0) return false;
         const Mask& mask = masks.of[c][size_t(bestTurn)];
         reserve(occupied, mask, padding, placement[c].x, placement[c].y);
@@ -400,13 +403,13 @@ double totalArea(std::span<const Chart> charts) {
 
 /// The largest density (by bisection, to kDensityPrecision) at which every chart fits a width x
 /// height atlas.
-AtlasPacking packFixedSize(std::span<const Chart> charts, int padding, int width, int height) {
+AtlasPacking packFixedSize(std::span<const Chart> charts, int padding, int width, int height, ProgressReporter* progress) {
     AtlasPacking best;
     const double area = totalArea(charts);
     if (!(area > 0)) {  // nothing to lay out, or only degenerate charts: any density fits
         std::vector<ChartPlacement> placement;
         int usedWidth = 0, usedHeight = 0;
-        if (placeAll(makeMasks(charts, 1.0, padding), padding, width, height, placement, usedWidth, usedHeight))
+        if (placeAll(makeMasks(charts, 1.0, padding), padding, width, height, placement, usedWidth, usedHeight, progress))
             best = AtlasPacking{width, height, 1.0, false, placement};
         return best;
     }
@@ -420,7 +423,7 @@ AtlasPacking packFixedSize(std::span<const Chart> charts, int padding, int width
         const double s = iteration == 0 ? 0.8 * bound : 0.5 * (lo + hi);
         int usedWidth = 0, usedHeight = 0;
         if (chartsFit(charts, s, width, height) &&
-            placeAll(makeMasks(charts, s, padding), padding, width, height, placement, usedWidth, usedHeight)) {
+            placeAll(makeMasks(charts, s, padding), padding, width, height, placement, usedWidth, usedHeight, progress)) {
             lo = s;
             best = AtlasPacking{width, height, s, false, placement};
         } else {
@@ -458,7 +461,7 @@ AtlasPacking packFixedDensity(std::span<const Chart> charts, const AtlasPackOpti
     for (int width : widths) {
         if (width > options.maxSide) continue;
         int usedWidth = 0, usedHeight = 0;
-        if (!placeAll(masks, padding, width, options.maxSide, placement, usedWidth, usedHeight)) continue;
+        if (!placeAll(masks, padding, width, options.maxSide, placement, usedWidth, usedHeight, options.progress)) continue;
         int w = std::max(usedWidth, 1), h = std::max(usedHeight, 1);
         if (options.powerOfTwo) w = width, h = ceilPowerOfTwo(h);
         if (h > options.maxSide) continue;
@@ -477,11 +480,16 @@ AtlasPacking packAtlas(std::span<const Chart> charts, const AtlasPackOptions& op
         if (packing.width > 0) return packing;
         int side = options.maxSide;
         if (options.powerOfTwo) side = int(std::bit_floor(uint64_t(side)));
-        packing = packFixedSize(charts, options.padding, side, side);
+        packing = packFixedSize(charts, options.padding, side, side, options.progress);
         packing.densityLowered = true;
         return packing;
     }
-    return packFixedSize(charts, options.padding, options.width, options.height);
+    return packFixedSize(charts, options.padding, options.width, options.height, options.progress);
+}
+
+uint64_t expectedPlacements(size_t charts, const AtlasPackOptions& options) {
+    constexpr uint64_t kBisections = 10, kWidths = 5;  // what packFixedSize and packFixedDensity try
+    return uint64_t(charts) * (options.texelsPerUnit > 0 ? kWidths : kBisections);
 }
 
 glm::dvec2 atlasTexel(const Chart& chart, const ChartPlacement& placement, double texelsPerUnit, size_t vertex) {

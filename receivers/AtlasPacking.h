@@ -25,10 +25,13 @@
 #include <glm/vec2.hpp>
 
 #include <cstdint>
+#include <cstddef>
 #include <span>
 #include <vector>
 
 namespace penumbra {
+
+class ProgressReporter;
 
 /// @brief How big the atlas is and how far apart its charts are.
 struct AtlasPackOptions {
@@ -37,7 +40,14 @@ struct AtlasPackOptions {
     int width = 0, height = 0;  ///< with texelsPerUnit == 0: this size, the density is chosen
     int maxSide = 16384;        ///< largest atlas side when the size is chosen
     bool powerOfTwo = false;    ///< chosen sides are powers of two
+    /// Counts one unit per chart placed, over every packing tried (expectedPlacements() of them
+    /// is the estimate); may throw Cancelled, which unwinds the packing. Null: none.
+    ProgressReporter* progress = nullptr;
 };
+
+/// @brief About how many chart placements packAtlas() makes for @p charts charts: a fixed size
+/// bisects the density (about ten packings), a fixed density tries a few widths.
+uint64_t expectedPlacements(size_t charts, const AtlasPackOptions& options);
 
 /// @brief Where one chart goes: its mask's lower corner in the atlas, and how many quarter
 /// turns (counter-clockwise, 0-3) it is turned by.

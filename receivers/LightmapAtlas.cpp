@@ -1,5 +1,7 @@
 #include "receivers/LightmapAtlas.h"
 
+#include "stream/util/Progress.h"
+
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
 
@@ -96,7 +98,14 @@ LightmapAtlas buildLightmapAtlas(std::span<const IndexedMesh> meshes, const Atla
     for (std::vector<Chart>& list : perMesh)
         for (Chart& chart : list) charts.push_back(std::move(chart));
 
-    const AtlasPacking packing = packAtlas(charts, options.pack);
+    // The packing is most of an atlas's time (seconds for a few thousand charts): a phase of its own.
+    ProgressReporter progress("atlas", expectedPlacements(charts.size(), options.pack), options.quiet);
+    AtlasPackOptions pack = options.pack;
+    pack.progress = &progress;
+    const AtlasPacking packing = packAtlas(charts, pack);
+    // The estimate counts ten packings; a bisection that took fewer, or ended some early, is done.
+    if (progress.workDone() < progress.totalWork()) progress.update(progress.totalWork() - progress.workDone());
+    progress.done();
     LightmapAtlas atlas;
     atlas.charts = uint32_t(charts.size());
     if (packing.width == 0) return atlas;

@@ -24,7 +24,8 @@ inline constexpr double kDefaultChartConeDeg = 45.0;
 /// @brief How to cut and pack.
 struct AtlasOptions {
     double coneDeg = kDefaultChartConeDeg;  ///< growth cone of the charts
-    AtlasPackOptions pack;
+    AtlasPackOptions pack;                  ///< its progress is set by buildLightmapAtlas()
+    bool quiet = true;                      ///< false: the packing shows an "[atlas]" phase on stderr
 };
 
 /// @brief Sprawling charts longer than this fraction of the side of a square of the meshes'

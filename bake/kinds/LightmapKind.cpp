@@ -279,6 +279,7 @@ private:
         options.pack.texelsPerUnit = settings_.density;
         options.pack.width = settings_.width, options.pack.height = settings_.height;
         options.pack.maxSide = settings_.maxSide, options.pack.powerOfTwo = settings_.powerOfTwo;
+        options.quiet = quiet();
         checkDensityFits(meshes);
         const Stopwatch watch;
         LightmapAtlas atlas = buildLightmapAtlas(meshes, options);

@@ -96,6 +96,10 @@ public:
 
     /// The receivers, after the scan pass. Called once.
     virtual ReceiverSet receivers() = 0;
+    /// @brief Whether long work of the kind's own in receivers() (a lightmap atlas's packing)
+    /// shows progress on stderr: the bake sets it from --quiet; a kind made elsewhere is quiet.
+    void setQuiet(bool quiet) { quiet_ = quiet; }
+    bool quiet() const { return quiet_; }
 
     /// Adaptive refinement in a second pass (camera antialiasing): after the first cast, refine()
     /// sees the receivers and their results and returns true when it wants more receivers. The
@@ -119,6 +123,9 @@ public:
     virtual nlohmann::json stats() const { return nullptr; }
     /// Writes the outputs. Every file goes through AtomicFile (no partial outputs).
     virtual void write(const OutputContext& context) = 0;
+
+private:
+    bool quiet_ = true;
 };
 
 /// @brief What a factory is asked for: the kind a bake runs, or only the check that parseScene
