@@ -35,9 +35,57 @@ std::mutex bakeMutex;
 }  // namespace
 
 py::object toPython(const nlohmann::json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
-nlohmann::json toJson(py::handle o) {
-    return nlohmann::json::parse(std::string(py::str(py::module_::import("json").attr("dumps")(o))));
+namespace {
+
+/// Raises SceneError "ROOT: PATH: WHAT" (the CLI's "file: key: message").
+[[noreturn]] void raiseSceneValue(const std::string& root, const std::string& path, const std::string& what) {
+    PyErr_SetString(sceneErrorType, fmt::format("{}: {}{}", root, path.empty() ? "" : path + ": ", what).c_str());
+    throw py::error_already_set();
 }
+
+/// @p o as JSON, naming the key (@p path) of a value JSON cannot hold: json.dumps wrote NaN and
+/// inf as bare words, which the parser then refused at a column of a text the caller never saw.
+nlohmann::json toJsonAt(py::handle o, const std::string& path, const std::string& root) {
+    auto fail = [&](const std::string& what) { raiseSceneValue(root, path, what); };
+    if (o.is_none()) return nullptr;
+    if (py::isinstance<py::bool_>(o)) return o.cast<bool>();
+    if (py::isinstance<py::int_>(o)) {
+        const long long value = PyLong_AsLongLong(o.ptr());
+        if (!(value == -1 && PyErr_Occurred())) return value;
+        PyErr_Clear();
+        const unsigned long long positive = PyLong_AsUnsignedLongLong(o.ptr());
+        if (!(positive == static_cast<unsigned long long>(-1) && PyErr_Occurred())) return positive;
+        PyErr_Clear();
+        fail(fmt::format("{} is out of the 64-bit integer range", std::string(py::str(o))));
+    }
+    if (py::isinstance<py::float_>(o)) {
+        const double value = o.cast<double>();
+        if (!std::isfinite(value)) fail(fmt::format("{} is not a finite number", std::string(py::str(o))));
+        return value;
+    }
+    if (py::isinstance<py::str>(o)) return o.cast<std::string>();
+    if (py::isinstance<py::dict>(o)) {
+        nlohmann::json object = nlohmann::json::object();
+        for (const auto& [key, value] : py::reinterpret_borrow<py::dict>(o)) {
+            if (!py::isinstance<py::str>(key)) fail(fmt::format("key {} is not a string", std::string(py::repr(key))));
+            const std::string name = key.cast<std::string>();
+            object[name] = toJsonAt(value, path.empty() ? name : path + "." + name, root);
+        }
+        return object;
+    }
+    if (py::isinstance<py::list>(o) || py::isinstance<py::tuple>(o)) {
+        nlohmann::json array = nlohmann::json::array();
+        size_t i = 0;
+        for (py::handle item : o) array.push_back(toJsonAt(item, fmt::format("{}[{}]", path, i++), root));
+        return array;
+    }
+    if (py::hasattr(o, "tolist")) return toJsonAt(o.attr("tolist")(), path, root);  // NumPy scalars and arrays
+    fail(fmt::format("a {} is not a JSON value", std::string(py::str(py::type::of(o).attr("__name__")))));
+}
+
+}  // namespace
+
+nlohmann::json toJson(py::handle o, const std::string& where) { return toJsonAt(o, "", where); }
 
 void registerExceptions(py::module_& m) {
     errorType = PyErr_NewExceptionWithDoc("penumbra.Error", "A bake or scene problem, as the CLI reports it.",

@@ -20,7 +20,10 @@ namespace penumbra::python {
 
 /// JSON through Python's json module (dicts of plain values, both ways).
 pybind11::object toPython(const nlohmann::json& j);
-nlohmann::json toJson(pybind11::handle o);
+/// @brief @p o (a dict of the scene format) as JSON.
+/// @param where what the message of a bad value starts with ("<dict>", "add_geometry")
+/// @throw SceneError naming the key of a value JSON cannot hold (NaN, inf, a non-string key)
+nlohmann::json toJson(pybind11::handle o, const std::string& where);
 
 /// @brief A scene as the JSON document it is, parsed again (with every check) after each change.
 struct PyScene {

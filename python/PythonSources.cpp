@@ -133,7 +133,15 @@ private:
             for (py::ssize_t d = 0; d < a.ndim(); ++d) shape += (d ? ", " : "") + std::to_string(a.shape(d));
             throw py::value_error(fmt::format("{}: expected shape (n, 3, 3) or (n, 9), got ({})", where, shape));
         }
+        // A strided or broadcast array is copied to C order first; that copy can fail (a broadcast
+        // of 2^30 triangles needs 38 GB), and then ensure() returns null, NumPy's error cleared.
         auto c = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(a);
+        if (!c) {
+            const uint64_t bytes = uint64_t(a.shape(0)) * 9 * sizeof(float);
+            PyErr_SetString(PyExc_MemoryError,
+                            fmt::format("{}: cannot copy the array into C order ({} bytes)", where, bytes).c_str());
+            throw py::error_already_set();
+        }
         const float* p = c.data();
         const size_t n = size_t(c.shape(0));
         pending_.resize(n);

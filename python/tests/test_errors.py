@@ -28,6 +28,24 @@ def test_bad_key_raises_scene_error_naming_it():
         penumbra.Scene(dict(scene, lights=[]))
 
 
+def test_a_value_json_cannot_hold_is_named_by_its_key():
+    # json.dumps wrote NaN as a bare word, refused at a column of a text the caller never saw.
+    for value in (float("nan"), float("inf"), -float("inf")):
+        scene = grid_scene()
+        scene["lights"][0]["radiance"] = [1, value, 1]
+        with pytest.raises(penumbra.SceneError, match=r"<dict>: lights\[0\]\.radiance\[1\]: -?(nan|inf) is not a finite number"):
+            penumbra.Scene(scene)
+    with pytest.raises(penumbra.SceneError, match=r"add_geometry: size: nan is not a finite number"):
+        penumbra.Scene(without_geometry(grid_scene())).add_geometry("grid", size=float("nan"))
+    # NumPy scalars and arrays are their Python values.
+    scene = grid_scene()
+    scene["lights"][0]["samples"] = np.int64(16)
+    scene["lights"][0]["center"] = np.array(scene["lights"][0]["center"], np.float64)
+    made = penumbra.Scene(scene)
+    assert made.to_dict()["lights"][0]["samples"] == 16
+    made.add_geometry("grid", cells=np.int32(4), size=np.float32(2))
+
+
 def test_bad_geometry_parameter_names_the_entry():
     scene = penumbra.Scene(without_geometry(grid_scene()))
     with pytest.raises(penumbra.SceneError, match=r"geometry\[0\]"):
@@ -56,6 +74,10 @@ def test_wrong_dtype_or_shape_names_the_chunk():
         bake_chunks([good(), good(), np.zeros((1, 4), np.float32)])
     with pytest.raises(TypeError, match=r"chunk 0: expected a NumPy float32 array"):
         bake_chunks([[1, 2, 3]])
+    # A broadcast chunk is copied into C order first; a copy that cannot be made (38 GB here)
+    # is a MemoryError naming the chunk, not a crash.
+    with pytest.raises(MemoryError, match=r"chunk 1: cannot copy the array into C order \(38654705664 bytes\)"):
+        bake_chunks([good(), np.broadcast_to(np.float32(0), (2**30, 3, 3))])
     with pytest.raises(TypeError):
         penumbra.Scene(grid_scene()).add_source(42)
 
