@@ -69,6 +69,33 @@ void stampContentUuid(const std::string& path) {
 
 namespace {
 
+/// io::File's format written to a stream of ours: Archive's writer with grid offsets (seekable),
+/// which io::File calls on an ofstream whose state it never looks at.
+class CheckedArchive : public openvdb::io::Archive {
+public:
+    void writeTo(std::ostream& os, const openvdb::GridPtrVec& grids) const { write(os, grids, /*seekable=*/true); }
+};
+
+}  // namespace
+
+void writeVdbFile(const std::string& path, const std::string& output, const openvdb::GridPtrVec& grids) {
+    std::ofstream os(path, std::ios::binary | std::ios::trunc);
+    if (!os) fail(output, "cannot create file: {}", std::strerror(errno));
+    os.exceptions(std::ios::badbit | std::ios::failbit);  // the first failed write throws, errno still its
+    try {
+        errno = 0;
+        CheckedArchive().writeTo(os, grids);
+        os.close();
+    } catch (const std::ios_base::failure&) {
+        const int error = errno;
+        fail(output, "write failed: {}", error ? std::strerror(error) : "the stream failed (a full disk, or a file size limit)");
+    } catch (const openvdb::Exception& e) {
+        fail(output, "OpenVDB could not write the file: {}", e.what());
+    }
+}
+
+namespace {
+
 /// Grid @p gridName of the VDB file @p vdbPath. OpenVDB reads through a stream that throws at the
 /// first read it cannot complete: io::File went on past the end of a truncated file, took
 /// whatever its length fields then held, and filled strings of gigabytes (14 GB of RSS for one

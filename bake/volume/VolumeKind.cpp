@@ -148,13 +148,7 @@ public:
 
         ensureParentDirectory(c.output);
         AtomicFile out(c.output);
-        try {
-            openvdb::io::File file(out.tempPath());
-            file.write(grids);
-            file.close();
-        } catch (const openvdb::Exception& e) {
-            fail(c.output, "OpenVDB could not write the file: {}", e.what());
-        }
+        writeVdbFile(out.tempPath(), c.output, grids);
         stampContentUuid(out.tempPath());  // the same grids, the same bytes
         out.commit();
     }

@@ -181,3 +181,31 @@ TEST_CASE("full disk: a dump directory the bake made is gone when the dump does 
         CHECK_FALSE(hasTempFiles(disk.path()));
     }
 }
+
+TEST_CASE("full disk: a .vdb that does not fit is refused, and the previous one stays", "[cli][full-disk][volume]") {
+    // io::File writes through a stream it never checks: a full disk left a truncated .vdb, exit 0.
+    SmallDisk disk(1 << 20);
+    REQUIRE_DISK(disk);
+    nlohmann::json scene = grassScene(200, disk / "v.vdb");
+    scene["receivers"] = {{"type", "volume"}, {"box", {{-2, 0.05, -2}, {2, 0.5, 2}}}, {"voxel_size", 0.05}};
+    const std::string path = disk.scratch() / "scene.json";
+    std::ofstream(path) << scene.dump();
+    std::ofstream(disk / "v.vdb") << "previous";
+    bool succeeded = false;
+    for (uint64_t keep = 4096; !succeeded && keep < (1u << 20); keep *= 2) {
+        fs::remove(disk / "filler");
+        disk.fillLeaving(keep);
+        const RunResult r = runPenumbra("bake " + path + " -q --allow-outside-uris");
+        INFO(keep << " bytes free: " << r.err);
+        CHECK_FALSE(hasTempFiles(disk.path()));
+        if (r.exitCode == 0) {
+            succeeded = true;
+            CHECK(runPenumbra("vdb-slice " + (disk / "v.vdb") + " " + (disk.scratch() / "s.png") + " --axis y --at 0.25").exitCode == 0);
+            break;
+        }
+        requireCleanError(r, disk / "v.vdb");
+        CHECK(r.err.find("No space left on device") != std::string::npos);
+        CHECK(slurp(disk / "v.vdb") == "previous");
+    }
+    CHECK(succeeded);
+}
