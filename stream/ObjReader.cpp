@@ -145,6 +145,7 @@ private:
     std::string part_;               // the o/g group of the faces being read
     std::vector<ObjCorner> polygon_; // the face being fan-triangulated
     size_t nextFan_ = 0;             // next fan triangle is (0, nextFan_, nextFan_ + 1)
+    uint64_t emitted_ = 0;           // triangles this pass handed out, against the scan's count
     bool finished_ = false;
 };
 
@@ -209,11 +210,17 @@ void ObjSource::rewind() {
     finished_ = scanned_ && !hasFaces_;
     verticesSeen_ = verticesBeforeFirstFace_;
     part_ = partBeforeFirstFace_;
+    emitted_ = 0;
 }
 
 /// Advances the streaming pass to the next face of a selected part; false at the end of the file.
 bool ObjSource::nextPolygon() {
     if (!lines_.isOpen()) {
+        // Every pass reads the file the scan checked: one cut or rewritten since (a bake's passes
+        // are minutes apart on a large file) gave another mesh, and exit 0.
+        if (regularFileSize(path_) != fileBytes_)
+            fail(path_, "file changed while it was being read: it had {} bytes when checked, {} now", fileBytes_,
+                 regularFileSize(path_));
         lines_.open();
         lines_.seek(firstFaceOffset_, linesBeforeFirstFace_);
     }
@@ -244,9 +251,11 @@ size_t ObjSource::read(std::span<Triangle> out) {
         if (nextFan_ + 1 >= polygon_.size() && !nextPolygon()) {
             finished_ = true;
             lines_.close();
+            if (emitted_ != triangleCount_)
+                fail(path_, "file changed while it was being read: {} triangles when checked, {} in this pass", triangleCount_, emitted_);
             break;
         }
-        for (; nextFan_ + 1 < polygon_.size() && written < out.size(); ++nextFan_) {
+        for (; nextFan_ + 1 < polygon_.size() && written < out.size(); ++nextFan_, ++emitted_) {
             Triangle& t = out[written++];
             t.v = {vertices_[uint64_t(polygon_[0].v)], vertices_[uint64_t(polygon_[nextFan_].v)],
                    vertices_[uint64_t(polygon_[nextFan_ + 1].v)]};

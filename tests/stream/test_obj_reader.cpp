@@ -141,6 +141,31 @@ TEST_CASE("OBJ: sizeHint, chunked reads and rewind", "[stream][obj]") {
     }
 }
 
+TEST_CASE("OBJ: a file changed between passes is an error, not another mesh", "[stream][obj]") {
+    // A bake reads a large OBJ twice, minutes apart; one cut in between baked half the mesh, exit 0.
+    ScratchDir dir("obj");
+    const std::string path = dir.file("m.obj");
+    const std::string full = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n";
+    auto changedTo = [&](const std::string& text) {
+        writeText(path, full);
+        TriangleSourcePtr source = openObj(path);
+        REQUIRE(source->sizeHint() == 2u);  // the check pass
+        writeText(path, text);
+        try {
+            readAll(*source);
+        } catch (const InputError& e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    CHECK_THAT(changedTo(full.substr(0, full.size() - 8)), Catch::Contains("m.obj: file changed while it was being read"));
+    // The same size, one face fewer: counted at the end of the pass.
+    std::string sameSize = full;
+    sameSize.replace(sameSize.size() - 8, 8, "# 2 4 3\n");
+    REQUIRE(sameSize.size() == full.size());
+    CHECK_THAT(changedTo(sameSize), Catch::Contains("file changed while it was being read: 2 triangles when checked, 1 in this pass"));
+}
+
 TEST_CASE("OBJ: files without faces", "[stream][obj]") {
     ScratchDir dir("obj");
     CHECK(readObjText(dir, "").empty());
