@@ -351,8 +351,8 @@ void scanScene(Bake& b) {
     if (!b.method.traits.masks && b.dump())
         fail("--dump", "--method {} gives visible fractions, not per-sample masks", b.method.name);
     if (!b.method.traits.masks && ShardedCast::keepsMasks(b.settings.shard))
-        fail(b.settings.shard.count ? "--shard" : "--checkpoint", "--method {} gives visible fractions, not per-sample masks to merge",
-             b.method.name);
+        fail(b.settings.shard.merge ? "merge" : b.settings.shard.count ? "--shard" : "--checkpoint",
+             "--method {} gives visible fractions, not per-sample masks to merge", b.method.name);
     if (b.settings.shard.casting() && b.dump()) fail("--dump", "a shard writes no outputs; give --dump to penumbra merge");
     TriangleSourcePtr geometry = openCheckedBeforeScan(scene, *b.kind, b.budget, b.keepMasks(), b.settings.quiet, b.demand);
     // Without a budget the machine is the bound: refuse before any work what it cannot hold.

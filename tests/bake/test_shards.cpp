@@ -88,6 +88,11 @@ TEST_CASE("merge refuses other scenes, other settings, missing, duplicate and tr
     };
     REQUIRE(merge(dir / "good").exitCode == 0);
 
+    SECTION("a method without masks, named as the merge's (no --checkpoint was given)") {
+        const RunResult r = runPenumbra("merge " + scene + " --shard-dir " + dir / "good" + " --method penumbra-map --quiet");
+        requireCleanError(r, "merge: --method penumbra-map gives visible fractions, not per-sample masks to merge");
+    }
+
     SECTION("a shard of another scene") {
         const std::string s = copyGood(dir / "s");
         bakeOk(dir / "other.json" + " --shard 1/3 --shard-by blockers --shard-dir " + dir / "o");
