@@ -168,8 +168,11 @@ struct ReceiverKindRegistration {
 
 /// @brief Refuses an output whose extension (any case) is none of @p extensions: the extension
 /// names the format, and a kind writes only its own (`-o x.tiff` or `-o x.png` of a camera bake).
+/// @param oneFile the kind writes that one file and nothing named after it (points, volume): then
+///        a character device or FIFO (`-o /dev/null`) is accepted too, and written into
 /// @throw InputError naming the output ("--output" when -o gave it) and the formats the kind writes.
-void requireOutputExtension(const SceneDesc& scene, const std::vector<std::string>& extensions, const std::string& kind);
+void requireOutputExtension(const SceneDesc& scene, const std::vector<std::string>& extensions, const std::string& kind,
+                            bool oneFile = false);
 
 /// @brief A path from a scene file resolved against the scene's folder, which it must not leave
 /// (SafePath.h; `--allow-outside-uris` lifts the rule). @p where names the key in messages.

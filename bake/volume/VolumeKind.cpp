@@ -247,7 +247,7 @@ const ReceiverKindRegistration kVolume{"volume", [](const JsonParams& j, const S
         lattice.h = j.number("voxel_size");
         if (!(lattice.h > 0) || !std::isfinite(lattice.h)) fail(j.where("voxel_size"), "must be a positive number");
         const bool irradiance = j.boolean("irradiance", false);
-        requireOutputExtension(scene, {".vdb"}, "volume");
+        requireOutputExtension(scene, {".vdb"}, "volume", /*oneFile=*/true);
         const bool hasBox = j.has("box"), hasBand = j.has("narrow_band");
         if (hasBox == hasBand) fail(j.where("box"), "give exactly one of \"box\" and \"narrow_band\"");
         constexpr double kMaxVoxels = double(kMaxVolumeVoxels);

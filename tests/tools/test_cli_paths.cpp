@@ -148,9 +148,25 @@ TEST_CASE("an output naming a device node is written into and stays a device", "
     RunResult r = runPenumbra("bake " + (dir / "scene.json") + " -q -o " + (dir / "null") + " --stats " + (dir / "null2"));
     INFO(r.err);
     CHECK(r.exitCode == 0);
+    CHECK(r.err.empty());
     struct stat st {};
     REQUIRE(::lstat((dir / "null").c_str(), &st) == 0);
     CHECK(S_ISCHR(st.st_mode));
+    // A volume writes its one .vdb and nothing named after it, so a device is accepted there too;
+    // a camera's preview would be named after it ("null.png"), so its extension is required.
+    s["receivers"] = {{"type", "volume"}, {"box", {{-0.5, 0.1, -0.5}, {0.5, 0.3, 0.5}}}, {"voxel_size", 0.1}};
+    s["output"] = "out/v.vdb";
+    write(dir / "volume.json", s.dump());
+    r = runPenumbra("bake " + (dir / "volume.json") + " -q -o " + (dir / "null"));
+    INFO(r.err);
+    CHECK(r.exitCode == 0);
+    REQUIRE(::lstat((dir / "null").c_str(), &st) == 0);
+    CHECK(S_ISCHR(st.st_mode));
+    requireCleanError(runPenumbra("bake " + (dir / "volume.json") + " -q -o " + (dir / "v.exr")), "volume receivers write .vdb files");
+    // Any other name holds the .npy a points bake writes, with a word about it.
+    r = runPenumbra("bake " + (dir / "scene.json") + " -q -o " + (dir / "v.exr"));
+    CHECK(r.exitCode == 0);
+    CHECK_THAT(r.err, Catch::Contains("holds a NumPy .npy array"));
 }
 
 TEST_CASE("a failing output of a bake leaves none of its outputs, and none half written", "[cli][paths]") {
