@@ -48,6 +48,13 @@ void refuseInputs(const std::string& output, const std::vector<std::string>& inp
 
 }  // namespace
 
+void requireOutputFolder(const std::string& option, const std::string& path) {
+    const fs::path parent = fs::path(path).parent_path();
+    std::error_code ec;
+    if (parent.empty() || fs::is_directory(parent, ec)) return;
+    fail(option, "\"{}\": the folder {} does not exist (create it first)", path, parent.string());
+}
+
 void checkOutputAgainstInputs(const SceneDesc& scene, const std::string& output) {
     checkOutputPath(output);
     refuseInputs(output, sceneInputs(scene));

@@ -24,6 +24,13 @@ namespace penumbra {
 void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, const std::string& dumpDir,
                       const std::string& visibilityPath = "", const std::vector<std::string>& directories = {});
 
+/// @brief Refuses an output typed by hand whose folder does not exist: penumbra makes folders only
+/// for the scene's own "output" (its out/ beside the scene), never for a path given on the
+/// command line or to Result.write(), where a missing folder is far more often a typo (bake,
+/// merge, slurm, Python).
+/// @throw InputError naming the option, the path and the folder.
+void requireOutputFolder(const std::string& option, const std::string& path);
+
 /// @brief Checks one output path against the files the scene reads (checkOutputPath() and the
 /// device-and-inode comparison), for commands with a single output (`generate`).
 /// @throw InputError naming @p output.

@@ -655,6 +655,7 @@ void writeCapturedOutputs(const SceneDesc& scene, const BakeCapture& c, const st
     SceneDesc renamed = scene;
     renamed.output = output, renamed.outputFromScene = false;
     validateReceiverKind(scene.receivers, renamed);
+    requireOutputFolder("write", output);  // as -o: a missing folder is more often a typo
     InputScope inputs;
     OutputSet outputs;
     c.kind->write(OutputContext{scene, c.receivers, c.samples, c.results, output, c.firstPass});

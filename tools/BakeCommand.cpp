@@ -1,5 +1,6 @@
 #include "BakeCommand.h"
 
+#include "bake/BakeOutputs.h"
 #include "bake/Pipeline.h"
 #include "bake/Scene.h"
 #include "bake/cast/Caster.h"
@@ -139,13 +140,6 @@ uint64_t parseMemoryBudget(const std::string& text) {
     const uint64_t bytes = parseByteSize(text, "--memory-budget");
     if (bytes == 0) throw InputError("--memory-budget: must be more than 0 (leave it out for no budget)");
     return bytes;
-}
-
-void requireOutputFolder(const std::string& option, const std::string& path) {
-    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
-    std::error_code ec;
-    if (parent.empty() || std::filesystem::is_directory(parent, ec)) return;
-    throw InputError(fmt::format("{}: \"{}\": the folder {} does not exist (create it first)", option, path, parent.string()));
 }
 
 CLI::App* addBakeCommand(CLI::App& app, BakeCommand& c) {

@@ -37,12 +37,6 @@ CLI::App* addBakeCommand(CLI::App& app, BakeCommand& command);
 /// @throw InputError for bad options, a bad scene or a failed bake (no partial output remains).
 void runBakeCommand(const BakeCommand& command);
 
-/// @brief Refuses a command-line output whose folder does not exist: penumbra makes folders only
-/// for the scene's own "output" (its out/ beside the scene), never for a path typed by hand,
-/// where a missing folder is far more often a typo (bake, merge, slurm).
-/// @throw InputError naming the option, the path and the folder.
-void requireOutputFolder(const std::string& option, const std::string& path);
-
 /// @brief A --memory-budget as typed ("256M", "2G"), in bytes (bake, merge, slurm).
 /// @throw InputError for text parseByteSize() refuses, or 0.
 uint64_t parseMemoryBudget(const std::string& text);

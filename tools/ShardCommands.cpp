@@ -2,6 +2,7 @@
 #include "BakeCommand.h"
 
 #include "bake/BakeMemory.h"
+#include "bake/BakeOutputs.h"
 #include "bake/Scene.h"
 #include "bake/shard/ShardFiles.h"
 #include "stream/util/AtomicFile.h"

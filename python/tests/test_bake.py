@@ -56,6 +56,10 @@ def test_write_equals_cli_outputs(cli, examples, tmp_path, name, files, receiver
     with pytest.raises(penumbra.Error, match="name the output with that extension"):
         result.write(wrong)
     assert not (tmp_path / "wrong").exists()
+    # A folder that does not exist is refused, as the CLI refuses it for -o, and none is made.
+    with pytest.raises(penumbra.Error, match=r"write: .*: the folder .*typo/deeper does not exist \(create it first\)"):
+        result.write(str(tmp_path / "typo" / "deeper" / pathlib_name(output)))
+    assert not (tmp_path / "typo").exists()
 
 
 def pathlib_name(output):
