@@ -13,6 +13,9 @@ Checkpoints::Checkpoints(const ShardSettings& settings, PartialHeader header, co
     : settings_(settings), header_(std::move(header)), samples_(samples), quiet_(quiet) {
     header_.role = PartialHeader::kCheckpoint;
     std::error_code ec;
+    // --resume promises saved work; a folder that is not there is more often a typo than a start.
+    if (settings_.resume && !fs::exists(settings_.checkpointDir, ec))
+        printWarning("--resume: {} does not exist, so there is nothing to resume; baking from the start", settings_.checkpointDir);
     fs::create_directories(settings_.checkpointDir, ec);
     if (ec || !fs::is_directory(settings_.checkpointDir, ec))
         fail(settings_.checkpointDir, "cannot create the checkpoint directory: {}", ec ? ec.message() : "not a directory");

@@ -249,6 +249,12 @@ TEST_CASE("a damaged checkpoint or one of another scene is refused under --resum
     CHECK_THAT(noted.err, Catch::Contains("ignoring the checkpoint"));
     CHECK(b.outputs() == b.expected);
     CHECK_FALSE(hasTempFiles(dir.path));
+
+    // --resume of a folder that is not there (a typo, most often) bakes from the start, but says so.
+    RunResult typo = runPenumbra("bake " + scene + common + " --quiet --resume " + dir / "ckpt-typo");
+    REQUIRE(typo.exitCode == 0);
+    CHECK_THAT(typo.err, Catch::Contains("--resume: " + dir / "ckpt-typo" + " does not exist, so there is nothing to resume"));
+    CHECK(b.outputs() == b.expected);
 }
 
 TEST_CASE("checkpoints and shard files are synced before they are named, and their directory after", "[shards][resume][fsync]") {
