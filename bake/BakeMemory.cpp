@@ -4,6 +4,7 @@
 #include "bake/cast/SampleMaskTable.h"
 #include "bake/light/SunLight.h"
 #include "bake/SceneAlpha.h"
+#include "bake/WorkPlan.h"
 #include "bucket/BucketOptions.h"
 #include "stream/util/Error.h"
 #include "stream/util/Memory.h"
@@ -78,9 +79,14 @@ void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget) {
     if (budget.bytes >= scanPhaseBytes(demand)) return;  // the scan fits; the exact check follows it
     std::string why;
     if (!demand.sourceDetail.empty() && demand.sourceBytes > worst.minimumBudget / 2) why = fmt::format(" ({})", demand.sourceDetail);
+    // Under an address-space limit, at least what the scan pass will be asked for after this
+    // (checkAddressSpaceLeft): the plan's overhead was measured before the volume plugin loaded,
+    // and a limit this named (216M) was then refused again, naming 239 MiB.
+    uint64_t least = worst.minimumBudget + budget.overhead;
+    if (budget.overhead != 0) least = std::max(least, addressSpaceNeeded(scanPhaseBytes(demand)));  // the limit is the budget
     throw InputError(fmt::format("{} {} is too small for up to {} receivers of {} light-sample groups each; at least {} is needed{}",
                                  budget.subject(), formatBytes(budget.bytes + budget.overhead), demand.receivers, demand.groups,
-                                 budgetText(worst.minimumBudget + budget.overhead), why));
+                                 budgetText(least), why));
 }
 
 TriangleSourcePtr openCheckedBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const BakeBudget& budget, bool keepMasks,

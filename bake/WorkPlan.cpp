@@ -52,13 +52,15 @@ uint64_t freeDiskBytes(const std::string& dir) {
     return uint64_t(fs.f_bavail) * fs.f_frsize;
 }
 
+uint64_t addressSpaceNeeded(uint64_t neededBytes) { return mappedBytes() + neededBytes + kReadAheadReserve; }
+
 void checkAddressSpaceLeft(const std::string& scene, const char* what, uint64_t neededBytes) {
     // The plan's estimate of what is already mapped can be short: ask the kernel. The read-ahead
     // thread's stack rides along.
     const uint64_t limit = addressSpaceLimit();
     if (!limit || addressSpaceAvailable(neededBytes + kReadAheadReserve)) return;
     fail(scene, "{} does not fit under the address-space limit (prlimit --as, ulimit -v) of {}: it needs at least {}",
-         what, formatBytes(limit), formatBytes(mappedBytes() + neededBytes + kReadAheadReserve));
+         what, formatBytes(limit), formatBytes(addressSpaceNeeded(neededBytes)));
 }
 
 void checkMemoryFits(const std::string& scene, const char* what, uint64_t neededBytes) {

@@ -31,6 +31,11 @@ uint64_t freeDiskBytes(const std::string& dir);
 /// @throw InputError naming @p scene and the least limit that works.
 void checkAddressSpaceLeft(const std::string& scene, const char* what, uint64_t neededBytes);
 
+/// @brief The least address-space limit under which a phase needing @p neededBytes more can start
+/// now: what the kernel says is mapped, the phase, and the read-ahead thread's reserve (the
+/// number checkAddressSpaceLeft() names).
+uint64_t addressSpaceNeeded(uint64_t neededBytes);
+
 /// @brief Refuses a bake whose smallest workable memory, @p neededBytes, exceeds
 /// machineMemoryBytes(). @p what says which phase needs it ("the scan pass", "casting").
 /// @throw InputError "SCENE: the scan pass needs at least 64.0 GiB of memory, but this machine has

@@ -1,5 +1,6 @@
 #include "FileCommands.h"
 
+#include "bake/TbbControl.h"
 #include "bake/output/VolumeSlice.h"
 #include "stream/GeometryFile.h"
 #include "stream/ProgressSource.h"
@@ -88,6 +89,9 @@ std::optional<int> runFileCommand(const FileCommands& c, std::string& context) {
     }
     if (*c.sliceCommand) {
         context = c.sliceIn;
+        // One thread under an address-space limit: OpenVDB reads with TBB, whose workers could
+        // not start at 155-160 MiB and aborted the process after the PNG was written.
+        const ScopedTbbControl one(tbb::global_control::max_allowed_parallelism, addressSpaceLimit() != 0 ? 1 : 0);
         writeVolumeSlicePng(c.sliceIn, c.sliceOut, c.sliceGrid, c.sliceAxis[0], c.sliceAt);
         return 0;
     }

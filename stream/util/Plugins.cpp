@@ -24,8 +24,10 @@ namespace {
 
 /// Address space a plugin's libraries may need to map; checked first, so that a capped process
 /// gets a sentence instead of a loader abort (a library that starts a thread while loading
-/// terminates the process when the thread's stack cannot be mapped).
-constexpr size_t kPluginHeadroom = size_t(80) << 20;  // OpenVDB and its libraries map 58 MiB, log4cplus a thread stack
+/// terminates the process when the thread's stack cannot be mapped). OpenVDB and its libraries
+/// map 58 MiB; log4cplus starts a thread as it loads, whose stack and malloc arena take the rest
+/// (at 142-150 MiB, 80 MiB of headroom passed and the load aborted).
+constexpr size_t kPluginHeadroom = size_t(104) << 20;
 
 std::vector<fs::path> pluginDirs() {
     std::vector<fs::path> dirs;
