@@ -1,5 +1,6 @@
 #include "GeneratorBench.h"
 
+#include "bake/TbbControl.h"
 #include "procedural/Generators.h"
 #include "stream/util/AtomicFile.h"
 #include "stream/util/CheckedMath.h"
@@ -8,6 +9,7 @@
 #include "stream/SourceRegistry.h"
 
 #include <fmt/format.h>
+
 #include <tbb/global_control.h>
 
 #include <chrono>
@@ -44,7 +46,9 @@ nlohmann::json measureOnce(const std::string& name, const nlohmann::json& entry,
     nlohmann::json params = entry;
     const std::string type = params["type"];
     params.erase("type");
-    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(std::max(threads, 1)));
+    // Kept under an address-space limit: lifting it would start workers there, and TBB's throw
+    // from the destructor aborted the bench (64-70 MiB).
+    const ScopedTbbControl limit(tbb::global_control::max_allowed_parallelism, size_t(std::max(threads, 1)));
     const Stopwatch setupWatch;
     TriangleSourcePtr source = openSource(type, SourceRequest{params, "bench", name, "."});
     source->read(chunk);  // warm-up: first-touch of the chunk, TBB workers started
