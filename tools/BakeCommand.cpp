@@ -1,4 +1,5 @@
 #include "BakeCommand.h"
+#include "OptionForms.h"
 
 #include "bake/BakeOutputs.h"
 #include "bake/Pipeline.h"
@@ -157,7 +158,8 @@ CLI::App* addBakeCommand(CLI::App& app, BakeCommand& c) {
     bake->add_flag("-q,--quiet", c.quiet, "no progress on stderr");
     addCastOptions(*bake, c);
     c.budgetOption =
-        bake->add_option("--memory-budget", c.memoryBudget, "bound on bake memory, e.g. 256M or 2G; receivers are tiled to fit");
+        bake->add_option("--memory-budget", c.memoryBudget, "bound on bake memory, e.g. 256M or 2G; receivers are tiled to fit")
+            ->check(byteSizeForm());
     c.tmpOption = bake->add_option("--tmp", c.tmpDir, "directory for temporary bucket files (default: the system temp dir)");
     bake->add_flag("--keep-buckets", c.keepBuckets, "keep the bucket files (for debugging)");
     addShardOptions(*bake, c.shard);

@@ -1,5 +1,6 @@
 #include "ShardCommands.h"
 #include "BakeCommand.h"
+#include "OptionForms.h"
 
 #include "bake/BakeMemory.h"
 #include "bake/BakeOutputs.h"
@@ -27,7 +28,8 @@ namespace fs = std::filesystem;
 void addShardOptions(CLI::App& bake, ShardCli& cli) {
     bake.add_option("--shard", cli.shard,
                     "cast shard I of N (I/N, or \"slurm\": SLURM_ARRAY_TASK_ID of SLURM_ARRAY_TASK_COUNT) and write its "
-                    "masks to --shard-dir; penumbra merge makes the outputs");
+                    "masks to --shard-dir; penumbra merge makes the outputs")
+        ->check(shardForm());
     bake.add_option("--shard-by", cli.shardBy, "how shards are cut: receivers, blockers or auto (default)")
         ->check(CLI::IsMember({"receivers", "blockers", "auto"}));
     bake.add_option("--shard-dir", cli.shardDir, "directory of shard files (written by --shard, read by merge)");
@@ -113,7 +115,7 @@ CLI::App* addSlurmCommand(CLI::App& app, SlurmOptions& o) {
     c->add_option("--shard-by", o.shardBy, "receivers, blockers or auto")->check(CLI::IsMember({"receivers", "blockers", "auto"}));
     c->add_option("--dir", o.dir, "shared directory for scripts, logs and shard files (default SCENE_STEM.slurm)");
     c->add_option("-o,--output", o.output, "the merge's output (default: the scene's)");
-    c->add_option("--memory-budget", o.memoryBudget, "each shard's memory budget; Slurm's --mem follows from it");
+    c->add_option("--memory-budget", o.memoryBudget, "each shard's memory budget; Slurm's --mem follows from it")->check(byteSizeForm());
     c->add_option("--time", o.time, "sbatch --time of each task");
     c->add_option("--tmp", o.tmp, "each shard's --tmp: node-local scratch for bucket files");
     c->add_option("--threads", o.threads, "threads per task (and --cpus-per-task)")->check(CLI::Range(1, kMaxThreads));

@@ -195,16 +195,16 @@ TEST_CASE("under an address-space limit the volume plugin loads whole or is refu
         }
     if (named.empty()) return;
     // A limit a refusal named is not refused by an earlier phase; the plan after the scan knows the
-    // method's own memory, which the one before it does not (244M after 240M named here), so it
-    // may name a little more, once.
+    // method's own memory, which the one before it does not (244M after 240M named here), and what
+    // the kernel says is mapped moves a little with the limit, so it may name a little more, twice.
     uint64_t limit = penumbra::parseByteSize(named, "named");
-    for (int attempt = 0; attempt < 2; ++attempt) {
+    for (int attempt = 0; attempt < 3; ++attempt) {
         INFO("under " << limit);
         const RunResult r = runPenumbra("bake " + examples + "volume.json -q --allow-outside-uris -o " + dir / "w.vdb",
                                         "prlimit --as=" + std::to_string(limit));
         INFO(r.err);
         if (r.exitCode == 0) break;
-        REQUIRE(attempt == 0);
+        REQUIRE(attempt < 2);
         CHECK_THAT(r.err, Catch::Contains("is too small for") && !Catch::Contains("scan pass"));
         const size_t at = r.err.find("at least ");
         REQUIRE(at != std::string::npos);

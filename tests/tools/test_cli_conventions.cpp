@@ -23,7 +23,11 @@ TEST_CASE("cli: --version, usage errors exit 2 and an unknown command lists the 
     CHECK_THAT(unknown.err, Catch::Contains("penumbra: error: unknown command 'frobnicate'") && Catch::Contains("bake") &&
                                 Catch::Contains("convert") && Catch::Contains("vdb-slice"));
 
-    for (const char* args : {"", "bake", "bake scene.json --no-such-option", "bake scene.json --threads many", "info"}) {
+    // A malformed value is a usage error, whatever the option (a refused value of the right form,
+    // --memory-budget 0 or --shard 5/3, is an input error, exit 1).
+    for (const char* args : {"", "bake", "bake scene.json --no-such-option", "bake scene.json --threads many", "info",
+                             "bake scene.json --memory-budget 12Q", "bake scene.json --memory-budget x", "bake scene.json --shard x/y",
+                             "slurm scene.json --shards 2 --memory-budget lots"}) {
         RunResult usage = runPenumbra(args);
         INFO(args << ": " << usage.err);
         CHECK(usage.exitCode == 2);

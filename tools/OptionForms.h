@@ -1,0 +1,51 @@
+#pragma once
+/// @file OptionForms.h
+/// @brief CLI11 checks of an option's form, so that a malformed value is a usage error (exit 2,
+/// with the parser's message and the --help to read) like `--threads x`, while a value of the
+/// right form that is refused (`--memory-budget 0`, `--shard 5/3`) stays an input error (exit 1).
+
+#include "stream/util/Error.h"
+#include "stream/util/Memory.h"
+
+#include <CLI/CLI.hpp>
+
+#include <cctype>
+#include <string>
+
+namespace penumbra {
+
+/// @brief A byte size as parseByteSize() reads it (`256M`, `2G`, `1.5GiB`).
+inline CLI::Validator byteSizeForm() {
+    return CLI::Validator(
+        [](std::string& text) -> std::string {
+            const std::string prefix = "value: ";
+            try {
+                (void)parseByteSize(text, "value");
+                return "";
+            } catch (const InputError& e) {
+                const std::string message = e.what();
+                return message.starts_with(prefix) ? message.substr(prefix.size()) : message;
+            }
+        },
+        "SIZE");
+}
+
+/// @brief `I/N` with decimal numbers, or `slurm`.
+inline CLI::Validator shardForm() {
+    return CLI::Validator(
+        [](std::string& text) -> std::string {
+            if (text == "slurm") return "";
+            const size_t slash = text.find('/');
+            auto digits = [](const std::string& s) {
+                if (s.empty()) return false;
+                for (char c : s)
+                    if (!std::isdigit(static_cast<unsigned char>(c))) return false;
+                return true;
+            };
+            if (slash != std::string::npos && digits(text.substr(0, slash)) && digits(text.substr(slash + 1))) return "";
+            return "'" + text + "' is not I/N (shard I of N, e.g. 0/4) or slurm";
+        },
+        "I/N");
+}
+
+}  // namespace penumbra
