@@ -52,6 +52,7 @@ void requireOutputFolder(const std::string& option, const std::string& path) {
     const fs::path parent = fs::path(path).parent_path();
     std::error_code ec;
     if (parent.empty() || fs::is_directory(parent, ec)) return;
+    if (fs::exists(parent, ec)) fail(option, "\"{}\": {} is not a folder", path, parent.string());
     fail(option, "\"{}\": the folder {} does not exist (create it first)", path, parent.string());
 }
 

@@ -252,3 +252,16 @@ TEST_CASE("generate killed while writing leaves no temporary, SIGKILL included",
         CHECK(slurp(dir / "old.ptri") == "previous");
     }
 }
+
+TEST_CASE("an output folder that does not exist, or through a file, is refused and makes nothing", "[cli][paths]") {
+    // penumbra makes the scene's own output folder, never one typed by hand (a typo, most often).
+    ScratchDir dir("output-folder");
+    write(dir / "quad.obj", kQuad);
+    write(dir / "scene.json", sceneOf("quad.obj").dump());
+    write(dir / "afile", "a file");
+    requireCleanError(runPenumbra("bake " + (dir / "scene.json") + " -q -o " + (dir / "typo/deeper/x.exr")),
+                      "typo/deeper does not exist (create it first)");
+    CHECK_FALSE(fs::exists(dir.path / "typo"));
+    requireCleanError(runPenumbra("bake " + (dir / "scene.json") + " -q -o " + (dir / "afile/x.exr")), "afile is not a folder");
+    CHECK(slurp(dir / "afile") == "a file");
+}
