@@ -7,6 +7,7 @@
 #include "stream/util/JsonParams.h"
 #include "stream/util/Memory.h"
 #include "stream/util/Progress.h"
+#include "stream/util/TempRegistry.h"
 #include "stream/SourceRegistry.h"
 
 #include <pybind11/stl.h>
@@ -235,6 +236,9 @@ py::array PyResult::image(const std::string& values) const {
 }
 
 void PyResult::write(const std::string& path) const {
+    // Named temporaries (PENUMBRA_NO_TMPFILE, or a file system without O_TMPFILE) are removed by
+    // a SIGTERM that would end the interpreter anyway, as the CLI removes them.
+    const ScopedSignalCleanup cleanup;
     translateErrors([&] {
         py::gil_scoped_release release;
         writeCapturedOutputs(desc, *capture, path);
@@ -294,6 +298,7 @@ std::shared_ptr<PyResult> bake(std::shared_ptr<PyScene> scene, const std::string
     result->capture->wantMasks = masks && casterEntry(settings.method).traits.masks;
     settings.capture = result->capture.get();
 
+    const ScopedSignalCleanup cleanup;  // scratch and bucket files named for a moment (see write())
     std::mutex mutex;
     std::condition_variable finishedChanged;
     bool finished = false;

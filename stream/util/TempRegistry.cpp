@@ -79,6 +79,34 @@ extern "C" void cleanupSignalHandler(int sig) {
 
 }  // namespace
 
+namespace {
+constexpr int kLibrarySignals[] = {SIGTERM, SIGHUP, SIGQUIT};
+}  // namespace
+
+ScopedSignalCleanup::ScopedSignalCleanup() {
+    struct sigaction action {};
+    action.sa_handler = cleanupSignalHandler;
+    sigemptyset(&action.sa_mask);
+    action.sa_flags = SA_RESETHAND;
+    for (int i = 0; i < kSignals; ++i) {
+        struct sigaction old {};
+        if (::sigaction(kLibrarySignals[i], nullptr, &old) != 0 || old.sa_handler != SIG_DFL) continue;
+        installed_[i] = ::sigaction(kLibrarySignals[i], &action, nullptr) == 0;
+    }
+}
+
+ScopedSignalCleanup::~ScopedSignalCleanup() {
+    struct sigaction fallback {};
+    fallback.sa_handler = SIG_DFL;
+    sigemptyset(&fallback.sa_mask);
+    for (int i = 0; i < kSignals; ++i) {
+        struct sigaction now {};
+        // Only ours is put back: a handler the caller installed meanwhile stays.
+        if (installed_[i] && ::sigaction(kLibrarySignals[i], nullptr, &now) == 0 && now.sa_handler == cleanupSignalHandler)
+            ::sigaction(kLibrarySignals[i], &fallback, nullptr);
+    }
+}
+
 void installCleanupSignalHandlers() {
     struct sigaction action {};
     action.sa_handler = cleanupSignalHandler;

@@ -31,4 +31,20 @@ void removeRegisteredTempFiles() noexcept;
 /// Idempotent.
 void installCleanupSignalHandlers();
 
+/// @brief For a library caller (the Python module), while it lives: the same cleanup for SIGTERM,
+/// SIGHUP and SIGQUIT, but only where the process left the default action (which ends it anyway),
+/// so that a handler the caller installed, and SIGINT (Python's KeyboardInterrupt), are untouched.
+/// The previous actions come back when it ends.
+class ScopedSignalCleanup {
+public:
+    ScopedSignalCleanup();
+    ~ScopedSignalCleanup();
+    ScopedSignalCleanup(const ScopedSignalCleanup&) = delete;
+    ScopedSignalCleanup& operator=(const ScopedSignalCleanup&) = delete;
+
+private:
+    static constexpr int kSignals = 3;
+    bool installed_[kSignals] = {};
+};
+
 }  // namespace penumbra

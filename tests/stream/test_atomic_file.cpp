@@ -256,6 +256,52 @@ TEST_CASE("AtomicFile helper: killed by SIGTERM", "[.][io-signal-helper]") {
     FAIL("still alive after SIGTERM");
 }
 
+TEST_CASE("AtomicFile helper: a library caller killed by SIGTERM", "[.][io-scoped-signal-helper]") {
+    if (!helperDir()) return;
+    ::signal(SIGTERM, SIG_DFL);
+    const penumbra::ScopedSignalCleanup cleanup;  // what the Python module holds during bake() and write()
+    NamedTemporaries fallback(true);
+    AtomicFile f(std::string(helperDir()) + "/interrupted.bin");
+    f.write("some bytes", 10);
+    ::raise(SIGTERM);
+    FAIL("still alive after SIGTERM");
+}
+
+TEST_CASE("a library caller's SIGTERM removes named temporaries; its own handlers are left alone", "[io]") {
+    // Python's Result.write() with named temporaries left .tmp-PID-N files on SIGTERM.
+    ScratchDir dir;
+    std::string output;
+    int status = runHelper("[io-scoped-signal-helper]", dir.path.string(), 0, output);
+    INFO(output);
+    REQUIRE(WIFSIGNALED(status));
+    CHECK(WTERMSIG(status) == SIGTERM);
+    CHECK(dir.entries().empty());
+
+    struct sigaction mine {}, seen {}, saved {};
+    mine.sa_handler = [](int) {};
+    sigemptyset(&mine.sa_mask);
+    REQUIRE(::sigaction(SIGHUP, &mine, &saved) == 0);
+    {
+        const penumbra::ScopedSignalCleanup cleanup;
+        ::sigaction(SIGHUP, nullptr, &seen);
+        CHECK(seen.sa_handler == mine.sa_handler);  // the caller's handler stays
+    }
+    ::sigaction(SIGHUP, nullptr, &seen);
+    CHECK(seen.sa_handler == mine.sa_handler);
+    ::sigaction(SIGHUP, &saved, nullptr);
+    struct sigaction before {};
+    ::sigaction(SIGQUIT, nullptr, &before);
+    if (before.sa_handler == SIG_DFL) {
+        {
+            const penumbra::ScopedSignalCleanup cleanup;
+            ::sigaction(SIGQUIT, nullptr, &seen);
+            CHECK(seen.sa_handler != SIG_DFL);  // the cleanup, while it lives
+        }
+        ::sigaction(SIGQUIT, nullptr, &seen);
+        CHECK(seen.sa_handler == SIG_DFL);  // and the default after
+    }
+}
+
 TEST_CASE("SIGTERM removes registered temporaries and still kills the process", "[io]") {
     ScratchDir dir;
     std::string output;
