@@ -229,7 +229,8 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     // A by-blockers shard casts its share of the stream, and makes or reads only that share
     // where the source can skip; closed solids are counted over the whole stream, so with solids
     // to open the share is taken above them.
-    const std::optional<BlockShare> share = blockerShareOf(settings.shard, p.receivers.size(), p.triangleCount);
+    const bool tiles = casterEntry(settings.method).name == "hpc";  // as ShardedCast decides
+    const std::optional<BlockShare> share = blockerShareOf(settings.shard, p.receivers.size(), p.triangleCount, tiles);
     const bool solids = !p.openedSolids.ordinals.empty();
     auto takeShare = [&](TriangleSourcePtr all) -> TriangleSourcePtr { return std::make_unique<BlockCyclicSource>(std::move(all), *share); };
     if (share && !solids) readAhead.rewindWrapped(takeShare);

@@ -37,9 +37,9 @@ const char* shardCutName(ShardCut cut) {
     return cut == ShardCut::Receivers ? "receivers" : cut == ShardCut::Blockers ? "blockers" : "auto";
 }
 
-ShardCut resolveShardCut(ShardCut cut, size_t receivers, uint32_t shards) {
+ShardCut resolveShardCut(ShardCut cut, size_t receivers, uint32_t shards, bool tiles) {
     if (cut != ShardCut::Automatic) return cut;
-    return receivers >= kMinReceiversPerShard * size_t(shards) ? ShardCut::Receivers : ShardCut::Blockers;
+    return tiles && receivers >= kMinReceiversPerShard * size_t(shards) ? ShardCut::Receivers : ShardCut::Blockers;
 }
 
 uint64_t BakeIdentity::settingsHash(ShardCut cut, uint32_t shards) const {
@@ -91,9 +91,9 @@ std::vector<uint32_t> shardReceivers(const ReceiverSet& receivers, const std::ve
     return partitionReceivers(receivers, ids, int(count))[index];
 }
 
-std::optional<BlockShare> blockerShareOf(const ShardSettings& settings, size_t receivers, uint64_t triangles) {
+std::optional<BlockShare> blockerShareOf(const ShardSettings& settings, size_t receivers, uint64_t triangles, bool tiles) {
     if (!settings.casting() || settings.count <= 1) return std::nullopt;
-    if (resolveShardCut(settings.cut, receivers, settings.count) != ShardCut::Blockers) return std::nullopt;
+    if (resolveShardCut(settings.cut, receivers, settings.count, tiles) != ShardCut::Blockers) return std::nullopt;
     return BlockShare{settings.index, settings.count, blockSizeForShares(triangles, settings.count)};
 }
 

@@ -30,8 +30,9 @@ namespace penumbra {
 inline constexpr size_t kMinReceiversPerShard = 4096;
 
 /// @brief The cut a bake of @p receivers receivers in @p shards shards uses: @p cut itself, or for
-/// Automatic, receivers when each shard gets at least kMinReceiversPerShard of them, else blockers.
-ShardCut resolveShardCut(ShardCut cut, size_t receivers, uint32_t shards);
+/// Automatic, receivers when each shard gets at least kMinReceiversPerShard of them and the
+/// method casts memory tiles (@p tiles: hpc, the only one that can cut by receivers), else blockers.
+ShardCut resolveShardCut(ShardCut cut, size_t receivers, uint32_t shards, bool tiles);
 
 /// @brief What identifies one bake in its partial files, whatever the shard.
 struct BakeIdentity {
@@ -59,7 +60,8 @@ std::vector<uint32_t> shardReceivers(const ReceiverSet& receivers, const std::ve
 /// @brief Which share of the blocker stream a by-blockers shard casts (stream/BlockCyclicSource.h),
 /// or nullopt when the bake casts every blocker (not a shard, cut by receivers, or one shard).
 /// The block size follows from @p triangles, the whole stream's count, the same in every shard.
-std::optional<BlockShare> blockerShareOf(const ShardSettings& settings, size_t receivers, uint64_t triangles);
+/// @p tiles as for resolveShardCut().
+std::optional<BlockShare> blockerShareOf(const ShardSettings& settings, size_t receivers, uint64_t triangles, bool tiles);
 
 /// @brief Writes shard @p settings.index's file: the masks of the receivers marked in @p present.
 /// @throw InputError naming the file.

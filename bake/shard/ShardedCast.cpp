@@ -13,7 +13,7 @@ ShardedCast::ShardedCast(const ShardSettings& settings, const std::string& scene
     : settings_(settings), receivers_(receivers), samples_(samples),
       id_(bakeIdentity(sceneFile, methodKey, receivers, sampleSets, samples)) {
     if (settings_.casting()) {
-        cut_ = resolveShardCut(settings_.cut, receivers.size(), settings_.count);
+        cut_ = resolveShardCut(settings_.cut, receivers.size(), settings_.count, hpc);
         if (cut_ == ShardCut::Receivers && !hpc)
             fail("--shard-by", "receivers needs a method that casts memory tiles (--method hpc); use --shard-by blockers");
     }

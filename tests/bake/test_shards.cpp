@@ -36,6 +36,25 @@ TEST_CASE("merging N shards of either cut gives the unsharded bake's bytes, N = 
         }
 }
 
+TEST_CASE("the automatic cut shards a method without memory tiles by blockers", "[shards]") {
+    // auto chose receivers for 2 shards of 12,288 receivers whatever the method, and a bake with
+    // --method embree was then refused: only hpc casts by receivers.
+    ScratchDir dir("shards-auto");
+    std::string scene = kShardScene;
+    const std::string size = "\"width\": 64, \"height\": 48";
+    scene.replace(scene.find(size), size.size(), "\"width\": 128, \"height\": 96");
+    writeText(dir / "scene.json", scene);
+    bakeOk(dir / "scene.json" + " --method embree --dump " + dir / "whole");
+    const std::string expected = shardSceneOutputs(dir.path.string(), dir / "whole");
+    for (int i = 0; i < 2; ++i) bakeOk(dir / "scene.json" + fmt::format(" --method embree --shard {}/2 --shard-dir {}", i, dir / "s"));
+    fs::remove_all(dir / "out");
+    const RunResult merge = runPenumbra("merge " + dir / "scene.json" + " --method embree --shard-dir " + dir / "s" + " --quiet --dump " +
+                                        dir / "merged");
+    INFO(merge.err);
+    REQUIRE(merge.exitCode == 0);
+    CHECK(shardSceneOutputs(dir.path.string(), dir / "merged") == expected);
+}
+
 TEST_CASE("by-receivers shards with memory tiles and threads merge to the same bytes", "[shards]") {
     ScratchDir dir("shards-tiles");
     const auto [scene, budget] = tiledShardScene(dir);
