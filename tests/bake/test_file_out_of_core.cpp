@@ -194,9 +194,9 @@ TEST_CASE("under an address-space limit the volume plugin loads whole or is refu
                 named = r.err.substr(at + 9, r.err.find(' ', at + 9) - at - 9);
         }
     if (named.empty()) return;
-    // A limit a refusal named is not refused by an earlier phase; the plan after the scan knows the
-    // method's own memory, which the one before it does not (244M after 240M named here), and what
-    // the kernel says is mapped moves a little with the limit, so it may name a little more, twice.
+    // A limit a refusal named is not refused by an earlier phase; the plan after the scan is a few
+    // MiB larger than the one before it (244M after 240M named here), and what the kernel says is
+    // mapped moves a little with the limit, so it may name a little more, twice.
     uint64_t limit = penumbra::parseByteSize(named, "named");
     for (int attempt = 0; attempt < 3; ++attempt) {
         INFO("under " << limit);

@@ -267,7 +267,7 @@ TEST_CASE("AtomicFile helper: a library caller killed by SIGTERM", "[.][io-scope
     FAIL("still alive after SIGTERM");
 }
 
-TEST_CASE("a library caller's SIGTERM removes named temporaries; its own handlers are left alone", "[io]") {
+TEST_CASE("a library caller's SIGTERM removes named temporaries, and its own handlers are left alone", "[io]") {
     // Python's Result.write() with named temporaries left .tmp-PID-N files on SIGTERM.
     ScratchDir dir;
     std::string output;
