@@ -229,8 +229,8 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     // A by-blockers shard casts its share of the stream, and makes or reads only that share
     // where the source can skip; closed solids are counted over the whole stream, so with solids
     // to open the share is taken above them.
-    const bool tiles = casterEntry(settings.method).name == "hpc";  // as ShardedCast decides
-    const std::optional<BlockShare> share = blockerShareOf(settings.shard, p.receivers.size(), p.triangleCount, tiles);
+    const std::optional<BlockShare> share =
+        blockerShareOf(settings.shard, p.receivers.size(), p.triangleCount, casterEntry(settings.method).traits.memoryTiles);
     const bool solids = !p.openedSolids.ordinals.empty();
     auto takeShare = [&](TriangleSourcePtr all) -> TriangleSourcePtr { return std::make_unique<BlockCyclicSource>(std::move(all), *share); };
     if (share && !solids) readAhead.rewindWrapped(takeShare);
@@ -379,7 +379,7 @@ void scanScene(Bake& b) {
     b.firstPass = b.p.receivers.size();
     if (ShardedCast::keepsMasks(b.settings.shard)) {
         const std::string methodKey = b.method.name + (scene.options.embreeRuleFilter ? "" : ":embree-native");
-        b.sharded = std::make_unique<ShardedCast>(b.settings.shard, scene.file, methodKey, b.method.name == "hpc",
+        b.sharded = std::make_unique<ShardedCast>(b.settings.shard, scene.file, methodKey, b.method.traits.memoryTiles,
                                                   b.p.receivers, b.p.sampleSets, b.p.samples, b.settings.quiet);
     }
 }
@@ -606,7 +606,7 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total) {
     // its next chunk, every finished tile on disk, and the CLI exits 143 (StopRequest.h). Only hpc
     // checkpoints (its memory tiles); other methods have nothing to save and keep the immediate exit.
     std::optional<DeferredTermination> deferred;
-    if (!settings.shard.checkpointDir.empty() && !settings.shard.merge && b.method.name == "hpc") deferred.emplace();
+    if (!settings.shard.checkpointDir.empty() && !settings.shard.merge && b.method.traits.memoryTiles) deferred.emplace();
     try {
         castStages(b);
     } catch (const StopRequested& stop) {

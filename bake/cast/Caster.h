@@ -117,6 +117,9 @@ struct CasterTraits {
     /// CastSink::masksWithDepth; otherwise they reach the method as non-casting and the pipeline
     /// weighs them (bake/cast/TranslucentBlockers.h).
     bool translucency = false;
+    /// Casts receivers in memory tiles (hpc): only such a method checkpoints its tiles and can
+    /// be sharded by receivers.
+    bool memoryTiles = false;
     const char* summary = "";   ///< one line for --help
 };
 

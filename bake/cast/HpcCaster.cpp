@@ -220,7 +220,7 @@ private:
 };
 
 const CasterRegistration kHpc{{"hpc",
-                               {.summary = "hierarchical penumbra casting (Laine & Aila 2005): exact, out of core"},
+                               {.memoryTiles = true, .summary = "hierarchical penumbra casting (Laine & Aila 2005): exact, out of core"},
                                [](const CastContext& c) { return std::make_unique<HpcCaster>(c); },
                                nullptr,
                                nullptr}};

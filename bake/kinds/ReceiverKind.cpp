@@ -9,7 +9,6 @@
 #include "stream/util/Plugins.h"
 #include "stream/util/SafePath.h"
 
-#include <sys/stat.h>
 #include <fmt/ranges.h>
 
 #include <map>
@@ -44,12 +43,6 @@ std::optional<KindEntry> findKind(const std::string& type) {
     return std::nullopt;
 }
 
-/// Whether @p path names a character device or a FIFO, which an output is written into.
-bool isDeviceOrFifo(const std::string& path) {
-    struct stat st {};
-    return ::stat(path.c_str(), &st) == 0 && (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode));
-}
-
 /// Point receivers from a file; a .npy of visible fractions.
 class PointsKind final : public ReceiverKind {
 public:
@@ -62,7 +55,7 @@ public:
         writeNpy(c.output, "<f4", shape, c.results.visibility.data(), c.results.visibility.size() * sizeof(float));
         // Any name is written (scenes name "x.exr" for points bakes), but an .npy under another
         // extension is worth a word, once the bake has succeeded up to here.
-        if (lowercaseExtension(c.output) != ".npy" && !isDeviceOrFifo(c.output))
+        if (lowercaseExtension(c.output) != ".npy" && !AtomicFile::writtenInto(c.output))
             printWarning("{}: \"{}\" holds a NumPy .npy array (points receivers write one, whatever the extension)",
                          c.scene.outputFromScene ? c.scene.file + ": output" : "--output", c.output);
     }
@@ -82,7 +75,7 @@ void requireOutputExtension(const SceneDesc& scene, const std::vector<std::strin
     const std::string ext = lowercaseExtension(scene.output);
     for (const std::string& e : extensions)
         if (ext == e) return;
-    if (oneFile && isDeviceOrFifo(scene.output)) return;
+    if (oneFile && AtomicFile::writtenInto(scene.output)) return;
     const std::string where = scene.outputFromScene ? scene.file + ": output" : "--output";
     fail(where, "\"{}\": {} receivers write {} files; name the output with that extension", scene.output, kind,
          fmt::format("{}", fmt::join(extensions, " or ")));

@@ -8,13 +8,13 @@
 namespace penumbra {
 
 ShardedCast::ShardedCast(const ShardSettings& settings, const std::string& sceneFile, const std::string& methodKey,
-                         bool hpc, const ReceiverSet& receivers, const std::vector<uint32_t>& sampleSets,
+                         bool memoryTiles, const ReceiverSet& receivers, const std::vector<uint32_t>& sampleSets,
                          const LightSamples& samples, bool quiet)
     : settings_(settings), receivers_(receivers), samples_(samples),
       id_(bakeIdentity(sceneFile, methodKey, receivers, sampleSets, samples)) {
     if (settings_.casting()) {
-        cut_ = resolveShardCut(settings_.cut, receivers.size(), settings_.count, hpc);
-        if (cut_ == ShardCut::Receivers && !hpc)
+        cut_ = resolveShardCut(settings_.cut, receivers.size(), settings_.count, memoryTiles);
+        if (cut_ == ShardCut::Receivers && !memoryTiles)
             fail("--shard-by", "receivers needs a method that casts memory tiles (--method hpc); use --shard-by blockers");
     }
     // By blockers every receiver is cast; by receivers the tiles say which (tileHooks).

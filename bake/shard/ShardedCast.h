@@ -18,9 +18,9 @@ namespace penumbra {
 class ShardedCast {
 public:
     /// @param methodKey every setting that changes the bits (BakeIdentity)
-    /// @param hpc whether the method reports memory tiles (cutting by receivers needs it)
+    /// @param memoryTiles whether the method casts memory tiles (CasterTraits; cutting by receivers needs it)
     /// @throw InputError for a cut the method cannot do, or an unreadable scene file.
-    ShardedCast(const ShardSettings& settings, const std::string& sceneFile, const std::string& methodKey, bool hpc,
+    ShardedCast(const ShardSettings& settings, const std::string& sceneFile, const std::string& methodKey, bool memoryTiles,
                 const ReceiverSet& receivers, const std::vector<uint32_t>& sampleSets, const LightSamples& samples,
                 bool quiet);
     ~ShardedCast();

@@ -175,6 +175,8 @@ void place(AtomicFile::Finished& f) {
 }
 
 /// What AtomicFile does with @p path: the file to replace (symbolic links followed) and how.
+bool isSpecialMode(mode_t mode) { return S_ISCHR(mode) || S_ISFIFO(mode); }
+
 AtomicFile::Target inspectTarget(const std::string& path, std::string& resolved) {
     resolved = path;
     struct stat st {};
@@ -185,7 +187,7 @@ AtomicFile::Target inspectTarget(const std::string& path, std::string& resolved)
     }
     if (std::optional<std::string> input = recordedInput(st.st_dev, st.st_ino))
         fail(path, "is also an input of this run ({}); refusing to overwrite it", *input);
-    if (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode)) return AtomicFile::Target::Special;
+    if (isSpecialMode(st.st_mode)) return AtomicFile::Target::Special;
     if (!S_ISREG(st.st_mode))
         fail(path, "is {}; outputs are regular files, character devices or FIFOs", fileKindName(st.st_mode));
     if (::lstat(path.c_str(), &st) == 0 && S_ISLNK(st.st_mode)) {
@@ -205,6 +207,11 @@ bool anonymousFilesDisabled() {
 
 // ---------------------------------------------------------------------------------------------
 // AtomicFile
+
+bool AtomicFile::writtenInto(const std::string& path) {
+    struct stat st {};
+    return ::stat(path.c_str(), &st) == 0 && isSpecialMode(st.st_mode);
+}
 
 AtomicFile::AtomicFile(std::string finalPath) : finalPath_(std::move(finalPath)) {
     if (finalPath_.empty()) throw InputError("cannot create file: the output path is empty");

@@ -87,6 +87,9 @@ public:
 
     /// How a final path is written (see the file comment).
     enum class Target { Regular, Special };
+    /// @brief Whether @p path names a character device or a FIFO, which an output is written into
+    /// (Target::Special) rather than replaced.
+    static bool writtenInto(const std::string& path);
     /// One finished file waiting to be put in place (OutputSet's; opaque elsewhere).
     struct Finished;
 

@@ -77,17 +77,21 @@ extern "C" void cleanupSignalHandler(int sig) {
     errno = savedErrno;
 }
 
-}  // namespace
-
-namespace {
-constexpr int kLibrarySignals[] = {SIGTERM, SIGHUP, SIGQUIT};
-}  // namespace
-
-ScopedSignalCleanup::ScopedSignalCleanup() {
+/// The cleanup handler, reset to the default action as it runs.
+struct sigaction cleanupAction() {
     struct sigaction action {};
     action.sa_handler = cleanupSignalHandler;
     sigemptyset(&action.sa_mask);
     action.sa_flags = SA_RESETHAND;
+    return action;
+}
+
+constexpr int kLibrarySignals[] = {SIGTERM, SIGHUP, SIGQUIT};
+
+}  // namespace
+
+ScopedSignalCleanup::ScopedSignalCleanup() {
+    const struct sigaction action = cleanupAction();
     for (int i = 0; i < kSignals; ++i) {
         struct sigaction old {};
         if (::sigaction(kLibrarySignals[i], nullptr, &old) != 0 || old.sa_handler != SIG_DFL) continue;
@@ -108,10 +112,7 @@ ScopedSignalCleanup::~ScopedSignalCleanup() {
 }
 
 void installCleanupSignalHandlers() {
-    struct sigaction action {};
-    action.sa_handler = cleanupSignalHandler;
-    sigemptyset(&action.sa_mask);
-    action.sa_flags = SA_RESETHAND;
+    const struct sigaction action = cleanupAction();
     for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) {
         // Respect an "ignore" inherited from the parent (nohup, background jobs).
         struct sigaction old {};
