@@ -35,9 +35,12 @@ BakeBudget fitAddressSpace(uint64_t memoryBudget, int& threads, bool quiet) {
                    formatBytes(limit), threads, threads == 1 ? "" : "s", wanted);
     const int64_t left = std::max<int64_t>(room(threads), 0);
     budget.overhead = limit - uint64_t(left);
+    // A limit below what is mapped leaves nothing (left is 0), and the overhead is then the limit
+    // itself: the shortfall goes into the slack, or 64M named 16 MiB less than 80M did.
+    budget.namedSlack = uint64_t(wanted - threads) * kWorkerStackBytes + kMappedJitterBytes + uint64_t(std::max<int64_t>(-room(threads), 0));
     budget.bytes = memoryBudget ? std::min<uint64_t>(memoryBudget, uint64_t(left)) : uint64_t(left);
     if (!memoryBudget || uint64_t(left) < memoryBudget) budget.label = "the address-space limit (prlimit --as, ulimit -v) of";
-    else budget.overhead = 0;
+    else budget.overhead = 0, budget.namedSlack = 0;
     return budget;
 }
 
@@ -73,17 +76,23 @@ MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, 
     return d;
 }
 
+uint64_t leastNamedLimit(const MemoryDemand& demand, const BakeBudget& budget) {
+    // Under an address-space limit, at least what the scan pass will be asked for after this
+    // (checkAddressSpaceLeft): the plan's overhead was measured before the volume plugin loaded,
+    // and a limit this named (216M) was then refused again, naming 239 MiB. And the stacks of
+    // the threads the limit left out, which a larger limit runs (200M named 240M, then 244M).
+    uint64_t least = planMemory(demand, 0).minimumBudget + budget.overhead;
+    if (budget.overhead != 0) least = std::max(least, addressSpaceNeeded(scanPhaseBytes(demand)));  // the limit is the budget
+    return least + budget.namedSlack;
+}
+
 void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget) {
     if (budget.bytes == 0) return;
     const MemoryPlan worst = planMemory(demand, 0);
     if (budget.bytes >= scanPhaseBytes(demand)) return;  // the scan fits; the exact check follows it
     std::string why;
     if (!demand.sourceDetail.empty() && demand.sourceBytes > worst.minimumBudget / 2) why = fmt::format(" ({})", demand.sourceDetail);
-    // Under an address-space limit, at least what the scan pass will be asked for after this
-    // (checkAddressSpaceLeft): the plan's overhead was measured before the volume plugin loaded,
-    // and a limit this named (216M) was then refused again, naming 239 MiB.
-    uint64_t least = worst.minimumBudget + budget.overhead;
-    if (budget.overhead != 0) least = std::max(least, addressSpaceNeeded(scanPhaseBytes(demand)));  // the limit is the budget
+    const uint64_t least = leastNamedLimit(demand, budget);
     throw InputError(fmt::format("{} {} is too small for up to {} receivers of {} light-sample groups each; at least {} is needed{}",
                                  budget.subject(), formatBytes(budget.bytes + budget.overhead), demand.receivers, demand.groups,
                                  budgetText(least), why));
@@ -91,7 +100,7 @@ void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget) {
 
 TriangleSourcePtr openCheckedBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const BakeBudget& budget, bool keepMasks,
                                         bool quiet, MemoryDemand& demand) {
-    checkSceneAlphaBudget(scene, budget.bytes, budget.label);  // before a texture is decoded (opening builds the table)
+    checkSceneAlphaBudget(scene, budget.bytes, budget.label, budget.overhead, budget.namedSlack);  // before a texture is decoded (opening builds the table)
     TriangleSourcePtr geometry = [&] {
         OpeningProgress opening(quiet);  // an OBJ's check pass shows as a phase
         return openSceneGeometry(scene);

@@ -32,6 +32,10 @@ struct BakeBudget {
     /// Address space already spent before any bake data (libraries, stacks), added back in
     /// messages about an address-space limit.
     uint64_t overhead = 0;
+    /// Added to the limit a refusal names: the stacks of the threads the limit had no room for
+    /// (under the named limit all of them run), and what is mapped moving by a MiB or so from one
+    /// limit to the next. A limit named without them was refused again (200M named 240M, then 244M).
+    uint64_t namedSlack = 0;
     std::string label = "--memory-budget";
     /// The scene, named before an address-space limit's refusals (a --memory-budget one names the
     /// option, which is enough).
@@ -39,12 +43,14 @@ struct BakeBudget {
 
     /// What a refusal starts with: "--memory-budget", or "SCENE: the address-space limit ... of".
     std::string subject() const { return where.empty() || label == "--memory-budget" ? label : where + ": " + label; }
-    MemoryPlan plan(const MemoryDemand& demand) const { return planMemory(demand, bytes, subject(), overhead); }
+    MemoryPlan plan(const MemoryDemand& demand) const { return planMemory(demand, bytes, subject(), overhead, namedSlack); }
 };
 
 /// Stack reserved per TBB worker (set through tbb::global_control) and per read-ahead thread.
 inline constexpr uint64_t kWorkerStackBytes = 4ull << 20;
 inline constexpr uint64_t kReadAheadStackBytes = 8ull << 20;
+/// What the kernel reports as mapped moves by about a MiB between runs under different limits.
+inline constexpr uint64_t kMappedJitterBytes = 2ull << 20;
 
 /// @brief The budget for @p memoryBudget under this process's address-space limit, if any: with a
 /// limit, malloc keeps one arena, thread stacks and what is already mapped are set aside, and
@@ -60,6 +66,11 @@ void addSampleDemand(MemoryDemand& demand, const LightSamples& samples, const Sc
 
 /// @brief Check 1 above. @throw InputError naming the worst-case minimum.
 void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget);
+
+/// @brief The least budget or limit a refusal before the scan names for @p demand: the plan's
+/// worst case, and under an address-space limit what the scan pass will find mapped and the
+/// stacks of the threads the limit left no room for.
+uint64_t leastNamedLimit(const MemoryDemand& demand, const BakeBudget& budget);
 
 /// @brief Opens the scene's geometry as a bake does before its scan, and makes check 1: a texture
 /// that alone does not fit @p budget is refused before it is decoded, then the sources are opened

@@ -14,7 +14,8 @@ uint64_t scanPhaseBytes(const MemoryDemand& d) {
     return kBaselineBytes + d.alphaBytes + std::max(d.alphaBuildBytes, d.bufferBytes + d.scanBytes + d.sourceBytes);
 }
 
-MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string& label, uint64_t overhead) {
+MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string& label, uint64_t overhead,
+                      uint64_t namedSlack) {
     MemoryPlan plan;
     plan.budget = budget;
     // Resident for the whole bake, per receiver: the receiver set (position, normal, pixel, depth:
@@ -57,7 +58,7 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string&
             why = fmt::format(" (with the antialiasing pass's up to {} more receivers)", d.refinement.addedReceivers);
         throw InputError(fmt::format("{} {} is too small for {} receivers of {} light-sample groups each; at least {} is needed{}", label,
                                      formatBytes(budget + overhead), d.receivers, d.groups,
-                                     budgetText(plan.minimumBudget + overhead), why));
+                                     budgetText(plan.minimumBudget + overhead + namedSlack), why));
     }
     const uint64_t perTile = (budget - plan.residentBytes - castSources) / plan.perReceiverBytes;
     plan.tiles = int(std::max<uint64_t>(1, (d.receivers + perTile - 1) / std::max<uint64_t>(perTile, 1)));

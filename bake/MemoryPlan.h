@@ -66,8 +66,9 @@ inline constexpr uint64_t kMinimumTileReceivers = 4096;
 /// small for 2073600 receivers of 4 light-sample groups each; at least 310M is needed").
 /// @param label and @p overhead name the limit in the message: a budget derived from an
 ///        address-space limit says so, and counts what the process had mapped before.
+/// @param namedSlack added to the limit the message names (BakeBudget::namedSlack).
 MemoryPlan planMemory(const MemoryDemand& demand, uint64_t budget, const std::string& label = "--memory-budget",
-                      uint64_t overhead = 0);
+                      uint64_t overhead = 0, uint64_t namedSlack = 0);
 
 /// @brief The phase the scan pass needs (the receiver kind's scan buffers and the sources), which
 /// must fit before anything is read.

@@ -358,7 +358,8 @@ void scanScene(Bake& b) {
     TriangleSourcePtr geometry = openCheckedBeforeScan(scene, *b.kind, b.budget, b.keepMasks(), b.settings.quiet, b.demand);
     // Without a budget the machine is the bound: refuse before any work what it cannot hold.
     checkMemoryFits(scene.file, "the scan pass", scanPhaseBytes(b.demand));
-    checkAddressSpaceLeft(scene.file, "the scan pass", scanPhaseBytes(b.demand));
+    checkAddressSpaceLeft(scene.file, "the scan pass", scanPhaseBytes(b.demand),
+                          b.budget.overhead ? leastNamedLimit(b.demand, b.budget) : 0);
     checkMemoryFits(scene.file, "casting", planMemory(b.demand, 0).minimumBudget);
     auto afterScan = [&](const Prepared& prepared, uint64_t triangles) {
         b.demand.receivers = prepared.receivers.size();

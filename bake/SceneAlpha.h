@@ -56,9 +56,13 @@ void initSceneAlpha(SceneDesc& scene, std::shared_ptr<AlphaTable> table, std::ve
 /// @throw InputError as planGltfAlpha().
 const GltfAlphaState* planSceneAlpha(const SceneDesc& scene);
 
-/// @brief Refuses, before any work, an image that alone does not fit in @p budgetBytes (0:
-/// unlimited) when it is decoded. @throw InputError "FILE: material M ("name"): image I: ...".
-void checkSceneAlphaBudget(const SceneDesc& scene, uint64_t budgetBytes, const std::string& label);
+/// @brief Refuses, before any work, an image that does not fit in @p budgetBytes (0: unlimited)
+/// with the bake's baseline when it is decoded.
+/// @param overhead, @p namedSlack as BakeBudget's: the limit the message names is the budget plus
+///        @p overhead, and the least it asks for adds @p namedSlack.
+/// @throw InputError "FILE: material M ("name"): image I: ...", naming the least budget or limit.
+void checkSceneAlphaBudget(const SceneDesc& scene, uint64_t budgetBytes, const std::string& label, uint64_t overhead = 0,
+                           uint64_t namedSlack = 0);
 
 /// @brief Step 2 (once per scene): decodes the textures and gives the triangles their ids.
 /// @return for generator entry @p geometry with an outline texture, its built texture (ids: the

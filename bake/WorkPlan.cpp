@@ -1,5 +1,6 @@
 #include "bake/WorkPlan.h"
 
+#include "bake/MemoryPlan.h"
 #include "bucket/BucketOptions.h"
 #include "stream/util/Error.h"
 #include "stream/util/Memory.h"
@@ -54,13 +55,13 @@ uint64_t freeDiskBytes(const std::string& dir) {
 
 uint64_t addressSpaceNeeded(uint64_t neededBytes) { return mappedBytes() + neededBytes + kReadAheadReserve; }
 
-void checkAddressSpaceLeft(const std::string& scene, const char* what, uint64_t neededBytes) {
+void checkAddressSpaceLeft(const std::string& scene, const char* what, uint64_t neededBytes, uint64_t wholeBake) {
     // The plan's estimate of what is already mapped can be short: ask the kernel. The read-ahead
     // thread's stack rides along.
     const uint64_t limit = addressSpaceLimit();
     if (!limit || addressSpaceAvailable(neededBytes + kReadAheadReserve)) return;
-    fail(scene, "{} does not fit under the address-space limit (prlimit --as, ulimit -v) of {}: it needs at least {}",
-         what, formatBytes(limit), formatBytes(addressSpaceNeeded(neededBytes)));
+    fail(scene, "{} does not fit under the address-space limit (prlimit --as, ulimit -v) of {}: at least {} is needed", what,
+         formatBytes(limit), budgetText(std::max(addressSpaceNeeded(neededBytes), wholeBake)));
 }
 
 void checkMemoryFits(const std::string& scene, const char* what, uint64_t neededBytes) {

@@ -28,8 +28,10 @@ uint64_t freeDiskBytes(const std::string& dir);
 /// address-space limit leaves now, asking the kernel rather than trusting the plan's estimate of
 /// what is mapped already (a tight `prlimit --as` would otherwise end in a failed allocation, or
 /// a thread that cannot start, in the middle of the scan).
+/// @param wholeBake the least limit the rest of the bake will ask for (0: unknown); the refusal
+///        names the larger, so that the limit it names is not refused again by a later phase.
 /// @throw InputError naming @p scene and the least limit that works.
-void checkAddressSpaceLeft(const std::string& scene, const char* what, uint64_t neededBytes);
+void checkAddressSpaceLeft(const std::string& scene, const char* what, uint64_t neededBytes, uint64_t wholeBake = 0);
 
 /// @brief The least address-space limit under which a phase needing @p neededBytes more can start
 /// now: what the kernel says is mapped, the phase, and the read-ahead thread's reserve (the

@@ -131,6 +131,11 @@ void Checkpoints::removeAll() noexcept {
     std::error_code ec;
     for (const std::string& path : written_) fs::remove(path, ec);
     written_.clear();
+    // The folder too, when nothing else is in it: a completed bake leaves nothing of its
+    // checkpoints behind (remove() leaves a folder that holds anything, and the current one).
+    if (fs::is_directory(settings_.checkpointDir, ec) && fs::is_empty(settings_.checkpointDir, ec) && !ec &&
+        !fs::equivalent(settings_.checkpointDir, fs::current_path(ec), ec))
+        fs::remove(settings_.checkpointDir, ec);
 }
 
 }  // namespace penumbra

@@ -8,7 +8,8 @@
 /// so a restored tile gives exactly the bits a cast would: the outputs are byte-identical to an
 /// uninterrupted bake. A file of another scene, other settings, another tiling or another format
 /// version is never used: `--checkpoint` ignores it with a note, `--resume` refuses it. The
-/// checkpoints are removed once the bake's outputs are in place.
+/// checkpoints are removed once the bake's outputs are in place, and the folder with them when it
+/// is left empty.
 ///
 /// Within a tile, every `--checkpoint-every` seconds of cast (and on SIGTERM) the tile's masks so
 /// far are saved as `tile-T-of-M.progress.pnpart`, with the position in the replay they hold; a
@@ -64,7 +65,8 @@ public:
     /// @throw InputError under `--resume`.
     void rejectProgress(size_t tile, size_t tiles);
 
-    /// @brief Removes every checkpoint this bake wrote or restored (the bake is complete).
+    /// @brief Removes every checkpoint this bake wrote or restored (the bake is complete), then
+    /// the checkpoint folder if nothing else is left in it.
     void removeAll() noexcept;
 
     /// Tiles restored and written so far.

@@ -72,6 +72,7 @@ struct ResumeBake {
         REQUIRE(r.exitCode == 0);
         CHECK(outputs() == expected);
         CHECK(filesIn(dir / "ckpt").empty());  // the bake is complete: its checkpoints are gone
+        CHECK_FALSE(fs::exists(dir / "ckpt"));  // and the folder they were in, left empty
         CHECK_FALSE(hasTempFiles(dir.path));
     }
 };
