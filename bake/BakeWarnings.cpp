@@ -17,11 +17,28 @@ namespace {
 /// True when some receiver lies strictly on the emitting side of the planar light @p light.
 bool anyReceiverInFront(const LightDesc& light, const ReceiverSet& set) {
     const glm::dvec3 n = light.emitterNormal();
-    // Every point of a planar light lies in its plane, so the plane through its centre decides
-    // exactly which receivers it can reach.
+    // Every point of a planar light lies in its plane, so the plane through one of its points
+    // decides exactly which receivers it can reach. A polygon has no centre (it was taken as the
+    // origin, and a polygon lighting the floor was said to light nothing): its first vertex.
+    const glm::dvec3 onPlane = light.type == LightType::Polygon && !light.polygon.empty() ? light.polygon[0] : light.center;
     for (const glm::vec3& r : set.position)
-        if (glm::dot(glm::dvec3(r) - light.center, n) > 0) return true;
+        if (glm::dot(glm::dvec3(r) - onPlane, n) > 0) return true;
     return false;
+}
+
+/// True when some receiver's surface faces some direction of the sun @p light: its normal within
+/// 90 degrees plus the disk's radius of the direction towards the sun. A receiver without a
+/// normal counts as facing it.
+bool anyReceiverFacingSun(const LightDesc& light, const ReceiverSet& set) {
+    const glm::dvec3 travel = glm::normalize(light.direction);
+    const double sinRadius = std::sin(std::min(light.angularDiameterDeg, 180.0) * M_PI / 360.0);
+    for (const glm::vec3& normal : set.normal) {
+        const glm::dvec3 n(normal);
+        const double length = glm::length(n);
+        // A margin of a millionth: only a sun clearly below every receiver's horizon is warned of.
+        if (!(length > 0) || glm::dot(n, travel) < (sinRadius + 1e-6) * length) return true;
+    }
+    return set.normal.empty();
 }
 
 /// How to turn the light around, by its type.
@@ -87,6 +104,14 @@ std::vector<std::string> bakeWarnings(const nlohmann::json& receivers, const Rec
     for (const LightDesc& light : lights)
         if (std::optional<std::string> spacing = sampleSpacingWarning(light)) warnings.push_back(std::move(*spacing));
     for (const LightDesc& light : lights) {
+        if (light.type == LightType::Sun && !anyReceiverFacingSun(light, set)) {
+            const glm::dvec3 d = light.direction;
+            warnings.push_back(fmt::format("{}: travels away from every receiver's surface (its direction is ({:.3g}, {:.3g}, {:.3g}), "
+                                           "and every receiver's normal points along it), so it lights nothing; negate its "
+                                           "\"direction\" to turn it around",
+                                           light.where, d.x, d.y, d.z));
+            continue;
+        }
         const glm::dvec3 n = light.emitterNormal();
         if (n == glm::dvec3(0.0) || anyReceiverInFront(light, set)) continue;
         warnings.push_back(fmt::format("{}: faces away from every receiver (it emits towards ({:.3g}, {:.3g}, {:.3g})), so it "

@@ -520,6 +520,7 @@ void writeOutputs(Bake& b) {
     if (b.dump()) writeBakeDump(b.settings.dumpDir, p.receivers, p.sampleSets, p.samples, b.masks, receiverEpsilonOf(p.options));
     if (!b.settings.visibilityPath.empty()) {
         const uint64_t shape[1] = {p.receivers.size()};
+        ensureParentDirectory(b.settings.visibilityPath);  // as --stats and --dump make theirs (README)
         writeNpy(b.settings.visibilityPath, "<f4", shape, b.results.visibility.data(), b.results.visibility.size() * sizeof(float));
     }
 }

@@ -58,7 +58,7 @@ LightDesc parseLight(const JsonParams& j) {
         l.angularDiameterDeg = j.number("angular_diameter_deg", l.angularDiameterDeg);
         if (j.has("irradiance") && j.has("radiance"))
             fail(j.where("irradiance"), "give either \"irradiance\" or \"radiance\", not both");
-        if (j.has("radiance")) l.irradiance = sunIrradianceFromRadiance(j.vec3("radiance"), l.angularDiameterDeg);
+        if (j.has("radiance")) l.irradiance = sunIrradianceFromRadiance(colour(j, "radiance", glm::dvec3(0.0)), l.angularDiameterDeg);
         else l.irradiance = colour(j, "irradiance", l.irradiance);
     } else {
         fail(j.where("type"), "unknown light type \"{}\" (known: rect, disk, sphere, polygon, sun)", type);
@@ -372,7 +372,8 @@ TriangleSourcePtr openGeometry(const SceneDesc& scene, bool exporting) {
         std::shared_ptr<const GltfAlphaIds> alpha = exporting ? nullptr : sceneAlphaIds(scene, i);
         TriangleSourcePtr source = openSource(g.type, SourceRequest{g.params, scene.file, g.path, scene.baseDir, alpha});
         if (!g.transform.isIdentity())
-            source = std::make_unique<TransformedSource>(std::move(source), g.transform.matrix());
+            source = std::make_unique<TransformedSource>(std::move(source), g.transform.matrix(),
+                                                         fmt::format("{}: geometry[{}].transform", scene.file, i));
         if (g.closed)
             source = std::make_unique<FlagSource>(std::move(source), *g.closed ? kTriangleClosed : 0u,
                                                   *g.closed ? 0u : kTriangleClosed | kTriangleSolidStart);

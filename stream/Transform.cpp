@@ -63,8 +63,8 @@ glm::mat4 Transform::matrix() const {
 
 bool Transform::isIdentity() const { return matrix() == glm::mat4(1.0f); }
 
-TransformedSource::TransformedSource(TriangleSourcePtr inner, const glm::mat4& matrix)
-    : DecoratedSource(std::move(inner)), matrix_(matrix),
+TransformedSource::TransformedSource(TriangleSourcePtr inner, const glm::mat4& matrix, std::string where)
+    : DecoratedSource(std::move(inner)), matrix_(matrix), where_(std::move(where)),
       mirrors_(glm::determinant(glm::mat3(matrix)) < 0.0f) {}
 
 size_t TransformedSource::read(std::span<Triangle> out) {
@@ -75,7 +75,9 @@ size_t TransformedSource::read(std::span<Triangle> out) {
         // A cut-out's corner UVs follow its vertices (stream/AlphaTable.h): it keeps their order, and
         // so its outline, and only faces the other way (the blocking rule is two-sided).
         if (mirrors_ && !alphaIdOf(t.flags)) std::swap(t.v[1], t.v[2]);
-        if (!isFinite(t)) fail(inner_->name(), "transform produced a non-finite vertex");
+        if (!isFinite(t))
+            fail(where_.empty() ? inner_->name() : where_, "moves a vertex of {} beyond the float range (a coordinate is not finite)",
+                 inner_->name());
     }
     return n;
 }
@@ -87,9 +89,16 @@ Transform parseTransform(const JsonParams& entry) {
     JsonParams j(*raw, entry.file(), entry.path("transform"));
     const double scale = j.number("scale", 1.0);
     if (!(scale != 0.0)) fail(j.where("scale"), "must not be zero");
-    t.scale = float(scale);
-    t.rotateDeg = glm::vec3(j.vec3("rotate_deg", glm::dvec3(0.0)));
-    t.translate = glm::vec3(j.vec3("translate", glm::dvec3(0.0)));
+    // Vertices are float: a value float cannot hold would make every vertex infinite.
+    auto asFloat = [&](const char* key, double v) {
+        if (!std::isfinite(float(v))) fail(j.where(key), "{:g} is beyond the float range of vertices", v);
+        return float(v);
+    };
+    t.scale = asFloat("scale", scale);
+    const glm::dvec3 translate = j.vec3("translate", glm::dvec3(0.0));
+    const glm::dvec3 rotate = j.vec3("rotate_deg", glm::dvec3(0.0));
+    t.rotateDeg = {asFloat("rotate_deg", rotate.x), asFloat("rotate_deg", rotate.y), asFloat("rotate_deg", rotate.z)};
+    t.translate = {asFloat("translate", translate.x), asFloat("translate", translate.y), asFloat("translate", translate.z)};
     j.finish();
     return t;
 }

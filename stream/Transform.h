@@ -44,7 +44,8 @@ class TransformedSource final : public DecoratedSource {
 public:
     /// @param inner the source whose vertices are transformed; owned.
     /// @param matrix applied to each vertex as a point.
-    TransformedSource(TriangleSourcePtr inner, const glm::mat4& matrix);
+    /// @param where what errors name ("scene.json: geometry[2].transform"); empty: the inner source.
+    TransformedSource(TriangleSourcePtr inner, const glm::mat4& matrix, std::string where = {});
 
     /// @throw InputError when the inner source does, or when a transformed vertex is not finite.
     size_t read(std::span<Triangle> out) override;
@@ -53,6 +54,7 @@ public:
 
 private:
     glm::mat4 matrix_;
+    std::string where_;
     bool mirrors_;
 };
 

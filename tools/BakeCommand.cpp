@@ -66,18 +66,18 @@ void addCastOptions(CLI::App& bake, BakeCommand& c) {
     bake.add_option("--closed-casters", c.closedCasters,
                     "on or off: skip closed surfaces' triangles that face away from the light (overrides bake.closed_casters)")
         ->check(CLI::IsMember({"on", "off"}));
-    bake.add_option("--penumbra-map-resolution", c.mapResolution,
-                    "penumbra-map: texels per side of a shadow map (overrides bake.penumbra_map_resolution)")
-        ->check(CLI::Range(16, 16384));
-    bake.add_option("--penumbra-map-bias", c.mapBias, "penumbra-map: depth bias in texels (overrides bake.penumbra_map_bias)")
-        ->check(CLI::Range(0.0, 1e6));
+    c.mapResolutionOption = bake.add_option("--penumbra-map-resolution", c.mapResolution,
+                                            "penumbra-map: texels per side of a shadow map, 16..16384 (overrides "
+                                            "bake.penumbra_map_resolution)");
+    c.mapBiasOption = bake.add_option("--penumbra-map-bias", c.mapBias,
+                                      "penumbra-map: depth bias in texels, 0..1e6 (overrides bake.penumbra_map_bias)");
     bake.add_option("--penumbra-map-lookup", c.mapLookup,
                     "penumbra-map: backprojection (default: inner and outer penumbrae) or wyman-hansen (the paper's outer penumbrae; "
                     "overrides bake.penumbra_map_lookup)")
         ->check(CLI::IsMember({"backprojection", "wyman-hansen"}));
-    bake.add_option("--penumbra-map-taps", c.mapTaps,
-                    "penumbra-map backprojection: texels read each side of a receiver, 1..8 (default 3; overrides bake.penumbra_map_taps)")
-        ->check(CLI::Range(1, 8));
+    c.mapTapsOption = bake.add_option(
+        "--penumbra-map-taps", c.mapTaps,
+        "penumbra-map backprojection: texels read each side of a receiver, 1..8 (default 3; overrides bake.penumbra_map_taps)");
 }
 
 /// The files a bake wrote, for its summary line: each one, up to a few, then how many more.
@@ -109,10 +109,20 @@ SceneDesc sceneOf(const BakeCommand& c) {
     if (!c.sampleTable.empty()) scene.options.sampleTable = c.sampleTable == "on";
     if (!c.closedCasters.empty()) scene.options.closedCasters = c.closedCasters == "on";
     if (!c.embreeFilter.empty()) scene.options.embreeRuleFilter = c.embreeFilter == "on";
-    if (c.mapResolution > 0) scene.bakeOptions["penumbra_map_resolution"] = c.mapResolution;
-    if (c.mapBias >= 0) scene.bakeOptions["penumbra_map_bias"] = c.mapBias;
+    // Out of range is an input error (exit 1), as for every option of the right form; NaN too.
+    if (c.mapResolutionOption->count()) {
+        requireInRange("--penumbra-map-resolution", c.mapResolution, 16, 16384);
+        scene.bakeOptions["penumbra_map_resolution"] = c.mapResolution;
+    }
+    if (c.mapBiasOption->count()) {
+        requireInRange("--penumbra-map-bias", c.mapBias, 0.0, 1e6);
+        scene.bakeOptions["penumbra_map_bias"] = c.mapBias;
+    }
     if (!c.mapLookup.empty()) scene.bakeOptions["penumbra_map_lookup"] = c.mapLookup;
-    if (c.mapTaps > 0) scene.bakeOptions["penumbra_map_taps"] = c.mapTaps;
+    if (c.mapTapsOption->count()) {
+        requireInRange("--penumbra-map-taps", c.mapTaps, 1, 8);
+        scene.bakeOptions["penumbra_map_taps"] = c.mapTaps;
+    }
     return scene;
 }
 

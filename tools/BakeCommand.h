@@ -26,7 +26,7 @@ struct BakeCommand {
     int mapTaps = 0;        ///< 0: the scene's
     ShardCli shard;
     CLI::Option *outputOption = nullptr, *statsOption = nullptr, *dumpOption = nullptr, *tmpOption = nullptr,
-                *budgetOption = nullptr;
+                *budgetOption = nullptr, *mapResolutionOption = nullptr, *mapBiasOption = nullptr, *mapTapsOption = nullptr;
 };
 
 /// @brief Adds the `bake` subcommand to @p app, parsing into @p command (which must outlive the

@@ -70,8 +70,8 @@ void addFileCommands(CLI::App& app, FileCommands& c) {
     c.sliceCommand = app.add_subcommand("vdb-slice", "render an axis-aligned slice of a .vdb float grid to a PNG");
     c.sliceCommand->add_option("input", c.sliceIn)->required();
     c.sliceCommand->add_option("output", c.sliceOut)->required();
-    c.sliceCommand->add_option("--axis", c.sliceAxis, "x, y or z")->check(CLI::IsMember({"x", "y", "z"}));
-    c.sliceCommand->add_option("--at", c.sliceAt, "world coordinate of the slice along the axis");
+    c.sliceCommand->add_option("--axis", c.sliceAxis, "x, y or z")->required()->check(CLI::IsMember({"x", "y", "z"}));
+    c.sliceCommand->add_option("--at", c.sliceAt, "world coordinate of the slice along the axis")->required();
     c.sliceCommand->add_option("--grid", c.sliceGrid, "float grid name");
 }
 

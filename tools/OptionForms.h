@@ -9,6 +9,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cctype>
 #include <string>
 
@@ -46,6 +47,29 @@ inline CLI::Validator shardForm() {
             return "'" + text + "' is not I/N (shard I of N, e.g. 0/4) or slurm";
         },
         "I/N");
+}
+
+/// @brief `A-B` with decimal numbers (a range of shards); the numbers' own limits are the
+/// command's to check (exit 1).
+inline CLI::Validator shardRangeForm() {
+    return CLI::Validator(
+        [](std::string& text) -> std::string {
+            const size_t dash = text.find('-');
+            auto digits = [](const std::string& s) {
+                return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); });
+            };
+            if (dash != std::string::npos && digits(text.substr(0, dash)) && digits(text.substr(dash + 1))) return "";
+            return "'" + text + "' is not A-B (shards A to B, e.g. 0-3)";
+        },
+        "A-B");
+}
+
+/// @brief Refuses a value of the right form outside [@p lo, @p hi] (NaN included) as an input
+/// error naming @p option (exit 1); a CLI::Range check would make it a usage error (exit 2).
+/// @throw InputError "OPTION: must be in LO..HI, got VALUE".
+template <class T>
+void requireInRange(const char* option, T value, T lo, T hi) {
+    if (!(value >= lo && value <= hi)) fail(option, "must be in {}..{}, got {}", lo, hi, value);
 }
 
 }  // namespace penumbra

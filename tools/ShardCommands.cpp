@@ -94,7 +94,7 @@ CLI::App* addCombineCommand(CLI::App& app, CombineOptions& o) {
     CLI::App* c = app.add_subcommand("combine", "OR shard files of one bake into one (a tree merge's inner node): "
                                                 "penumbra combine INPUT... --shard-dir OUT [--range A-B]");
     c->add_option("inputs", o.inputs, "shard files, or directories of them")->required();
-    c->add_option("--range", o.range, "combine shards A to B (inclusive) of the inputs; default: all of them");
+    c->add_option("--range", o.range, "combine shards A to B (inclusive) of the inputs; default: all of them")->check(shardRangeForm());
     c->add_option("--shard-dir", o.shardDir, "directory for the combined file shards-A-B-of-N.pnpart")->required();
     c->add_flag("-q,--quiet", o.quiet, "print nothing");
     return c;
@@ -110,7 +110,7 @@ void runCombine(const CombineOptions& o) {
 CLI::App* addSlurmCommand(CLI::App& app, SlurmOptions& o) {
     CLI::App* c = app.add_subcommand("slurm", "bake a scene as a Slurm job array of shards and a dependent merge job");
     c->add_option("scene", o.scene, "scene file (JSON), on a file system every node shares")->required();
-    c->add_option("--shards", o.shards, "number of shards (array tasks)")->required()->check(CLI::Range(1, 65536));
+    c->add_option("--shards", o.shards, "number of shards (array tasks), 1..65536")->required();
     c->add_option("--partition", o.partition, "Slurm partition");
     c->add_option("--shard-by", o.shardBy, "receivers, blockers or auto")->check(CLI::IsMember({"receivers", "blockers", "auto"}));
     c->add_option("--dir", o.dir, "shared directory for scripts, logs and shard files (default SCENE_STEM.slurm)");
@@ -118,9 +118,8 @@ CLI::App* addSlurmCommand(CLI::App& app, SlurmOptions& o) {
     c->add_option("--memory-budget", o.memoryBudget, "each shard's memory budget; Slurm's --mem follows from it")->check(byteSizeForm());
     c->add_option("--time", o.time, "sbatch --time of each task");
     c->add_option("--tmp", o.tmp, "each shard's --tmp: node-local scratch for bucket files");
-    c->add_option("--threads", o.threads, "threads per task (and --cpus-per-task)")->check(CLI::Range(1, kMaxThreads));
-    c->add_option("--fan-in", o.fanIn, "most shard files one job reads: more are combined in a tree of jobs first (0: never)")
-        ->check(CLI::Range(0, 65536));
+    c->add_option("--threads", o.threads, "threads per task (and --cpus-per-task)");
+    c->add_option("--fan-in", o.fanIn, "most shard files one job reads: more are combined in a tree of jobs first (0: never)");
     c->add_flag("--dry-run", o.dryRun, "print the scripts instead of submitting them");
     return c;
 }
@@ -234,6 +233,9 @@ std::string submit(const std::string& args, const std::string& script) {
 /// Values that go into the scripts' `#SBATCH` lines as they are: a line break there would start a
 /// line of its own (a shell command, in the script's body), and sbatch ends a value at a space.
 void checkScriptValues(const SlurmOptions& o) {
+    requireInRange("--shards", o.shards, 1, 65536);
+    requireInRange("--threads", o.threads, 1, kMaxThreads);
+    requireInRange("--fan-in", o.fanIn, 0, 65536);
     const auto control = [](const std::string& v) { return std::any_of(v.begin(), v.end(), [](char c) { return uint8_t(c) < 0x20 || c == 0x7f; }); };
     const auto space = [](const std::string& v) { return v.find(' ') != std::string::npos; };
     for (const auto& [option, value] : {std::pair{"--partition", &o.partition}, std::pair{"--time", &o.time}})

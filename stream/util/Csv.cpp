@@ -82,21 +82,22 @@ std::vector<std::vector<double>> readCsvNumbers(const std::string& path, size_t 
         std::vector<double> values;
         values.reserve(fields.size());
         size_t badField = 0;  // 1-based index of the first field that is not a finite number
-        bool hasText = false;
+        bool allText = true;
         for (size_t i = 0; i < fields.size(); ++i) {
             double v = 0;
             FieldKind kind = parseField(fields[i], v);
+            allText = allText && kind == FieldKind::Text;
             if (kind == FieldKind::Number) {
                 values.push_back(v);
                 continue;
             }
             if (badField == 0) badField = i + 1;
-            hasText = hasText || kind == FieldKind::Text;
         }
 
-        // Only the first content line may be a header such as "x,y,z", and only if it has a
-        // word in it: "1,,3" or "nan,0,0" are broken data rows, not column names.
-        if (hasText && !sawContent) {
+        // Only the first content line may be a header such as "x,y,z", and only if every field is
+        // a word: "1,,3" or "nan,0,0" are broken data rows, not column names, and so is
+        // "0,0,0,0,1,0O" (a typo), which was taken for a header and its receiver dropped.
+        if (allText && !sawContent) {
             // A header names every column. One of another width is more likely data in another
             // separator ("0;0;0;0;1;0" was taken as a header, and the file as empty).
             if (expectedColumns != 0 && fields.size() != expectedColumns)

@@ -10,8 +10,8 @@ namespace penumbra {
 
 /// @brief Reads a comma-separated table of numbers.
 ///
-/// Accepted: an optional header row (recognised as the first non-blank, non-comment line
-/// having a field that is a word: neither a number, nor empty, nor nan/inf), blank lines,
+/// Accepted: an optional header row (the first non-blank, non-comment line, when every field of
+/// it is a word: neither a number, nor empty, nor nan/inf), blank lines,
 /// lines whose first non-blank character is '#', spaces around fields, CRLF line endings and
 /// a UTF-8 byte order mark. Every value must be a finite decimal number; nan/inf are
 /// rejected because they would silently poison every downstream computation.

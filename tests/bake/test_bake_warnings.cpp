@@ -4,6 +4,8 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
+
 using namespace penumbra;
 
 namespace {
@@ -62,6 +64,40 @@ TEST_CASE("warnings: a planar light facing away from every receiver", "[warnings
     const std::vector<std::string> away = warningsFor(up);
     REQUIRE(away.size() == 1);
     CHECK_THAT(away[0], Catch::Contains("faces away from every receiver") && Catch::Contains("swap \"u\" and \"v\""));
+}
+
+TEST_CASE("warnings: a polygon light is judged by its own plane, not one through the origin", "[warnings]") {
+    // Over a floor receiver at y = 0.5, at y = 4: emitting downwards lights it, upwards does not.
+    ReceiverSet floor;
+    floor.position.push_back({0, 0.5f, 0});
+    floor.normal.push_back({0, 1, 0});
+    LightDesc down;
+    down.type = LightType::Polygon;
+    down.polygon = {{-1, 4, -1}, {1, 4, -1}, {1, 4, 1}, {-1, 4, 1}};
+    down.where = "scene.json: lights[0]";
+    REQUIRE(down.emitterNormal().y < 0);
+    CHECK(bakeWarnings(nlohmann::json{{"type", "points"}}, floor, {down}).empty());
+    LightDesc up = down;
+    std::reverse(up.polygon.begin(), up.polygon.end());
+    const std::vector<std::string> away = bakeWarnings(nlohmann::json{{"type", "points"}}, floor, {up});
+    REQUIRE(away.size() == 1);
+    CHECK_THAT(away[0], Catch::Contains("lights[0]: faces away from every receiver") && Catch::Contains("\"vertices\""));
+}
+
+TEST_CASE("warnings: a sun travelling away from every receiver's surface", "[warnings]") {
+    LightDesc sun;
+    sun.type = LightType::Sun;
+    sun.where = "scene.json: lights[0]";
+    sun.direction = {0, -1, 0};  // down onto the floor: lit
+    CHECK(warningsFor(sun).empty());
+    sun.direction = {1, -0.001, 0};  // grazing, its disk partly above the horizon: lit
+    CHECK(warningsFor(sun).empty());
+    sun.direction = {0, 1, 0};  // up, away from the floor's surface
+    const std::vector<std::string> away = warningsFor(sun);
+    REQUIRE(away.size() == 1);
+    CHECK_THAT(away[0], Catch::Contains("lights[0]: travels away from every receiver's surface") && Catch::Contains("negate"));
+    sun.direction = {1, 0.001, 0};  // just below the horizon, but its disk (0.53 degrees) reaches above it
+    CHECK(warningsFor(sun).empty());
 }
 
 TEST_CASE("warnings: a receiver epsilon that is a large part of the receivers' extent", "[warnings]") {

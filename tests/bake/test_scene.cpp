@@ -78,6 +78,38 @@ TEST_CASE("scene errors name the key", "[scene]") {
     requireError(s, "receivers: missing required field");
 }
 
+TEST_CASE("a transform beyond float range is named by its key, and its vertices by the entry", "[scene]") {
+    json s = minimal();
+    s["geometry"][0]["transform"] = {{"scale", 1e300}};
+    requireError(s, "geometry[0].transform.scale: 1e+300 is beyond the float range of vertices");
+    s["geometry"][0]["transform"] = {{"translate", {0, -1e39, 0}}};
+    requireError(s, "geometry[0].transform.translate: -1e+39 is beyond the float range of vertices");
+    // A float scale whose vertices overflow: named when they are read, with the entry.
+    s["geometry"][0]["transform"] = {{"scale", 3e38}};
+    const SceneDesc scene = parseScene(s, "dir/scene.json");
+    TriangleSourcePtr source = openSceneGeometry(scene);
+    std::vector<Triangle> chunk(1024);
+    try {
+        while (source->read(chunk) > 0) {}
+        FAIL("no error");
+    } catch (const InputError& e) {
+        CHECK_THAT(std::string(e.what()), Catch::StartsWith("dir/scene.json: geometry[0].transform: moves a vertex of") &&
+                                              Catch::Contains("beyond the float range"));
+    }
+}
+
+TEST_CASE("a sun's radiance, like every light's, may be one number for grey", "[scene]") {
+    json s = minimal();
+    s["lights"][0] = {{"type", "sun"}, {"direction", {0, -1, 0}}, {"radiance", 20000}};
+    const SceneDesc grey = parseScene(s, "dir/scene.json");
+    s["lights"][0]["radiance"] = {20000, 20000, 20000};
+    const SceneDesc rgb = parseScene(s, "dir/scene.json");
+    CHECK(grey.lights[0].irradiance == rgb.lights[0].irradiance);
+    CHECK(grey.lights[0].irradiance.x > 0);
+    s["lights"][0]["radiance"] = -1;
+    requireError(s, "lights[0].radiance: must be finite and non-negative");
+}
+
 TEST_CASE("unknown geometry types and bad generator parameters name the entry", "[scene]") {
     registerFileSourceTypes();
     registerProceduralGenerators();

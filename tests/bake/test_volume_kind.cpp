@@ -126,7 +126,14 @@ TEST_CASE("volume: box voxels match a points bake exactly, every baked voxel is 
     // The slice never replaces its input, by any name, and reads regular files only.
     requireCleanError(runPenumbra("vdb-slice " + (dir / "out/v.vdb") + " " + (dir / "out/v.vdb") + " --axis y --at 0.5"), "is also an input");
     CHECK(slurp(dir / "out/v.vdb").compare(0, 4, " BDV") == 0);  // still a VDB (its magic number)
-    requireCleanError(runPenumbra("vdb-slice /dev/zero " + (dir / "z.png")), "is a character device");
+    requireCleanError(runPenumbra("vdb-slice /dev/zero " + (dir / "z.png") + " --axis y --at 0"), "is a character device");
+    // --axis and --at are required, as the synopsis says (without them it sliced along y at 0).
+    for (const std::string& missing : {" --axis y", " --at 0.5"}) {
+        RunResult usage = runPenumbra("vdb-slice " + (dir / "out/v.vdb") + " " + (dir / "m.png") + missing);
+        CHECK(usage.exitCode == 2);
+        CHECK_THAT(usage.err, Catch::Contains("is required"));
+        CHECK_FALSE(std::filesystem::exists(dir / "m.png"));
+    }
 
     // Cut or damaged copies: one line naming the file, well inside 2 GB of address space (OpenVDB's
     // own reader went on past the end of a cut file and filled strings of gigabytes).

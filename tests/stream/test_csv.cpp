@@ -82,6 +82,13 @@ TEST_CASE("readCsvNumbers reports file:line for bad rows", "[io]") {
         CsvFile g("1,2,3\n4,,6\n");
         CHECK(errorOf([&] { readCsvNumbers(g.path, 3); }) == g.path + ":2: field 2 is empty");
     }
+    SECTION("a first row with numbers in it is data, whatever else it holds") {
+        // Taken for a header, its receiver was dropped and the outputs were one row short.
+        CsvFile typo("0,0,0,0,1,0O\n1,2,3,4,5,6\n");
+        CHECK(errorOf([&] { readCsvNumbers(typo.path, 6); }) == typo.path + ":1: field 6 '0O' is not a finite number");
+        CsvFile hex("0x10,0,0\n");
+        CHECK(errorOf([&] { readCsvNumbers(hex.path, 3); }) == hex.path + ":1: field 1 '0x10' is not a finite number");
+    }
     SECTION("non-finite values") {
         CsvFile e("nan,0,0\n1,2,3\n");  // not a header either
         CHECK(errorOf([&] { readCsvNumbers(e.path, 3); }) == e.path + ":1: field 1 'nan' is not a finite number");

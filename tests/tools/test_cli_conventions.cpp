@@ -34,6 +34,22 @@ TEST_CASE("cli: --version, usage errors exit 2 and an unknown command lists the 
         CHECK(lineCount(usage.err) == 1);  // one line, as every other error
         CHECK_THAT(usage.err, Catch::StartsWith("penumbra: error: ") && Catch::Contains("--help)"));
     }
+    RunResult range = runPenumbra("combine shards --range x");
+    CHECK(range.exitCode == 2);
+    CHECK_THAT(range.err, Catch::Contains("'x' is not A-B"));
+    // A value of the right form out of range is an input error naming the option, NaN included.
+    const std::string scene = std::string(PENUMBRA_SOURCE_DIR) + "/examples/grids.json";
+    for (const std::string& args : {"bake " + scene + " --method penumbra-map --penumbra-map-taps 9",
+                                    "bake " + scene + " --method penumbra-map --penumbra-map-resolution 8",
+                                    "bake " + scene + " --method penumbra-map --penumbra-map-bias -1",
+                                    "bake " + scene + " --method penumbra-map --penumbra-map-bias nan",
+                                    "slurm " + scene + " --shards 0 --dry-run", "slurm " + scene + " --shards 2 --threads 0 --dry-run"}) {
+        RunResult refused = runPenumbra(args);
+        INFO(args << ": " << refused.err);
+        CHECK(refused.exitCode == 1);
+        CHECK(lineCount(refused.err) == 1);
+        CHECK_THAT(refused.err, Catch::StartsWith("penumbra: error: --") && Catch::Contains(": must be in "));
+    }
     // No command, or an option before one: named as such, with the commands listed.
     CHECK_THAT(runPenumbra("").err, Catch::StartsWith("penumbra: error: no command given (commands: bake,"));
     RunResult option = runPenumbra("--bogus");

@@ -265,3 +265,17 @@ TEST_CASE("an output folder that does not exist, or through a file, is refused a
     requireCleanError(runPenumbra("bake " + (dir / "scene.json") + " -q -o " + (dir / "afile/x.exr")), "afile is not a folder");
     CHECK(slurp(dir / "afile") == "a file");
 }
+
+TEST_CASE("the folders of --stats, --visibility and --dump are made, as the README says", "[cli][paths]") {
+    // --visibility into a missing folder failed after the bake, while --stats and --dump made theirs.
+    ScratchDir dir("side-folders");
+    write(dir / "quad.obj", kQuad);
+    write(dir / "scene.json", sceneOf("quad.obj").dump());
+    const RunResult r = runPenumbra("bake " + (dir / "scene.json") + " -q --stats " + (dir / "s/a/st.json") + " --visibility " +
+                                    (dir / "v/a/vis.npy") + " --dump " + (dir / "d/a"));
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    CHECK(fs::is_regular_file(dir.path / "s/a/st.json"));
+    CHECK(fs::is_regular_file(dir.path / "v/a/vis.npy"));
+    CHECK(fs::is_regular_file(dir.path / "d/a/masks.npy"));
+}
