@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include <bit>
+#include <optional>
 #include <cstring>
 #include <memory>
 
@@ -69,23 +70,29 @@ CompareResult compareDumps(const CompareOptions& o) {
                 const uint64_t x = ma[i * words + w], y = mb[i * words + w];
                 r.blockedA += std::popcount(x), r.blockedB += std::popcount(y);
                 r.onlyA += std::popcount(x & ~y), r.onlyB += std::popcount(y & ~x);
-                if (!classifier) continue;
+                // Without --scene the mismatches are still listed, with no verdict (the CSV's
+                // verdict columns empty): a list and a CSV of only a header hid them.
+                if (!classifier && listed >= o.list && o.mismatchesCsv.empty()) continue;
                 for (uint64_t diff = x ^ y; diff; diff &= diff - 1) {
                     const uint64_t k = w * 64 + uint64_t(std::countr_zero(diff));
                     const DumpReceiver& rec = recA[i];
-                    const glm::dvec4 s = a.sample(rec.sampleSet, k);
-                    const RelationVerdict v = classifier->classify(glm::dvec3(s), s.w, rec.position);
                     const bool inA = (x >> (k % 64)) & 1;
-                    if (v.tie) ++r.ties, ++r.tiesByQuantity[quantityName(v.quantity)];
+                    std::optional<RelationVerdict> v;
+                    if (classifier) {
+                        const glm::dvec4 s = a.sample(rec.sampleSet, k);
+                        v = classifier->classify(glm::dvec3(s), s.w, rec.position);
+                        if (v->tie) ++r.ties, ++r.tiesByQuantity[quantityName(v->quantity)];
+                    }
                     if (listed < o.list) {
-                        fmt::print("mismatch receiver {} sample {} (set {}): blocked in {} only: {}\n", first + i, k,
-                                   rec.sampleSet, inA ? "A" : "B", v.describe());
+                        fmt::print("mismatch receiver {} sample {} (set {}): blocked in {} only{}\n", first + i, k, rec.sampleSet,
+                                   inA ? "A" : "B", v ? ": " + v->describe() : std::string(" (give --scene for a verdict)"));
                         ++listed;
                     }
-                    if (!o.mismatchesCsv.empty())
-                        csv += fmt::format("{},{},{},{},{},{},{},{},{:.17g},{:.17g},{:.17g}\n", first + i, k, inA ? "A" : "B",
-                                           int(v.ruleBlocks), int(v.tie), quantityName(v.quantity), v.triangle, v.edge,
-                                           v.value, v.threshold, v.tolerance);
+                    if (o.mismatchesCsv.empty()) continue;
+                    csv += fmt::format("{},{},{},", first + i, k, inA ? "A" : "B");
+                    csv += v ? fmt::format("{},{},{},{},{},{:.17g},{:.17g},{:.17g}\n", int(v->ruleBlocks), int(v->tie),
+                                           quantityName(v->quantity), v->triangle, v->edge, v->value, v->threshold, v->tolerance)
+                             : std::string(",,,,,,,\n");
                 }
             }
     }

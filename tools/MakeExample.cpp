@@ -113,7 +113,7 @@ void writeGltfTree(const std::string& path, int cards) {
 CLI::App* addMakeExampleCommand(CLI::App& app, MakeExampleOptions& options) {
     CLI::App* cmd = app.add_subcommand("make-example", "write a generated example file: penumbra make-example gltf-tree -o FILE.glb");
     cmd->add_option("name", options.name, "the example: gltf-tree (a glTF tree with alpha-tested leaf cards)")->required();
-    cmd->add_option("-o,--output", options.output, "the file to write (.glb or .gltf)")->required();
+    cmd->add_option("-o,--output", options.output, "the binary glTF (.glb) to write")->required();
     return cmd;
 }
 

@@ -11,9 +11,10 @@
 
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <map>
-#include <optional>
 #include <mutex>
+#include <optional>
 
 namespace penumbra {
 namespace {
@@ -109,6 +110,9 @@ std::unique_ptr<ReceiverKind> makeKind(const nlohmann::json& receivers, const Sc
         std::lock_guard lock(registryMutex);
         std::vector<std::string> known;
         for (const auto& e : registry()) known.push_back(e.first);
+        for (const std::string& plugin : builtPlugins())  // "volume", before its plugin is loaded
+            if (std::find(known.begin(), known.end(), plugin) == known.end()) known.push_back(plugin);
+        std::sort(known.begin(), known.end());
         fail(j.where("type"), "unknown receiver type \"{}\" (known: {})", type, fmt::join(known, ", "));
     }
     std::unique_ptr<ReceiverKind> kind = entry->factory(j, scene, use);

@@ -2,21 +2,31 @@
 
 #include "stream/util/Error.h"
 
+#include <set>
 #include <vector>
 
 namespace penumbra {
 namespace {
 
+/// Thrown from the parser's callback: a key given twice in one object.
+struct DuplicateKey {};
+
 /// The key path the parser is in, kept from its callback events, so an error can name the key.
 class KeyPath {
 public:
+    /// @throw DuplicateKey for a key the current object already holds (nlohmann keeps the last
+    /// silently, so "samples": 16 then "samples": 64 baked with 64 and no word).
     void on(nlohmann::json::parse_event_t event, const nlohmann::json& parsed) {
         using Event = nlohmann::json::parse_event_t;
         switch (event) {
-            case Event::object_start: frames_.push_back({false, {}, 0}); break;
-            case Event::array_start: frames_.push_back({true, {}, 0}); break;
+            case Event::object_start: frames_.push_back({false, {}, 0, {}}); break;
+            case Event::array_start: frames_.push_back({true, {}, 0, {}}); break;
             case Event::key:
-                if (!frames_.empty() && parsed.is_string()) frames_.back().key = parsed.get<std::string>();
+                if (!frames_.empty() && parsed.is_string()) {
+                    Frame& f = frames_.back();
+                    f.key = parsed.get<std::string>();
+                    if (!f.keys.insert(f.key).second) throw DuplicateKey{};
+                }
                 break;
             case Event::object_end:
             case Event::array_end:
@@ -48,6 +58,7 @@ private:
         bool array;
         std::string key;
         size_t elements;
+        std::set<std::string> keys;  ///< an object's keys so far
     };
     void elementDone() {
         if (!frames_.empty() && frames_.back().array) ++frames_.back().elements;
@@ -101,6 +112,8 @@ nlohmann::json parseJsonText(std::string_view text, const std::string& where) {
     };
     try {
         return nlohmann::json::parse(text.begin(), text.end(), track);
+    } catch (const DuplicateKey&) {
+        fail(at(), "is given twice in one object (a key may appear once)");
     } catch (const nlohmann::json::parse_error& e) {
         fail(where, "invalid JSON at byte {}{}: {}", e.byte, in(), withoutTag(e.what()));
     } catch (const nlohmann::json::exception& e) {

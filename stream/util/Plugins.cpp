@@ -5,6 +5,7 @@
 
 #include <dlfcn.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -54,6 +55,17 @@ bool isBuiltPlugin(const std::string& name) {
     std::string entry = ",";
     entry.append(name).push_back(',');
     return !name.empty() && built.find(entry) != std::string::npos;
+}
+
+std::vector<std::string> builtPlugins() {
+    std::vector<std::string> names;
+    const std::string built = PENUMBRA_BUILT_PLUGINS;
+    for (size_t at = 0; at <= built.size();) {
+        const size_t comma = std::min(built.find(',', at), built.size());
+        if (comma > at) names.push_back(built.substr(at, comma - at));
+        at = comma + 1;
+    }
+    return names;
 }
 
 std::string pluginSearchPlaces() {

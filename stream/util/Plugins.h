@@ -9,6 +9,7 @@
 /// do); programs that link it in (the tests, the Python module) never load the file.
 
 #include <string>
+#include <vector>
 
 namespace penumbra {
 
@@ -22,6 +23,9 @@ bool loadPlugin(const std::string& name);
 /// @brief The plugins this build makes (CMakeLists.txt's `penumbra_plugins`: "volume"), so that a
 /// missing one is named as missing rather than as an unknown name.
 bool isBuiltPlugin(const std::string& name);
+
+/// @brief The names of the plugins this build makes, for lists of what a name may be.
+std::vector<std::string> builtPlugins();
 
 /// @brief Where loadPlugin() looks, for messages: "PENUMBRA_PLUGIN_DIR, /usr/bin and /usr/lib/penumbra".
 std::string pluginSearchPlaces();

@@ -38,8 +38,10 @@ void checkLineReadEnded(std::FILE* file, const std::string& where, int readErrno
 void warnIfNoFaces(const std::string& path, uint64_t triangles) {
     if (triangles > 0) return;
     struct stat st {};
-    if (::stat(path.c_str(), &st) == 0 && st.st_size > 0)
-        printWarning("{}: no face line was understood (0 triangles)", path);
+    if (::stat(path.c_str(), &st) != 0) return;
+    // An empty file too: it is most often one whose export or copy failed.
+    if (st.st_size == 0) printWarning("{}: is empty (0 triangles)", path);
+    else printWarning("{}: no face line was understood (0 triangles)", path);
 }
 
 }  // namespace penumbra

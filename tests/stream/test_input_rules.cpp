@@ -54,6 +54,11 @@ TEST_CASE("JSON errors name the file, the key and the byte", "[stream][json]") {
                       "f.json: JSON nests deeper than 64 levels (at byte 64)");
     CHECK(parseJsonText(std::string(64, '[') + std::string(64, ']'), "f.json").is_array());
     CHECK(parseJsonText(R"({"s": "[[[{{{\"]]]"})", "f.json")["s"] == "[[[{{{\"]]]");
+    // A key given twice is an error naming it (nlohmann keeps the last one silently); the same
+    // key in two objects is not.
+    CHECK_THROWS_WITH(parseJsonText(R"({"lights": [{"samples": 16, "u": 1, "samples": 64}]})", "f.json"),
+                      "f.json: lights[0].samples: is given twice in one object (a key may appear once)");
+    CHECK(parseJsonText(R"({"a": {"k": 1}, "b": {"k": 2}, "c": [{"k": 3}, {"k": 4}]})", "f.json")["c"][1]["k"] == 4);
 }
 
 TEST_CASE("inputs are regular files, recorded only inside a job", "[stream][input-file]") {

@@ -157,6 +157,10 @@ TEST_CASE("binary files, UTF-16 and images are not OBJ text", "[cli][inputs]") {
     RunResult r = runPenumbra("info " + (dir / "prose.obj"));
     CHECK(r.exitCode == 0);
     CHECK_THAT(r.err, Catch::Contains("warning: " + (dir / "prose.obj") + ": no face line was understood"));
+    write(dir / "empty.obj", "");
+    RunResult empty = runPenumbra("info " + (dir / "empty.obj"));
+    CHECK(empty.exitCode == 0);
+    CHECK_THAT(empty.err, Catch::Contains("warning: " + (dir / "empty.obj") + ": is empty (0 triangles)"));
     // A CSV with a NUL byte is binary too.
     static const char csv[] = "0,0,0,0,1,0\n\0\0\n";
     write(dir / "pts.csv", std::string(csv, sizeof csv - 1));
