@@ -267,6 +267,11 @@ GltfMeshDesc parseMesh(const GltfDocument& doc, const Json& j, size_t i) {
                 fail(path, "{}: attribute {} refers to accessor {} (file has {})", where, name, accessor, doc.accessors.size());
             else if (const int want = requiredComponents(name); want && doc.accessors[size_t(accessor)].components != want)
                 fail(path, "{}: {} accessor {} is not VEC{}", where, name, accessor, want);
+            else if ((name == "POSITION" || name == "NORMAL") && !doc.meshQuantization &&
+                     doc.accessors[size_t(accessor)].componentType != kGltfFloat)
+                // Read as integers, a float file's bytes made garbage geometry with exit 0.
+                fail(path, "{}: {} accessor {} has componentType {}, not FLOAT, and the file does not declare "
+                     "KHR_mesh_quantization", where, name, accessor, doc.accessors[size_t(accessor)].componentType);
         prim.indices = pm.index("indices");
         if (prim.indices >= int(doc.accessors.size()))
             fail(path, "{}: indices refer to accessor {} (file has {})", where, prim.indices, doc.accessors.size());
@@ -300,14 +305,22 @@ glm::dmat4 localMatrix(const std::string& path, const Members& m, size_t index) 
             if (!std::isfinite(x)) fail(path, "node {} {} is not finite", index, what);
         return !values.empty();
     };
-    const std::vector<double> matrix = m.numbers("matrix");
-    if (check(matrix, 16, "matrix")) return glm::make_mat4(matrix.data());  // both column-major
+    const std::vector<double> matrix = m.numbers("matrix"), t = m.numbers("translation"), q = m.numbers("rotation"),
+                              s = m.numbers("scale");
+    const bool hasT = check(t, 3, "translation"), hasR = check(q, 4, "rotation"), hasS = check(s, 3, "scale");
+    if (check(matrix, 16, "matrix")) {
+        // glTF 2.0 allows a matrix or TRS, not both; one of them was dropped silently. TRS at its
+        // defaults (some exporters write them) says nothing, and is let through.
+        const bool identityTrs = (!hasT || (t[0] == 0 && t[1] == 0 && t[2] == 0)) &&
+                                 (!hasR || (q[0] == 0 && q[1] == 0 && q[2] == 0 && q[3] == 1)) &&
+                                 (!hasS || (s[0] == 1 && s[1] == 1 && s[2] == 1));
+        if (!identityTrs) fail(path, "node {} has both a matrix and translation, rotation or scale, which glTF 2.0 forbids", index);
+        return glm::make_mat4(matrix.data());  // both column-major
+    }
     glm::dmat4 local(1.0);
-    if (std::vector<double> t = m.numbers("translation"); check(t, 3, "translation"))
-        local = glm::translate(local, glm::dvec3(t[0], t[1], t[2]));
-    if (std::vector<double> q = m.numbers("rotation"); check(q, 4, "rotation"))  // glTF order x, y, z, w
-        local *= glm::mat4_cast(glm::normalize(glm::dquat(q[3], q[0], q[1], q[2])));
-    if (std::vector<double> s = m.numbers("scale"); check(s, 3, "scale")) local = glm::scale(local, glm::dvec3(s[0], s[1], s[2]));
+    if (hasT) local = glm::translate(local, glm::dvec3(t[0], t[1], t[2]));
+    if (hasR) local *= glm::mat4_cast(glm::normalize(glm::dquat(q[3], q[0], q[1], q[2])));  // glTF order x, y, z, w
+    if (hasS) local = glm::scale(local, glm::dvec3(s[0], s[1], s[2]));
     return local;
 }
 
@@ -448,6 +461,9 @@ GltfDocument loadGltfDocument(const std::string& path) {
     if (!root.is_object()) fail(path, "the glTF JSON is not an object");
     checkAsset(path, root);
     checkRequiredExtensions(path, root);
+    for (const char* list : {"extensionsUsed", "extensionsRequired"})
+        if (auto it = root.find(list); it != root.end() && it->is_array())
+            for (const Json& e : *it) doc.meshQuantization = doc.meshQuantization || e == "KHR_mesh_quantization";
     const Json& buffers = gltfArrayOf(path, root, "buffers");
     for (size_t i = 0; i < buffers.size(); ++i) doc.buffers.push_back(parseBuffer(path, buffers[i], i, bin));
     const Json& views = gltfArrayOf(path, root, "bufferViews");

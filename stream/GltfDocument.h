@@ -118,6 +118,9 @@ struct GltfNodeDesc {
 struct GltfDocument {
     std::string path;
     uint64_t jsonBytes = 0;  ///< the JSON text's length (parsed, then dropped)
+    /// KHR_mesh_quantization is declared (extensionsUsed or extensionsRequired): POSITION and NORMAL
+    /// may then be integers; without it glTF 2.0 requires them FLOAT.
+    bool meshQuantization = false;
     std::vector<GltfBuffer> buffers;
     std::vector<GltfBufferView> views;
     std::vector<GltfAccessor> accessors;

@@ -97,6 +97,8 @@ glm::vec3 parseObjVector(ObjTokens& tokens, int count, const char* kind, const O
 void parseObjFace(ObjTokens& tokens, const uint64_t counts[3], std::vector<ObjCorner>& corners, const ObjLocation& where) {
     corners.clear();
     for (std::string_view corner = tokens.next(); !corner.empty(); corner = tokens.next()) {
+        if (corner == "\\" && tokens.next().empty())
+            fail(where.text(), "ends in '\\': line continuations are not read; join the face's corners on one line");
         std::string_view fields[3];
         size_t fieldCount = 0;
         std::string_view rest = corner;

@@ -250,10 +250,37 @@ TEST_CASE("glTF: quantized positions (KHR_mesh_quantization)", "[stream][gltf]")
     for (const Case& c : cases) {
         INFO("componentType " << c.componentType << (c.normalized ? " normalized" : ""));
         ModelBuilder b;
+        b.model.extensionsUsed.push_back("KHR_mesh_quantization");
         int pos = b.accessor(b.view(c.bytes, c.stride), c.componentType, TINYGLTF_TYPE_VEC3, 3, c.normalized);
         auto tris = readGltf(single(b, dir, primitive(pos)));
         REQUIRE(tris.size() == 1);
         for (int k = 0; k < 3; ++k) CHECK(near(tris[0].v[k], c.expected[size_t(k)], 1e-7f));
+        // Without the extension declared, glTF 2.0 requires FLOAT: integers were read as garbage.
+        b.model.extensionsUsed.clear();
+        CHECK_THROWS_WITH(readGltf(single(b, dir, primitive(pos), "plain.glb")),
+                          Catch::Contains("POSITION accessor 0 has componentType " + std::to_string(c.componentType) +
+                                          ", not FLOAT, and the file does not declare KHR_mesh_quantization"));
+    }
+}
+
+TEST_CASE("glTF: a node with both a matrix and TRS is refused, unless the TRS is at its defaults", "[stream][gltf]") {
+    ScratchDir dir("gltf");
+    for (bool defaults : {false, true}) {
+        ModelBuilder b;
+        int mesh = b.mesh({primitive(b.positions({{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}))});
+        tinygltf::Node& node = b.node(mesh);
+        node.matrix = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 5, 1};
+        node.translation = defaults ? std::vector<double>{0, 0, 0} : std::vector<double>{10, 0, 0};
+        node.scale = {1, 1, 1};
+        b.scene({0});
+        const std::string path = b.save(dir, defaults ? "defaults.glb" : "both.glb");
+        if (defaults) {
+            auto tris = readGltf(path);
+            REQUIRE(tris.size() == 1);
+            CHECK(tris[0].v[0].z == 5.0f);  // the matrix
+        } else {
+            CHECK_THROWS_WITH(readGltf(path), Catch::Contains("node 0 has both a matrix and translation, rotation or scale"));
+        }
     }
 }
 

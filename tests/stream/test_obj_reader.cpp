@@ -198,6 +198,8 @@ TEST_CASE("OBJ: errors name the file and line", "[stream][obj]") {
     CHECK(objError(dir, square + "f 1 2 3/\n") == "no error");  // an empty vt field is harmless
     CHECK(objError(dir, square + "f 1 2 3/x\n") == "mesh.obj:5: unparsable face corner '3/x'");
     CHECK(objError(dir, square + "f 1 2 3/1/1/1\n") == "mesh.obj:5: unparsable face corner '3/1/1/1'");
+    CHECK(objError(dir, square + "f 1 2 \\\n 3\n") ==
+          "mesh.obj:5: ends in '\\': line continuations are not read; join the face's corners on one line");
     CHECK(objError(dir, square + "f 1 2 /1\n") == "mesh.obj:5: unparsable face corner '/1'");
     CHECK(objError(dir, square + "f 1 2 99999999999999999999\n") ==
           "mesh.obj:5: unparsable face corner '99999999999999999999'");
