@@ -54,7 +54,8 @@ void addSampleDemand(MemoryDemand& demand, const LightSamples& samples, const Sc
                 SampleMaskTable::plannedBytes(samples, l, scene.options.sampleTableAngles, scene.options.sampleTableOffsets);
 }
 
-MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const TriangleSource& geometry, bool dump) {
+MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const TriangleSource& geometry, bool dump,
+                              const CasterMemory& methodMemory) {
     MemoryDemand d;
     d.dumpMasks = dump;
     d.scanBytes = kind.passBytes(StreamPass::Scan);
@@ -67,7 +68,10 @@ MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, 
     d.sourceDetail = geometry.residentDetail();
     d.sourceDuringCast = !scene.options.sortBlockers;
     if (const GltfAlphaState* alpha = planSceneAlpha(scene)) d.alphaBytes = alpha->tableBytes, d.alphaBuildBytes = alpha->buildBytes;
-    addSampleDemand(d, generateLightSamples(scene.lights, scene.options.groupSize, scene.seed), scene);
+    const LightSamples samples = generateLightSamples(scene.lights, scene.options.groupSize, scene.seed);
+    addSampleDemand(d, samples, scene);
+    if (const std::optional<uint64_t> triangles = geometry.knownSize(); methodMemory && triangles)
+        d.methodBytes = methodMemory(*triangles, d.receivers, samples, scene.bakeOptions);
     // Bucket buffers, the replay's read-ahead queue and the caster's ring of prepared chunks.
     const BucketOptions buckets;
     d.bufferBytes = (scene.options.sortBlockers ? buckets.writeMemoryBytes() + buckets.readBufferBytes : 0) +
@@ -99,13 +103,14 @@ void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget) {
 }
 
 TriangleSourcePtr openCheckedBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const BakeBudget& budget, bool keepMasks,
-                                        bool quiet, MemoryDemand& demand) {
+                                        bool quiet, MemoryDemand& demand,
+                                        const CasterMemory& methodMemory) {
     checkSceneAlphaBudget(scene, budget.bytes, budget.label, budget.overhead, budget.namedSlack);  // before a texture is decoded (opening builds the table)
     TriangleSourcePtr geometry = [&] {
         OpeningProgress opening(quiet);  // an OBJ's check pass shows as a phase
         return openSceneGeometry(scene);
     }();
-    demand = demandBeforeScan(scene, kind, *geometry, keepMasks);
+    demand = demandBeforeScan(scene, kind, *geometry, keepMasks, methodMemory);
     checkBeforeScan(demand, budget);
     return geometry;
 }

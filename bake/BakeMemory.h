@@ -15,6 +15,7 @@
 /// before its pass: the pass, then its cast and the outputs with every sub-pixel sample a receiver
 /// (MemoryDemand::Refinement), so that it fails at most once, naming a budget that works.
 
+#include "bake/cast/Caster.h"
 #include "bake/light/Light.h"
 #include "bake/MemoryPlan.h"
 #include "bake/kinds/ReceiverKind.h"
@@ -59,7 +60,11 @@ BakeBudget fitAddressSpace(uint64_t memoryBudget, int& threads, bool quiet);
 
 /// @brief The demand known before the scan pass: the kind's scan buffers and worst cases, the
 /// opened sources' working sets, light samples and fixed buffers.
-MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const TriangleSource& geometry, bool dump);
+/// @param methodMemory the method's own memory (CasterEntry::memory), counted when the geometry
+///        knows its triangle count before it is read: a budget named without it was refused
+///        again after the scan by ssv and embree.
+MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const TriangleSource& geometry, bool dump,
+                              const CasterMemory& methodMemory = {});
 
 /// @brief Sets the sample groups and sample bytes (positions and sample mask tables) of @p samples.
 void addSampleDemand(MemoryDemand& demand, const LightSamples& samples, const SceneDesc& scene);
@@ -81,6 +86,7 @@ uint64_t leastNamedLimit(const MemoryDemand& demand, const BakeBudget& budget);
 /// @return the opened geometry
 /// @throw InputError as checkSceneAlphaBudget(), the sources and checkBeforeScan()
 TriangleSourcePtr openCheckedBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const BakeBudget& budget, bool keepMasks,
-                                        bool quiet, MemoryDemand& demand);
+                                        bool quiet, MemoryDemand& demand,
+                                        const CasterMemory& methodMemory = {});
 
 }  // namespace penumbra

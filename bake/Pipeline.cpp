@@ -355,7 +355,8 @@ void scanScene(Bake& b) {
         fail(b.settings.shard.merge ? "merge" : b.settings.shard.count ? "--shard" : "--checkpoint",
              "--method {} gives visible fractions, not per-sample masks to merge", b.method.name);
     if (b.settings.shard.casting() && b.dump()) fail("--dump", "a shard writes no outputs; give --dump to penumbra merge");
-    TriangleSourcePtr geometry = openCheckedBeforeScan(scene, *b.kind, b.budget, b.keepMasks(), b.settings.quiet, b.demand);
+    TriangleSourcePtr geometry =
+        openCheckedBeforeScan(scene, *b.kind, b.budget, b.keepMasks(), b.settings.quiet, b.demand, b.method.memory);
     // Without a budget the machine is the bound: refuse before any work what it cannot hold.
     checkMemoryFits(scene.file, "the scan pass", scanPhaseBytes(b.demand));
     checkAddressSpaceLeft(scene.file, "the scan pass", scanPhaseBytes(b.demand),

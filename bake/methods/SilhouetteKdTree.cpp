@@ -35,6 +35,7 @@ void SilhouetteKdTree::build(std::vector<KdItem> items, const KdParams& params) 
     for (uint32_t i = 0; i < items.size(); ++i)
         if (!items[i].box.empty()) stack[0].items.push_back(i);
     nodes_.push_back(Node{});
+    uint64_t listed = stack[0].items.size();  // references emitted and pending
 
     auto makeLeaf = [&](Pending& p) {
         Node& node = nodes_[p.node];
@@ -77,6 +78,12 @@ void SilhouetteKdTree::build(std::vector<KdItem> items, const KdParams& params) 
             makeLeaf(p);
             continue;
         }
+        const uint64_t more = left.items.size() + right.items.size() - p.items.size();
+        if (params.maxBytes && (listed + more) * sizeof(uint32_t) + (nodes_.size() + 2) * kKdNodeBytes > params.maxBytes) {
+            makeLeaf(p);
+            continue;
+        }
+        listed += more;
         const uint32_t child = uint32_t(nodes_.size());
         nodes_[p.node].axis = uint8_t(axis), nodes_[p.node].split = split, nodes_[p.node].child = child;
         nodes_.push_back(Node{}), nodes_.push_back(Node{});

@@ -9,8 +9,8 @@
 /// large scenes). An item whose box straddles the split plane is listed in both children. A box
 /// becomes a leaf when it holds fewer than `leafItems` items of the counted kinds (the paper: ten
 /// triangles), when its
-/// longest side is below `minBoxFraction` of the root's (the paper: 0.5 %), at `maxDepth`, or when
-/// a split would list every item in both children. Only leaves hold items (the paper's version
+/// longest side is below `minBoxFraction` of the root's (the paper: 0.5 %), at `maxDepth`, when
+/// a split would list every item in both children, or when it would take the tree past `maxBytes`. Only leaves hold items (the paper's version
 /// 0.6, its best memory/time compromise); each leaf lists its items by kind, so a query that
 /// wants only edges never touches triangles.
 ///
@@ -60,7 +60,15 @@ struct KdParams {
     uint8_t countedKinds = 0xff;  ///< bit k: items of kind k count towards leafItems
     double minBoxFraction = 0.005;
     int maxDepth = 40;
+    /// Most bytes the tree may hold, with the item lists of the boxes still to split (0: no
+    /// limit). A split that would pass it makes a leaf instead: items whose boxes overlap without
+    /// separating (many triangles on a few points) were listed in ever more leaves, and the tree
+    /// went past the memory plan threefold. Queries stay exact, only slower there.
+    uint64_t maxBytes = 0;
 };
+
+/// Bytes a tree node costs in the byte limit: the node, and a leaf's share of its offsets.
+inline constexpr uint64_t kKdNodeBytes = 24;
 
 class SilhouetteKdTree {
 public:

@@ -58,7 +58,9 @@ SsvScene::SsvScene(std::span<const Triangle> triangles, const LightSamples& samp
         for (const glm::dvec3& v : alpha_[i].v) alphaItems[i].box.add(v);
         alphaItems[i].id = uint32_t(i), alphaItems[i].kind = kSsvTriangleItem;
     }
-    alphaTree_.build(std::move(alphaItems), params);
+    KdParams limited = params;
+    if (!limited.maxBytes) limited.maxBytes = alpha_.size() * kTreeBytesPerTriangle;
+    alphaTree_.build(std::move(alphaItems), limited);
     if (!scene.empty()) sceneSize_ = std::max(1e-300, glm::length(scene.hi - scene.lo));
     findAdjacency();
     lights_.resize(size_t(samples.lightCount()));
@@ -193,7 +195,9 @@ void SsvScene::classify(int li, const LightSamples& samples, const ReceiverEpsil
         if (light.side[f] == 0) ++light.straddlers;
         else light.bandRadiusMax = std::max(light.bandRadiusMax, radius[f]);
     }
-    light.tree.build(std::move(items), params);
+    KdParams limited = params;
+    if (!limited.maxBytes) limited.maxBytes = n * kTreeBytesPerTriangle;  // what the plan reserves for it
+    light.tree.build(std::move(items), limited);
 }
 
 uint64_t SsvScene::bytes() const {

@@ -88,9 +88,16 @@ public:
     /// Bytes held: faces, cut-outs, per-light arrays and trees.
     uint64_t bytes() const;
     /// @brief What the memory plan reserves for @p triangles triangles and @p lights lights: 128
-    /// bytes of face, and per light 340 bytes of edges and kd-tree, the most any Table 2 scene
-    /// needs per triangle (GRIDS: 23 MiB of tree for 73K triangles; flowers 150, sponza-like 50).
-    static uint64_t plannedBytes(uint64_t triangles, int lights) { return triangles * (128 + 340 * uint64_t(lights)); }
+    /// bytes of face; while a light's tree is built, its items (at most three edges and the
+    /// triangle, 56 bytes each); and per light its sides, edges and the kd-tree, whose build stops
+    /// splitting at kTreeBytesPerTriangle (GRIDS needs 335 bytes a triangle, flowers 150,
+    /// sponza-like 50; a fan of 60,000 triangles on 6 points needed 1,240 before the limit).
+    static uint64_t plannedBytes(uint64_t triangles, int lights) {
+        return triangles * (128 + 4 * sizeof(KdItem) + (kLightBytesPerTriangle + kTreeBytesPerTriangle) * uint64_t(lights));
+    }
+    static constexpr uint64_t kTreeBytesPerTriangle = 384;
+    /// Per light and triangle: its side and potential-edge bits, and up to three edges.
+    static constexpr uint64_t kLightBytesPerTriangle = 2 + 3 * 12;
 
 private:
     void findAdjacency();
