@@ -79,6 +79,7 @@ TEST_CASE("scene errors name the key", "[scene]") {
 }
 
 TEST_CASE("a transform beyond float range is named by its key, and its vertices by the entry", "[scene]") {
+    registerProceduralGenerators();
     json s = minimal();
     s["geometry"][0]["transform"] = {{"scale", 1e300}};
     requireError(s, "geometry[0].transform.scale: 1e+300 is beyond the float range of vertices");
