@@ -69,6 +69,19 @@ TEST_CASE("bake writes the EXR, PNG, dump and stats, and hpc matches reference v
     INFO(cmp.out);
     CHECK(cmp.exitCode == 0);
     CHECK_THAT(cmp.out, Catch::Contains("only_a 0") && Catch::Contains("only_b 0"));
+    // Without --scene a mismatch is still listed and written, with no verdict (the CSV held only
+    // its header): receiver 0's sample 0 flipped in a copy of the dump.
+    std::filesystem::copy(dir.path / "ref", dir.path / "flip");
+    std::string masks = slurp(dir / "flip/masks.npy");
+    masks[10 + (uint8_t(masks[8]) | uint8_t(masks[9]) << 8)] ^= 1;
+    std::ofstream(dir / "flip/masks.npy", std::ios::binary) << masks;
+    RunResult flipped = runPenumbra("compare " + (dir / "ref") + " " + (dir / "flip") + " --list 5 --mismatches " + (dir / "mm.csv"));
+    INFO(flipped.out << flipped.err);
+    CHECK(flipped.exitCode == 3);
+    CHECK_THAT(flipped.out, Catch::Contains("mismatch receiver 0 sample 0 (set ") && Catch::Contains("(give --scene for a verdict)"));
+    CHECK(slurp(dir / "mm.csv") ==
+          "receiver,sample,blocked_in,rule_blocks,tie,quantity,triangle,edge,value,threshold,tolerance\n0,0," +
+              std::string((uint8_t(masks[10 + (uint8_t(masks[8]) | uint8_t(masks[9]) << 8)]) & 1) ? "B" : "A") + ",,,,,,,,\n");
 
     // Same result on one thread and with every optimization off.
     RunResult one = runPenumbra("bake " + (dir / "scene.json") + " -q --threads 1 --disable all -o " + (dir / "one.exr") + " --dump " + (dir / "one"));
