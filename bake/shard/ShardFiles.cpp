@@ -206,6 +206,9 @@ std::string combineShardFiles(const std::vector<std::string>& inputs, std::optio
             words += first.groups;
         }
     }
+    if (range && range->end > first.parts)  // shards that cannot exist are not "missing"
+        fail("--range", "{}-{} goes past the last shard of this bake ({} shards: 0-{})", range->first, range->end - 1,
+             first.parts, first.parts - 1);
     const ShardRange covers = range ? *range : coverage.span();
     requireCovered(coverage, covers, first.parts, range ? fmt::format("shards {}-{}", covers.first, covers.end - 1) : firstPath);
     PartialHeader h = first;

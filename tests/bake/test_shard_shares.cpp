@@ -169,6 +169,9 @@ TEST_CASE("combine and merge refuse overlaps, gaps and files of other bakes", "[
     requireCleanError(runPenumbra("combine " + dir / "l/shards-0-1-of-4.pnpart " + dir / "s/shard-2-of-4.pnpart --range 1-2 --shard-dir " + dir / "x"),
                       "across the edge of the range 1-2");
     requireCleanError(runPenumbra("combine " + dir / "s" + " --range 3-1 --shard-dir " + dir / "x"), "--range");
+    // Past the last shard: named as such, not as shards "missing" from a bake of more.
+    requireCleanError(runPenumbra("combine " + dir / "s" + " --range 2-5 --shard-dir " + dir / "x"),
+                      "--range: 2-5 goes past the last shard of this bake (4 shards: 0-3)");
     // Shards of another cut.
     bakeOk("bake " + scene + " --shard 3/4 --shard-by receivers --shard-dir " + dir / "r");
     requireCleanError(runPenumbra("combine " + dir / "s/shard-2-of-4.pnpart " + dir / "r/shard-3-of-4.pnpart --shard-dir " + dir / "x"), "cut by");
