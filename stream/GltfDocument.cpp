@@ -297,7 +297,7 @@ GltfMeshDesc parseMesh(const GltfDocument& doc, const Json& j, size_t i) {
     return mesh;
 }
 
-glm::dmat4 localMatrix(const std::string& path, const Members& m, size_t index) {
+glm::dmat4 localMatrix(const std::string& path, const Members& m, size_t index, bool& matrixOverTrs) {
     auto check = [&](const std::vector<double>& values, size_t expected, const char* what) {
         if (!values.empty() && values.size() != expected)
             fail(path, "node {} {} has {} values (needs {})", index, what, values.size(), expected);
@@ -309,12 +309,13 @@ glm::dmat4 localMatrix(const std::string& path, const Members& m, size_t index) 
                               s = m.numbers("scale");
     const bool hasT = check(t, 3, "translation"), hasR = check(q, 4, "rotation"), hasS = check(s, 3, "scale");
     if (check(matrix, 16, "matrix")) {
-        // glTF 2.0 allows a matrix or TRS, not both; one of them was dropped silently. TRS at its
-        // defaults (some exporters write them) says nothing, and is let through.
+        // glTF 2.0 allows a matrix or TRS, not both. Viewers use the matrix, and so does this;
+        // the TRS was dropped without a word. TRS at its defaults (some exporters write them)
+        // says nothing and goes unremarked.
         const bool identityTrs = (!hasT || (t[0] == 0 && t[1] == 0 && t[2] == 0)) &&
                                  (!hasR || (q[0] == 0 && q[1] == 0 && q[2] == 0 && q[3] == 1)) &&
                                  (!hasS || (s[0] == 1 && s[1] == 1 && s[2] == 1));
-        if (!identityTrs) fail(path, "node {} has both a matrix and translation, rotation or scale, which glTF 2.0 forbids", index);
+        matrixOverTrs = !identityTrs;
         return glm::make_mat4(matrix.data());  // both column-major
     }
     glm::dmat4 local(1.0);
@@ -340,7 +341,7 @@ GltfNodeDesc parseNode(const GltfDocument& doc, const Json& j, size_t i, size_t 
             node.children.push_back(int(child));
         }
     }
-    node.local = localMatrix(path, m, i);
+    node.local = localMatrix(path, m, i, node.matrixOverTrs);
     const Json& extensions = m.objectAt("extensions");
     if (auto it = extensions.find("EXT_mesh_gpu_instancing"); it != extensions.end() && it->is_object()) {
         Members e{path, *it, fmt::format("node {} EXT_mesh_gpu_instancing", i)};
@@ -475,7 +476,14 @@ GltfDocument loadGltfDocument(const std::string& path) {
     const Json& meshes = gltfArrayOf(path, root, "meshes");
     for (size_t i = 0; i < meshes.size(); ++i) doc.meshes.push_back(parseMesh(doc, meshes[i], i));
     const Json& nodes = gltfArrayOf(path, root, "nodes");
-    for (size_t i = 0; i < nodes.size(); ++i) doc.nodes.push_back(parseNode(doc, nodes[i], i, nodes.size()));
+    size_t matrixOverTrs = 0, firstOverTrs = 0;
+    for (size_t i = 0; i < nodes.size(); ++i) {
+        doc.nodes.push_back(parseNode(doc, nodes[i], i, nodes.size()));
+        if (doc.nodes.back().matrixOverTrs && !matrixOverTrs++) firstOverTrs = i;
+    }
+    if (matrixOverTrs)
+        printWarning("{}: {} node(s) (node {} first) have both a matrix and a translation, rotation or scale, which glTF 2.0 "
+                     "does not allow; the matrix is used, as viewers do", path, matrixOverTrs, firstOverTrs);
     findRoots(root, doc);
     return doc;
 }

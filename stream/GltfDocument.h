@@ -109,6 +109,9 @@ struct GltfNodeDesc {
     int mesh = -1;
     std::vector<int> children;
     glm::dmat4 local{1.0};
+    /// Both a matrix and a translation, rotation or scale other than the defaults (glTF 2.0 allows
+    /// one or the other): the matrix is used, as viewers do, and the file is warned of.
+    bool matrixOverTrs = false;
     /// EXT_mesh_gpu_instancing accessors (-1 when absent).
     int instanceTranslation = -1, instanceRotation = -1, instanceScale = -1;
     bool instanced() const { return instanceTranslation >= 0 || instanceRotation >= 0 || instanceScale >= 0; }
