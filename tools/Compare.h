@@ -17,8 +17,8 @@ namespace penumbra {
 struct CompareOptions {
     std::string dirA, dirB;
     std::string scenePath;      ///< classify mismatches against this scene's triangles
-    uint64_t list = 10;         ///< mismatches printed with their verdict (classified only)
-    std::string mismatchesCsv;  ///< every mismatch with its verdict, as CSV (optional)
+    uint64_t list = 10;         ///< mismatches printed, with their verdict when a scene is given
+    std::string mismatchesCsv;  ///< every mismatch (and its verdict, with a scene), as CSV (optional)
 };
 
 struct CompareResult {
@@ -32,8 +32,8 @@ struct CompareResult {
 };
 
 /// @brief Compares two dumps. With a scene, each mismatch is classified by TieClassifier as a tie
-/// of the blocking rule or a real mismatch (TieClassifier.h says exactly when), and the first
-/// options.list mismatches are printed to stdout with their verdicts.
+/// of the blocking rule or a real mismatch (TieClassifier.h says exactly when). The first
+/// options.list mismatches are printed to stdout, with their verdicts when classified.
 /// @throw InputError when a dump is missing, malformed, or the two dumps are not of the same
 /// receivers, samples and rule.
 CompareResult compareDumps(const CompareOptions& options);
