@@ -12,8 +12,18 @@
 #include <algorithm>
 #include <cctype>
 #include <string>
+#include <string_view>
 
 namespace penumbra {
+
+/// Whether @p text is two decimal numbers around one @p separator (`0/4`, `0-3`).
+inline bool numbersAround(const std::string& text, char separator) {
+    const size_t at = text.find(separator);
+    auto digits = [](std::string_view s) {
+        return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); });
+    };
+    return at != std::string::npos && digits(std::string_view(text).substr(0, at)) && digits(std::string_view(text).substr(at + 1));
+}
 
 /// @brief A byte size as parseByteSize() reads it (`256M`, `2G`, `1.5GiB`).
 inline CLI::Validator byteSizeForm() {
@@ -36,14 +46,7 @@ inline CLI::Validator shardForm() {
     return CLI::Validator(
         [](std::string& text) -> std::string {
             if (text == "slurm") return "";
-            const size_t slash = text.find('/');
-            auto digits = [](const std::string& s) {
-                if (s.empty()) return false;
-                for (char c : s)
-                    if (!std::isdigit(static_cast<unsigned char>(c))) return false;
-                return true;
-            };
-            if (slash != std::string::npos && digits(text.substr(0, slash)) && digits(text.substr(slash + 1))) return "";
+            if (numbersAround(text, '/')) return "";
             return "'" + text + "' is not I/N (shard I of N, e.g. 0/4) or slurm";
         },
         "I/N");
@@ -54,11 +57,7 @@ inline CLI::Validator shardForm() {
 inline CLI::Validator shardRangeForm() {
     return CLI::Validator(
         [](std::string& text) -> std::string {
-            const size_t dash = text.find('-');
-            auto digits = [](const std::string& s) {
-                return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); });
-            };
-            if (dash != std::string::npos && digits(text.substr(0, dash)) && digits(text.substr(dash + 1))) return "";
+            if (numbersAround(text, '-')) return "";
             return "'" + text + "' is not A-B (shards A to B, e.g. 0-3)";
         },
         "A-B");

@@ -35,6 +35,14 @@ uint64_t SsvLight::bytes() const {
     return side.capacity() + potential.capacity() + edges.capacity() * sizeof(SsvEdge) + tree.bytes();
 }
 
+namespace {
+/// @p params with the byte limit the plan reserves for a tree over @p triangles, unless given.
+KdParams treeParams(KdParams params, size_t triangles) {
+    if (!params.maxBytes) params.maxBytes = triangles * SsvScene::kTreeBytesPerTriangle;
+    return params;
+}
+}  // namespace
+
 SsvScene::SsvScene(std::span<const Triangle> triangles, const LightSamples& samples, const ReceiverEpsilon& epsilon,
                    const KdBox& receiverBox, const KdParams& params) {
     Stopwatch watch;
@@ -58,9 +66,7 @@ SsvScene::SsvScene(std::span<const Triangle> triangles, const LightSamples& samp
         for (const glm::dvec3& v : alpha_[i].v) alphaItems[i].box.add(v);
         alphaItems[i].id = uint32_t(i), alphaItems[i].kind = kSsvTriangleItem;
     }
-    KdParams limited = params;
-    if (!limited.maxBytes) limited.maxBytes = alpha_.size() * kTreeBytesPerTriangle;
-    alphaTree_.build(std::move(alphaItems), limited);
+    alphaTree_.build(std::move(alphaItems), treeParams(params, alpha_.size()));
     if (!scene.empty()) sceneSize_ = std::max(1e-300, glm::length(scene.hi - scene.lo));
     findAdjacency();
     lights_.resize(size_t(samples.lightCount()));
@@ -195,9 +201,7 @@ void SsvScene::classify(int li, const LightSamples& samples, const ReceiverEpsil
         if (light.side[f] == 0) ++light.straddlers;
         else light.bandRadiusMax = std::max(light.bandRadiusMax, radius[f]);
     }
-    KdParams limited = params;
-    if (!limited.maxBytes) limited.maxBytes = n * kTreeBytesPerTriangle;  // what the plan reserves for it
-    light.tree.build(std::move(items), limited);
+    light.tree.build(std::move(items), treeParams(params, n));
 }
 
 uint64_t SsvScene::bytes() const {

@@ -97,7 +97,7 @@ public:
     }
     static constexpr uint64_t kTreeBytesPerTriangle = 384;
     /// Per light and triangle: its side and potential-edge bits, and up to three edges.
-    static constexpr uint64_t kLightBytesPerTriangle = 2 + 3 * 12;
+    static constexpr uint64_t kLightBytesPerTriangle = 2 + 3 * sizeof(SsvEdge);
 
 private:
     void findAdjacency();

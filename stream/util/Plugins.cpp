@@ -49,14 +49,6 @@ std::string pluginPath(const std::string& name) {
 
 }  // namespace
 
-bool isBuiltPlugin(const std::string& name) {
-    // Both sides between commas, so that a name matches only a whole entry of the list.
-    static const std::string built = std::string(",") + PENUMBRA_BUILT_PLUGINS + ",";
-    std::string entry = ",";
-    entry.append(name).push_back(',');
-    return !name.empty() && built.find(entry) != std::string::npos;
-}
-
 std::vector<std::string> builtPlugins() {
     std::vector<std::string> names;
     const std::string built = PENUMBRA_BUILT_PLUGINS;
@@ -66,6 +58,11 @@ std::vector<std::string> builtPlugins() {
         at = comma + 1;
     }
     return names;
+}
+
+bool isBuiltPlugin(const std::string& name) {
+    const std::vector<std::string> names = builtPlugins();  // whole entries only
+    return std::find(names.begin(), names.end(), name) != names.end();
 }
 
 std::string pluginSearchPlaces() {
