@@ -20,6 +20,7 @@
 #include <cstring>
 #include <filesystem>
 #include <optional>
+#include <tuple>
 #include <limits>
 
 
@@ -186,6 +187,54 @@ GltfBufferView parseView(const std::string& path, const Json& j, size_t i, const
     return v;
 }
 
+/// Fails unless @p count elements of @p elementBytes, @p stride apart from @p offset, lie inside
+/// bufferView @p view: offset + stride * (count - 1) + elementBytes, every step overflow-checked,
+/// since the operands come straight from the JSON. @p what names the reader ("accessor 3").
+void checkInsideView(const std::string& path, const std::string& what, const std::vector<GltfBufferView>& views, int view,
+                     uint64_t offset, uint64_t stride, uint64_t count, uint64_t elementBytes) {
+    if (view < 0 || size_t(view) >= views.size()) fail(path, "{} refers to bufferView {} (file has {})", what, view, views.size());
+    if (count == 0) return;
+    const uint64_t length = views[size_t(view)].byteLength;
+    uint64_t needed = 0;
+    const bool overflow = __builtin_mul_overflow(stride, count - 1, &needed) || __builtin_add_overflow(needed, offset, &needed) ||
+                          __builtin_add_overflow(needed, elementBytes, &needed);
+    if (overflow) fail(path, "{} reads past the end of bufferView {} (needs more than 2^64 bytes, has {})", what, view, length);
+    if (needed > length) fail(path, "{} reads past the end of bufferView {} (needs {} bytes, has {})", what, view, needed, length);
+}
+
+GltfSparse parseSparse(const std::string& path, const Json& j, size_t i, const GltfAccessor& a,
+                       const std::vector<GltfBufferView>& views) {
+    const std::string what = fmt::format("accessor {} sparse", i);
+    if (!j.is_object()) fail(path, "{} must be an object", what);
+    Members m{path, j, what};
+    GltfSparse s;
+    s.count = m.required("count");
+    if (s.count == 0 || s.count > a.count)
+        fail(path, "{} count {} must be in 1..{} (the accessor's count)", what, s.count, a.count);
+    if (!m.find("indices") || !m.find("values")) fail(path, "{} needs both indices and values", what);
+    Members indices{path, m.objectAt("indices"), what + " indices"};
+    Members values{path, m.objectAt("values"), what + " values"};
+    s.indicesView = int(std::min<uint64_t>(indices.required("bufferView"), uint64_t(std::numeric_limits<int>::max())));
+    s.indicesOffset = indices.unsignedOr("byteOffset", 0);
+    s.indexType = int(std::min<uint64_t>(indices.required("componentType"), uint64_t(std::numeric_limits<int>::max())));
+    if (s.indexType != kGltfUnsignedByte && s.indexType != kGltfUnsignedShort && s.indexType != kGltfUnsignedInt)
+        fail(path, "{} indices componentType {} must be an unsigned integer type", what, s.indexType);
+    s.valuesView = int(std::min<uint64_t>(values.required("bufferView"), uint64_t(std::numeric_limits<int>::max())));
+    s.valuesOffset = values.unsignedOr("byteOffset", 0);
+    const uint64_t indexBytes = uint64_t(gltfComponentBytes(s.indexType));
+    checkInsideView(path, what + " indices", views, s.indicesView, s.indicesOffset, indexBytes, s.count, indexBytes);
+    checkInsideView(path, what + " values", views, s.valuesView, s.valuesOffset, a.elementBytes, s.count, a.elementBytes);
+    // Both arrays are tightly packed whatever the view says; a stride that disagrees would leave
+    // the layout ambiguous.
+    for (const auto& [view, bytes, name] : {std::tuple{s.indicesView, indexBytes, "indices"}, std::tuple{s.valuesView, uint64_t(a.elementBytes), "values"}}) {
+        const uint32_t stride = views[size_t(view)].byteStride;
+        if (stride != 0 && stride != bytes)
+            fail(path, "{} {}: bufferView {} has byteStride {}, but sparse arrays are tightly packed ({} bytes)", what, name,
+                 view, stride, bytes);
+    }
+    return s;
+}
+
 GltfAccessor parseAccessor(const std::string& path, const Json& j, size_t i, const std::vector<GltfBufferView>& views) {
     Members m{path, j, fmt::format("accessor {}", i)};
     GltfAccessor a;
@@ -198,9 +247,9 @@ GltfAccessor parseAccessor(const std::string& path, const Json& j, size_t i, con
     const Json* normalized = m.find("normalized");
     a.normalized = normalized && normalized->is_boolean() && normalized->get<bool>();
     a.count = m.required("count");
-    a.sparse = m.find("sparse") != nullptr;
     a.byteOffset = m.unsignedOr("byteOffset", 0);
     a.elementBytes = uint32_t(componentBytes * a.components);
+    if (const Json* sparse = m.find("sparse")) a.sparse = parseSparse(path, *sparse, i, a, views);
     a.bufferView = m.index("bufferView");
     if (a.bufferView < 0) return a;  // zeros (or a Draco-decoded primitive's attribute)
     if (size_t(a.bufferView) >= views.size())
@@ -211,20 +260,7 @@ GltfAccessor parseAccessor(const std::string& path, const Json& j, size_t i, con
     if (a.stride < a.elementBytes)
         fail(path, "accessor {}: bufferView {} byteStride {} is smaller than the {}-byte element", i, a.bufferView, stride,
              a.elementBytes);
-    if (a.count > 0) {
-        // byteOffset + stride * (count - 1) + elementBytes, every step overflow-checked: the
-        // operands come straight from the JSON.
-        uint64_t needed = 0;
-        const bool overflow = __builtin_mul_overflow(uint64_t(a.stride), a.count - 1, &needed) ||
-                              __builtin_add_overflow(needed, a.byteOffset, &needed) ||
-                              __builtin_add_overflow(needed, uint64_t(a.elementBytes), &needed);
-        if (overflow)
-            fail(path, "accessor {} reads past the end of bufferView {} (needs more than 2^64 bytes, has {})", i,
-                 a.bufferView, view.byteLength);
-        if (needed > view.byteLength)
-            fail(path, "accessor {} reads past the end of bufferView {} (needs {} bytes, has {})", i, a.bufferView, needed,
-                 view.byteLength);
-    }
+    checkInsideView(path, fmt::format("accessor {}", i), views, a.bufferView, a.byteOffset, a.stride, a.count, a.elementBytes);
     return a;
 }
 

@@ -17,6 +17,8 @@
 /// loaded, and refused above kMaxDataUriBytes (decoded) with an error naming the buffer, because
 /// their bytes must stay resident (the JSON text they came in is not kept).
 ///
+/// Sparse accessors are parsed here and read through GltfElements.h.
+///
 /// Extensions understood: KHR_mesh_quantization (integer positions), EXT_mesh_gpu_instancing,
 /// EXT_meshopt_compression and KHR_draco_mesh_compression. Any other extension in
 /// `extensionsRequired` is an error naming it.
@@ -68,6 +70,19 @@ struct GltfBufferView {
     std::optional<GltfMeshoptView> meshopt;
 };
 
+/// Sparse storage of an accessor (glTF 2.0, "Sparse Accessors"): element indices[j] takes the
+/// value values[j]; every other element comes from the accessor's bufferView, or is zero without
+/// one. Both arrays are tightly packed, and lie inside their views (checked when parsed); the
+/// indices' order and range are checked where they are read (GltfPrimitive.h).
+struct GltfSparse {
+    uint64_t count = 0;
+    int indicesView = -1;
+    uint64_t indicesOffset = 0;
+    int indexType = kGltfUnsignedInt;  ///< UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT
+    int valuesView = -1;
+    uint64_t valuesOffset = 0;
+};
+
 /// An accessor after validation: element i occupies [byteOffset + i * stride, + elementBytes)
 /// of its buffer view, and every element lies inside it.
 struct GltfAccessor {
@@ -76,7 +91,7 @@ struct GltfAccessor {
     int componentType = kGltfFloat;
     int components = 1;
     bool normalized = false;
-    bool sparse = false;
+    std::optional<GltfSparse> sparse;
     uint64_t count = 0;
     uint32_t stride = 0;
     uint32_t elementBytes = 0;

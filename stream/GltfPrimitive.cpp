@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 
 namespace penumbra {
 namespace {
@@ -67,11 +68,13 @@ std::optional<GltfPrimitiveLayout> gltfTrianglePrimitive(const GltfDocument& doc
     if (positions.components != 3) fail(where, "POSITION accessor {} is not VEC3", g.positions);
     if (positions.componentType == kGltfUnsignedInt)
         fail(where, "POSITION accessor {} has componentType {}, which glTF does not allow", g.positions, positions.componentType);
-    if (positions.sparse) fail(where, "POSITION accessor {} uses sparse storage, which penumbra does not support", g.positions);
     g.draco = prim.draco.has_value();
-    // Without a bufferView every position is zero: only degenerate triangles, and a count
-    // bounded by nothing but the JSON (a tiny file could ask for 2^60 of them).
-    if (!g.draco && positions.bufferView < 0 && positions.count > 0)
+    if (g.draco && positions.sparse) fail(where, "POSITION accessor {} of a Draco-compressed primitive is sparse", g.positions);
+    // Without a bufferView every position is zero but for sparse substitutions: a count bounded
+    // by nothing but the JSON (a tiny file could ask for 2^60 of them) of degenerate triangles.
+    // With substitutions it is still bounded by the 32-bit indices that reach them.
+    if (!g.draco && positions.bufferView < 0 && positions.count > 0 &&
+        (!positions.sparse || positions.count > std::numeric_limits<uint32_t>::max()))
         fail(where, "POSITION accessor {} has no bufferView", g.positions);
     g.vertices = positions.count;
 
@@ -83,8 +86,8 @@ std::optional<GltfPrimitiveLayout> gltfTrianglePrimitive(const GltfDocument& doc
         if (!isUnsignedIndexType(indices.componentType))
             fail(where, "indices accessor {} has componentType {} (must be an unsigned integer type)", g.indices,
                  indices.componentType);
-        if (indices.sparse) fail(where, "indices accessor {} uses sparse storage, which penumbra does not support", g.indices);
-        if (!g.draco && indices.bufferView < 0 && indices.count > 0)
+        if (g.draco && indices.sparse) fail(where, "indices accessor {} of a Draco-compressed primitive is sparse", g.indices);
+        if (!g.draco && indices.bufferView < 0 && indices.count > 0 && !indices.sparse)
             fail(where, "indices accessor {} has no bufferView", g.indices);
         sequence = indices.count;
     }
@@ -95,6 +98,9 @@ std::optional<GltfPrimitiveLayout> gltfTrianglePrimitive(const GltfDocument& doc
     } else {
         g.decodeBytes = gltfDecodedViewBytes(doc, positions.bufferView) +
                         (g.indices >= 0 ? gltfDecodedViewBytes(doc, doc.accessors[size_t(g.indices)].bufferView) : 0);
+        for (const auto& [name, accessor] : prim.attributes) g.sparseBytes += gltfSparseBytes(doc, accessor);
+        g.sparseBytes += gltfSparseBytes(doc, g.indices);
+        g.decodeBytes += g.sparseBytes;
     }
     if (prim.mode == kGltfTriangles) {
         if (sequence % 3 != 0) fail(where, "TRIANGLES primitive has {} vertices, not a multiple of 3", sequence);
@@ -115,6 +121,7 @@ std::array<uint64_t, 3> gltfTriangleCorners(int mode, uint64_t t) {
 
 glm::vec4 decodeGltfElement(const uint8_t* at, const GltfAccessor& a) {
     glm::vec4 p(0.0f);
+    if (!at) return p;
     for (int c = 0; c < std::min(a.components, 4); ++c) {
         switch (a.componentType) {
         case kGltfFloat: std::memcpy(&p[c], at + 4 * c, 4); break;
@@ -150,7 +157,12 @@ glm::vec4 decodeGltfElement(const uint8_t* at, const GltfAccessor& a) {
 GltfPrimitiveReader::GltfPrimitiveReader(const GltfDocument& doc, GltfBytes& bytes, const GltfPrimitiveLayout& layout,
                                          bool attributes)
     : doc_(doc), bytes_(bytes), layout_(layout), desc_(doc.meshes[size_t(layout.mesh)].primitives[size_t(layout.primitive)]) {
-    if (layout.draco) draco_ = std::make_unique<DracoPrimitive>(decodeDracoPrimitive(doc, bytes, layout, attributes));
+    if (layout.draco) {
+        draco_ = std::make_unique<DracoPrimitive>(decodeDracoPrimitive(doc, bytes, layout, attributes));
+        return;
+    }
+    positions_.emplace(doc, bytes, layout.positions, layout.where(doc));
+    if (layout.indices >= 0) indices_.emplace(doc, bytes, layout.indices, layout.where(doc));
 }
 
 GltfPrimitiveReader::~GltfPrimitiveReader() = default;
@@ -158,10 +170,9 @@ GltfPrimitiveReader::~GltfPrimitiveReader() = default;
 uint32_t GltfPrimitiveReader::sequence(uint64_t i) {
     if (draco_) return draco_->indices[size_t(i)];
     if (layout_.indices < 0) return uint32_t(i);
-    const GltfAccessor& a = doc_.accessors[size_t(layout_.indices)];
+    const GltfAccessor& a = indices_->accessor();
     uint32_t index = 0;
-    if (a.bufferView >= 0) {
-        const uint8_t* p = bytes_.at(a.bufferView, a.byteOffset + i * a.stride, a.elementBytes);
+    if (const uint8_t* p = indices_->at(i)) {
         if (a.componentType == kGltfUnsignedByte) index = *p;
         else if (a.componentType == kGltfUnsignedShort) {
             uint16_t x;
@@ -187,8 +198,7 @@ glm::vec3 GltfPrimitiveReader::position(uint64_t v) {
     if (draco_) {
         p = draco_->positions[size_t(v)];
     } else {
-        const GltfAccessor& a = doc_.accessors[size_t(layout_.positions)];
-        p = glm::vec3(decodeGltfElement(bytes_.at(a.bufferView, a.byteOffset + v * a.stride, a.elementBytes), a));
+        p = glm::vec3(decodeGltfElement(positions_->at(v), positions_->accessor()));
     }
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
         fail(layout_.where(doc_), "POSITION accessor {} element {} is not finite", layout_.positions, v);
@@ -197,30 +207,32 @@ glm::vec3 GltfPrimitiveReader::position(uint64_t v) {
 
 bool GltfPrimitiveReader::has(const std::string& name) const { return desc_.attribute(name) >= 0; }
 
-const GltfAccessor& GltfPrimitiveReader::checkedAttribute(const std::string& name, int components) {
+GltfElements& GltfPrimitiveReader::checkedAttribute(const std::string& name, int components) {
     const int index = desc_.attribute(name);
+    for (auto& [accessor, elements] : attributes_)
+        if (accessor == index) return elements;
     const std::string where = layout_.where(doc_);
     if (index < 0) fail(where, "has no {} attribute", name);
     const GltfAccessor& a = doc_.accessors[size_t(index)];
     if (a.components != components) fail(where, "{} accessor {} is not VEC{}", name, index, components);
-    if (a.sparse) fail(where, "{} accessor {} uses sparse storage, which penumbra does not support", name, index);
     if (a.count != layout_.vertices)
         fail(where, "{} accessor {} has {} elements, POSITION has {}", name, index, a.count, layout_.vertices);
-    if (!draco_ && a.bufferView < 0 && a.count > 0) fail(where, "{} accessor {} has no bufferView", name, index);
+    if (!draco_ && a.bufferView < 0 && a.count > 0 && !a.sparse) fail(where, "{} accessor {} has no bufferView", name, index);
+    if (draco_ && a.sparse) fail(where, "{} accessor {} of a Draco-compressed primitive is sparse", name, index);
     if (a.componentType == kGltfUnsignedInt)
         fail(where, "{} accessor {} has componentType {}, which glTF does not allow", name, index, a.componentType);
-    return a;
+    return attributes_.emplace_back(index, GltfElements(doc_, bytes_, index, where)).second;
 }
 
 glm::vec4 GltfPrimitiveReader::attribute(const std::string& name, int components, uint64_t v) {
-    const GltfAccessor& a = checkedAttribute(name, components);
+    GltfElements& elements = checkedAttribute(name, components);
     glm::vec4 x;
     if (draco_) {
         auto it = std::find_if(draco_->attributes.begin(), draco_->attributes.end(), [&](const auto& e) { return e.first == name; });
         if (it == draco_->attributes.end()) fail(layout_.where(doc_), "{} is not in the Draco data", name);
         x = it->second[size_t(v)];
     } else {
-        x = decodeGltfElement(bytes_.at(a.bufferView, a.byteOffset + v * a.stride, a.elementBytes), a);
+        x = decodeGltfElement(elements.at(v), elements.accessor());
     }
     if (!std::isfinite(x.x) || !std::isfinite(x.y) || !std::isfinite(x.z) || !std::isfinite(x.w))
         fail(layout_.where(doc_), "{} accessor {} element {} is not finite", name, desc_.attribute(name), v);

@@ -5,7 +5,7 @@
 /// vertex-colour writer (bake/VertexColorKind.cpp).
 ///
 /// gltfTrianglePrimitive() does the per-primitive checks once (POSITION present, VEC3, an allowed
-/// component type, dense storage; indices a dense SCALAR of unsigned integers; TRIANGLES counts a
+/// component type, dense or sparse storage (GltfElements.h); indices a SCALAR of unsigned integers; TRIANGLES counts a
 /// multiple of 3). GltfPrimitiveReader then hands out triangles as vertex indices (the strip and
 /// fan corner rule lives in gltfTriangleCorners(), nowhere else), checking each index against the
 /// vertex count and each position for finiteness as it is read, through the windowed bytes of
@@ -14,6 +14,7 @@
 
 #include "stream/GltfBytes.h"
 #include "stream/GltfDocument.h"
+#include "stream/GltfElements.h"
 
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
@@ -24,6 +25,8 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace penumbra {
 
@@ -36,8 +39,13 @@ struct GltfPrimitiveLayout {
     uint64_t vertices = 0;   ///< POSITION elements
     uint64_t triangles = 0;
     bool draco = false;
-    /// Bytes that must be resident to read it: decoded meshopt views, or the decoded Draco mesh.
+    /// Bytes that must be resident to read it: decoded meshopt views, or the decoded Draco mesh,
+    /// and the sparse accessors' index lists (@ref sparseBytes of it).
     uint64_t decodeBytes = 0;
+    uint64_t sparseBytes = 0;
+
+    /// Whether it is stored compressed (Draco or meshopt), so that a copy cannot be extended.
+    bool compressed() const { return draco || decodeBytes > sparseBytes; }
 
     /// "FILE: mesh M primitive P", the prefix of every message about it.
     std::string where(const GltfDocument& doc) const;
@@ -85,7 +93,7 @@ public:
     /// @brief Position of vertex @p v. @throw InputError when it is not finite.
     glm::vec3 position(uint64_t v);
 
-    /// @brief Element @p v of attribute @p name (NORMAL, TEXCOORD_0, ...): checked to be a dense
+    /// @brief Element @p v of attribute @p name (NORMAL, TEXCOORD_0, ...): checked to be an
     /// accessor with one element per vertex and @p components components. @throw InputError
     /// when it is missing or malformed; use has() first.
     glm::vec4 attribute(const std::string& name, int components, uint64_t v);
@@ -93,13 +101,16 @@ public:
 
 private:
     uint32_t sequence(uint64_t i);
-    const GltfAccessor& checkedAttribute(const std::string& name, int components);
+    /// The checked reader of attribute @p name, made on its first read.
+    GltfElements& checkedAttribute(const std::string& name, int components);
 
     const GltfDocument& doc_;
     GltfBytes& bytes_;
     GltfPrimitiveLayout layout_;
     const GltfPrimitiveDesc& desc_;
     std::unique_ptr<DracoPrimitive> draco_;
+    std::optional<GltfElements> positions_, indices_;  // empty for Draco primitives
+    std::vector<std::pair<int, GltfElements>> attributes_;  // accessor -> reader, as read
 };
 
 /// @brief Bytes the Draco decoder needs for a primitive of @p vertices and @p indices (decoded

@@ -145,7 +145,9 @@ std::string GltfSource::residentDetail() const {
     if (largestDecode_ == SIZE_MAX) return {};
     const GltfPrimitiveLayout& l = layouts_[largestDecode_];
     return fmt::format("{} needs {:.1f} MiB to decode ({})", l.where(doc_), double(l.decodeBytes) / (1 << 20),
-                       l.draco ? "KHR_draco_mesh_compression" : "EXT_meshopt_compression");
+                       l.draco          ? "KHR_draco_mesh_compression"
+                       : l.compressed() ? "EXT_meshopt_compression"
+                                        : "the index lists of its sparse accessors");
 }
 
 void GltfSource::rewind() {

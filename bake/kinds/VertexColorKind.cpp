@@ -242,7 +242,7 @@ void walkPrimitives(const VertexFile& file, Visit&& visit) {
         for (size_t p = 0; p < doc.meshes[size_t(node.mesh)].primitives.size(); ++p) {
             const auto layout = gltfTrianglePrimitive(doc, node.mesh, int(p));
             if (!layout) continue;  // points and lines carry no surface to shade
-            if (layout->draco || layout->decodeBytes > 0)
+            if (layout->compressed())
                 fail(layout->where(doc), "is compressed; vertex results can only be written into an uncompressed "
                      "glTF (decompress it with gltfpack -noq, or bake a lightmap)");
             GltfPrimitiveReader reader(doc, bytes, *layout);
