@@ -227,10 +227,28 @@ py::array PyResult::image(const std::string& values) const {
     float* p = out.mutable_data();
     std::fill(p, p + h * w * channels, NAN);
     const ReceiverSet& rs = capture->receivers;
-    for (size_t i = 0; i < capture->firstPass && i < rs.pixel.size(); ++i) {
+    const ReceiverResults& res = capture->results;
+    const size_t pixels = size_t(h) * size_t(w), first = std::min(capture->firstPass, rs.pixel.size());
+    // Deeper layers' receivers (pixel >= W * H) are left out: the image is the nearest surface,
+    // as the EXR's first layer and the preview are.
+    for (size_t i = 0; i < first; ++i) {
         const size_t px = rs.pixel[i];
-        if (channels == 1) p[px] = capture->results.visibility[i];
-        else for (int c = 0; c < 3; ++c) p[3 * px + c] = capture->results.irradiance[i][c];
+        if (px >= pixels) continue;
+        if (channels == 1) p[px] = res.visibility[i];
+        else for (int c = 0; c < 3; ++c) p[3 * px + c] = res.irradiance[i][c];
+    }
+    // An antialiased pixel holds the mean of its sub-pixel receivers (consecutive, one pixel
+    // each), summed in double in receiver order, exactly as the EXR writes it (CameraOutput.cpp).
+    for (size_t begin = first, end; begin < rs.pixel.size(); begin = end) {
+        const size_t px = rs.pixel[begin];
+        double v = 0;
+        glm::dvec3 e(0.0);
+        for (end = begin; end < rs.pixel.size() && rs.pixel[end] == px; ++end)
+            v += res.visibility[end], e += glm::dvec3(res.irradiance[end]);
+        if (px >= pixels) continue;
+        const double count = double(end - begin);
+        if (channels == 1) p[px] = float(v / count);
+        else for (int c = 0; c < 3; ++c) p[3 * px + c] = glm::vec3(e / count)[c];
     }
     return out;
 }

@@ -177,8 +177,9 @@ void bindResult(py::module_& m) {
         }, "(N,) uint32 pixel index y * width + x of camera receivers (empty otherwise).")
         .def_property_readonly("image_shape", &PyResult::imageShape, "(H, W) of a camera, else None.")
         .def("image", &PyResult::image, py::arg("values") = "visibility",
-             "A camera's (H, W) visibility or (H, W, 3) irradiance (values='irradiance') from the first pass's "
-             "receivers; NaN where no surface is seen.")
+             "A camera's (H, W) visibility or (H, W, 3) irradiance (values='irradiance') of the nearest surface, "
+             "as the EXR holds them: an antialiased pixel is the mean of its sub-pixel receivers; NaN where no "
+             "surface is seen.")
         .def_property_readonly("stats", [](const PyResult& r) { return toPython(r.stats); }, "The bake's stats, as --stats writes them.")
         .def_property_readonly("samples", [](const PyResult& r) { return r.capture->samples.sampleCount; }, "Light samples K.")
         .def("write", &PyResult::write, py::arg("path"),

@@ -11,4 +11,10 @@ glm::dvec3 sunIrradianceFromRadiance(const glm::dvec3& radiance, double diameter
     return radiance * (glm::pi<double>() * s * s);
 }
 
+double sunMeanCosine(double diameterDeg) {
+    const double t = std::tan(glm::radians(diameterDeg) * 0.5), t2 = t * t;
+    // 2 (sqrt(1 + t^2) - 1) / t^2, written without the cancellation for small t.
+    return 2.0 / (std::sqrt(1.0 + t2) + 1.0);
+}
+
 }  // namespace penumbra

@@ -1,5 +1,7 @@
 #include "bake/shading/ReceiverShading.h"
 
+#include "bake/light/SunLight.h"
+
 #include "stream/Translucency.h"
 #include "stream/util/Error.h"
 
@@ -40,8 +42,9 @@ ReceiverShader::ReceiverShader(const std::vector<LightDesc>& lights, const Light
         PerLight p;
         p.samples = l.samples;
         if (l.type == LightType::Sun) {
-            // Every sample is a direction carrying an equal share of the sun's irradiance.
-            p.sun = true, p.normal = glm::dvec3(0.0), p.weight = l.irradiance / double(l.samples);
+            // Every sample is a direction carrying an equal share of the sun's irradiance, scaled so
+            // that a surface facing the sun receives all of it (sunMeanCosine()).
+            p.sun = true, p.normal = glm::dvec3(0.0), p.weight = l.irradiance / (double(l.samples) * sunMeanCosine(l.angularDiameterDeg));
         } else {
             // A sphere is seen as a disk of its radius from every direction.
             double area = l.type == LightType::Sphere ? M_PI * l.radius * l.radius : l.area();

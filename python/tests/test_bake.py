@@ -141,3 +141,29 @@ def test_camera_views_and_per_light_arrays():
     assert result.light_irradiance.shape == (len(result), 2, 3)
     np.testing.assert_allclose(result.light_irradiance.sum(axis=1), result.irradiance, rtol=1e-5, atol=1e-6)
     assert result.masks.shape == (len(result), 2)  # 96 samples: two words
+
+
+def test_image_holds_the_refined_pixels_and_the_nearest_layer():
+    # image() mapped the first pass's pixel centres only: an antialiased pixel kept its centre's
+    # value where the EXR holds the mean of its sub-pixel receivers, and a pixel whose centre saw
+    # nothing stayed NaN.
+    scene = grid_scene()
+    scene["receivers"]["antialias"] = {"threshold": 0.1, "samples": 4}
+    result = penumbra.bake(penumbra.Scene(scene), threads=2)
+    pixels, visibility = result.pixels, result.visibility
+    first = np.flatnonzero(np.diff(pixels.astype(np.int64)) <= 0)[0] + 1  # where pixel order restarts
+    expected = np.full(48 * 64, np.nan, dtype=np.float32)
+    expected[pixels[:first]] = visibility[:first]
+    refined = pixels[first:]
+    assert len(refined) > 0
+    for p in np.unique(refined):
+        expected[p] = np.float32(visibility[first:][refined == p].astype(np.float64).mean())
+    np.testing.assert_array_equal(result.image().ravel(), expected)
+    # A deep camera's deeper layers (pixel >= W * H) wrote past the image's end.
+    deep = grid_scene()
+    deep["receivers"]["layers"] = 3
+    result = penumbra.bake(penumbra.Scene(deep), threads=2)
+    front = result.pixels < 48 * 64
+    assert (~front).any()
+    image = result.image().ravel()
+    np.testing.assert_array_equal(image[result.pixels[front]], result.visibility[front])
