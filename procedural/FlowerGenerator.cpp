@@ -31,6 +31,12 @@ public:
         }
     }
 
+    uint64_t residentBytes() const override { return p_.placement.residentBytes(); }
+    size_t read(std::span<Triangle> out) override {
+        p_.placement.prepare();
+        return ItemSource::read(out);
+    }
+
 protected:
     void item(uint64_t flower, Triangle* out) const override {
         Rng rng(hashIndex(p_.seed, flower));

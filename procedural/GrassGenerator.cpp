@@ -89,6 +89,12 @@ public:
         yawSpan_ = float((p.orientationDeg.y - p.orientationDeg.x) * kDegree);
     }
 
+    uint64_t residentBytes() const override { return p_.placement.residentBytes(); }
+    size_t read(std::span<Triangle> out) override {
+        p_.placement.prepare();
+        return ItemSource::read(out);
+    }
+
 protected:
     void item(uint64_t blade, Triangle* out) const override {
         Rng rng(hashIndex(p_.seed, blade));

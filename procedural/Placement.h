@@ -23,6 +23,12 @@ struct Placement {
 
     /// Ground height under (x, z): the terrain's triangulated surface, or the plane.
     double groundHeight(double x, double z) const { return terrain ? terrain->height(x, z) : baseHeight; }
+    /// Bytes held for the ground: an inline terrain's coordinates and heights (up to 48 MiB).
+    uint64_t residentBytes() const { return terrain ? terrain->bytes() : 0; }
+    /// Fills the terrain's height cache: the owning source's read() calls it (TerrainField).
+    void prepare() const {
+        if (terrain) terrain->prepare();
+    }
 };
 
 /// @brief Reads "count" or "density" (items per square world unit over the area, rounded to the

@@ -46,6 +46,11 @@ class TerrainSource final : public ItemSource {
 public:
     explicit TerrainSource(const TerrainParams& p)
         : ItemSource("terrain", uint64_t(p.cellsX) * uint64_t(p.cellsZ), 2), field_(p) {}
+    uint64_t residentBytes() const override { return field_.bytes(); }
+    size_t read(std::span<Triangle> out) override {
+        field_.prepare();
+        return ItemSource::read(out);
+    }
 
 protected:
     void item(uint64_t cell, Triangle* out) const override {
@@ -148,7 +153,11 @@ TerrainField::TerrainField(const TerrainParams& params) : p_(params), noise_(par
     const uint64_t columns = uint64_t(p_.cellsX) + 1, rows = uint64_t(p_.cellsZ) + 1;
     for (uint64_t i = 0; i < columns; ++i) xs_.push_back(terrainVertexX(p_, int64_t(i)));
     for (uint64_t k = 0; k < rows; ++k) zs_.push_back(terrainVertexZ(p_, int64_t(k)));
-    if (columns * rows > kCachedVertices) return;
+}
+
+void TerrainField::prepare() const {
+    if (!cached() || !heights_.empty()) return;
+    const uint64_t columns = xs_.size(), rows = zs_.size();
     heights_.resize(columns * rows);
     tbb::parallel_for(tbb::blocked_range<uint64_t>(0, rows), [&](const tbb::blocked_range<uint64_t>& r) {
         for (uint64_t k = r.begin(); k != r.end(); ++k)

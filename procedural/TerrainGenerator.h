@@ -59,7 +59,9 @@ double terrainHeight(const TerrainParams& p, double x, double z);
 
 /// @brief terrainHeight() with the grid's vertex heights cached when there are at most
 /// kCachedVertices of them (16 MiB of floats); larger grids evaluate the noise on demand. Both
-/// paths give the same bits. Immutable after construction, so it may be shared across threads.
+/// paths give the same bits, so the cache is filled by prepare(), which the owning source calls
+/// on its first read: after the memory plan has counted bytes(), never while the scene opens.
+/// Thread-safe for reading between prepare() calls.
 class TerrainField {
 public:
     static constexpr uint64_t kCachedVertices = uint64_t(1) << 22;
@@ -70,12 +72,18 @@ public:
     double vertexX(int64_t i) const { return xs_[size_t(i)]; }
     double vertexZ(int64_t k) const { return zs_[size_t(k)]; }
     double height(double x, double z) const;
+    /// @brief Fills the height cache (once; single-threaded callers only, before parallel reads).
+    void prepare() const;
+    /// Bytes it holds once prepared: the vertex coordinates and the cached heights.
+    uint64_t bytes() const { return (xs_.size() + zs_.size()) * sizeof(double) + (cached() ? vertices() * sizeof(float) : 0); }
 
 private:
     TerrainParams p_;
     Fbm noise_;
     std::vector<double> xs_, zs_;  // vertex coordinates, terrainVertexX/Z
-    std::vector<float> heights_;  // (cellsX + 1) * (cellsZ + 1), row-major in k; empty if too big
+    uint64_t vertices() const { return uint64_t(xs_.size()) * uint64_t(zs_.size()); }
+    bool cached() const { return vertices() <= kCachedVertices; }
+    mutable std::vector<float> heights_;  // (cellsX + 1) * (cellsZ + 1), row-major in k; empty until prepare()
 };
 
 TriangleSourcePtr makeTerrainSource(const TerrainParams& params);

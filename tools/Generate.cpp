@@ -11,6 +11,7 @@
 #include "stream/ProgressSource.h"
 #include "stream/util/Progress.h"
 #include "stream/util/InputFile.h"
+#include "stream/util/Memory.h"
 
 #include <fmt/format.h>
 
@@ -33,6 +34,21 @@ CLI::App* addGenerateCommand(CLI::App& app, GenerateOptions& options) {
 
 namespace {
 
+/// Under an address-space limit, whether the opened sources' working sets (a scatter's kept
+/// source, a forest's variants, terrain heights: built on the first read) fit, before any is
+/// built: without this, generating failed with a bare "out of memory" at any limit.
+/// @throw InputError naming a limit that works.
+void checkGenerateFits(const TriangleSource& source, const BakeBudget& budget, const std::string& scene) {
+    if (budget.bytes == 0) return;
+    // The read-ahead and the writer's chunks, as a bake's scan counts them.
+    const uint64_t needed = kBaselineBytes + source.residentBytes() + 8 * kTriangleChunk * sizeof(Triangle);
+    if (needed <= budget.bytes) return;
+    const std::string detail = source.residentDetail();
+    throw InputError(fmt::format("{}: {} {} is too small to generate this geometry; at least {} is needed{}", scene, budget.label,
+                                 formatBytes(budget.bytes + budget.overhead), budgetText(needed + budget.overhead + budget.namedSlack),
+                                 detail.empty() ? "" : " (" + detail + ")"));
+}
+
 /// One attempt at the whole command with options.threads workers.
 uint64_t generateOnce(const GenerateOptions& options) {
     InputScope inputs;  // the output must not replace a file the scene reads
@@ -40,9 +56,10 @@ uint64_t generateOnce(const GenerateOptions& options) {
     // address-space limit, as many as leave the bake's room (as a bake plans them), with the
     // bake's worker stacks: at 64 MiB two threads could not start.
     int threads = options.threads;
+    BakeBudget budget;
     if (addressSpaceLimit() != 0) {
         if (threads == 0) threads = int(std::max(1u, std::thread::hardware_concurrency()));
-        fitAddressSpace(0, threads, options.quiet);
+        budget = fitAddressSpace(0, threads, options.quiet);
     }
     const ScopedTbbControl limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
     const ScopedTbbControl stacks(tbb::global_control::thread_stack_size, threads > 1 && addressSpaceLimit() != 0 ? size_t(kWorkerStackBytes) : 0);
@@ -55,6 +72,7 @@ uint64_t generateOnce(const GenerateOptions& options) {
         OpeningProgress opening(options.quiet);  // a large OBJ's check pass: [check mesh.obj]
         source = openSceneGeometryForExport(scene);
     }
+    checkGenerateFits(*source, budget, options.scene);
     // Generation and the write are one pass, shown as a phase: a billion blades take minutes.
     source = std::make_unique<ProgressSource>(std::move(source), "generate", options.quiet);
     convertGeometry(*source, options.output);

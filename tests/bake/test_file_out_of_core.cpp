@@ -127,8 +127,22 @@ TEST_CASE("a budget that cannot be met fails before any work, naming a budget th
     // refused again, with a larger number).
     nlohmann::json flowers = nlohmann::json::parse(slurp(std::string(PENUMBRA_SOURCE_DIR) + "/examples/flowers.json"));
     flowers["receivers"]["width"] = 320, flowers["receivers"]["height"] = 240, flowers["output"] = "out.exr";
+    // Generators' working sets, built on their first read (a scatter's kept source, a forest's
+    // variants, inline terrains' heights): a budget below them was exceeded 2 to 8 times.
+    const nlohmann::json terrain = {{"area", {{-100, -100}, {100, 100}}}, {"resolution", 2047}, {"amplitude", 1}};
+    nlohmann::json terrains = scene(grass(10));
+    for (int k = 0; k < 3; ++k) {
+        nlohmann::json onTerrain = grass(10);
+        onTerrain["terrain"] = terrain, onTerrain["area"] = {{50, 50}, {60, 60}};
+        terrains["geometry"].push_back(onTerrain);
+    }
+    const nlohmann::json kept = {{"type", "scatter"}, {"count", 2}, {"area", {{50, 50}, {60, 60}}}, {"cache_triangles", 2'000'000},
+                                 {"source", grass(300'000)}};
+    const nlohmann::json forest = {{"type", "forest"}, {"count", 8}, {"area", {{50, 50}, {60, 60}}}, {"variants", 24}, {"depth", 6},
+                                   {"branches", 3}, {"sides", 16}, {"leaves_per_branch", 20}};
     for (const auto& [s, budget] : {std::pair{scene(grass(1000), 640, 480), "20M"}, std::pair{scene(grass(1000), 640, 480), "60M"},
-                                    std::pair{flowers, "60M"}}) {
+                                    std::pair{flowers, "60M"}, std::pair{terrains, "40M"}, std::pair{scene(kept), "40M"},
+                                    std::pair{scene(forest), "40M"}}) {
         std::filesystem::remove(dir / "out.exr");
         const Bake tooSmall = bake(dir, s, std::string("--memory-budget ") + budget);
         INFO(tooSmall.err);

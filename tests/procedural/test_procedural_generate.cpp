@@ -86,6 +86,28 @@ TEST_CASE("generate reports bad scenes and options in one clean line", "[procedu
     CHECK_FALSE(std::filesystem::exists(dir / "out.ptri"));
 }
 
+TEST_CASE("generate under an address-space limit names one that works before building anything", "[procedural][cli][memory]") {
+    // A forest's variants are built on the first read: generating failed with a bare "out of
+    // memory" at every limit, even one far above what it then needed.
+    ScratchDir dir("generate-limit");
+    nlohmann::json s = nlohmann::json::parse(kScene);
+    s["geometry"] = {{{"type", "forest"}, {"count", 4}, {"area", {{0, 0}, {4, 4}}}, {"variants", 24}, {"depth", 6},
+                      {"branches", 3}, {"sides", 16}, {"leaves_per_branch", 20}}};
+    write(dir / "forest.json", s.dump());
+    RunResult r = runPenumbra("generate " + (dir / "forest.json") + " -q -o " + (dir / "out.ptri"), "prlimit --as=" + std::to_string(120 << 20));
+    INFO(r.err);
+    REQUIRE(r.exitCode == 1);
+    CHECK(lineCount(r.err) == 1);
+    CHECK_THAT(r.err, Catch::Contains("forest keeps 24 variants"));
+    CHECK_FALSE(std::filesystem::exists(dir / "out.ptri"));
+    const size_t at = r.err.find("at least ");
+    REQUIRE(at != std::string::npos);
+    const uint64_t named = std::stoull(r.err.substr(at + 9));
+    r = runPenumbra("generate " + (dir / "forest.json") + " -q -o " + (dir / "out.ptri"), "prlimit --as=" + std::to_string(named << 20));
+    CHECK(r.exitCode == 0);
+    CHECK(std::filesystem::exists(dir / "out.ptri"));
+}
+
 TEST_CASE("the example scenes have the documented sizes", "[procedural]") {
     registerProceduralGenerators();
     registerFileSourceTypes();
