@@ -2,9 +2,13 @@
 
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
+#include "stream/GltfDocument.h"
+
+#include <nlohmann/json.hpp>
 
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <span>
 #include <sstream>
 
@@ -44,13 +48,58 @@ int appendGltfMeshNode(tinygltf::Model& model, const std::string& name, tinygltf
     return int(model.nodes.size() - 1);
 }
 
-void writeGltfModel(tinygltf::Model& model, const std::string& path, bool binary) {
+namespace {
+
+bool keepImageUri(const std::string*, const std::string*, const tinygltf::Image*, bool, std::string*, void*) {
+    return false;  // never re-encode or move images: the copy keeps referring to the originals
+}
+
+/// The file beside @p path that holds buffer @p i of @p count external ones: "x.bin" for x.gltf.
+std::filesystem::path externalBufferPath(const std::string& path, size_t i, size_t count) {
+    const std::filesystem::path p(path);
+    return p.parent_path() / (p.stem().string() + (count == 1 ? std::string() : "-" + std::to_string(i)) + ".bin");
+}
+
+}  // namespace
+
+void writeGltfModel(tinygltf::Model& model, const std::string& path, bool binary, bool keepImageUris) {
+    // A .gltf embeds its buffers as data: URIs only up to what a reader keeps in memory whole
+    // (kMaxDataUriBytes: penumbra's own readers refuse more); larger ones go to .bin files beside
+    // it, as exporters do. Every export above half a million triangles was unreadable before.
+    std::vector<std::pair<size_t, std::vector<unsigned char>>> external;
+    // (A .glb holds buffer 0 in its BIN chunk; any other buffer is a URI like a .gltf's.)
+    for (size_t i = 0; i < model.buffers.size(); ++i)
+        if ((!binary || i > 0) && model.buffers[i].data.size() > kMaxDataUriBytes) external.emplace_back(i, std::move(model.buffers[i].data));
     std::ostringstream encoded;
     tinygltf::TinyGLTF writer;
-    if (!writer.WriteGltfSceneToStream(&model, encoded, /*prettyPrint=*/!binary, binary) || !encoded)
-        fail(path, "tinygltf could not encode the model");
-    const std::string bytes = std::move(encoded).str();
+    if (keepImageUris) writer.SetImageWriter(&keepImageUri, nullptr);
+    const bool ok = writer.WriteGltfSceneToStream(&model, encoded, /*prettyPrint=*/!binary, binary) && encoded;
+    for (auto& [i, data] : external) model.buffers[i].data = std::move(data);  // the caller's model, unchanged
+    if (!ok) fail(path, "tinygltf could not encode the model");
+    std::string bytes = std::move(encoded).str();
+    std::vector<std::filesystem::path> written;
+    struct Cleanup {  // the .bin files go again if the .gltf is not written
+        std::vector<std::filesystem::path>& files;
+        bool keep = false;
+        ~Cleanup() {
+            std::error_code ignored;
+            if (!keep) for (const auto& f : files) std::filesystem::remove(f, ignored);
+        }
+    } cleanup{written};
+    if (!external.empty()) {
+        nlohmann::json doc = nlohmann::json::parse(bytes);
+        for (size_t k = 0; k < external.size(); ++k) {
+            const size_t i = external[k].first;
+            const std::vector<unsigned char>& data = model.buffers[i].data;
+            const std::filesystem::path bin = externalBufferPath(path, k, external.size());
+            writeFileAtomically(bin.string(), std::span(data.data(), data.size()));
+            written.push_back(bin);
+            doc["buffers"][i] = {{"byteLength", data.size()}, {"uri", bin.filename().string()}};
+        }
+        bytes = doc.dump(2);
+    }
     writeFileAtomically(path, std::span(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()));
+    cleanup.keep = true;
 }
 
 }  // namespace penumbra

@@ -22,9 +22,11 @@ int appendGltfAccessor(tinygltf::Model& model, const void* bytes, size_t size, i
 /// @return the node's index.
 int appendGltfMeshNode(tinygltf::Model& model, const std::string& name, tinygltf::Primitive primitive);
 
-/// @brief Encodes @p model (binary .glb when @p binary, else .gltf with buffers as data URIs) and
-/// writes it to @p path atomically.
-/// @throw InputError naming @p path when tinygltf cannot encode the model or the write fails.
-void writeGltfModel(tinygltf::Model& model, const std::string& path, bool binary);
+/// @brief Encodes @p model (binary .glb when @p binary, else .gltf with its buffers as data URIs,
+/// or, above kMaxDataUriBytes, as "STEM.bin" files beside it) and writes it to @p path
+/// atomically, the .bin files first (removed again if the .gltf cannot be written).
+/// @param keepImageUris images keep their URIs as they are (a copy referring to the originals).
+/// @throw InputError naming @p path when tinygltf cannot encode the model or a write fails.
+void writeGltfModel(tinygltf::Model& model, const std::string& path, bool binary, bool keepImageUris = false);
 
 }  // namespace penumbra

@@ -125,10 +125,6 @@ int appendAccessor(tinygltf::Model& model, const std::vector<float>& values, int
                               TINYGLTF_TARGET_ARRAY_BUFFER);
 }
 
-bool keepImageUri(const std::string*, const std::string*, const tinygltf::Image*, bool, std::string*, void*) {
-    return false;  // never re-encode or move images: the copy keeps referring to the originals
-}
-
 /// @brief Places the copy where the bake placed the mesh: a root node with the scene entry's
 /// transform above each scene's roots, so the colours, baked at the transformed size, come back
 /// on geometry of that size (a bunny baked at x10 opens at x10 in Blender).
@@ -209,15 +205,8 @@ void writeCopy(VertexFile& file, const ReceiverResults& results) {
         if (!image.uri.empty() && image.uri.rfind("data:", 0) != 0 && image.uri.find("://") == std::string::npos)
             image.uri = (inDir / image.uri).lexically_normal().lexically_relative(outDir).generic_string();
 
-    const bool binary = lowercaseExtension(file.output) == ".glb";
-    tinygltf::TinyGLTF writer;
-    writer.SetImageWriter(&keepImageUri, nullptr);
-    std::ostringstream stream;
-    if (!writer.WriteGltfSceneToStream(&model, stream, !binary, binary)) fail(file.output, "tinygltf could not serialize the copy");
-    const std::string bytes = stream.str();
     ensureParentDirectory(file.output);
-    writeFileAtomically(file.output,
-                        std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()));
+    writeGltfModel(model, file.output, lowercaseExtension(file.output) == ".glb", /*keepImageUris=*/true);
 }
 
 /// Calls @p visit(reader, world) for every triangle primitive of @p file, in the receivers' order,

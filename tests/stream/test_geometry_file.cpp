@@ -209,3 +209,27 @@ TEST_CASE("convert from a triangle stream to glTF shares corners with identical 
     CHECK(meshes[0].position.size() == 4);
     CHECK(sameBits(readAll(*openGeometryFile(dir.file("q.glb"))), readAll(*openGeometryFile(dir.file("q.obj")))));
 }
+
+TEST_CASE("GeometryFile: a .gltf too large for a data URI keeps its buffer in a .bin beside it", "[stream][gltf]") {
+    // The writer embedded any size, the readers refuse data URIs above kMaxDataUriBytes: every
+    // .gltf export above about 466,000 triangles could not be read back.
+    ScratchDir dir("geometry");
+    std::vector<Triangle> tris;
+    const size_t count = kMaxDataUriBytes / 36 + 1000;
+    for (size_t i = 0; i < count; ++i) {
+        const float x = float(i % 1000), z = float(i / 1000);
+        tris.push_back(tri({x, 0, z}, {x + 1, 0, z}, {x, 0.5f, z + 1}));
+    }
+    VectorSource source(tris);
+    convertGeometry(source, dir.file("big.gltf"));
+    CHECK(dir.entries() == std::vector<std::string>{"big.bin", "big.gltf"});
+    CHECK(std::filesystem::file_size(dir.file("big.bin")) == 36 * count);
+    CHECK(readBytes(dir.file("big.gltf")).size() < 4096);
+    TriangleSourcePtr back = openGeometryFile(dir.file("big.gltf"));
+    CHECK(back->sizeHint() == count);
+    CHECK(sameBits(readAll(*back), tris));
+    // A small one stays one file.
+    VectorSource small({tri({0, 0, 0}, {1, 0, 0}, {0, 1, 0})});
+    convertGeometry(small, dir.file("small.gltf"));
+    CHECK_FALSE(std::filesystem::exists(dir.file("small.bin")));
+}
