@@ -175,7 +175,8 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     PrefetchSource& readAhead = *prefetch;
     TriangleSourcePtr source = std::move(prefetch);
     // Before any triangle is read: the bucket files must fit on disk, and hours of work are announced.
-    checkBucketDisk(settings.tmpDir, source->sizeHint(), scene.options.sortBlockers);
+    checkBucketDisk(settings.tmpDir, source->sizeHint(), scene.options.sortBlockers && casterEntry(settings.method).traits.sortedBlockers,
+                    scene.options.cullBeforeSpill && (!kind.mayRefine() || settings.shard.casting()));
     uint64_t samples = 0;
     for (const LightDesc& light : scene.lights) samples += uint64_t(std::max(light.samples, 0));
     noteLongBake(source->sizeHint().value_or(0), kind.receiverBound().value_or(0), samples, 1,

@@ -45,10 +45,13 @@ uint64_t addressSpaceNeeded(uint64_t neededBytes);
 void checkMemoryFits(const std::string& scene, const char* what, uint64_t neededBytes);
 
 /// @brief Refuses a bake whose bucket files (40 bytes per triangle of @p triangles, when @p sort)
-/// cannot fit in the free space of @p tmpDir ("" = the system temp directory).
+/// cannot fit in the free space of @p tmpDir ("" = the system temp directory). With @p mayCull
+/// (cull before spill will drop the blockers out of every light's reach, a count known only
+/// during the bucket pass) that is only an upper bound: a warning then, and the bucket pass
+/// stops cleanly if the disk does fill (BucketWriter).
 /// @throw InputError "--tmp /tmp: the bucket files of 8590007494 triangles need 320 GiB, but it
 ///        has 75.2 GiB free ...".
-void checkBucketDisk(const std::string& tmpDir, std::optional<uint64_t> triangles, bool sort);
+void checkBucketDisk(const std::string& tmpDir, std::optional<uint64_t> triangles, bool sort, bool mayCull = false);
 
 /// @brief The plan's estimate of a bake's wall time: every triangle is streamed `2 + tiles` times
 /// (scan, buckets, one cast per memory tile), at kSecondsPerTrianglePass per pass and thread.

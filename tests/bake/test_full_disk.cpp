@@ -96,9 +96,30 @@ TEST_CASE("full disk: bucket files that cannot fit are refused before any work",
     REQUIRE_DISK(disk);
     const std::string scene = disk.scratch() / "scene.json";
     std::ofstream(scene) << grassScene(300000, "out/x.exr").dump();
-    RunResult r = runPenumbra("bake " + scene + " --tmp " + disk.path());
+    // Without cull before spill, 40 bytes per triangle is what the bucket pass writes.
+    RunResult r = runPenumbra("bake " + scene + " --disable cull-before-spill --tmp " + disk.path());
     requireCleanError(r, "--tmp " + disk.path() + ": the bucket files of 1500000 triangles need 57.2 MiB, but it has 8.00 MiB free");
     CHECK(r.err.find("[scan]") == std::string::npos);  // refused before the first triangle
+    CHECK(namesIn(disk.path()).empty());
+}
+
+TEST_CASE("full disk: blockers out of every light's reach need no room, with cull before spill", "[cli][full-disk]") {
+    // The check counted every triangle, also those the cull never writes: a million blades out of
+    // reach were refused on a disk they would not have touched.
+    SmallDisk disk(8 << 20);
+    REQUIRE_DISK(disk);
+    const std::string scene = disk.scratch() / "scene.json";
+    nlohmann::json s = grassScene(300000, "out/x.exr");
+    s["geometry"][0]["area"] = {{40, 40}, {44, 44}};
+    s["geometry"].push_back({{"type", "grass"}, {"count", 200}, {"area", {{-1, -1}, {1, 1}}}});
+    std::ofstream(scene) << s.dump();
+    RunResult r = runPenumbra("bake " + scene + " -q --tmp " + disk.path() + " --stats " + (disk.scratch() / "stats.json"));
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.err, Catch::Contains("need up to 57.3 MiB, less what cull before spill drops"));
+    CHECK(lineCount(r.err) == 1);
+    const nlohmann::json stats = nlohmann::json::parse(slurp(disk.scratch() / "stats.json"));
+    CHECK(stats["buckets"]["bytes_written"].get<uint64_t>() < (1u << 20));
     CHECK(namesIn(disk.path()).empty());
 }
 
