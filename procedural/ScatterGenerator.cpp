@@ -206,6 +206,12 @@ TriangleSourcePtr openScatterSource(const SourceRequest& request) {
         fail(j.where("rotation_deg"), "must lie in [-3600, 3600], got [{}, {}]", p.rotationDeg.x, p.rotationDeg.y);
 
     JsonParams s(*inline_, j.file(), j.path("source"));
+    // Keys the scene reads on its top-level entries (bake/Scene.cpp), which a source opened here
+    // would call unknown although the documentation lists them.
+    for (const char* key : {"closed", "cast_shadows", "receive_shadows", "receiver_offset", "max_distance", "translucent"})
+        if (s.raw(key)) fail(s.where(key), "is an object control of top-level entries: give it on the scatter entry, where it applies to every instance");
+    for (const char* key : {"leaf_texture", "petal_texture", "alpha_cutoff"})
+        if (s.raw(key)) fail(s.where(key), "is read on top-level tree, forest and flowers entries only, not inside a scatter's source (a forest or flowers entry places its own instances)");
     const std::string type = s.string("type");
     const Transform transform = parseTransform(s);
     nlohmann::json params = *inline_;

@@ -14,6 +14,8 @@ namespace {
 
 /// Coordinates beyond this would lose all detail in float vertices; nobody needs them.
 constexpr double kMaxCoordinate = 1e9;
+/// Float steps a terrain cell spans at least, where its coordinates are largest.
+constexpr int kMinimumCellSteps = 8;
 
 /// Linear interpolation over the grid triangle containing (x, z). @p vx and @p vz give vertex
 /// coordinates and @p vh vertex heights; TerrainField passes table look-ups and terrainHeight()
@@ -118,10 +120,16 @@ TerrainParams parseTerrainParams(const JsonParams& j) {
     if (!(p.noise.lacunarity >= 1 && p.noise.lacunarity <= 16))
         fail(j.where("lacunarity"), "must be in 1..16, got {}", p.noise.lacunarity);
     if (!(p.noise.gain > 0 && p.noise.gain <= 2)) fail(j.where("gain"), "must be in (0, 2], got {}", p.noise.gain);
-    // Every cell must stay wider than a few float steps, or vertices would coincide.
+    // Every cell must stay wider than a few float steps there, or neighbouring vertices would
+    // round together (kMinimumCellSteps; a 10 m elevation grid in UTM coordinates passes).
     const double reach = std::max({std::abs(p.area.x0), std::abs(p.area.x1), std::abs(p.area.z0), std::abs(p.area.z1), 1.0});
-    if (std::min(p.area.sizeX() / p.cellsX, p.area.sizeZ() / p.cellsZ) < reach * 0x1p-18)
-        fail(j.where("resolution"), "cells are too small for float coordinates this far from the origin");
+    const double step = double(std::nextafter(float(reach), INFINITY)) - double(float(reach));
+    const double cell = std::min(p.area.sizeX() / p.cellsX, p.area.sizeZ() / p.cellsZ);
+    if (cell < kMinimumCellSteps * step)
+        fail(j.where("resolution"),
+             "cells of {:g} are too small {:g} from the origin, where float coordinates are {:g} apart: a cell needs at least {} "
+             "of those steps ({:g}); lower the resolution or move the area nearer the origin",
+             cell, reach, step, kMinimumCellSteps, kMinimumCellSteps * step);
     return p;
 }
 

@@ -106,4 +106,9 @@ TEST_CASE("scatter: bad parameters give an error naming the key", "[procedural]"
     requireInputError(scatterOf({{"type", "tree"}, {"depth", 40}}), "geometry[0].source.depth: must be in 0..12");
     requireInputError(scatterOf({{"type", "tree"}, {"transform", {{"spin", 1}}}}), "geometry[0].source.transform.spin: unknown key");
     requireInputError(scatterOf(tree, {{"count", 4611686018427387904}}), "geometry[0].count: ");
+    // Documented keys of top-level entries were called unknown inside a source.
+    requireInputError(scatterOf({{"type", "tree"}, {"depth", 1}, {"leaf_texture", "leaf.png"}}),
+                      "geometry[0].source.leaf_texture: is read on top-level tree, forest and flowers entries only");
+    requireInputError(scatterOf({{"type", "tree"}, {"depth", 1}, {"cast_shadows", false}}),
+                      "geometry[0].source.cast_shadows: is an object control of top-level entries: give it on the scatter entry");
 }

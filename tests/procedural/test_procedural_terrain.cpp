@@ -141,5 +141,11 @@ TEST_CASE("terrain: a single resolution number and defaults work, and bad parame
     requireInputError({{"type", "terrian"}}, "geometry[0]: unknown geometry type \"terrian\"");
     nlohmann::json far = with("area", {{1e8, 0}, {1e8 + 10, 10}});
     far["resolution"] = 65536;
-    requireInputError(far, "geometry[0].resolution: cells are too small");
+    requireInputError(far, "geometry[0].resolution: cells of 0.000152588 are too small 1e+08 from the origin, where float "
+                           "coordinates are 8 apart: a cell needs at least 8 of those steps (64)");
+    // A 2 m grid a million units out (floats 0.0625 apart there) is 32 steps a cell: it was
+    // refused, and with it 10 m elevation grids in map coordinates.
+    nlohmann::json map = with("area", {{999998, 999998}, {1000002, 1000002}});
+    map["resolution"] = 2;
+    CHECK(openEntry(map)->sizeHint() == 8u);
 }
