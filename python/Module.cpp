@@ -9,6 +9,7 @@
 #include "bake/Scene.h"
 #include "bake/cast/Caster.h"
 #include "procedural/Generators.h"
+#include "stream/util/CheckedMath.h"
 #include "stream/util/Error.h"
 #include "stream/util/JsonParams.h"
 
@@ -38,6 +39,20 @@ py::tuple chunkArrays(const std::vector<Triangle>& chunk, size_t n) {
 
 /// Triangles per chunk that generate() hands out at most: 2^24 (a 1.5 GB buffer with flags).
 constexpr size_t kMaxGenerateChunk = size_t(1) << 24;
+
+/// A whole-number argument in 0..@p max, or nothing for None; pybind's own conversion answered
+/// -1 or 1.5 with a dump of every signature.
+/// @throw TypeError or ValueError naming @p function and @p name.
+std::optional<uint64_t> countArgument(const py::object& value, const char* function, const char* name, uint64_t max) {
+    if (value.is_none()) return std::nullopt;
+    if (!py::isinstance<py::int_>(value) || py::isinstance<py::bool_>(value))
+        throw py::type_error(fmt::format("{}(): {} must be an integer, got {}", function, name,
+                                         std::string(py::str(py::type::of(value).attr("__name__")))));
+    const py::int_ number = py::reinterpret_borrow<py::int_>(value);
+    if (number < py::int_(0) || number > py::int_(max))
+        throw py::value_error(fmt::format("{}(): {} must be in 0..{}, got {}", function, name, max, std::string(py::str(value))));
+    return number.cast<uint64_t>();
+}
 
 /// generate()'s chunk size: 0 is the bake's own; checked before the buffer is allocated.
 size_t checkedChunk(size_t chunk) {
@@ -101,7 +116,11 @@ Scene(dict, points=None, base_dir=".") takes the keys of the JSON scene format
              "add_geometry(type, transform=None, closed=None, **params): a file (obj, gltf, glb, ptri, file) or a "
              "generator (grid, terrain, grass, tree, forest, flowers, scatter, boxes, colonnade) with its parameters, "
              "and the per-object controls cast_shadows, receive_shadows, receiver_offset and max_distance.")
-        .def("add_source", &PyScene::addSource, py::arg("source"), py::arg("alpha") = false,
+        .def("add_source",
+             [](PyScene& s, py::object source, bool alpha, std::optional<bool> closed, py::object count) {
+                 s.addSource(std::move(source), alpha, closed, countArgument(count, "add_source", "count", kMaxSceneTriangles));
+             },
+             py::arg("source"), py::arg("alpha") = false,
              py::arg("closed") = py::none(), py::arg("count") = py::none(),
              R"doc(Streams triangles from Python.
 
@@ -126,8 +145,9 @@ void bindFunctions(py::module_& m) {
     py::class_<GenerateIterator, std::shared_ptr<GenerateIterator>>(m, "_Generate")
         .def("__iter__", [](py::object self) { return self; })
         .def("__next__", &GenerateIterator::next);
-    m.def("generate", [](std::shared_ptr<PyScene> scene, size_t chunk, bool flags) {
-              return std::make_shared<GenerateIterator>(std::move(scene), chunk, flags);
+    m.def("generate", [](std::shared_ptr<PyScene> scene, py::object chunk, bool flags) {
+              const uint64_t size = countArgument(chunk, "generate", "chunk", kMaxGenerateChunk).value_or(0);
+              return std::make_shared<GenerateIterator>(std::move(scene), size_t(size), flags);
           },
           py::arg("scene"), py::arg("chunk") = kTriangleChunk, py::arg("flags") = false,
           "Yields the scene's triangles as (n, 3, 3) float32 chunks, exactly as a bake streams them (transforms "

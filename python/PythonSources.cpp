@@ -19,6 +19,7 @@
 #include <cstring>
 #include <map>
 #include <mutex>
+#include <optional>
 
 namespace py = pybind11;
 
@@ -59,7 +60,7 @@ public:
         const py::object& o = spec_->object;
         if (py::isinstance<py::function>(o) || (!py::hasattr(o, "__iter__") && PyCallable_Check(o.ptr())))
             replay_ = Replay::Call;
-        else if (py::iter(o).is(o))
+        else if (PyIter_Check(o.ptr()))  // an iterator (it has __next__): one pass only; iter(o) would be a call of __iter__
             replay_ = Replay::Buffer;
         else
             replay_ = Replay::Iterate;
@@ -76,7 +77,7 @@ public:
             if (next_ == pending_.size() && !fetch()) break;
             const size_t take = std::min(out.size() - n, pending_.size() - next_);
             std::copy_n(pending_.begin() + ptrdiff_t(next_), take, out.begin() + ptrdiff_t(n));
-            next_ += take, n += take;
+            next_ += take, n += take, passTriangles_ += take;
         }
         if (replay_ == Replay::Buffer && n) append(out.first(n));
         return n;
@@ -94,6 +95,7 @@ public:
         py::gil_scoped_acquire gil;
         iterator_ = py::object(), started_ = false, chunk_ = 0;
         pending_.clear(), next_ = 0;
+        passTriangles_ = 0, ended_ = false;
     }
     std::string name() const override { return where_ + " (add_source)"; }
     std::optional<uint64_t> sizeHint() const override { return spec_->count; }
@@ -111,12 +113,27 @@ private:
             PyObject* item = PyIter_Next(iterator_.ptr());
             if (!item) {
                 if (PyErr_Occurred()) throw py::error_already_set();
+                endOfPass();
                 return false;
             }
             convert(py::reinterpret_steal<py::object>(item));
             ++chunk_;
         }
         return true;
+    }
+    /// A pass's count against `count` and against the first pass's: a source that replayed other
+    /// triangles baked the first pass's receivers under the second pass's blockers, silently.
+    void endOfPass() {
+        if (ended_) return;
+        ended_ = true;
+        const uint64_t total = passTriangles_;  // everything fetched before the end was handed out
+        if (spec_->count && total != *spec_->count)
+            fail(name(), "gave {} triangles in a pass, but its count is {}", total, *spec_->count);
+        if (firstPass_ && total != *firstPass_)
+            fail(name(), "gave {} triangles on a later pass and {} on the first: a source must give the same triangles on every "
+                         "pass (a callable or re-iterable starts again from the beginning each time)",
+                 total, *firstPass_);
+        firstPass_ = total;
     }
     void convert(const py::object& item) {
         const std::string where = fmt::format("{} chunk {}", name(), chunk_);
@@ -189,6 +206,9 @@ private:
     int fd_ = -1;  // the one-shot source's copy
     uint64_t written_ = 0, offset_ = 0;
     bool replaying_ = false;
+    uint64_t passTriangles_ = 0;         // handed out in this pass so far
+    std::optional<uint64_t> firstPass_;  // the first pass's count, once it has ended
+    bool ended_ = false;                 // this pass's end was checked
 };
 
 /// Receivers given as arrays; writes the points kind's .npy of visibilities.

@@ -87,8 +87,37 @@ def test_bad_budget_or_chunk_is_named_before_any_work():
     for budget in (-5, 1.5, True, [1], 2**70):
         with pytest.raises(ValueError, match=r"memory_budget: expected bytes as a non-negative int or a size such as '512M'"):
             penumbra.bake(scene, memory_budget=budget)
-    with pytest.raises(ValueError, match=r"generate\(\): chunk must be at most 16777216 triangles"):
+    with pytest.raises(ValueError, match=r"generate\(\): chunk must be in 0..16777216, got 1099511627776"):
         penumbra.generate(scene, chunk=2**40)
+    # pybind's own conversion answered these with a dump of every signature.
+    with pytest.raises(ValueError, match=r"generate\(\): chunk must be in 0..16777216, got -1"):
+        penumbra.generate(scene, chunk=-1)
+    for count, error, text in ((-1, ValueError, r"count must be in 0..1099511627776, got -1"),
+                               (2**62, ValueError, r"count must be in 0..1099511627776"),
+                               (1.5, TypeError, r"count must be an integer, got float")):
+        with pytest.raises(error, match=r"add_source\(\): " + text):
+            scene.add_source(lambda: [good()], count=count)
+
+
+def test_a_source_must_replay_what_it_gave_and_what_its_count_says():
+    # A re-iterable that gave nothing in the scan pass and a roof in the bucket pass baked shadows
+    # of a roof no camera pixel saw, without a word.
+    class Changing:
+        def __init__(self):
+            self.calls = 0
+
+        def __iter__(self):
+            self.calls += 1
+            return iter([] if self.calls == 1 else [good()])
+
+    scene = penumbra.Scene(grid_scene())
+    scene.add_source(Changing())
+    with pytest.raises(penumbra.Error, match=r"gave 1 triangles on a later pass and 0 on the first"):
+        penumbra.bake(scene, threads=1)
+    counted = penumbra.Scene(grid_scene())
+    counted.add_source(lambda: [good(), good()], count=5)
+    with pytest.raises(penumbra.Error, match=r"gave 2 triangles in a pass, but its count is 5"):
+        penumbra.bake(counted, threads=1)
 
 
 def test_nan_vertex_raises_as_the_cli_does():
