@@ -114,9 +114,9 @@ std::unique_ptr<TranslucentBlockers> translucentPass(const OpaqueOnlySource& vie
                                                      const std::string& method, const CasterTraits& traits,
                                                      const char* partialFiles);
 
-/// @brief A mask (one word per group, LightSampleGroup layout) with every sample set but about
-/// @p perLight of each light's, spread over the light: the samples of a preview's tint. Samples
-/// are in stratum order (recursive median splits), so every k-th one is one per cell of k.
+/// @brief A mask (one word per group, LightSampleGroup layout) with every sample set but
+/// @p perLight of each light's (or all it has), spread over the light by farthest-point
+/// selection: the samples of a preview's tint.
 std::vector<uint64_t> samplesOutsideSubset(const LightSamples& samples, int perLight);
 
 }  // namespace penumbra
