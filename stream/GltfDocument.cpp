@@ -22,6 +22,8 @@
 #include <optional>
 #include <tuple>
 #include <limits>
+#include <mutex>
+#include <set>
 
 
 namespace penumbra {
@@ -480,6 +482,20 @@ uint64_t GltfDocument::residentBytes() const {
     return bytes;
 }
 
+namespace {
+
+/// Whether this is the first warning about the document at @p path in this process: a bake loads
+/// a document more than once (alpha planning, the blocker stream, receiver meshes), and said so
+/// as many times.
+bool firstWarningAbout(const std::string& path) {
+    static std::mutex mutex;
+    static std::set<std::string> warned;
+    std::lock_guard lock(mutex);
+    return warned.insert(path).second;
+}
+
+}  // namespace
+
 GltfDocument loadGltfDocument(const std::string& path) {
     GltfDocument doc;
     doc.path = path;
@@ -517,7 +533,7 @@ GltfDocument loadGltfDocument(const std::string& path) {
         doc.nodes.push_back(parseNode(doc, nodes[i], i, nodes.size()));
         if (doc.nodes.back().matrixOverTrs && !matrixOverTrs++) firstOverTrs = i;
     }
-    if (matrixOverTrs)
+    if (matrixOverTrs && firstWarningAbout(path))
         printWarning("{}: {} node(s) (node {} first) have both a matrix and a translation, rotation or scale, which glTF 2.0 "
                      "does not allow; the matrix is used, as viewers do", path, matrixOverTrs, firstOverTrs);
     findRoots(root, doc);

@@ -1,0 +1,39 @@
+// A glTF file's warnings reach the user once per command, though a bake loads the document more
+// than once (alpha planning, the blocker stream, receiver meshes).
+
+#include "CliRunner.h"
+
+#include <catch2/catch.hpp>
+
+#include <fstream>
+
+using namespace penumbra::test;
+
+namespace {
+
+size_t occurrences(const std::string& text, const std::string& what) {
+    size_t n = 0;
+    for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+    return n;
+}
+
+}  // namespace
+
+TEST_CASE("glTF warnings: a node with both a matrix and TRS is warned of once per bake", "[gltf][cli][warnings]") {
+    ScratchDir dir("gltf-warnings");
+    // One triangle, its node with both a matrix and a translation; base64 of three float VEC3s.
+    std::ofstream(dir / "warn.gltf") << R"({"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],
+        "nodes":[{"mesh":0,"matrix":[1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1],"translation":[1,0,0]}],
+        "meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],
+        "buffers":[{"byteLength":36,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],
+        "bufferViews":[{"buffer":0,"byteLength":36}],
+        "accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3"}]})";
+    std::ofstream(dir / "scene.json") << R"({"geometry": [{"type": "gltf", "path": "warn.gltf"}],
+        "lights": [{"type": "rect", "center": [0, 5, 0], "u": [1, 0, 0], "v": [0, 0, 1], "samples": 16}],
+        "receivers": {"type": "camera", "eye": [0, 3, 4], "target": [0, 0, 0], "width": 16, "height": 12},
+        "output": "out/x.exr"})";
+    const RunResult r = runPenumbra("bake " + (dir / "scene.json") + " -q");
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    CHECK(occurrences(r.err, "have both a matrix and a translation") == 1);
+}
