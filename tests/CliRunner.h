@@ -48,6 +48,13 @@ inline nlohmann::json listOf(nlohmann::json e) {
     return list;
 }
 
+/// How many times @p what occurs in @p text (overlapping occurrences counted).
+inline size_t occurrences(const std::string& text, const std::string& what) {
+    size_t n = 0;
+    for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+    return n;
+}
+
 inline int lineCount(const std::string& s) {
     int n = 0;
     for (char c : s) n += c == '\n';

@@ -9,16 +9,6 @@
 
 using namespace penumbra::test;
 
-namespace {
-
-size_t occurrences(const std::string& text, const std::string& what) {
-    size_t n = 0;
-    for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
-    return n;
-}
-
-}  // namespace
-
 TEST_CASE("glTF warnings: a node with both a matrix and TRS is warned of once per bake", "[gltf][cli][warnings]") {
     ScratchDir dir("gltf-warnings");
     // One triangle, its node with both a matrix and a translation; base64 of three float VEC3s.

@@ -13,12 +13,6 @@ namespace {
 
 const std::string kBegin = "<!-- penumbra bench table2: begin";
 
-size_t occurrences(const std::string& text, const std::string& what) {
-    size_t n = 0;
-    for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
-    return n;
-}
-
 }  // namespace
 
 TEST_CASE("bench table2 at a tiny scale: columns, ratio, ties and the Markdown section", "[cli][bench]") {
