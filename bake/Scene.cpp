@@ -300,6 +300,13 @@ SceneDesc parseScene(const nlohmann::json& root, const std::string& file) {
     SceneDesc scene;
     scene.file = file;
     scene.baseDir = std::filesystem::path(file).parent_path();
+    // A scene named through /dev/stdin or /proc/self/fd (`bake /dev/stdin < scenes/a.json`) is
+    // the file behind the link: its relative paths are that file's folder's, not /dev's.
+    if (file.starts_with("/dev/") || file.starts_with("/proc/")) {
+        std::error_code ec;
+        if (const std::filesystem::path target = std::filesystem::canonical(file, ec); !ec && std::filesystem::is_regular_file(target, ec))
+            scene.baseDir = target.parent_path();
+    }
     JsonParams j(root, file, "");
 
     const nlohmann::json* geometry = j.raw("geometry");

@@ -6,6 +6,12 @@
 
 #include <catch2/catch.hpp>
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
 using namespace penumbra;
 using nlohmann::json;
 
@@ -43,6 +49,20 @@ TEST_CASE("a minimal scene parses with defaults and relative paths", "[scene]") 
     CHECK(s.options.umbraBits);
     CHECK(s.geometry[0].type == "grid");
     CHECK_FALSE(s.geometry[0].params.contains("type"));
+}
+
+TEST_CASE("a scene read through /dev/stdin or /proc/self/fd is relative to the file behind it", "[scene]") {
+    // `penumbra bake /dev/stdin < scenes/a.json` resolved the scene's paths against /dev.
+    const std::filesystem::path folder = std::filesystem::temp_directory_path() / ("penumbra-scene-fd-" + std::to_string(::getpid()));
+    std::filesystem::create_directories(folder);
+    std::ofstream(folder / "scene.json") << minimal().dump();
+    const int fd = ::open((folder / "scene.json").c_str(), O_RDONLY);
+    REQUIRE(fd >= 0);
+    const SceneDesc s = parseScene(minimal(), "/proc/self/fd/" + std::to_string(fd));
+    ::close(fd);
+    const std::filesystem::path real = std::filesystem::canonical(folder);
+    std::filesystem::remove_all(folder);
+    CHECK(s.output == (real / "out/x.exr").string());
 }
 
 TEST_CASE("scene errors name the key", "[scene]") {
