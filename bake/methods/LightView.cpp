@@ -206,11 +206,113 @@ glm::dvec3 lightCentre(const LightSamples& samples, int light) {
     return c / double(std::max<size_t>(1, bound.vertices.size()));
 }
 
+namespace {
+
+/// The support of the convex hull of @p points in direction @p n: the largest dot(n, point) (the
+/// callers widen it for rounding).
+double support(const glm::dvec3& n, std::span<const glm::dvec3> points) {
+    double h = -INFINITY;
+    for (const glm::dvec3& p : points) h = std::max(h, glm::dot(n, p));
+    return h;
+}
+
+/// The eight corners of the box [lo, hi].
+std::vector<glm::dvec3> corners(const glm::dvec3& lo, const glm::dvec3& hi) {
+    std::vector<glm::dvec3> out;
+    for (int i = 0; i < 8; ++i) out.push_back({i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z});
+    return out;
+}
+
+/// Lateral directions of the region's side planes (every 45 degrees).
+constexpr int kSides = 8;
+glm::dvec2 side(int k) {
+    const double a = glm::radians(45.0 * k);
+    return {std::cos(a), std::sin(a)};
+}
+
+/// The half-spaces of the hull of the light's points @p light and the receivers, which lie inside
+/// both @p box (a box of the frame) and, when given, @p frustum (the box of their tangents from the
+/// centre between their nearest and farthest depths), as in ShadowReach: each side plane's support is
+/// the larger of the light's and the receivers' (the smaller of their two bounds), so the region
+/// holds every segment between them. The directions: sideways every 45 degrees and tilted towards
+/// the axis by fixed slopes and by the slopes of the planes through the light's and the
+/// receivers' extreme points (the penumbra's own sides), then along the axis and the light's
+/// normal. Only their number decides how tight the region is, never whether it holds the hull.
+std::vector<glm::dvec4> hullPlanes(std::span<const glm::dvec3> light, std::span<const glm::dvec3> box,
+                                   std::span<const glm::dvec3> frustum, const glm::dvec3& lightNormal, double zNear, double zFar) {
+    std::vector<glm::dvec3> normals = {{0, 0, 1}, {0, 0, -1}};
+    if (glm::length(lightNormal) > 0) normals.push_back(lightNormal), normals.push_back(-lightNormal);
+    for (int k = 0; k < kSides; ++k) {
+        const glm::dvec2 m = side(k);
+        std::vector<double> slopes = {0, 0.25, -0.25, 0.5, -0.5, 1, -1, 2, -2, 4, -4};
+        double lightSide = -INFINITY;
+        for (const glm::dvec3& p : light) lightSide = std::max(lightSide, glm::dot(m, glm::dvec2(p)));
+        for (const std::span<const glm::dvec3> set : {box, frustum})
+            for (const glm::dvec3& p : set)
+                if (p.z > 0) slopes.push_back((lightSide - glm::dot(m, glm::dvec2(p))) / p.z);
+        for (const double c : slopes) normals.push_back(glm::normalize(glm::dvec3(m, c)));
+    }
+    const double scale = 1e-9 * std::max(1.0, zFar) + zNear;
+    std::vector<glm::dvec4> planes;
+    for (const glm::dvec3& n : normals) {
+        double receivers = support(n, box);
+        if (!frustum.empty()) receivers = std::min(receivers, support(n, frustum));
+        planes.push_back(glm::dvec4(n, std::max(support(n, light), receivers) + scale));
+    }
+    return planes;
+}
+
+/// Clips the convex polygon @p poly (n vertices) by dot(plane.xyz, q) <= plane.w; returns the count left.
+int clipPolygon(glm::dvec3* poly, int n, glm::dvec3* scratch, const glm::dvec4& plane) {
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+        const glm::dvec3 &a = poly[i], &b = poly[(i + 1) % n];
+        const double da = glm::dot(glm::dvec3(plane), a) - plane.w, db = glm::dot(glm::dvec3(plane), b) - plane.w;
+        if (da <= 0) scratch[m++] = a;
+        if ((da <= 0) != (db <= 0)) scratch[m++] = a + (b - a) * (da / (da - db));
+    }
+    for (int i = 0; i < m; ++i) poly[i] = scratch[i];
+    return m;
+}
+
+}  // namespace
+
+double ShadowReach::extentNeeded(const LightView& view, const Triangle& t) const {
+    glm::dvec3 q[3];
+    double extent = 0;
+    bool near = false;
+    for (int i = 0; i < 3; ++i) {
+        const glm::dvec3 d = glm::dvec3(t.v[i]) - origin;
+        q[i] = {glm::dot(d, e1), glm::dot(d, e2), glm::dot(d, axis)};
+        if (ortho) extent = std::max({extent, std::abs(q[i].x), std::abs(q[i].y)});
+        else if (q[i].z >= zNear) extent = std::max({extent, std::abs(q[i].x) / q[i].z, std::abs(q[i].y) / q[i].z});
+        else near = true;
+    }
+    // Inside the view (the most triangles): so is its part in the region.
+    if (!near && extent <= view.halfExtent) return 0.0;
+    // Each plane adds at most one vertex to a convex polygon.
+    thread_local std::vector<glm::dvec3> poly, scratch;
+    poly.resize(planes.size() + 5), scratch.resize(planes.size() + 5);
+    poly[0] = q[0], poly[1] = q[1], poly[2] = q[2];
+    int n = 3;
+    // The near plane first: nearer parts are drawn in no view (rasterizeDepth() clips them).
+    if (!ortho) n = clipPolygon(poly.data(), n, scratch.data(), glm::dvec4(0, 0, -1, -zNear));
+    for (size_t i = 0; i < planes.size() && n > 0; ++i) n = clipPolygon(poly.data(), n, scratch.data(), planes[i]);
+    extent = 0;
+    for (int i = 0; i < n; ++i) {
+        const glm::dvec3& p = poly[size_t(i)];
+        if (ortho) extent = std::max({extent, std::abs(p.x), std::abs(p.y)});
+        else extent = std::max({extent, std::abs(p.x) / std::max(p.z, zNear), std::abs(p.y) / std::max(p.z, zNear)});
+    }
+    return extent > view.halfExtent ? extent : 0.0;
+}
+
 std::vector<LightView> makeLightViews(const LightSamples& samples, int light, const ReceiverPoints& receivers, int resolution,
-                                      int cubeResolution) {
+                                      int cubeResolution, double minimumExtent, ShadowReach* reach) {
     const glm::dvec3 c = lightCentre(samples, light);
     const ConvexBound& bound = samples.lightBounds[size_t(light)];
     std::vector<LightView> views;
+    if (reach) *reach = ShadowReach{};
     if (bound.directional()) {
         LightView v;
         v.ortho = true, v.res = resolution, v.axis = -glm::normalize(c);
@@ -228,9 +330,30 @@ std::vector<LightView> makeLightViews(const LightSamples& samples, int light, co
         const double margin = tanRadius * (zhi - zlo) + 0.02 * std::max(hi.x - lo.x, hi.y - lo.y) + 1e-6;
         const glm::dvec2 mid = 0.5 * (lo + hi);
         v.origin = mid.x * v.e1 + mid.y * v.e2;
-        v.halfExtent = 0.5 * std::max(hi.x - lo.x, hi.y - lo.y) + margin;
+        // At least the extent that the blockers read in a view without it needed (drawMaps()).
+        v.halfExtent = std::max(0.5 * std::max(hi.x - lo.x, hi.y - lo.y) + margin, minimumExtent * (1 + 4.0 / resolution));
         v.zNear = -INFINITY, v.zFar = zhi;
         views.push_back(v);
+        if (reach && receivers.size() > 0) {
+            // The receivers' box swept towards the sun along its cone: a side plane (m, c) with c
+            // at least the largest m . t over the sun's tangent offsets t is never crossed going
+            // towards the sun, so its support is the box's. The blockers far up beside the
+            // receivers are what a box grown by the receivers' own depth range missed.
+            reach->ortho = true, reach->origin = v.origin, reach->axis = v.axis, reach->e1 = v.e1, reach->e2 = v.e2;
+            const std::vector<glm::dvec3> boxCorners = corners(glm::dvec3(lo - mid, zlo), glm::dvec3(hi - mid, zhi));
+            const double scale = 1e-9 * std::max({1.0, std::abs(zlo), std::abs(zhi), hi.x - lo.x, hi.y - lo.y});
+            reach->planes.push_back({0, 0, 1, zhi + scale});
+            for (int k = 0; k < kSides; ++k) {
+                const glm::dvec2 m = side(k);
+                double cone = -INFINITY;
+                for (const glm::dvec3& d : bound.vertices)
+                    cone = std::max(cone, glm::dot(m, glm::dvec2(glm::dot(d, v.e1), glm::dot(d, v.e2))) / glm::dot(d, -v.axis));
+                for (const double extra : {0.0, 0.5, 2.0}) {
+                    const glm::dvec3 n(m, cone + extra);
+                    reach->planes.push_back(glm::dvec4(n, support(n, boxCorners) + scale));
+                }
+            }
+        }
         return views;
     }
     // The axis: the mean direction from the centre of at most about 65,536 receivers spread
@@ -243,26 +366,63 @@ std::vector<LightView> makeLightViews(const LightSamples& samples, int light, co
         if (length > 0) mean += d / length;
     }
     // The widest angle from the axis is the acos of the smallest cosine: one acos, not one per
-    // receiver (a million of them were most of the views' set-up).
+    // receiver (a million of them were most of the views' set-up). The same pass takes the
+    // receivers' box in the view's frame and the box of their tangents from the centre (only
+    // minima and maxima: the same bits for any thread count), which bound where the blockers
+    // that can shadow them lie (ShadowReach).
     struct Spread {
         double smallestCosine = 1, farthest = 0;
+        Extent box, tangents;  ///< frame coordinates; tangents (x / z, y / z, z) where z > 0
+        bool behind = false;   ///< a receiver at depth <= 0: no box of tangents
     };
     const bool hasMean = glm::length(mean) > 1e-9;
     if (hasMean) mean = glm::normalize(mean);
+    glm::dvec3 e1, e2;
+    frame(hasMean ? mean : glm::dvec3(0, -1, 0), e1, e2);
     const Spread spread = reduceReceivers(receivers, Spread{}, [&](Spread& a, const glm::dvec3& p) {
         const glm::dvec3 d = p - c;
         const double length = glm::length(d);
         if (length > 0) a.smallestCosine = std::min(a.smallestCosine, glm::dot(d, mean) / length);
         a.farthest = std::max(a.farthest, length);
-    }, [](Spread& a, const Spread& b) { a.smallestCosine = std::min(a.smallestCosine, b.smallestCosine), a.farthest = std::max(a.farthest, b.farthest); });
+        const glm::dvec3 q(glm::dot(d, e1), glm::dot(d, e2), glm::dot(d, mean));
+        a.box.add(q);
+        if (q.z > 0) a.tangents.add(glm::dvec3(q.x / q.z, q.y / q.z, q.z));
+        else a.behind = true;
+    }, [](Spread& a, const Spread& b) {
+        a.smallestCosine = std::min(a.smallestCosine, b.smallestCosine), a.farthest = std::max(a.farthest, b.farthest);
+        a.box.add(b.box), a.tangents.add(b.tangents), a.behind = a.behind || b.behind;
+    });
     const double farthest = spread.farthest, halfAngle = hasMean ? std::acos(std::clamp(spread.smallestCosine, -1.0, 1.0)) : 0.0;
     const double zNear = 1e-6 * std::max(farthest, 1e-300);
-    if (hasMean && halfAngle <= glm::radians(70.0)) {
+    // At least the angle that the blockers read in a view without it needed (drawMaps()).
+    const double fitted = std::max(halfAngle, std::atan(std::max(minimumExtent, 0.0)));
+    if (hasMean && fitted <= glm::radians(70.0)) {
         LightView v;
         v.origin = c, v.axis = mean, v.res = resolution, v.zNear = zNear, v.zFar = farthest;
-        frame(v.axis, v.e1, v.e2);
-        v.halfExtent = std::tan(std::min(halfAngle + glm::radians(3.0), glm::radians(73.0)));
+        v.e1 = e1, v.e2 = e2;
+        v.halfExtent = std::tan(std::min(fitted + glm::radians(3.0), glm::radians(73.0)));
         views.push_back(v);
+        if (reach && receivers.size() > 0) {
+            reach->origin = c, reach->axis = mean, reach->e1 = e1, reach->e2 = e2, reach->zNear = zNear;
+            std::vector<glm::dvec3> lightPoints;
+            for (const glm::dvec3& p : bound.vertices) lightPoints.push_back({glm::dot(p - c, e1), glm::dot(p - c, e2), glm::dot(p - c, mean)});
+            // A planar light's normal (Newell's), so that the region stops at its plane.
+            glm::dvec3 normal(0.0);
+            for (size_t i = 0; i < lightPoints.size(); ++i) {
+                const glm::dvec3 &a = lightPoints[i], &b = lightPoints[(i + 1) % lightPoints.size()];
+                normal += glm::dvec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
+            }
+            bool planar = glm::length(normal) > 0;
+            if (planar) {
+                normal = glm::normalize(normal);
+                for (const glm::dvec3& p : lightPoints) planar = planar && std::abs(glm::dot(normal, p - lightPoints[0])) <= 1e-9 * farthest;
+            }
+            const std::vector<glm::dvec3> box = corners(spread.box.lo, spread.box.hi);
+            std::vector<glm::dvec3> frustum;
+            if (!spread.behind)
+                for (const glm::dvec3& t : corners(spread.tangents.lo, spread.tangents.hi)) frustum.push_back({t.x * t.z, t.y * t.z, t.z});
+            reach->planes = hullPlanes(lightPoints, box, frustum, planar ? normal : glm::dvec3(0.0), zNear, farthest);
+        }
         return views;
     }
     for (int face = 0; face < 6; ++face) {

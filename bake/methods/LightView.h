@@ -19,6 +19,7 @@
 #include <glm/vec2.hpp>
 #include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
 
 #include <cstdint>
 #include <span>
@@ -56,13 +57,41 @@ public:
     double layerGap(double z) const { return ortho ? 0.02 * halfExtent : 0.03 * z; }
 };
 
+/// @brief Where the blockers that can shadow a fitted view's receivers lie: a convex region
+/// holding the hull of the light's bound and the receivers (every segment from a receiver to a
+/// light point lies in it; for a sun, the receivers swept towards it along its cone of
+/// directions), as half-spaces in the view's frame.
+///
+/// The view is fitted to the receivers' directions, but a blocker that only the light's
+/// off-centre points see behind a receiver lies beside them: under a wide light the hull reaches
+/// far beyond the receivers' directions from the centre (a blocker at depth z, for a receiver at
+/// depth z_r, lies as far as the light's half-width times 1/z - 1/z_r beyond it, in tangent units).
+/// A texel outside the view is never drawn, and the lookups then see light there. How far the
+/// view must reach depends on where the blockers are, which is known only once they are read:
+/// so the shadow pass measures, per triangle, how far out its part inside the hull lies
+/// (extentNeeded()), and the light's view is fitted again, wider, when that lies outside it.
+struct ShadowReach {
+    glm::dvec3 origin{0.0}, axis{0, -1, 0}, e1{1, 0, 0}, e2{0, 0, 1};  ///< the view's frame
+    bool ortho = false;
+    double zNear = 0;                ///< perspective: parts nearer than the view's near plane are never drawn
+    std::vector<glm::dvec4> planes;  ///< in frame coordinates q = (e1, e2, axis) . (p - origin): dot(xyz, q) <= w
+    bool empty() const { return planes.empty(); }
+    /// @brief The half extent (perspective: tangent; sun: world units) that @p view needs to hold
+    /// the part of @p t inside the region; 0 when @p t lies inside the view or outside the region.
+    double extentNeeded(const LightView& view, const Triangle& t) const;
+};
+
 /// @brief The views of light @p light: one perspective view fitted to the receivers' directions
 /// from the light's centre when they lie within 70 degrees of their mean, else the six faces of a
 /// cube at @p cubeResolution; a sun gets one orthographic view covering the receivers, grown by
 /// the reach of its penumbrae. The views' set-up reads the receivers in parallel, in fixed blocks
 /// (the same views for any thread count).
+/// @param minimumExtent the fitted view's half extent is at least this (perspective: a tangent,
+/// and beyond 70 degrees the cube is taken; sun: world units), as ShadowReach::extentNeeded() measured
+/// it in the view made without it (the same axis and frame: they depend on the receivers only)
+/// @param reach if set, receives the region of the fitted view's blockers (left empty for a cube)
 std::vector<LightView> makeLightViews(const LightSamples& samples, int light, const ReceiverPoints& receivers, int resolution,
-                                      int cubeResolution);
+                                      int cubeResolution, double minimumExtent = 0, ShadowReach* reach = nullptr);
 
 /// @brief The light's centre (w = 1) or central direction towards it (w = 0): the mean of its
 /// bound's vertices.

@@ -9,7 +9,9 @@
 
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_invoke.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <cmath>
@@ -244,11 +246,11 @@ void forEachChunk(TriangleSource& blockers, PenumbraMapStats& stats, const std::
 }
 
 std::vector<ViewMaps> prepareViews(const LightSamples& samples, int li, const ReceiverPoints& receivers,
-                                   const PenumbraMapOptions& options) {
+                                   const PenumbraMapOptions& options, double minimumExtent = 0, ShadowReach* reach = nullptr) {
     std::vector<ViewMaps> maps;
     const glm::dvec3 c = lightCentre(samples, li);
     const ConvexBound& bound = samples.lightBounds[size_t(li)];
-    for (const LightView& view : makeLightViews(samples, li, receivers, options.resolution, options.resolution / 2)) {
+    for (const LightView& view : makeLightViews(samples, li, receivers, options.resolution, options.resolution / 2, minimumExtent, reach)) {
         ViewMaps m;
         m.view = view;
         m.shadow.reset(view.res, options.lookup == PenumbraMapOptions::Lookup::Backprojection ? kLayers : 1);
@@ -311,22 +313,54 @@ std::vector<ViewMaps> drawMaps(const LightSamples& samples, int li, const Receiv
                                const PenumbraMapOptions& options, PenumbraMapStats& local,
                                const std::function<void(uint64_t)>& progress,
                                const std::function<void(std::span<const Triangle>)>& observe) {
-    std::vector<ViewMaps> maps = prepareViews(samples, li, receivers, options);
+    ShadowReach reach;
+    std::vector<ViewMaps> maps = prepareViews(samples, li, receivers, options, 0.0, &reach);
     local.views += int(maps.size());
-    uint64_t bytes = 0;
-    for (const ViewMaps& m : maps) bytes += (m.shadow.depth.size() + m.penumbra.size()) * sizeof(float);
     {
         ScopedTimer timer(local.shadowSeconds);
+        // The view is fitted to the receivers' directions from the light's centre, but what
+        // shadows them lies in the hull of the light and the receivers, which under a wide light
+        // reaches beyond those directions (a blocker that only the light's off-centre points see
+        // behind a receiver). Where the blockers are is known only as they are read: the same
+        // pass measures how wide a view their parts in the hull need (the largest over the
+        // triangles: the same for any order and thread count), and when that is wider than the
+        // view, the maps are drawn again in a view that wide, or in the cube beyond 70 degrees.
+        // Most scenes' blockers lie inside the view, and the measure costs a projection per
+        // triangle; the rest had light leaking into full shadow (clustered receivers under a
+        // large blocker: up to 0.3 of the light in the umbra).
+        double needed = 0;
+        auto measure = [&](std::span<const Triangle> chunk) {
+            if (reach.empty()) return;
+            needed = std::max(needed, tbb::parallel_reduce(
+                tbb::blocked_range<size_t>(0, chunk.size(), 1024), 0.0,
+                [&](const tbb::blocked_range<size_t>& range, double value) {
+                    for (size_t i = range.begin(); i < range.end(); ++i) value = std::max(value, reach.extentNeeded(maps[0].view, chunk[i]));
+                    return value;
+                },
+                [](double a, double b) { return std::max(a, b); }));
+        };
         forEachChunk(
             blockers, local, progress, [&](std::span<const Triangle> chunk) {
                 for (ViewMaps& m : maps) rasterizeDepth(m.view, chunk, m.shadow, options.alpha);
+                measure(chunk);
             },
             observe);
+        if (!reach.empty() && needed > maps[0].view.halfExtent) {
+            maps.clear();  // their memory first: the plan counts one light's maps
+            maps = prepareViews(samples, li, receivers, options, needed);
+            local.views += int(maps.size());
+            ++local.viewsWidened;
+            forEachChunk(blockers, local, {}, [&](std::span<const Triangle> chunk) {
+                for (ViewMaps& m : maps) rasterizeDepth(m.view, chunk, m.shadow, options.alpha);
+            });
+        }
         // The tiles size the penumbra map's sheets; backprojection reads the pyramids instead
         // (a serial pass over the map, 3-4 % of FLOWERS' shadow-map time on two threads).
         if (options.lookup == PenumbraMapOptions::Lookup::WymanHansen)
             for (ViewMaps& m : maps) buildTiles(m);
     }
+    uint64_t bytes = 0;
+    for (const ViewMaps& m : maps) bytes += (m.shadow.depth.size() + m.penumbra.size()) * sizeof(float);
     ScopedTimer timer(local.penumbraSeconds);
     if (options.lookup == PenumbraMapOptions::Lookup::Backprojection) {
         for (ViewMaps& m : maps) {
@@ -437,6 +471,7 @@ nlohmann::json penumbraMapStatsJson(const PenumbraMapStats& s, const PenumbraMap
             {"taps", o.taps},
             {"views", s.views},
             {"maps_reused", s.mapsReused},
+            {"views_widened", s.viewsWidened},
             {"map_bytes", s.mapBytes},
             {"shadow_map_time_s", s.shadowSeconds},
             {"penumbra_map_time_s", s.penumbraSeconds},

@@ -77,6 +77,9 @@ PenumbraMapOptions penumbraMapOptions(const JsonParams& bake);
 struct PenumbraMapStats {
     int views = 0;                ///< views drawn (a light's maps kept from the last cast are not drawn again)
     int mapsReused = 0;           ///< lights whose maps came from the last cast (PenumbraMapCache)
+    /// Lights whose maps were drawn again in a wider view: blockers that can shadow the receivers
+    /// lay outside the view fitted to their directions (LightView.h, ShadowReach)
+    int viewsWidened = 0;
     uint64_t mapBytes = 0;        ///< the largest light's maps
     double shadowSeconds = 0;     ///< pass 1: shadow maps
     double penumbraSeconds = 0;   ///< pass 2 (wyman-hansen): silhouettes, cones and sheets; backprojection: the depth pyramid

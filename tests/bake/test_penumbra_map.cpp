@@ -117,7 +117,7 @@ void requireProfiles(const ReceiverSet& receivers, const std::vector<float>& v, 
 
 }  // namespace
 
-TEST_CASE("penumbra map: backprojection gives a square's and an edge's exact penumbrae within 0.11", "[penumbra-map]") {
+TEST_CASE("penumbra map: backprojection gives a square's and an edge's exact penumbrae within 0.1 and 0.125", "[penumbra-map]") {
     // The square: light 1 x 1 at height 4, occluder [-0.5, 0.5]^2 at height 2: V = clamp(|x| - 0.5).
     const ReceiverSet receivers = floorLine(401);
     const std::vector<float> square =
@@ -138,15 +138,66 @@ TEST_CASE("penumbra map: backprojection gives a square's and an edge's exact pen
         }
     CHECK(umbra > 20);
     // The edge: light x in [-0.5, 0.5] at H = 4, half-plane over x < 0 at h = 2: V = clamp(0.5 + x).
-    // The map is fitted to the receivers' directions (plus 3 degrees), so the half-plane beyond
-    // them is not in it: receivers whose view of the light crosses the map's border (|x| > 1.2)
-    // see too much light, and are left out here (docs/design.md).
+    // The half-plane reaches beyond the receivers' directions (plus 3 degrees), where the
+    // receivers at x < -1.2 see it through the light's left side, so the view is widened to hold
+    // its part in the hull of the light and the receivers (ShadowReach), and every receiver of the
+    // line is checked: the coarser texels give 0.123 at most (0.11 in the narrower view, which
+    // let light through at |x| > 1.2).
     const ReceiverSet line = floorLine(201);
     const std::vector<float> edge =
         penumbraMapOf(rectLight({0, 4, 0}, {1, 0, 0}, {0, 0, 0.6}, 256, 1), line, edgeOverFloor(), Lookup::Backprojection);
-    std::tie(largest, mean) = profileError(line, edge, [](double x) { return std::clamp(0.5 + x, 0.0, 1.0); }, 1.2);
-    CHECK(largest <= 0.11);
+    std::tie(largest, mean) = profileError(line, edge, [](double x) { return std::clamp(0.5 + x, 0.0, 1.0); });
+    CHECK(largest <= 0.125);
     CHECK(mean <= 0.03);
+}
+
+TEST_CASE("penumbra map: receivers clustered under a light see every blocker of their view of the whole light", "[penumbra-map]") {
+    // The radiometry sweep's repro (its finding 1): a 1 x 1 light at height 2 facing down, an
+    // opaque 4 x 4 square at height 1, receivers on the floor with |x|, |z| <= 0.45. Every segment
+    // from such a receiver to the light crosses the square within |x|, |z| <= 0.5: V = 0. The
+    // view was fitted to the receivers' directions from the light's centre (plus 3 degrees), so
+    // the parts of the square that only the light's off-centre points see behind a receiver were
+    // outside the maps, and up to 0.31 of the light leaked through.
+    const LightDesc light = rectLight({0, 2, 0}, {1, 0, 0}, {0, 0, 1}, 256, 1);
+    ReceiverSet cluster;
+    for (int j = 0; j < 7; ++j)
+        for (int i = 0; i < 7; ++i) cluster.position.push_back({-0.45f + 0.15f * float(i), 0.f, -0.45f + 0.15f * float(j)}), cluster.normal.push_back({0, 1, 0});
+    std::vector<Triangle> square = floorQuad(4);
+    addQuad(square, {-2, 1, -2}, {2, 1, -2}, {2, 1, 2}, {-2, 1, 2});
+    for (const Lookup lookup : {Lookup::Backprojection, Lookup::WymanHansen}) {
+        const std::vector<float> v = penumbraMapOf(light, cluster, square, lookup);
+        for (size_t i = 0; i < cluster.size(); ++i) {
+            INFO("lookup " << int(lookup) << ", receiver (" << cluster.position[i].x << ", " << cluster.position[i].z << ")");
+            CHECK(v[i] == 0.0f);
+        }
+    }
+    // A straight edge over the same cluster: a half-plane over x < 0 at height 1, V = clamp(0.5 + x)
+    // (the segment to the light point at x_l crosses height 1 at (x + x_l) / 2). Within the
+    // documented bound of the exact profile (docs/design.md, "Penumbra maps"): 0.125 (it was 0.51).
+    // Every receiver lies in the penumbra, where the light's 12 x 12 cells and the coarse texels
+    // leave a mean near 0.07 on the other edge's line too (0.03 there counts its flat parts).
+    ReceiverSet line;
+    for (int i = 0; i <= 90; ++i) line.position.push_back({-0.45f + 0.01f * float(i), 0.f, 0.f}), line.normal.push_back({0, 1, 0});
+    std::vector<Triangle> halfPlane = floorQuad(4);
+    addQuad(halfPlane, {-50, 1, -50}, {0, 1, -50}, {0, 1, 50}, {-50, 1, 50});
+    const std::vector<float> edge = penumbraMapOf(light, line, halfPlane, Lookup::Backprojection);
+    const auto [largest, mean] = profileError(line, edge, [](double x) { return std::clamp(0.5 + x, 0.0, 1.0); });
+    INFO("edge over clustered receivers: largest |dV| " << largest << ", mean " << mean);
+    CHECK(largest <= 0.125);
+    CHECK(mean <= 0.07);
+    // A sun (10 degrees across, straight down) and a 2 x 2 square at height 5 over receivers with
+    // |x|, |z| <= 0.1: the rays towards the sun cross the square within 0.1 + 5 tan 5 deg < 0.55
+    // of the axis, so V = 0. The orthographic view covered the receivers plus 2 % of their width.
+    std::vector<Triangle> high = floorQuad(4);
+    addQuad(high, {-1, 5, -1}, {1, 5, -1}, {1, 5, 1}, {-1, 5, 1});
+    ReceiverSet small;
+    for (int j = 0; j < 5; ++j)
+        for (int i = 0; i < 5; ++i) small.position.push_back({-0.1f + 0.05f * float(i), 0.f, -0.1f + 0.05f * float(j)}), small.normal.push_back({0, 1, 0});
+    const std::vector<float> sun = penumbraMapOf(sunLight({0, -1, 0}, 10.0, 256, 1), small, high, Lookup::Backprojection);
+    for (size_t i = 0; i < small.size(); ++i) {
+        INFO("sun, receiver (" << small.position[i].x << ", " << small.position[i].z << ")");
+        CHECK(sun[i] == 0.0f);
+    }
 }
 
 TEST_CASE("penumbra map: backprojection combines two stacked grids as the reference does, within 0.12 on average", "[penumbra-map]") {
