@@ -69,6 +69,11 @@ void SilhouetteKdTree::build(std::vector<KdItem> items, const KdParams& params) 
         Pending left, right;
         left.box = right.box = p.box;
         left.box.hi[axis] = right.box.lo[axis] = split;
+        // Counted first, so that each list is allocated once at its size: grown by doubling,
+        // the lists of a scene of coincident edges held twice the references the plan counts.
+        size_t toLeft = 0, toRight = 0;
+        for (uint32_t i : p.items) toLeft += items[i].box.lo[axis] <= split, toRight += items[i].box.hi[axis] >= split;
+        left.items.reserve(toLeft), right.items.reserve(toRight);
         for (uint32_t i : p.items) {
             if (items[i].box.lo[axis] <= split) left.items.push_back(i);
             if (items[i].box.hi[axis] >= split) right.items.push_back(i);

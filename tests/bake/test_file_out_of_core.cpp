@@ -160,6 +160,28 @@ TEST_CASE("a budget that cannot be met fails before any work, naming a budget th
     }
 }
 
+TEST_CASE("ssv on triangles sharing a few points: the budget its refusal names holds", "[outofcore][memory][ssv]") {
+    // The kd-tree's build holds up to three trees' worth (its arrays grow by doubling while the
+    // pending lists live): a budget named for one was exceeded by 20 %.
+    ScratchDir dir("ssv-fan");
+    {
+        std::ofstream fan(dir / "fan.obj");
+        fan << "v -0.5 1 -0.5\nv 0.5 1 -0.5\nv 0.5 1 0.5\nv -0.5 1 0.5\nv 0 1.5 0\n";
+        for (int i = 0; i < 60000; ++i) fan << "f 1 4 3 2\nf 1 2 5\n";
+    }
+    const nlohmann::json s = scene(file(dir / "fan.obj"), 80, 60);
+    const Bake tooSmall = bake(dir, s, "--method ssv --memory-budget 1M");
+    INFO(tooSmall.err);
+    REQUIRE(tooSmall.exitCode == 1);
+    const size_t at = tooSmall.err.find("at least ");
+    REQUIRE(at != std::string::npos);
+    const std::string named = tooSmall.err.substr(at + 9, tooSmall.err.find(' ', at + 9) - at - 9);
+    const Bake enough = bake(dir, s, "--method ssv --memory-budget " + named);
+    INFO(enough.err);
+    REQUIRE(enough.exitCode == 0);
+    CHECK(enough.rss() <= double(enough.stats["memory_plan"]["budget_bytes"].get<uint64_t>()));
+}
+
 TEST_CASE("under an address-space limit a bake completes or says in one line what it needs", "[outofcore][memory]") {
     ScratchDir dir("as-caps");
     std::ofstream(dir / "bake.json") << scene(grass(20'000), 320, 240).dump();
