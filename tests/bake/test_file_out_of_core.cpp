@@ -62,6 +62,12 @@ Bake bake(const ScratchDir& dir, const nlohmann::json& s, const std::string& ext
 
 nlohmann::json file(const std::string& path) { return {{"type", "file"}, {"path", path}}; }
 
+/// The budget a refusal names ("... at least 216M is needed"), or "" when it names none.
+std::string namedBudget(const std::string& err) {
+    const size_t at = err.find("at least ");
+    return at == std::string::npos ? std::string() : err.substr(at + 9, err.find(' ', at + 9) - at - 9);
+}
+
 }  // namespace
 
 TEST_CASE("glb and obj at 1M and 10M triangles: flat peak RSS, budgets honoured, an address-space cap below the file",
@@ -149,9 +155,8 @@ TEST_CASE("a budget that cannot be met fails before any work, naming a budget th
         REQUIRE(tooSmall.exitCode == 1);
         CHECK(lineCount(tooSmall.err) == 1);
         CHECK_FALSE(std::filesystem::exists(dir / "out.exr"));
-        const size_t at = tooSmall.err.find("at least ");
-        REQUIRE(at != std::string::npos);
-        const std::string named = tooSmall.err.substr(at + 9, tooSmall.err.find(' ', at + 9) - at - 9);
+        const std::string named = namedBudget(tooSmall.err);
+        REQUIRE_FALSE(named.empty());
         // The number named is a valid --memory-budget, and it is enough, the first time.
         const Bake enough = bake(dir, s, "--memory-budget " + named);
         INFO(enough.err);
@@ -173,9 +178,8 @@ TEST_CASE("ssv on triangles sharing a few points: the budget its refusal names h
     const Bake tooSmall = bake(dir, s, "--method ssv --memory-budget 1M");
     INFO(tooSmall.err);
     REQUIRE(tooSmall.exitCode == 1);
-    const size_t at = tooSmall.err.find("at least ");
-    REQUIRE(at != std::string::npos);
-    const std::string named = tooSmall.err.substr(at + 9, tooSmall.err.find(' ', at + 9) - at - 9);
+    const std::string named = namedBudget(tooSmall.err);
+    REQUIRE_FALSE(named.empty());
     const Bake enough = bake(dir, s, "--method ssv --memory-budget " + named);
     INFO(enough.err);
     REQUIRE(enough.exitCode == 0);
