@@ -73,8 +73,14 @@ std::vector<std::string> casterNames() {
 }
 
 void refuseMaxDistance(const CastContext& context, const std::string& method) {
-    if (alphaTableOf(context.options).hasDistances())
-        fail("--method " + method, "does not apply \"max_distance\" of geometry entries (use hpc, reference or embree)");
+    if (!alphaTableOf(context.options).hasDistances()) return;
+    // The exact methods apply it (each tests the rule's own hit distance); name them as built.
+    std::vector<std::string> exact;
+    for (const std::string& name : casterNames())
+        if (casterEntry(name).traits.exact) exact.push_back(name);
+    std::string list;
+    for (size_t i = 0; i < exact.size(); ++i) list += (i == 0 ? "" : i + 1 == exact.size() ? " or " : ", ") + exact[i];
+    fail("--method " + method, "does not apply \"max_distance\" of geometry entries (use {})", list);
 }
 
 const CasterEntry& casterEntry(const std::string& name) {
