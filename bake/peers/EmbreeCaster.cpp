@@ -543,8 +543,11 @@ const CasterRegistration kEmbree{{"embree",
                                   [](const CastContext& c) { return std::make_unique<EmbreeSceneCaster>(c); },
                                   [](uint64_t triangles, uint64_t, const LightSamples&, const nlohmann::json&) {
                                       // The scene read once, Embree's buffers and an estimate of its BVH
-                                      // (Embree does not report the BVH's size).
-                                      return triangles * (sizeof(Triangle) + 56 + 120);
+                                      // (Embree does not report the BVH's size), and the address space its
+                                      // allocator maps beyond what it touches: under prlimit --as the limit
+                                      // named without them failed inside Embree until 40-48 MiB + 48 bytes a
+                                      // triangle more (63K to 483K triangles, two threads; 56 MiB keeps a margin).
+                                      return triangles * (sizeof(Triangle) + 56 + 120 + 48) + (56ull << 20);
                                   },
                                   nullptr}};
 

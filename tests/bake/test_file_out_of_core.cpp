@@ -186,6 +186,22 @@ TEST_CASE("ssv on triangles sharing a few points: the budget its refusal names h
     CHECK(enough.rss() <= double(enough.stats["memory_plan"]["budget_bytes"].get<uint64_t>()));
 }
 
+TEST_CASE("embree under an address-space limit: the limit its refusal names works", "[outofcore][memory][embree]") {
+    // Embree's allocator maps more than it touches: the limit named failed inside Embree
+    // (RTC_ERROR_OUT_OF_MEMORY) until 40 MiB more.
+    ScratchDir dir("embree-as");
+    nlohmann::json s = scene({{"type", "flowers"}, {"count", 2000}, {"area", {{-2, -2}, {2, 2}}}});
+    std::ofstream(dir / "bake.json") << s.dump();
+    RunResult r = runPenumbra("bake " + (dir / "bake.json") + " -q --method embree --threads 2", "prlimit --as=" + std::to_string(100 << 20));
+    INFO(r.err);
+    REQUIRE(r.exitCode == 1);
+    const std::string named = namedBudget(r.err);
+    REQUIRE_FALSE(named.empty());
+    const uint64_t mib = std::stoull(named);
+    r = runPenumbra("bake " + (dir / "bake.json") + " -q --method embree --threads 2", "prlimit --as=" + std::to_string(mib << 20));
+    CHECK(r.exitCode == 0);
+}
+
 TEST_CASE("under an address-space limit a bake completes or says in one line what it needs", "[outofcore][memory]") {
     ScratchDir dir("as-caps");
     std::ofstream(dir / "bake.json") << scene(grass(20'000), 320, 240).dump();
