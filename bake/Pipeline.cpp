@@ -149,6 +149,13 @@ void feedPass(ReceiverKind& kind, StreamPass pass, TriangleSource& source, bool 
     }
 }
 
+/// Whether the bucket pass drops the blockers out of every light's reach: they are culled against
+/// every receiver once the scan has found them, so a kind that refines keeps all (its refinement
+/// receivers are not known yet), unless this is a shard (the merge casts the refinement).
+bool cullsBeforeSpill(const SceneDesc& scene, const ReceiverKind& kind, const BakeSettings& settings) {
+    return scene.options.cullBeforeSpill && (!kind.mayRefine() || settings.shard.casting());
+}
+
 /// @p keep, and also dropping "cast_shadows": false triangles when no later pass of the kind reads
 /// the blockers (its cast pass, a refinement): then they are worth no bucket space.
 BlockerFilter withoutNonCasting(const SceneDesc& scene, const ReceiverKind& kind, BlockerFilter keep) {
@@ -176,7 +183,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     TriangleSourcePtr source = std::move(prefetch);
     // Before any triangle is read: the bucket files must fit on disk, and hours of work are announced.
     checkBucketDisk(settings.tmpDir, source->sizeHint(), scene.options.sortBlockers && casterEntry(settings.method).traits.sortedBlockers,
-                    scene.options.cullBeforeSpill && (!kind.mayRefine() || settings.shard.casting()));
+                    cullsBeforeSpill(scene, kind, settings));
     uint64_t samples = 0;
     for (const LightDesc& light : scene.lights) samples += uint64_t(std::max(light.samples, 0));
     noteLongBake(source->sizeHint().value_or(0), kind.receiverBound().value_or(0), samples, 1,
@@ -265,7 +272,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     // has found them (refinement receivers are not known yet, so a kind that refines keeps all;
     // a shard never refines: the merge casts the refinement).
     BlockerFilter keep;
-    if (scene.options.cullBeforeSpill && (!kind.mayRefine() || shard)) keep = makeReachCull(p.samples.lightBounds, p.receivers);
+    if (cullsBeforeSpill(scene, kind, settings)) keep = makeReachCull(p.samples.lightBounds, p.receivers);
     keep = withoutNonCasting(scene, kind, std::move(keep));
     auto set = std::make_shared<BucketSet>(writeBuckets(*source, planBucketRanges(options, &histogram), options, &buckets,
                                                         [&](std::span<const Triangle> c) {

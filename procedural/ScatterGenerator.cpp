@@ -60,7 +60,7 @@ public:
         return per_ * sizeof(Triangle) + (source_ ? source_->residentBytes() : 0) + placer_.p.placement.residentBytes();
     }
     std::string residentDetail() const override {
-        if (per_ * sizeof(Triangle) < (16u << 20)) return {};  // not what a refusal is about
+        if (per_ * sizeof(Triangle) < kNotableResidentBytes) return {};
         return fmt::format("scatter keeps its source's {} triangles ({:.1f} MiB; a smaller cache_triangles streams it instead)",
                            per_, double(per_ * sizeof(Triangle)) / (1 << 20));
     }

@@ -152,7 +152,7 @@ public:
     }
     std::string residentDetail() const override {
         const uint64_t bytes = uint64_t(p_.variants) * perTree_ * sizeof(Triangle);
-        if (bytes < (16u << 20)) return {};  // not what a refusal is about
+        if (bytes < kNotableResidentBytes) return {};
         return fmt::format("forest keeps {} variants of {} triangles ({:.1f} MiB; fewer variants or smaller trees need less)",
                            p_.variants, perTree_, double(bytes) / (1 << 20));
     }

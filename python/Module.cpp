@@ -54,18 +54,14 @@ std::optional<uint64_t> countArgument(const py::object& value, const char* funct
     return number.cast<uint64_t>();
 }
 
-/// generate()'s chunk size: 0 is the bake's own; checked before the buffer is allocated.
-size_t checkedChunk(size_t chunk) {
-    if (chunk > kMaxGenerateChunk)
-        throw py::value_error(fmt::format("generate(): chunk must be at most {} triangles, got {}", kMaxGenerateChunk, chunk));
-    return chunk ? chunk : kTriangleChunk;
-}
+/// generate()'s chunk size: 0 is the bake's own (the range is checked by countArgument()).
+size_t chunkOrDefault(size_t chunk) { return chunk ? chunk : kTriangleChunk; }
 
 /// `penumbra.generate(scene)`: the scene's triangles, chunk by chunk, as a bake streams them.
 class GenerateIterator {
 public:
     GenerateIterator(std::shared_ptr<PyScene> scene, size_t chunk, bool flags)
-        : scene_(std::move(scene)), chunk_(checkedChunk(chunk)), flags_(flags) {
+        : scene_(std::move(scene)), chunk_(chunkOrDefault(chunk)), flags_(flags) {
         source_ = translateErrors([&] { return openSceneGeometry(scene_->desc); });
     }
     py::object next() {

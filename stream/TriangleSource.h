@@ -54,6 +54,8 @@ public:
     /// @brief What dominates residentBytes() when one item does (a compressed primitive that
     /// must be decoded whole), for messages; empty otherwise.
     virtual std::string residentDetail() const { return {}; }
+    /// Below this, a held item is not what a memory refusal is about: residentDetail() stays empty.
+    static constexpr uint64_t kNotableResidentBytes = 16ull << 20;
     /// @brief Which part the triangles of the last read() came from, for a source that plays
     /// parts back to back (ConcatSource: a scene's geometry entries, in order): one read never
     /// mixes parts. 0 for a source of one part.
