@@ -8,6 +8,7 @@
 #include "stream/GltfInstancing.h"
 #include "stream/GltfPrimitive.h"
 #include "stream/ObjTokenizer.h"
+#include "stream/PolygonTriangulation.h"
 #include "stream/Transform.h"
 
 #include <glm/geometric.hpp>
@@ -67,6 +68,9 @@ struct ObjParser {
     std::vector<ObjPart> parts;
     size_t current = 0;
     std::vector<ObjCorner> face;
+    std::vector<glm::vec3> positions;  // face's corners
+    std::vector<uint32_t> vertexOf;    // face's corners as the part's vertices
+    std::vector<std::array<uint32_t, 3>> triangles;
 
     ObjParser(const std::string& file) : path(file), where{path, 0} { parts.emplace_back(); }
 
@@ -102,13 +106,11 @@ struct ObjParser {
             const uint64_t counts[3] = {v.size(), vt.size(), vn.size()};
             parseObjFace(tokens, counts, face, where);
             ObjPart& part = parts[current];
-            const uint32_t first = corner(part, face[0]);
-            uint32_t previous = corner(part, face[1]);
-            for (size_t c = 2; c < face.size(); ++c) {
-                uint32_t next = corner(part, face[c]);
-                part.mesh.indices.insert(part.mesh.indices.end(), {first, previous, next});
-                previous = next;
-            }
+            positions.resize(face.size()), vertexOf.resize(face.size());
+            for (size_t c = 0; c < face.size(); ++c) positions[c] = v[size_t(face[c].v)], vertexOf[c] = corner(part, face[c]);
+            triangulatePolygon(positions, triangles);  // as the blocker stream does (ObjReader.cpp)
+            for (const std::array<uint32_t, 3>& t : triangles)
+                part.mesh.indices.insert(part.mesh.indices.end(), {vertexOf[t[0]], vertexOf[t[1]], vertexOf[t[2]]});
         }
     }
 };

@@ -39,7 +39,7 @@ struct IndexedMesh {
 ///
 /// OBJ: statements are read by ObjTokenizer.h, exactly as the blocker stream reads them (same
 /// numbers to the bit, same errors); `v`, `vt`, `vn` and `f` with any corner form; polygons are
-/// fan-triangulated; corners with distinct (v, vt, vn) triples become distinct vertices. Every
+/// triangulated as the blocker stream does (triangulatePolygon()); corners with distinct (v, vt, vn) triples become distinct vertices. Every
 /// `o` or `g` group with faces is a mesh named after the group (a file without groups, or with
 /// one, gives one mesh named after the file's stem). A mesh has uv0 (normals) only when every
 /// face corner names a `vt` (`vn`). Positions are transformed with the blocker stream's float

@@ -3,6 +3,7 @@
 #include "stream/util/Error.h"
 #include "stream/util/Progress.h"
 #include "stream/ObjTokenizer.h"
+#include "stream/PolygonTriangulation.h"
 #include "stream/util/RegularFile.h"
 #include "stream/VertexStore.h"
 
@@ -143,8 +144,10 @@ private:
     // Streaming pass state.
     uint64_t verticesSeen_ = 0;      // `v` lines passed so far: the range indices may address
     std::string part_;               // the o/g group of the faces being read
-    std::vector<ObjCorner> polygon_; // the face being fan-triangulated
-    size_t nextFan_ = 0;             // next fan triangle is (0, nextFan_, nextFan_ + 1)
+    std::vector<ObjCorner> polygon_; // the face being triangulated
+    std::vector<glm::vec3> corners_; // its corners' positions
+    std::vector<std::array<uint32_t, 3>> faceTriangles_;  // triangulatePolygon() of polygon_
+    size_t nextTriangle_ = 0;        // the next of faceTriangles_ to hand out
     uint64_t emitted_ = 0;           // triangles this pass handed out, against the scan's count
     bool finished_ = false;
 };
@@ -205,8 +208,8 @@ void ObjSource::scan() {
 void ObjSource::rewind() {
     // The file is reopened by the first read() of the next pass.
     lines_.close();
-    polygon_.clear();
-    nextFan_ = 0;
+    faceTriangles_.clear();
+    nextTriangle_ = 0;
     finished_ = scanned_ && !hasFaces_;
     verticesSeen_ = verticesBeforeFirstFace_;
     part_ = partBeforeFirstFace_;
@@ -237,7 +240,10 @@ bool ObjSource::nextPolygon() {
         } else if (keyword == "f" && selected(part_)) {
             this->counts(counts);  // vt and vn were checked by scan()
             parseObjFace(tokens, counts, polygon_, lines_.location());
-            nextFan_ = 1;
+            corners_.resize(polygon_.size());
+            for (size_t c = 0; c < polygon_.size(); ++c) corners_[c] = vertices_[uint64_t(polygon_[c].v)];
+            triangulatePolygon(corners_, faceTriangles_);
+            nextTriangle_ = 0;
             return true;
         }
     }
@@ -248,17 +254,17 @@ size_t ObjSource::read(std::span<Triangle> out) {
     std::call_once(scanOnce_, [this] { scan(); });
     size_t written = 0;
     while (written < out.size() && !finished_) {
-        if (nextFan_ + 1 >= polygon_.size() && !nextPolygon()) {
+        if (nextTriangle_ >= faceTriangles_.size() && !nextPolygon()) {
             finished_ = true;
             lines_.close();
             if (emitted_ != triangleCount_)
                 fail(path_, "file changed while it was being read: {} triangles when checked, {} in this pass", triangleCount_, emitted_);
             break;
         }
-        for (; nextFan_ + 1 < polygon_.size() && written < out.size(); ++nextFan_, ++emitted_) {
+        for (; nextTriangle_ < faceTriangles_.size() && written < out.size(); ++nextTriangle_, ++emitted_) {
+            const std::array<uint32_t, 3>& f = faceTriangles_[nextTriangle_];
             Triangle& t = out[written++];
-            t.v = {vertices_[uint64_t(polygon_[0].v)], vertices_[uint64_t(polygon_[nextFan_].v)],
-                   vertices_[uint64_t(polygon_[nextFan_ + 1].v)]};
+            t.v = {corners_[f[0]], corners_[f[1]], corners_[f[2]]};
             t.flags = 0;
         }
     }

@@ -18,8 +18,8 @@
 /// Statements are read by ObjTokenizer.h, exactly as the receiver meshes (IndexedMesh.h) read
 /// them, so one file gives blockers and receivers the same bits. Supported: `v x y z [w | r g b]`
 /// (only x y z are used), `f` with `v`, `v/vt`, `v//vn` and `v/vt/vn` corners, positive and
-/// negative (relative) indices, polygons of any size (fan-triangulated: (c0, c1, c2),
-/// (c0, c2, c3), ...), `#` comments (also after a statement), CRLF line ends, and `o`/`g` groups,
+/// negative (relative) indices, polygons of any size (triangulatePolygon(): convex ones as the
+/// fan (c0, c1, c2), (c0, c2, c3), ..., concave ones by ear clipping), `#` comments (also after a statement), CRLF line ends, and `o`/`g` groups,
 /// which a scene can pick with "parts". `vt` and `vn` are validated (they must be numbers, and
 /// corners must refer to existing ones) but not kept. Ignored: vp, s, usemtl, mtllib, l, p and
 /// any other statement. Line continuation with a trailing backslash is not supported.

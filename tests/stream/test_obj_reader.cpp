@@ -43,16 +43,16 @@ const char* kSquare =
 
 }  // namespace
 
-TEST_CASE("OBJ: triangles and fan-triangulated polygons", "[stream][obj]") {
+TEST_CASE("OBJ: triangles and fan-triangulated convex polygons", "[stream][obj]") {
     ScratchDir dir("obj");
-    std::string text = std::string(kSquare) + "v 0.5 0.5 1\nf 1 2 3\nf 1 2 3 4\nf 1 2 3 4 5\n";
+    std::string text = std::string(kSquare) + "v -0.5 0.5 0\nf 1 2 3\nf 1 2 3 4\nf 1 2 3 4 5\n";
     auto tris = readObjText(dir, text);
     REQUIRE(tris.size() == 1 + 2 + 3);
-    // Fan order: (c0, c1, c2), (c0, c2, c3), ...
+    // Fan order: (c0, c1, c2), (c0, c2, c3), ... (concave faces: test_polygon_triangulation.cpp)
     CHECK(sameBits(tris[0], tri({0, 0, 0}, {1, 0, 0}, {1, 1, 0})));
     CHECK(sameBits(tris[1], tri({0, 0, 0}, {1, 0, 0}, {1, 1, 0})));
     CHECK(sameBits(tris[2], tri({0, 0, 0}, {1, 1, 0}, {0, 1, 0})));
-    CHECK(sameBits(tris[5], tri({0, 0, 0}, {0, 1, 0}, {0.5f, 0.5f, 1})));
+    CHECK(sameBits(tris[5], tri({0, 0, 0}, {0, 1, 0}, {-0.5f, 0.5f, 0})));
 }
 
 TEST_CASE("OBJ: all corner forms, texture and normal data ignored", "[stream][obj]") {
