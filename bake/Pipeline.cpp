@@ -408,7 +408,7 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total) {
         if (b.translucent) stats["translucent"]["relations_tested"] = b.translucent->tests.load(), stats["translucent"]["crossings"] = b.translucent->crossings.load();
     }
     stats["outputs_written"] = outputs.paths();  // every file of the bake but the stats themselves
-    if (!b.p.warnings.empty()) stats["warnings"] = b.p.warnings;
+    for (const std::string& warning : b.p.warnings) stats["warnings"].push_back(warning);  // after the kind's, if any
     if (const auto& u = b.p.receivers.unshadowed; !u.empty())  // "receive_shadows": false
         stats["unshadowed_receivers"] = uint64_t(std::count(u.begin(), u.end(), uint8_t(1)));
     if (!settings.statsPath.empty()) writeStats(settings.statsPath, stats);

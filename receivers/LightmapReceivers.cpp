@@ -111,7 +111,17 @@ LightmapLayout rasterizeLightmap(const IndexedMesh& mesh, int width, int height)
             v[k] = glm::dvec2(double(x.x) * width, double(x.y) * height);  // texel units
         }
         const double area2 = cross2(v[1] - v[0], v[2] - v[0]);
-        if (area2 == 0 || !std::isfinite(area2)) continue;
+        const glm::dvec3 p0(mesh.position[mesh.indices[3 * t]]), p1(mesh.position[mesh.indices[3 * t + 1]]),
+            p2(mesh.position[mesh.indices[3 * t + 2]]);
+        const double world = 0.5 * glm::length(glm::cross(p1 - p0, p2 - p0));
+        layout.surfaceArea += world;
+        if (area2 == 0 || !std::isfinite(area2)) {
+            layout.noUvArea += world, layout.noUvTriangles += world > 0;
+            continue;
+        }
+        // The share of the triangle's UV area inside the map is the share of its surface baked.
+        const double inside = clippedTriangleArea(v[0], v[1], v[2], glm::dvec2(0.0), glm::dvec2(width, height));
+        layout.outsideArea += world * std::max(0.0, 1.0 - inside / (0.5 * std::abs(area2)));
         const glm::dvec2 lo = glm::min(glm::min(v[0], v[1]), v[2]), hi = glm::max(glm::max(v[0], v[1]), v[2]);
         // Texels whose square can overlap the bounds; the part of a triangle outside [0, 1]^2 is
         // dropped (lightmaps do not wrap).

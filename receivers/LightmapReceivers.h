@@ -56,6 +56,10 @@ struct LightmapLayout {
     std::vector<uint32_t> triangle; ///< per receiver: the mesh triangle it lies on (its texel's owner)
     std::vector<float> coverage;    ///< per texel: UV area covered, in [0, 1] (overlaps saturate)
     uint64_t overlapping = 0;       ///< texels whose centre lies inside more than one triangle
+    /// World area of the mesh, and the parts of it that get no texel: UVs outside [0, 1]^2
+    /// (lightmaps do not wrap), and triangles with no UV area (noUvTriangles of them).
+    double surfaceArea = 0, outsideArea = 0, noUvArea = 0;
+    uint64_t noUvTriangles = 0;
 };
 
 /// @brief Rasterizes @p mesh's UVs into a @p width x @p height lightmap.

@@ -107,6 +107,29 @@ IndexedMesh concatenate(std::span<const IndexedMesh> meshes) {
     return all;
 }
 
+/// The parts of a map's surface that get no texel, one warning each: overlapping UVs, UVs
+/// outside [0, 1]^2 (own UVs under "uv": "mesh" are used as they are, and a lightmap does not
+/// wrap), and triangles with no UV area. Shares of the surface below 0.1 % are rounding at the
+/// map's border and go unsaid.
+std::vector<std::string> unbakedSurfaceWarnings(const Lightmap& map) {
+    std::vector<std::string> out;
+    const LightmapLayout& l = map.layout;
+    if (l.overlapping > 0)
+        out.push_back(fmt::format("{}: {} texels covered by more than one triangle (overlapping UVs; \"uv\": \"generate\" makes new ones)",
+                                  map.label, l.overlapping));
+    const double surface = l.surfaceArea > 0 ? l.surfaceArea : 1.0;
+    if (l.outsideArea > 1e-3 * surface)
+        out.push_back(fmt::format("{}: {:.1f} % of the surface has UVs outside [0, 1] and gets no texels (a lightmap does not wrap; "
+                                  "\"uv\": \"auto\" or \"generate\" makes new ones)",
+                                  map.label, 100.0 * l.outsideArea / surface));
+    if (l.noUvTriangles > 0 && l.noUvArea > 1e-3 * surface)
+        out.push_back(fmt::format("{}: {} triangle{} ({:.1f} % of the surface) with no UV area get{} no texels (\"uv\": \"generate\" "
+                                  "makes new ones)",
+                                  map.label, l.noUvTriangles, l.noUvTriangles == 1 ? "" : "s", 100.0 * l.noUvArea / surface,
+                                  l.noUvTriangles == 1 ? "s" : ""));
+    return out;
+}
+
 class LightmapKind final : public ReceiverKind {
 public:
     /// @param checked true when the meshes came from parseScene's check (loaded once per bake).
@@ -121,9 +144,10 @@ public:
             map.layout = rasterizeLightmap(map.mesh, map.width, map.height);
             addPolygons(map, all.size());
             map.mesh = IndexedMesh{};  // the layout is all the writer needs
-            if (map.layout.overlapping > 0)
-                fmt::print(stderr, "penumbra: warning: {}: {} texels covered by more than one triangle (overlapping UVs; \"uv\": \"generate\" makes new ones)\n",
-                           map.label, map.layout.overlapping);
+            for (std::string& warning : unbakedSurfaceWarnings(map)) {
+                printWarning("{}", warning);
+                warnings_.push_back(std::move(warning));
+            }
             map.first = all.size();
             applyClasses(map);
             ReceiverSet& set = map.layout.receivers;
@@ -200,7 +224,9 @@ public:
         nlohmann::json lightmap = {{"maps", maps}};
         if (!atlasMeshes_.empty()) lightmap["atlas"] = atlasStats_;
         lightmap["meshes_loaded_by"] = meshesFromCheck_ ? "scene check" : "bake";
-        return {{"lightmap", lightmap}, {"outputs", outputs_}};
+        nlohmann::json stats = {{"lightmap", lightmap}, {"outputs", outputs_}};
+        if (!warnings_.empty()) stats["warnings"] = warnings_;  // the bake's own are added to them
+        return stats;
     }
 
 private:
@@ -334,6 +360,7 @@ private:
     }
 
     std::vector<Lightmap> maps_;
+    std::vector<std::string> warnings_;  ///< unbakedSurfaceWarnings() of every map, for the stats
     std::vector<Lightmap> parts_;  ///< meshes waiting for the atlas (until receivers())
     LightmapSettings settings_;
     int padding_;

@@ -173,6 +173,45 @@ TEST_CASE("UVs far outside the unit square cost no more than the texels they rea
     CHECK(layout.coverage == expected.coverage);
 }
 
+TEST_CASE("the surface that gets no texel is measured: UVs outside the map, no UV area", "[lightmap]") {
+    IndexedMesh mesh;
+    // Unit-area right triangles (world x, z), each with its own UVs.
+    auto add = [&](glm::vec2 a, glm::vec2 b, glm::vec2 c, float x) {
+        const uint32_t base = uint32_t(mesh.position.size());
+        mesh.uv0.insert(mesh.uv0.end(), {a, b, c});
+        mesh.position.insert(mesh.position.end(), {{x, 0, 0}, {x + 2, 0, 0}, {x, 0, 1}});
+        mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2});
+    };
+    add({0.1f, 0.1f}, {0.5f, 0.1f}, {0.1f, 0.5f}, 0);    // inside
+    add({0.5f, 0.5f}, {1.5f, 0.5f}, {0.5f, 1.0f}, 3);    // a quarter of its UV area right of the map
+    add({0.7f, 0.2f}, {0.7f, 0.2f}, {0.7f, 0.2f}, 6);    // collapsed to a point
+    add({0.2f, 0.8f}, {0.4f, 0.8f}, {0.3f, 0.8f}, 9);    // collapsed to a line
+    const LightmapLayout layout = rasterizeLightmap(mesh, 32, 32);
+    CHECK(layout.surfaceArea == Approx(4.0));
+    CHECK(layout.outsideArea == Approx(0.25));
+    CHECK(layout.noUvArea == Approx(2.0));
+    CHECK(layout.noUvTriangles == 2);
+}
+
+TEST_CASE("own UVs that leave surface unbaked are a warning, on stderr and in the stats", "[lightmap][cli]") {
+    ScratchDir dir("lightmap-unbaked");
+    // The quad's UVs span [-0.25, 1.25]: 56 % of it lies outside the map.
+    writeText(dir / "quad.obj", "v 0 0 0\nv 1 0 0\nv 1 0 -1\nv 0 0 -1\nvt -0.25 -0.25\nvt 1.25 -0.25\nvt 1.25 1.25\n"
+                                "vt -0.25 1.25\nvn 0 1 0\nf 1/1/1 2/2/1 3/3/1 4/4/1\n");
+    writeText(dir / "scene.json", R"({
+      "geometry": [{"type": "obj", "path": "quad.obj"}],
+      "lights": [{"type": "rect", "center": [0.5, 2, -0.5], "u": [1,0,0], "v": [0,0,1], "samples": 4}],
+      "receivers": {"type": "lightmap", "meshes": [0], "uv": "mesh", "resolution": 16},
+      "output": "out/lightmap.exr"})");
+    RunResult r = runPenumbra("bake " + (dir / "scene.json") + " --quiet --stats " + (dir / "stats.json"));
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.err.find("55.6 % of the surface has UVs outside [0, 1] and gets no texels") != std::string::npos);
+    const nlohmann::json stats = nlohmann::json::parse(slurp(dir / "stats.json"));
+    REQUIRE(stats["warnings"].size() == 1);
+    CHECK(stats["warnings"][0].get<std::string>().find("outside [0, 1]") != std::string::npos);
+}
+
 TEST_CASE("padding fills the declared margin and no further", "[lightmap]") {
     const int W = 32, H = 32, rings = 3;
     std::vector<float> value(size_t(W) * H, 0.f);
