@@ -1,6 +1,7 @@
 #include "stream/ObjReader.h"
 
 #include "stream/util/Error.h"
+#include "stream/util/Memory.h"
 #include "stream/util/Progress.h"
 #include "stream/ObjTokenizer.h"
 #include "stream/PolygonTriangulation.h"
@@ -16,6 +17,7 @@
 #include <filesystem>
 #include <limits>
 #include <mutex>
+#include <new>
 #include <optional>
 #include <string_view>
 
@@ -27,6 +29,8 @@ namespace {
 /// streaming pass) and line numbers (for messages). Only next() and seek() need it open.
 class LineReader {
 public:
+    /// A line buffer up to this size is kept between passes; a larger one is freed.
+    static constexpr size_t kKeptBufferBytes = size_t(1) << 16;
     explicit LineReader(const std::string& path) : path_(path) { open(); }
     ~LineReader() {
         close();
@@ -38,15 +42,37 @@ public:
     /// @brief The next line as objLineText() gives it; false at the end of the file.
     bool next(std::string_view& line) {
         lineStart_ = offset_;
+        errno = 0;
         ssize_t length = ::getline(&buffer_, &capacity_, file_);
         if (length < 0) {
-            if (std::ferror(file_)) fail(where(), "read error: {}", std::strerror(errno));
+            // getline(3) gives -1 for a line it could not grow its buffer for, too: that is no end
+            // of the file (the rest of the mesh was dropped, exit 0, under an address-space limit).
+            if (errno == ENOMEM && !std::feof(file_)) failLineTooLong();
+            if (std::ferror(file_) || !std::feof(file_)) fail(where(), "read error: {}", std::strerror(errno));
             return false;
         }
         offset_ += static_cast<uint64_t>(length);
+        lastLength_ = static_cast<uint64_t>(length);
         ++lineNumber_;
         line = objLineText(std::string_view(buffer_, static_cast<size_t>(length)), lineNumber_);
         return true;
+    }
+
+    /// @brief The line at lineStart_ could not be held: an error naming it and its length (read
+    /// again in blocks, without holding it), so that the limit to give can be worked out.
+    [[noreturn]] void failLineTooLong() {
+        const ObjLocation at{path_, lineNumber_ + 1};
+        uint64_t length = 0;
+        char block[1 << 14];
+        if (::fseeko(file_, static_cast<off_t>(lineStart_), SEEK_SET) == 0) {
+            while (size_t n = std::fread(block, 1, sizeof(block), file_)) {
+                const void* end = std::memchr(block, '\n', n);
+                length += end ? size_t(static_cast<const char*>(end) - block) + 1 : n;
+                if (end) break;
+            }
+        }
+        fail(at.text(), "a line of {} bytes does not fit in memory: reading it holds up to {}; give the process more memory",
+             length, formatBytes(2 * length));
     }
 
     /// @brief Opens the file (again), reading from its start.
@@ -62,6 +88,10 @@ public:
     void close() {
         if (file_) std::fclose(file_);
         file_ = nullptr;
+        if (capacity_ > kKeptBufferBytes) {  // one long line must not hold its buffer through the bake
+            std::free(buffer_);
+            buffer_ = nullptr, capacity_ = 0;
+        }
     }
 
     bool isOpen() const { return file_ != nullptr; }
@@ -77,6 +107,8 @@ public:
 
     /// Byte offset of the line last returned by next().
     uint64_t lineStart() const { return lineStart_; }
+    /// Bytes of the line last returned by next(), with its line end and any comment.
+    uint64_t lastLength() const { return lastLength_; }
     /// 1-based number of the line last returned by next().
     uint64_t lineNumber() const { return lineNumber_; }
     /// "path:line" of the line last returned, the location every message starts with.
@@ -92,6 +124,7 @@ private:
     uint64_t offset_ = 0;
     uint64_t lineStart_ = 0;
     uint64_t lineNumber_ = 0;
+    uint64_t lastLength_ = 0;
 };
 
 /// The size of @p path, which must open as a regular file (a directory would fail only when read).
@@ -116,14 +149,25 @@ public:
         return scanned_ ? std::optional<uint64_t>(triangleCount_) : std::nullopt;
     }
     /// The vertex store's bound for the vertices the file can hold (a `v` line has at least 8
-    /// bytes), and the line buffer.
-    uint64_t residentBytes() const override { return VertexStore::residentBytes(fileBytes_ / 8) + (1u << 16); }
+    /// bytes), and what reading a line holds: the line (getline(3) grows its buffer by doubling)
+    /// and, for a face, its corners and their triangulation. Known once scan() has run (on
+    /// opening); until then the line buffer's usual size.
+    uint64_t residentBytes() const override { return VertexStore::residentBytes(fileBytes_ / 8) + lineBytes(); }
+    std::string residentDetail() const override {
+        if (lineBytes() < kNotableResidentBytes) return {};
+        return fmt::format("{}: reading its longest line ({} bytes) or largest face ({} corners) holds {}", path_, longestLine_,
+                           mostCorners_, formatBytes(lineBytes()));
+    }
 
 private:
     void scan();
     bool selected(std::string_view part) const;
     bool nextPolygon();
     void counts(uint64_t c[3]) const { c[0] = verticesSeen_, c[1] = c[2] = UINT32_MAX; }
+    /// A face's corner (parsed, its position, its place in the projection and the ear ring) and
+    /// triangle, twice for vectors that grew by doubling.
+    static constexpr uint64_t kFaceBytesPerCorner = 2 * (sizeof(ObjCorner) + sizeof(glm::vec3) + 16 + 4 + 12);
+    uint64_t lineBytes() const { return std::max<uint64_t>(1u << 16, 2 * longestLine_) + mostCorners_ * kFaceBytesPerCorner; }
 
     std::string path_;
     uint64_t fileBytes_;
@@ -133,6 +177,8 @@ private:
     mutable std::once_flag scanOnce_;
     std::atomic<bool> scanned_{false};
     uint64_t triangleCount_ = 0;
+    uint64_t longestLine_ = 0;  // bytes, with its line end (scan())
+    uint64_t mostCorners_ = 0;  // of any face (scan())
 
     // Where the streaming pass starts: the first `f` line and what precedes it.
     bool hasFaces_ = false;
@@ -172,6 +218,7 @@ void ObjSource::scan() {
     std::vector<std::string> seen;  // part names, for the error about a missing one
     while (lines_.next(line)) {
         progress.advance(lines_.lineStart());
+        longestLine_ = std::max(longestLine_, lines_.lastLength());
         ObjTokens tokens(line);
         std::string_view keyword = tokens.next();
         if (keyword == "v") {
@@ -187,6 +234,7 @@ void ObjSource::scan() {
             if (std::find(seen.begin(), seen.end(), part) == seen.end()) seen.push_back(part);
         } else if (keyword == "f") {
             parseObjFace(tokens, counts, corners, lines_.location());
+            mostCorners_ = std::max<uint64_t>(mostCorners_, corners.size());
             if (!hasFaces_) {
                 hasFaces_ = true;
                 firstFaceOffset_ = lines_.lineStart();

@@ -39,13 +39,23 @@ bool convex(const std::vector<glm::dvec2>& p) {
     return true;
 }
 
+/// Ear tests' corner visits one face may take (about a second): ear clipping is quadratic in the
+/// corners, cubic at worst, and an OBJ face may have millions of them.
+constexpr uint64_t kEarClipWork = uint64_t(1) << 28;
+
 /// Ear clipping over the ring @p ring of indices into @p p. An ear is a convex corner whose
 /// triangle holds no other reflex corner (only reflex corners can lie in it); a corner at the
 /// same point as one of the ear's does not count, so that polygons touching themselves clip.
 void clipEars(const std::vector<glm::dvec2>& p, std::vector<uint32_t> ring, std::vector<std::array<uint32_t, 3>>& out) {
     auto at = [&](size_t k) { return p[ring[k % ring.size()]]; };
     size_t k = 0, sinceEar = 0;
+    uint64_t work = 0;  // corners visited by ear tests, against kEarClipWork
     while (ring.size() > 3) {
+        if (work > kEarClipWork) {  // the rest as a fan from the current corner: n - 2 all the same
+            for (size_t i = 1; i + 1 < ring.size(); ++i) out.push_back({ring[k], ring[(k + i) % ring.size()], ring[(k + i + 1) % ring.size()]});
+            return;
+        }
+        work += ring.size();
         const size_t n = ring.size(), prev = (k + n - 1) % n, next = (k + 1) % n;
         const glm::dvec2 a = at(prev), b = at(k), c = at(next);
         bool ear = turn(a, b, c) > 0.0;

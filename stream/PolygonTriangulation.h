@@ -21,7 +21,9 @@ namespace penumbra {
 /// ear-clipped in the plane of its Newell normal: the fan of an L-shaped face covers ground
 /// outside the face, and a blocker there casts shadow where there is no geometry. A polygon with
 /// no ear left (self-intersecting, or degenerate) clips its first remaining convex corner, so the
-/// count is always n - 2. The same corners always give the same triangles.
+/// count is always n - 2. A face whose clipping would take more than about a second (hundreds of
+/// thousands of corners, concave) gives what is left of it as a fan. The same corners always give
+/// the same triangles.
 /// @param out replaced with the triangles.
 void triangulatePolygon(std::span<const glm::vec3> corners, std::vector<std::array<uint32_t, 3>>& out);
 

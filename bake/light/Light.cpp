@@ -229,7 +229,10 @@ void validateLight(const LightDesc& l) {
         case LightType::Rect:
             checkRange(l, "center", l.center, kMaxLightCoordinate);
             checkRange(l, "u", l.u, kMaxLightCoordinate), checkRange(l, "v", l.v, kMaxLightCoordinate);
-            if (!(glm::length(glm::cross(l.u, l.v)) > 1e-12))
+            // Relative to |u| |v|: a whole scene in micrometres has lights of 1e-12 area, and a
+            // disk or sphere of that size was always taken.
+            if (const double area = glm::length(glm::cross(glm::dvec3(l.u), glm::dvec3(l.v)));
+                !(area > 0) || !(area > 1e-9 * glm::length(glm::dvec3(l.u)) * glm::length(glm::dvec3(l.v))))
                 fail(l.where, "zero-area light: u x v is zero (u=[{},{},{}], v=[{},{},{}])", l.u.x, l.u.y, l.u.z,
                      l.v.x, l.v.y, l.v.z);
             break;
@@ -255,9 +258,9 @@ void validateLight(const LightDesc& l) {
                 checkRange(l, fmt::format("vertices[{}]", i).c_str(), l.polygon[i], kMaxLightCoordinate);
             glm::dvec3 n = polygonNormal(l.polygon);
             double len = glm::length(n);
-            if (!(len > 1e-12)) fail(l.where, "zero-area light: polygon has no area");
             double scale = 0;
             for (const auto& p : l.polygon) scale = std::max(scale, glm::length(p - l.polygon[0]));
+            if (!(len > 0) || !(len > 1e-9 * scale * scale)) fail(l.where, "zero-area light: polygon has no area");  // relative, as for rect
             checkConvexPolygon(l, n / len, scale);
         }
     }

@@ -173,3 +173,17 @@ TEST_CASE("the closed key marks or unmarks every triangle of an entry", "[scene]
     s["geometry"][0]["closed"] = "yes";
     CHECK_THROWS_WITH(parseScene(s, "dir/scene.json"), Catch::Contains("geometry[0].closed"));
 }
+
+TEST_CASE("a light's zero area is judged relative to its size: a micrometre light is a light", "[scene]") {
+    json s = minimal();
+    s["lights"][0]["u"] = {1e-6, 0, 0}, s["lights"][0]["v"] = {0, 0, 1e-6};  // area 1e-12
+    CHECK_NOTHROW(parseScene(s, "dir/scene.json"));
+    s["lights"][0] = json::parse(R"({"type": "polygon", "vertices": [[0, 1e-6, 0], [1e-6, 1e-6, 0], [0, 1e-6, 1e-6]]})");
+    CHECK_NOTHROW(parseScene(s, "dir/scene.json"));
+    s = minimal();
+    s["lights"][0]["u"] = {1e-6, 0, 0}, s["lights"][0]["v"] = {2e-6, 1e-18, 0};  // parallel to roundoff
+    requireError(s, "lights[0]: zero-area light");
+    s = minimal();
+    s["lights"][0] = json::parse(R"({"type": "polygon", "vertices": [[0, 0, 0], [1e-6, 0, 0], [2e-6, 1e-18, 0]]})");
+    requireError(s, "lights[0]: zero-area light");
+}

@@ -4,6 +4,7 @@
 #include "stream/util/Error.h"
 #include "stream/ObjReader.h"
 #include "StreamTestFiles.h"
+#include "CliRunner.h"
 
 #include <catch2/catch.hpp>
 
@@ -296,4 +297,28 @@ TEST_CASE("OBJ: sources hold no descriptor between passes", "[stream][obj]") {
     CHECK(openDescriptors() == before);
     sources[0]->rewind();
     CHECK(readAll(*sources[0]).size() == 3);
+}
+
+TEST_CASE("OBJ: the longest line and the largest face are in the source's working set", "[stream][obj]") {
+    ScratchDir dir("obj-long-line");
+    std::string text = std::string(kSquare) + "f 1 2 3\n#" + std::string(40u << 20, 'y') + "\nf 1 3 4\n";
+    writeText(dir.file("long.obj"), text);
+    TriangleSourcePtr source = openObj(dir.file("long.obj"));
+    REQUIRE(source->sizeHint() == 2);  // the check pass, as on opening
+    CHECK(source->residentBytes() >= 2 * (40ull << 20));  // getline(3)'s buffer grows by doubling
+    CHECK_THAT(source->residentDetail(), Catch::Contains("longest line (41943042 bytes)"));
+    CHECK(readAll(*source).size() == 2);
+}
+
+TEST_CASE("OBJ: a line too long for the memory left is an error naming it, not the end of the file", "[stream][obj][memory]") {
+    // getline(3) returns -1 for a line it cannot grow its buffer for; the faces after it were
+    // dropped, exit 0.
+    ScratchDir dir("obj-long-line-limit");
+    std::string text = std::string(kSquare) + "f 1 2 3\n#" + std::string(200u << 20, 'y') + "\nf 1 3 4\n";
+    writeText(dir.file("long.obj"), text);
+    text.clear(), text.shrink_to_fit();
+    const RunResult r = runPenumbra("info " + dir.file("long.obj"), "prlimit --as=" + std::to_string(150u << 20));
+    INFO(r.err);
+    CHECK(r.exitCode == 1);
+    CHECK_THAT(r.err, Catch::Contains("long.obj:6: a line of 209715202 bytes does not fit in memory"));
 }

@@ -123,3 +123,12 @@ TEST_CASE("OBJ: a concave face casts and receives on itself only, the same in bo
     for (size_t t = 0; t < blockers.size(); ++t)
         for (int k = 0; k < 3; ++k) CHECK(meshes[0].position[meshes[0].indices[3 * t + k]] == blockers[t].v[k]);
 }
+
+TEST_CASE("polygons: a concave face of a million corners ends, with n - 2 triangles", "[stream][obj]") {
+    // A comb: every other corner reflex, so the ear tests cannot stop early.
+    std::vector<glm::vec3> comb;
+    const int teeth = 500000;
+    for (int i = 0; i < teeth; ++i) comb.emplace_back(float(i), 0.0f, 0.0f), comb.emplace_back(i + 0.5f, 0.0f, 1.0f);
+    comb.emplace_back(float(teeth), 0.0f, -1.0f), comb.emplace_back(0.0f, 0.0f, -1.0f);
+    CHECK(triangulated(comb).size() == comb.size() - 2);
+}
