@@ -46,9 +46,15 @@ namespace {
 
 /// @p o as JSON, naming the key (@p path) of a value JSON cannot hold: json.dumps wrote NaN and
 /// inf as bare words, which the parser then refused at a column of a text the caller never saw.
-nlohmann::json toJsonAt(py::handle o, const std::string& path, const std::string& root) {
+/// Scene JSON nests at most this deep, as a scene file (the CLI's parser): a dict that holds
+/// itself, or one nested thousands deep, overflowed the stack.
+constexpr int kMaxSceneDepth = 64;
+
+nlohmann::json toJsonAt(py::handle o, const std::string& path, const std::string& root, int depth = 0) {
     auto fail = [&](const std::string& what) { raiseSceneValue(root, path, what); };
     if (o.is_none()) return nullptr;
+    if (depth > kMaxSceneDepth)
+        fail(fmt::format("nests deeper than {} levels (a dict or list that holds itself?)", kMaxSceneDepth));
     if (py::isinstance<py::bool_>(o)) return o.cast<bool>();
     if (py::isinstance<py::int_>(o)) {
         const long long value = PyLong_AsLongLong(o.ptr());
@@ -70,18 +76,18 @@ nlohmann::json toJsonAt(py::handle o, const std::string& path, const std::string
         for (const auto& [key, value] : py::reinterpret_borrow<py::dict>(o)) {
             if (!py::isinstance<py::str>(key)) fail(fmt::format("key {} is not a string", std::string(py::repr(key))));
             const std::string name = key.cast<std::string>();
-            object[name] = toJsonAt(value, path.empty() ? name : path + "." + name, root);
+            object[name] = toJsonAt(value, path.empty() ? name : path + "." + name, root, depth + 1);
         }
         return object;
     }
     if (py::isinstance<py::list>(o) || py::isinstance<py::tuple>(o)) {
         nlohmann::json array = nlohmann::json::array();
         size_t i = 0;
-        for (py::handle item : o) array.push_back(toJsonAt(item, fmt::format("{}[{}]", path, i++), root));
+        for (py::handle item : o) array.push_back(toJsonAt(item, fmt::format("{}[{}]", path, i++), root, depth + 1));
         return array;
     }
-    if (py::hasattr(o, "tolist")) return toJsonAt(o.attr("tolist")(), path, root);  // NumPy scalars and arrays
-    fail(fmt::format("a {} is not a JSON value", std::string(py::str(py::type::of(o).attr("__name__")))));
+    if (py::hasattr(o, "tolist")) return toJsonAt(o.attr("tolist")(), path, root, depth + 1);  // NumPy scalars and arrays
+    fail(fmt::format("a value of type '{}' is not a JSON value", std::string(py::str(py::type::of(o).attr("__name__")))));
 }
 
 }  // namespace

@@ -145,11 +145,11 @@ void bindFunctions(py::module_& m) {
               const uint64_t size = countArgument(chunk, "generate", "chunk", kMaxGenerateChunk).value_or(0);
               return std::make_shared<GenerateIterator>(std::move(scene), size_t(size), flags);
           },
-          py::arg("scene"), py::arg("chunk") = kTriangleChunk, py::arg("flags") = false,
+          py::arg("scene").none(false), py::arg("chunk") = kTriangleChunk, py::arg("flags") = false,
           "Yields the scene's triangles as (n, 3, 3) float32 chunks, exactly as a bake streams them (transforms "
           "applied, scene order); with flags=True, (triangles, flags) pairs.");
 
-    m.def("bake", &bake, py::arg("scene"), py::arg("method") = "hpc", py::arg("threads") = py::none(),
+    m.def("bake", &bake, py::arg("scene").none(false), py::arg("method") = "hpc", py::arg("threads") = py::none(),
           py::arg("memory_budget") = py::none(), py::arg("progress") = py::none(), py::arg("tmp_dir") = py::none(),
           py::arg("masks") = true, py::arg("output") = py::none(),
           R"doc(Bakes the scene with the CLI's pipeline and returns a Result.
@@ -201,7 +201,7 @@ void bindResult(py::module_& m) {
         .def("write", &PyResult::write, py::arg("path"),
              "Writes the outputs the CLI writes for this scene to path (EXR + PNG for a camera, .npy for points, "
              "lightmap glTF, ...), byte for byte; all or none.")
-        .def("__len__", &PyResult::size);
+        .def("__len__", [](const PyResult& r) { return r.size(); });  // a reference: Result.__len__(None) is a TypeError
 
 }
 

@@ -46,6 +46,36 @@ def test_a_value_json_cannot_hold_is_named_by_its_key():
     made.add_geometry("grid", cells=np.int32(4), size=np.float32(2))
 
 
+def test_a_dict_that_holds_itself_or_nests_deep_is_a_scene_error():
+    # Each overflowed the C stack converting to JSON: a segfault, not an exception.
+    scene = grid_scene()
+    scene["self"] = scene
+    with pytest.raises(penumbra.SceneError, match=r"<dict>: self\.self.*nests deeper than 64 levels"):
+        penumbra.Scene(scene)
+    loop = []
+    loop.append(loop)
+    with pytest.raises(penumbra.SceneError, match="nests deeper than 64 levels"):
+        penumbra.Scene(dict(grid_scene(), lights=loop))
+    deep = inner = {}
+    for _ in range(30_000):
+        inner["a"] = {}
+        inner = inner["a"]
+    with pytest.raises(penumbra.SceneError, match="nests deeper than 64 levels"):
+        penumbra.Scene(without_geometry(grid_scene())).add_geometry("grid", transform=deep)
+    with pytest.raises(penumbra.SceneError, match="a value of type 'set' is not a JSON value"):
+        penumbra.Scene(dict(grid_scene(), extra={1, 2}))
+
+
+def test_none_for_a_scene_is_a_type_error():
+    # A scene-building helper that forgot its return: bake(None) and generate(None) segfaulted.
+    with pytest.raises(TypeError):
+        penumbra.bake(None)
+    with pytest.raises(TypeError):
+        penumbra.generate(None)
+    with pytest.raises(TypeError):
+        penumbra.Result.__len__(None)
+
+
 def test_bad_geometry_parameter_names_the_entry():
     scene = penumbra.Scene(without_geometry(grid_scene()))
     with pytest.raises(penumbra.SceneError, match=r"geometry\[0\]"):
