@@ -105,8 +105,12 @@ private:
     bool fetch() {
         py::gil_scoped_acquire gil;
         if (!started_) {
+            if (replay_ == Replay::Buffer && spec_->consumed)
+                fail(name(), "is a one-shot iterator that an earlier bake or generate() has read; give a callable that returns "
+                             "a new iterator, or a list, to use the scene more than once");
             iterator_ = replay_ == Replay::Call ? py::iter(spec_->object()) : py::iter(spec_->object);
             started_ = true;
+            spec_->consumed = replay_ == Replay::Buffer;
         }
         pending_.clear(), next_ = 0;
         while (pending_.empty()) {

@@ -21,6 +21,9 @@ struct SourceSpec {
     bool alpha = false;             ///< every triangle is alpha-matte (kTriangleAlphaMatte)
     std::optional<uint64_t> count;  ///< triangles per pass when the caller knows (progress, disk plan)
     int64_t id = 0;
+    /// A one-shot iterator that a bake or generate() began to read: it cannot give its triangles
+    /// again (a second bake of the scene saw none, silently). GIL held.
+    bool consumed = false;
 };
 
 /// @brief Receiver points copied from NumPy when the scene was given them.

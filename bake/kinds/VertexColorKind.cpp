@@ -162,6 +162,13 @@ int appendColour(tinygltf::Model& model, const std::vector<float>& v, bool unorm
 }
 
 /// Writes the copy with the results of receivers [0, n) of each primitive range.
+/// The copy of mesh @p i of @p count at @p output: the output itself for one, else STEM-i.EXT.
+std::string copyPath(const std::string& output, size_t i, size_t count) {
+    if (count == 1) return output;
+    const std::filesystem::path out(output);
+    return (out.parent_path() / fmt::format("{}-{}{}", out.stem().string(), i, out.extension().string())).string();
+}
+
 void writeCopy(VertexFile& file, const ReceiverResults& results) {
     tinygltf::Model model;
     loadTinyGltf(file.input, model);
@@ -296,6 +303,9 @@ public:
     }
 
     void write(const OutputContext& c) override {
+        // At the output asked for now: a library caller's write(path) may name another than the
+        // scene's (the copies went to the scene's output, the preview to the path).
+        for (size_t i = 0; i < files_.size(); ++i) files_[i].output = copyPath(c.output, i, files_.size());
         for (VertexFile& file : files_) writeCopy(file, c.results);
         writePreview(files_, c, camera_);
     }
@@ -340,11 +350,7 @@ const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, con
             file.sceneMatrix = glm::dmat4(g.transform.matrix());
             file.colourUnorm16 = colourFormat == "unorm16";
             file.receiverClass = scene.receiverClasses[g.receiverClass];
-            file.output = scene.output;
-            if (meshes.size() > 1) {
-                std::filesystem::path out(scene.output);
-                file.output = (out.parent_path() / fmt::format("{}-{}{}", out.stem().string(), i, out.extension().string())).string();
-            }
+            file.output = copyPath(scene.output, i, meshes.size());
             files.push_back(std::move(file));
         }
         return use == KindUse::Validate ? nullptr : std::make_unique<VertexColorKind>(std::move(files), std::move(camera));

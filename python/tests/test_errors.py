@@ -150,6 +150,18 @@ def test_a_source_must_replay_what_it_gave_and_what_its_count_says():
         penumbra.bake(counted, threads=1)
 
 
+def test_a_one_shot_iterator_read_by_an_earlier_bake_is_an_error():
+    # The second bake (say embree after hpc) saw an exhausted generator: fewer triangles, exit 0.
+    scene = penumbra.Scene(grid_scene())
+    scene.add_source(c for c in [good(), good()])
+    first = penumbra.bake(scene, threads=1)
+    assert first.stats["stream"]["triangles"] > 2
+    with pytest.raises(penumbra.Error, match=r"geometry\[1\] \(add_source\): is a one-shot iterator that an earlier bake"):
+        penumbra.bake(scene, threads=1)
+    with pytest.raises(penumbra.Error, match="one-shot iterator"):
+        list(penumbra.generate(scene))
+
+
 def test_nan_vertex_raises_as_the_cli_does():
     bad = good()
     bad[0, 1, 2] = np.nan
