@@ -5,7 +5,10 @@
 #include "bake/light/SunLight.h"
 #include "bake/SceneAlpha.h"
 #include "bake/WorkPlan.h"
+#include "bake/kinds/ReceiverKind.h"
 #include "bucket/BucketOptions.h"
+#include "stream/GltfReader.h"
+#include "stream/util/PathText.h"
 #include "stream/util/Error.h"
 #include "stream/util/Memory.h"
 #include "stream/util/Progress.h"
@@ -55,7 +58,7 @@ void addSampleDemand(MemoryDemand& demand, const LightSamples& samples, const Sc
 }
 
 MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const TriangleSource& geometry, bool dump,
-                              const CasterMemory& methodMemory) {
+                              const CasterMemory& methodMemory, bool alpha) {
     MemoryDemand d;
     d.dumpMasks = dump;
     d.scanBytes = kind.passBytes(StreamPass::Scan);
@@ -67,7 +70,8 @@ MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, 
     d.sourceBytes = geometry.residentBytes() + 6 * kTriangleChunk * sizeof(Triangle);
     d.sourceDetail = geometry.residentDetail();
     d.sourceDuringCast = !scene.options.sortBlockers;
-    if (const GltfAlphaState* alpha = planSceneAlpha(scene)) d.alphaBytes = alpha->tableBytes, d.alphaBuildBytes = alpha->buildBytes;
+    if (const GltfAlphaState* state = alpha ? planSceneAlpha(scene) : nullptr)
+        d.alphaBytes = state->tableBytes, d.alphaBuildBytes = state->buildBytes;
     const LightSamples samples = generateLightSamples(scene.lights, scene.options.groupSize, scene.seed);
     addSampleDemand(d, samples, scene);
     if (const std::optional<uint64_t> triangles = geometry.knownSize(); methodMemory && triangles)
@@ -102,9 +106,48 @@ void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget) {
                                  budgetText(least), why));
 }
 
+namespace {
+
+/// The largest parse among the scene's glTF files (gltfParsingBytes()) and its file: opening
+/// holds it before the plan made after the opening can refuse anything.
+std::pair<uint64_t, std::string> gltfParsingPeak(const SceneDesc& scene) {
+    std::pair<uint64_t, std::string> most{0, {}};
+    for (const GeometryDesc& g : scene.geometry) {
+        if (!g.params.contains("path") || !g.params["path"].is_string()) continue;
+        std::string path;
+        try {
+            path = resolveScenePath(scene.baseDir, g.params["path"].get<std::string>());
+        } catch (const InputError&) {
+            continue;  // opening says why
+        }
+        const std::string extension = lowercaseExtension(path);
+        if (extension != ".gltf" && extension != ".glb") continue;
+        if (const uint64_t bytes = gltfParsingBytes(path); bytes > most.first) most = {bytes, path};
+    }
+    return most;
+}
+
+/// A budget that cannot hold the largest glTF's parse is refused before it is parsed: the refusal
+/// after the opening peaked at 124 MB under --memory-budget 32M (8.6 MiB of JSON), which a job
+/// capped at its budget does not survive. The plan after the opening still checks the rest.
+void checkParsingFits(const SceneDesc& scene, const ReceiverKind& kind, const BakeBudget& budget, bool keepMasks,
+                      const CasterMemory& methodMemory) {
+    if (budget.bytes == 0) return;
+    const auto [parsing, file] = gltfParsingPeak(scene);
+    if (parsing < (TriangleSource::kNotableResidentBytes)) return;
+    const VectorSource none({});
+    MemoryDemand before = demandBeforeScan(scene, kind, none, keepMasks, methodMemory, /*alpha=*/false);
+    before.sourceBytes += parsing;
+    before.sourceDetail = fmt::format("{}: its glTF JSON takes about {} to parse", file, formatBytes(parsing));
+    checkBeforeScan(before, budget);
+}
+
+}  // namespace
+
 TriangleSourcePtr openCheckedBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const BakeBudget& budget, bool keepMasks,
                                         bool quiet, MemoryDemand& demand,
                                         const CasterMemory& methodMemory) {
+    checkParsingFits(scene, kind, budget, keepMasks, methodMemory);  // before the alpha plan and the opening parse glTF
     checkSceneAlphaBudget(scene, budget.bytes, budget.label, budget.overhead, budget.namedSlack);  // before a texture is decoded (opening builds the table)
     TriangleSourcePtr geometry = [&] {
         OpeningProgress opening(quiet);  // an OBJ's check pass shows as a phase

@@ -63,8 +63,10 @@ BakeBudget fitAddressSpace(uint64_t memoryBudget, int& threads, bool quiet);
 /// @param methodMemory the method's own memory (CasterEntry::memory), counted when the geometry
 ///        knows its triangle count before it is read: a budget named without it was refused
 ///        again after the scan by ssv and embree.
+/// @param alpha false: leave out the glTF cut-out tables, whose plan parses the files' JSON.
 MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const TriangleSource& geometry, bool dump,
-                              const CasterMemory& methodMemory = {});
+                              const CasterMemory& methodMemory = {},
+                              bool alpha = true);
 
 /// @brief Sets the sample groups and sample bytes (positions and sample mask tables) of @p samples.
 void addSampleDemand(MemoryDemand& demand, const LightSamples& samples, const SceneDesc& scene);

@@ -46,4 +46,10 @@ namespace penumbra {
 ///        out of range, non-finite positions and compressed data that does not decode.
 TriangleSourcePtr openGltf(const std::string& path, std::shared_ptr<const GltfAlphaIds> alpha = nullptr);
 
+/// @brief What opening @p path will hold while it parses the JSON (about 13 bytes per byte of
+/// it), from the GLB header or the file's size, without reading the JSON: a memory check before
+/// the opening, so that a refusal does not itself peak above the budget it refuses.
+/// @return 0 when the file cannot be read or its header is not a GLB's (opening says why).
+uint64_t gltfParsingBytes(const std::string& path);
+
 }  // namespace penumbra

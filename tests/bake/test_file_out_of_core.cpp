@@ -165,6 +165,33 @@ TEST_CASE("a budget that cannot be met fails before any work, naming a budget th
     }
 }
 
+TEST_CASE("a budget too small for parsing a glTF's JSON is refused before the JSON is parsed", "[outofcore][memory]") {
+    // The refusal came after the parse (about 13 bytes per byte of JSON): 124 MB of peak for a
+    // 32M refusal, which a job whose memory is capped at its budget does not live to print.
+    ScratchDir dir("gltf-json-first");
+    const std::string triangle = "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAAAAAAIA/";  // (0,0,0) (1,0,0) (0,0,1)
+    nlohmann::json doc = {{"asset", {{"version", "2.0"}, {"extras", std::string(12u << 20, 'x')}}},
+                          {"buffers", {{{"byteLength", 36}, {"uri", "data:application/octet-stream;base64," + triangle}}}},
+                          {"bufferViews", {{{"buffer", 0}, {"byteLength", 36}}}},
+                          {"accessors", {{{"bufferView", 0}, {"componentType", 5126}, {"count", 3}, {"type", "VEC3"},
+                                          {"min", {0, 0, 0}}, {"max", {1, 0, 1}}}}},
+                          {"meshes", {{{"primitives", {{{"attributes", {{"POSITION", 0}}}}}}}}},
+                          {"nodes", {{{"mesh", 0}}}}, {"scenes", {{{"nodes", {0}}}}}, {"scene", 0}};
+    std::ofstream(dir / "padded.gltf") << doc.dump();
+    doc = {};
+    // Under an address-space limit below the parse the refusal is the plan's, not the parse's
+    // out of memory (or, before, a complaint about the file found while parsing it).
+    for (const std::string& limit : {std::string("--memory-budget 32M"), std::string()}) {
+        const Bake refused = bake(dir, scene(file(dir / "padded.gltf")), limit, limit.empty() ? "prlimit --as=" + std::to_string(150 << 20) : "");
+        INFO(refused.err);
+        CHECK(refused.exitCode == 1);
+        CHECK(lineCount(refused.err) == 1);
+        CHECK_THAT(refused.err, Catch::Contains("is too small for up to") && Catch::Contains("padded.gltf: its glTF JSON takes about 156 MiB to parse"));
+    }
+    // And the file is good: with room it bakes.
+    CHECK(bake(dir, scene(file(dir / "padded.gltf"))).exitCode == 0);
+}
+
 TEST_CASE("ssv on triangles sharing a few points: the budget its refusal names holds", "[outofcore][memory][ssv]") {
     // The kd-tree's build holds up to three trees' worth (its arrays grow by doubling while the
     // pending lists live): a budget named for one was exceeded by 20 %.
