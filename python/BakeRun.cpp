@@ -6,6 +6,7 @@
 #include "stream/util/Error.h"
 #include "stream/util/JsonParams.h"
 #include "stream/util/Memory.h"
+#include "python/PythonSources.h"
 #include "stream/util/Progress.h"
 #include "stream/util/TempRegistry.h"
 #include "stream/SourceRegistry.h"
@@ -195,14 +196,14 @@ std::shared_ptr<PyScene> loadPyScene(const std::string& path) {
 py::array PyResult::lightVisibility(py::object self) {
     const ReceiverResults& r = capture->results;
     const py::ssize_t n = py::ssize_t(size()), l = r.lights;
-    return py::array_t<float>({n, l}, l > 1 ? r.lightVisibility.data() : r.visibility.data(), self);
+    return readOnly(py::array_t<float>({n, l}, l > 1 ? r.lightVisibility.data() : r.visibility.data(), self));
 }
 
 py::array PyResult::lightIrradiance(py::object self) {
     const ReceiverResults& r = capture->results;
     const py::ssize_t n = py::ssize_t(size()), l = r.lights;
     const glm::vec3* data = l > 1 ? r.lightIrradiance.data() : r.irradiance.data();
-    return py::array_t<float>({n, l, py::ssize_t(3)}, &data->x, self);
+    return readOnly(py::array_t<float>({n, l, py::ssize_t(3)}, &data->x, self));
 }
 
 py::object PyResult::masks() {
@@ -211,7 +212,7 @@ py::object PyResult::masks() {
     auto* words = new std::vector<uint64_t>(capture->masks.toDumpLayout(capture->samples));
     py::capsule owner(words, [](void* p) { delete static_cast<std::vector<uint64_t>*>(p); });
     const py::ssize_t perReceiver = (capture->samples.sampleCount + 63) / 64;
-    masksCache = py::array_t<uint64_t>({py::ssize_t(size()), perReceiver}, words->data(), owner);
+    masksCache = readOnly(py::array_t<uint64_t>({py::ssize_t(size()), perReceiver}, words->data(), owner));
     return *masksCache;
 }
 
@@ -313,6 +314,9 @@ BakeSettings settingsOf(const std::string& method, std::optional<int> threads, c
 std::shared_ptr<PyResult> bake(std::shared_ptr<PyScene> scene, const std::string& method, std::optional<int> threads,
                                py::object memoryBudget, py::object progress, std::optional<std::string> tmpDir, bool masks,
                                std::optional<std::string> output) {
+    if (InsideSource::depth > 0)
+        throw py::value_error("penumbra.bake() was called from inside a source of a running bake, which it would wait for "
+                              "forever; bake after the first one returns");
     auto result = std::make_shared<PyResult>();
     result->scene = scene;
     result->desc = scene->desc;

@@ -18,6 +18,13 @@
 
 namespace penumbra::python {
 
+/// @brief @p a with NumPy's WRITEABLE flag cleared: the arrays of a Result are views of the
+/// bake's buffers, which write() reads (scaling one in place changed the files it wrote).
+inline pybind11::array readOnly(pybind11::array a) {
+    pybind11::detail::array_proxy(a.ptr())->flags &= ~pybind11::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+    return a;
+}
+
 /// JSON through Python's json module (dicts of plain values, both ways).
 pybind11::object toPython(const nlohmann::json& j);
 /// @brief @p o (a dict of the scene format) as JSON.

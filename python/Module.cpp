@@ -88,11 +88,11 @@ private:
 };
 
 template <class T>
-py::array_t<T> view(const std::vector<T>& data, std::vector<py::ssize_t> shape, py::handle owner) {
-    return py::array_t<T>(shape, data.data(), owner);
+py::array view(const std::vector<T>& data, std::vector<py::ssize_t> shape, py::handle owner) {
+    return readOnly(py::array_t<T>(shape, data.data(), owner));
 }
 py::array floats(const float* data, std::vector<py::ssize_t> shape, py::handle owner) {
-    return py::array_t<float>(shape, data, owner);
+    return readOnly(py::array_t<float>(shape, data, owner));
 }
 
 void bindScene(py::module_& m) {
@@ -142,6 +142,9 @@ void bindFunctions(py::module_& m) {
         .def("__iter__", [](py::object self) { return self; })
         .def("__next__", &GenerateIterator::next);
     m.def("generate", [](std::shared_ptr<PyScene> scene, py::object chunk, bool flags) {
+              if (InsideSource::depth > 0)
+                  throw py::value_error("penumbra.generate() was called from inside a source of a running bake; call it after "
+                                        "the bake returns");
               const uint64_t size = countArgument(chunk, "generate", "chunk", kMaxGenerateChunk).value_or(0);
               return std::make_shared<GenerateIterator>(std::move(scene), size_t(size), flags);
           },

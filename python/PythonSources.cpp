@@ -5,6 +5,7 @@
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
 #include "stream/util/Npy.h"
+#include "stream/util/Progress.h"
 #include "stream/SourceRegistry.h"
 #include "stream/TriangleSource.h"
 
@@ -104,6 +105,7 @@ private:
     /// The next chunk from Python into pending_; false at the end of the pass.
     bool fetch() {
         py::gil_scoped_acquire gil;
+        const InsideSource inside;  // a bake() from the source would wait for this one forever
         if (!started_) {
             if (replay_ == Replay::Buffer && spec_->consumed)
                 fail(name(), "is a one-shot iterator that an earlier bake or generate() has read; give a callable that returns "
@@ -114,6 +116,9 @@ private:
         }
         pending_.clear(), next_ = 0;
         while (pending_.empty()) {
+            // Ctrl-C is seen by the calling thread, which cancels: a source of a few triangles a
+            // second was called for thousands more before the chunk was full.
+            if (cancelFlag.load(std::memory_order_relaxed)) throw Cancelled();
             PyObject* item = PyIter_Next(iterator_.ptr());
             if (!item) {
                 if (PyErr_Occurred()) throw py::error_already_set();
@@ -152,6 +157,7 @@ private:
         if (!shape339 && !shape9) {
             std::string shape;
             for (py::ssize_t d = 0; d < a.ndim(); ++d) shape += (d ? ", " : "") + std::to_string(a.shape(d));
+            if (a.ndim() == 1) shape += ",";  // Python's spelling of a 1-tuple
             throw py::value_error(fmt::format("{}: expected shape (n, 3, 3) or (n, 9), got ({})", where, shape));
         }
         // A strided or broadcast array is copied to C order first; that copy can fail (a broadcast

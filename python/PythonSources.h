@@ -26,6 +26,16 @@ struct SourceSpec {
     bool consumed = false;
 };
 
+/// @brief Marks the thread as inside a Python source's call while alive: a bake() or generate()
+/// that the source starts there is refused (it would wait for the bake that calls the source).
+struct InsideSource {
+    static inline thread_local int depth = 0;
+    InsideSource() { ++depth; }
+    ~InsideSource() { --depth; }
+    InsideSource(const InsideSource&) = delete;
+    InsideSource& operator=(const InsideSource&) = delete;
+};
+
 /// @brief Receiver points copied from NumPy when the scene was given them.
 struct PointsSpec {
     ReceiverSet receivers;

@@ -142,6 +142,13 @@ def test_camera_views_and_per_light_arrays():
     assert result.light_irradiance.shape == (len(result), 2, 3)
     np.testing.assert_allclose(result.light_irradiance.sum(axis=1), result.irradiance, rtol=1e-5, atol=1e-6)
     assert result.masks.shape == (len(result), 2)  # 96 samples: two words
+    # Views of what write() reads: scaling one in place changed the files written.
+    for name in ("visibility", "irradiance", "light_visibility", "light_irradiance", "masks", "positions", "normals", "pixels"):
+        array = getattr(result, name)
+        assert not array.flags.writeable, name
+        with pytest.raises(ValueError, match="read-only"):
+            array[...] = 0
+    assert result.visibility.copy().flags.writeable
 
 
 def test_image_holds_the_refined_pixels_and_the_nearest_layer():

@@ -214,6 +214,48 @@ def test_ctrl_c_cancels_and_leaves_no_temp_files(tmp_path):
     assert len(penumbra.bake(penumbra.Scene(grid_scene()), tmp_dir=str(tmp), threads=1)) > 0
 
 
+def test_ctrl_c_stops_a_slow_source_between_its_items():
+    # Ctrl-C was seen only once the source had filled a whole chunk: thousands more calls of a
+    # source giving a triangle a few times a second.
+    interrupted_at = []
+    calls = []
+
+    def source():
+        yield np.array([[[-5, 0, -5], [5, 0, -5], [0, 0, 5]]], np.float32)
+        for _ in range(100_000):
+            calls.append(time.monotonic())
+            time.sleep(0.005)
+            yield np.array([[[0, 1, 0], [0.1, 1, 0], [0, 1, 0.1]]], np.float32)
+
+    scene = penumbra.Scene(without_geometry(grid_scene()))
+    scene.add_source(source)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        def interrupt():
+            interrupted_at.append(time.monotonic())
+            _thread.interrupt_main()
+        timer = threading.Timer(0.5, interrupt)
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            penumbra.bake(scene, threads=1)
+        timer.join()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert sum(t > interrupted_at[0] for t in calls) <= 50  # the main thread polls every 0.1 s
+
+
+def test_a_bake_inside_a_source_is_refused_not_waited_for():
+    # It waited for the bake that called the source: a hang only SIGKILL ended.
+    def source():
+        yield good()
+        penumbra.bake(penumbra.Scene(grid_scene()), threads=1)
+
+    scene = penumbra.Scene(without_geometry(grid_scene()))
+    scene.add_source(source)
+    with pytest.raises(ValueError, match=r"penumbra.bake\(\) was called from inside a source of a running bake"):
+        penumbra.bake(scene, threads=1)
+
+
 def test_a_raising_progress_callback_cancels(tmp_path):
     calls = []
 
