@@ -59,6 +59,7 @@ nlohmann::json bucketStats(const BakeStatsInputs& in) {
             {"bytes_read", replay ? replay->bytesRead() : 0},
             {"bytes_per_triangle", b.bytesPerTriangle()},
             {"write_mb_per_s", b.megabytesPerSecond()},
+            {"write_time_s", b.writeSeconds},
             {"read_mb_per_s", replay && replay->readSeconds() > 0 ? double(replay->bytesRead()) / 1e6 / replay->readSeconds() : 0.0},
             {"pass_time_s", b.seconds}};
 }
@@ -89,7 +90,7 @@ nlohmann::json bakeStats(const BakeStatsInputs& in) {
           {"minimum_budget_bytes", in.plan.minimumBudget},
           {"source_bytes", in.demand.sourceBytes},
           {"method_bytes", in.demand.methodBytes}}},
-        {"stream", {{"scan_time_s", in.streamSeconds}, {"triangles", in.triangles}}},
+        {"stream", {{"open_time_s", in.openSeconds}, {"scan_time_s", in.streamSeconds}, {"triangles", in.triangles}}},
         {"buckets", bucketStats(in)},
     };
     if (in.refineSeconds > 0) stats["antialias"]["refine_scan_time_s"] = in.refineSeconds;

@@ -37,6 +37,8 @@ struct BakeStatsInputs {
     const BucketReplaySource* replay = nullptr;  ///< the bucket replay, for its read counters
     const OpenedSolids* openedSolids = nullptr;
     double streamSeconds = 0, castSeconds = 0, refineSeconds = 0, totalSeconds = 0;
+    /// Opening the sources before the scan: an OBJ's check pass, a glTF's JSON (minutes for a large OBJ).
+    double openSeconds = 0;
 };
 
 /// @brief The stats document of a bake.

@@ -89,7 +89,7 @@ struct Bake {
     std::unique_ptr<TranslucentBlockers> translucent;
     std::once_flag translucentOnce;
     size_t firstPass = 0;  ///< receivers of the first pass; later ones are a refinement's
-    double streamSeconds = 0, castSeconds = 0, refineSeconds = 0;
+    double openSeconds = 0, streamSeconds = 0, castSeconds = 0, refineSeconds = 0;
 
     Bake(const SceneDesc& s, const BakeSettings& b)
         : scene(s), settings(b), method(casterEntry(b.method)),
@@ -126,8 +126,10 @@ void scanScene(Bake& b) {
         fail(b.settings.shard.merge ? "merge" : b.settings.shard.count ? "--shard" : "--checkpoint",
              "--method {} gives visible fractions, not per-sample masks to merge", b.method.name);
     if (b.settings.shard.casting() && b.dump()) fail("--dump", "a shard writes no outputs; give --dump to penumbra merge");
-    TriangleSourcePtr geometry =
-        openCheckedBeforeScan(scene, *b.kind, b.budget, b.keepMasks(), b.settings.quiet, b.demand, b.method.memory);
+    TriangleSourcePtr geometry = [&] {
+        ScopedTimer timer(b.openSeconds);
+        return openCheckedBeforeScan(scene, *b.kind, b.budget, b.keepMasks(), b.settings.quiet, b.demand, b.method.memory);
+    }();
     // Without a budget the machine is the bound: refuse before any work what it cannot hold.
     checkMemoryFits(scene.file, "the scan pass", scanPhaseBytes(b.demand));
     checkAddressSpaceLeft(scene.file, "the scan pass", scanPhaseBytes(b.demand),
@@ -395,7 +397,7 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total) {
     BakeStatsInputs in{scene, settings.method, b.threads, b.p.receivers, b.p.samples, b.p.options, b.results,
                        b.caster->stats(), b.buckets, b.plan, b.demand};
     in.triangles = b.p.triangleCount, in.replay = b.p.replay, in.openedSolids = &b.p.openedSolids;
-    in.streamSeconds = b.streamSeconds, in.castSeconds = b.castSeconds, in.refineSeconds = b.refineSeconds;
+    in.openSeconds = b.openSeconds, in.streamSeconds = b.streamSeconds, in.castSeconds = b.castSeconds, in.refineSeconds = b.refineSeconds;
     in.totalSeconds = total.seconds();
     nlohmann::json stats = bakeStats(in);
     if (nlohmann::json extra = b.kind->stats(); extra.is_object())

@@ -37,9 +37,10 @@ struct BucketStats {
     double seconds = 0;         ///< the whole pass: reading the source, sorting into buckets, writing
     double writeSeconds = 0;    ///< the part inside BucketWriter (classify, copy, write(2), flush)
 
-    /// Bytes written per second of the whole pass, in MB/s (10^6 bytes).
-    double megabytesPerSecond() const { return seconds > 0 ? double(bytesWritten) / 1e6 / seconds : 0.0; }
-    /// Triangles per second of the whole pass.
+    /// Bytes written per second of writing (writeSeconds), in MB/s (10^6 bytes). Of the whole
+    /// pass it read 0-1 MB/s whenever the cull before spill dropped most triangles: the pass is
+    /// mostly reading and culling the source then.
+    double megabytesPerSecond() const { return writeSeconds > 0 ? double(bytesWritten) / 1e6 / writeSeconds : 0.0; }
     /// Bucket bytes per triangle (40 for raw records).
     double bytesPerTriangle() const { return triangles ? double(bytesWritten) / double(triangles) : 0.0; }
 };

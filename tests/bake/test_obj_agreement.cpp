@@ -161,6 +161,16 @@ TEST_CASE("cull before spill: the culled fraction is never written, and the mask
         CHECK(on["buckets"]["bytes_written"].get<uint64_t>() == 40 * (triangles - culled));
         CHECK(on["counters"]["triangles_culled_at_root"] == off["counters"]["triangles_culled_at_root"]);
         CHECK(readNpy(dir / "on/masks.npy").data == readNpy(dir / "off/masks.npy").data);
+        // The write rate is of the writing: of the whole pass (mostly reading and culling when
+        // the cull is on) it read 0-1 MB/s.
+        for (const nlohmann::json* stats : {&on, &off}) {
+            const nlohmann::json& b = (*stats)["buckets"];
+            CHECK(b["write_time_s"].get<double>() <= b["pass_time_s"].get<double>());
+            if (b["write_time_s"].get<double>() > 0)
+                CHECK(b["write_mb_per_s"].get<double>() ==
+                      Approx(double(b["bytes_written"].get<uint64_t>()) / 1e6 / b["write_time_s"].get<double>()));
+            CHECK((*stats)["stream"]["open_time_s"].get<double>() >= 0.0);
+        }
     }
 }
 
