@@ -484,14 +484,52 @@ uint64_t GltfDocument::residentBytes() const {
 
 namespace {
 
-/// Whether this is the first warning about the document at @p path in this process: a bake loads
-/// a document more than once (alpha planning, the blocker stream, receiver meshes), and said so
-/// as many times.
-bool firstWarningAbout(const std::string& path) {
+/// Whether this is the first warning of kind @p what about the document at @p path in this
+/// process: a bake loads a document more than once (alpha planning, the blocker stream, receiver
+/// meshes), and said so as many times.
+bool firstWarningAbout(const std::string& path, const char* what) {
     static std::mutex mutex;
-    static std::set<std::string> warned;
+    static std::set<std::pair<std::string, std::string>> warned;
     std::lock_guard lock(mutex);
-    return warned.insert(path).second;
+    return warned.emplace(path, what).second;
+}
+
+bool anyNonZero(const Json& weights) {
+    if (!weights.is_array()) return false;
+    return std::any_of(weights.begin(), weights.end(), [](const Json& w) { return w.is_number() && w.get<double>() != 0.0; });
+}
+
+/// Morph targets at non-zero weights and skins pose a mesh in a viewer; a bake takes the base
+/// positions in the node's transform, so it says so (a blocker posed elsewhere cast its shadow
+/// from its rest place, silently).
+void warnUnposed(const std::string& path, const Json& root) {
+    const Json& meshes = gltfArrayOf(path, root, "meshes");
+    const Json& nodes = gltfArrayOf(path, root, "nodes");
+    std::vector<bool> weighted(meshes.size(), false);
+    for (size_t m = 0; m < meshes.size(); ++m) weighted[m] = meshes[m].is_object() && anyNonZero(meshes[m].value("weights", Json()));
+    size_t skinned = 0;
+    for (const Json& n : nodes) {
+        if (!n.is_object()) continue;
+        skinned += n.contains("skin");
+        const Json mesh = n.value("mesh", Json());
+        if (mesh.is_number_unsigned() && mesh.get<uint64_t>() < meshes.size() && anyNonZero(n.value("weights", Json())))
+            weighted[mesh.get<uint64_t>()] = true;
+    }
+    size_t morphed = 0;
+    for (size_t m = 0; m < meshes.size(); ++m) {
+        if (!weighted[m] || !meshes[m].contains("primitives") || !meshes[m]["primitives"].is_array()) continue;
+        for (const Json& p : meshes[m]["primitives"])
+            if (p.is_object() && p.contains("targets") && p["targets"].is_array() && !p["targets"].empty()) {
+                ++morphed;
+                break;
+            }
+    }
+    if (morphed && firstWarningAbout(path, "morph"))
+        printWarning("{}: {} mesh(es) have morph targets at non-zero weights; they are baked at their base positions "
+                     "(morph targets are not applied)", path, morphed);
+    if (skinned && firstWarningAbout(path, "skin"))
+        printWarning("{}: {} node(s) are skinned; their meshes are baked in the node's transform, unposed (skins are not "
+                     "applied)", path, skinned);
 }
 
 }  // namespace
@@ -533,9 +571,10 @@ GltfDocument loadGltfDocument(const std::string& path) {
         doc.nodes.push_back(parseNode(doc, nodes[i], i, nodes.size()));
         if (doc.nodes.back().matrixOverTrs && !matrixOverTrs++) firstOverTrs = i;
     }
-    if (matrixOverTrs && firstWarningAbout(path))
+    if (matrixOverTrs && firstWarningAbout(path, "matrix"))
         printWarning("{}: {} node(s) (node {} first) have both a matrix and a translation, rotation or scale, which glTF 2.0 "
                      "does not allow; the matrix is used, as viewers do", path, matrixOverTrs, firstOverTrs);
+    warnUnposed(path, root);
     findRoots(root, doc);
     return doc;
 }
