@@ -15,6 +15,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <mutex>
 #include <new>
@@ -127,6 +128,23 @@ private:
     uint64_t lastLength_ = 0;
 };
 
+/// One warning when the OBJ's material libraries (beside it) cut faces out with `map_d`: materials
+/// are not read, so cut-out foliage cards cast as whole quads, which a user sees only as too
+/// much shadow.
+void warnCutOutsIgnored(const std::string& obj, const std::vector<std::string>& libraries) {
+    const std::filesystem::path dir = std::filesystem::path(obj).parent_path();
+    for (const std::string& library : libraries) {
+        std::ifstream in(dir / library);
+        for (std::string line; in && std::getline(in, line);) {
+            const size_t start = line.find_first_not_of(" \t");
+            if (start == std::string::npos || line.compare(start, 6, "map_d ") != 0) continue;
+            printWarning("{}: its materials ({}) cut faces out with map_d, which is not read: those faces cast as whole "
+                         "polygons (convert the mesh to glTF with alphaMode \"MASK\" for cut-outs)", obj, library);
+            return;
+        }
+    }
+}
+
 /// The size of @p path, which must open as a regular file (a directory would fail only when read).
 uint64_t regularFileSize(const std::string& path) { return RegularFile(path).size(); }
 
@@ -216,6 +234,7 @@ void ObjSource::scan() {
     uint64_t counts[3] = {0, 0, 0};  // v, vt, vn defined so far
     std::string part;
     std::vector<std::string> seen;  // part names, for the error about a missing one
+    std::vector<std::string> materialLibraries;  // mtllib names, for warnCutOutsIgnored()
     while (lines_.next(line)) {
         progress.advance(lines_.lineStart());
         longestLine_ = std::max(longestLine_, lines_.lastLength());
@@ -232,6 +251,8 @@ void ObjSource::scan() {
         } else if (keyword == "o" || keyword == "g") {
             part = std::string(tokens.rest());
             if (std::find(seen.begin(), seen.end(), part) == seen.end()) seen.push_back(part);
+        } else if (keyword == "mtllib") {
+            materialLibraries.emplace_back(tokens.rest());
         } else if (keyword == "f") {
             parseObjFace(tokens, counts, corners, lines_.location());
             mostCorners_ = std::max<uint64_t>(mostCorners_, corners.size());
@@ -246,6 +267,7 @@ void ObjSource::scan() {
         }
     }
     progress.finish();
+    warnCutOutsIgnored(path_, materialLibraries);
     for (const std::string& wanted : parts_)
         if (std::find(seen.begin(), seen.end(), wanted) == seen.end())
             fail(path_, "has no o/g group named \"{}\" (it has {} group{})", wanted, seen.size(), seen.size() == 1 ? "" : "s");

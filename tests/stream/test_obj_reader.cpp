@@ -322,3 +322,17 @@ TEST_CASE("OBJ: a line too long for the memory left is an error naming it, not t
     CHECK(r.exitCode == 1);
     CHECK_THAT(r.err, Catch::Contains("long.obj:6: a line of 209715202 bytes does not fit in memory"));
 }
+
+TEST_CASE("OBJ: materials that cut faces out with map_d are warned of, since they are not read", "[stream][obj][cli]") {
+    ScratchDir dir("obj-map-d");
+    writeText(dir.file("card.obj"), std::string("mtllib card.mtl\nusemtl leaf\n") + kSquare + "f 1 2 3 4\n");
+    writeText(dir.file("card.mtl"), "newmtl leaf\nKd 0.2 0.6 0.2\n  map_d leaf-alpha.png\n");
+    RunResult r = runPenumbra("info " + dir.file("card.obj"));
+    INFO(r.err);
+    CHECK(r.exitCode == 0);
+    CHECK(occurrences(r.err, "card.mtl) cut faces out with map_d, which is not read") == 1);
+    writeText(dir.file("card.mtl"), "newmtl leaf\nKd 0.2 0.6 0.2\nmap_Kd leaf.png\n");  // colour only: nothing to say
+    CHECK(runPenumbra("info " + dir.file("card.obj")).err.find("map_d") == std::string::npos);
+    std::filesystem::remove(dir.file("card.mtl"));  // a missing library is not an error (the mesh is whole)
+    CHECK(runPenumbra("info " + dir.file("card.obj")).exitCode == 0);
+}
