@@ -110,7 +110,11 @@ private:
             if (replay_ == Replay::Buffer && spec_->consumed)
                 fail(name(), "is a one-shot iterator that an earlier bake or generate() has read; give a callable that returns "
                              "a new iterator, or a list, to use the scene more than once");
-            iterator_ = replay_ == Replay::Call ? py::iter(spec_->object()) : py::iter(spec_->object);
+            py::object iterable = replay_ == Replay::Call ? spec_->object() : spec_->object;
+            if (!py::hasattr(iterable, "__iter__"))  // py::iter's TypeError named no scene entry
+                throw py::type_error(fmt::format("{}: the source gave an object of type '{}', not an iterable of chunks", name(),
+                                                 std::string(py::str(py::type::of(iterable).attr("__name__")))));
+            iterator_ = py::iter(iterable);
             started_ = true;
             spec_->consumed = replay_ == Replay::Buffer;
         }
@@ -239,6 +243,12 @@ private:
 
 /// (N, 3) rows of a float array as vec3s. @throw ValueError naming @p what.
 std::vector<glm::vec3> rowsOf(py::handle h, const char* what) {
+    // Real numbers only: forcecast took complex values' real part and booleans as 0 and 1.
+    if (const auto given = py::array::ensure(h)) {
+        const char kind = given.dtype().kind();
+        if (kind != 'f' && kind != 'i' && kind != 'u')
+            throw py::type_error(fmt::format("points: {} must hold real numbers, got dtype {}", what, std::string(py::str(given.dtype()))));
+    }
     auto a = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(h);
     if (!a || a.ndim() != 2 || a.shape(1) != 3)
         throw py::value_error(fmt::format("points: {} must be a float array of shape (N, 3)", what));

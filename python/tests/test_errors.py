@@ -66,6 +66,21 @@ def test_a_dict_that_holds_itself_or_nests_deep_is_a_scene_error():
         penumbra.Scene(dict(grid_scene(), extra={1, 2}))
 
 
+def test_sources_and_points_of_the_wrong_kind_name_what_is_wrong():
+    scene = penumbra.Scene(without_geometry(grid_scene()))
+    scene.add_source(lambda: 5)
+    with pytest.raises(TypeError, match=r"geometry\[0\] \(add_source\): the source gave an object of type 'int'"):
+        penumbra.bake(scene, threads=1)
+    scene = penumbra.Scene(without_geometry(grid_scene()))
+    scene.add_source([np.zeros(450, np.float32)])
+    with pytest.raises(ValueError, match=r"got \(450,\)"):
+        penumbra.bake(scene, threads=1)
+    # Complex values lost their imaginary part and booleans became 0 and 1.
+    for dtype in (np.complex64, bool):
+        with pytest.raises(TypeError, match="points: positions must hold real numbers"):
+            penumbra.Scene(grid_scene(), points=(np.zeros((2, 3), dtype), np.ones((2, 3))))
+
+
 def test_none_for_a_scene_is_a_type_error():
     # A scene-building helper that forgot its return: bake(None) and generate(None) segfaulted.
     with pytest.raises(TypeError):
