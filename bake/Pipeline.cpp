@@ -288,8 +288,10 @@ bool refineReceivers(Bake& b) {
 
 void writeOutputs(Bake& b) {
     const Prepared& p = b.p;
-    ProgressReporter progress("write", 0, b.settings.quiet);  // a phase of its own: large EXRs take seconds
-    if (!b.settings.capture || b.settings.capture->writeOutputs) b.kind->write(OutputContext{b.scene, p.receivers, p.samples, b.results, b.scene.output, b.firstPass});
+    // A phase of its own: large EXRs take seconds (a camera reports its rows).
+    ProgressReporter progress("write", b.kind->outputWork(), b.settings.quiet);
+    if (!b.settings.capture || b.settings.capture->writeOutputs)
+        b.kind->write(OutputContext{b.scene, p.receivers, p.samples, b.results, b.scene.output, b.firstPass, &progress});
     testPoint("write");  // the image is finished but not in place: a kill must leave no trace of it
     if (b.dump()) writeBakeDump(b.settings.dumpDir, p.receivers, p.sampleSets, p.samples, b.masks, receiverEpsilonOf(p.options));
     if (!b.settings.visibilityPath.empty()) {

@@ -127,8 +127,10 @@ public:
     }
     void write(const OutputContext& c) override {
         CameraRefinement refinement{c.firstPass, aa_.samples > 0 ? aa_.samples : 1};
-        writeCameraOutputs(c.scene, camera_, c.receivers, c.samples, c.results, c.output, bend_ ? &*bend_ : nullptr, refinement);
+        writeCameraOutputs(c.scene, camera_, c.receivers, c.samples, c.results, c.output, bend_ ? &*bend_ : nullptr, refinement,
+                           c.progress);
     }
+    uint64_t outputWork() const override { return uint64_t(camera_.height); }
 
 private:
     // The z-buffer is allocated when the scan starts, not when the scene is validated.

@@ -246,7 +246,7 @@ uint64_t cameraOutputBytes(int width, int layers, int lights, uint64_t receivers
 
 void writeCameraOutputs(const SceneDesc& scene, const CameraDesc& camera, const ReceiverSet& receivers,
                         const LightSamples& samples, const ReceiverResults& results, const std::string& output,
-                        const VertexBend* smooth, const CameraRefinement& refinement) {
+                        const VertexBend* smooth, const CameraRefinement& refinement, ProgressReporter* progress) {
     const int W = receivers.width, H = receivers.height;
     const CameraLayout layout = layoutOf(receivers, results, smooth, refinement, scene.exr.colour);
     std::vector<ExrAttribute> attributes = bakeAttributes(scene, samples, scene.exr.colour);
@@ -261,6 +261,7 @@ void writeCameraOutputs(const SceneDesc& scene, const CameraDesc& camera, const 
         strips.fill(y, rows);
         // Two files, two compressors: the PNG's deflate runs beside the EXR's.
         tbb::parallel_invoke([&] { exr.write(rows, strips.channels(rows)); }, [&] { png.write(rows, strips.preview(rows)); });
+        if (progress) progress->update(uint64_t(rows));
     }
     exr.commit();
     png.commit();

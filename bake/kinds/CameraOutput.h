@@ -6,6 +6,7 @@
 #include "bake/output/ImageWriters.h"
 #include "bake/light/Light.h"
 #include "bake/Scene.h"
+#include "stream/util/Progress.h"
 #include "bake/shading/ReceiverShading.h"
 #include "bake/shading/SmoothShading.h"
 #include "receivers/CameraReceivers.h"
@@ -46,9 +47,11 @@ std::vector<ExrChannelSpec> cameraChannels(int layers, int lights, ExrColour col
 /// `worldToCamera` and `worldToNDC` (ExrMetadata.h).
 /// @param smooth when given, the preview's irradiance uses smooth coherent shading (SmoothShading.h);
 /// the EXR always holds the plain Heckbert-Herf irradiance.
+/// @param progress when given, told each strip's rows as they are written (the image's height in all)
 void writeCameraOutputs(const SceneDesc& scene, const CameraDesc& camera, const ReceiverSet& receivers,
                         const LightSamples& samples, const ReceiverResults& results, const std::string& output,
-                        const VertexBend* smooth = nullptr, const CameraRefinement& refinement = {});
+                        const VertexBend* smooth = nullptr, const CameraRefinement& refinement = {},
+                        ProgressReporter* progress = nullptr);
 
 /// @brief Bytes writeCameraOutputs() holds for a @p width wide image with @p layers depth layers and
 /// @p lights lights: per receiver (its pixel order) and per strip of rows, never per pixel of the

@@ -13,6 +13,7 @@
 #include "bake/shading/ReceiverShading.h"
 #include "receivers/ReceiverSet.h"
 #include "stream/util/JsonParams.h"
+#include "stream/util/Progress.h"
 #include "stream/Triangle.h"
 
 #include <nlohmann/json.hpp>
@@ -39,6 +40,8 @@ struct OutputContext {
     std::string output;  ///< the output path (scene "output" or -o)
     /// Receivers [0, firstPass) are the first pass's; later ones are refinement() receivers.
     size_t firstPass = receivers.size();
+    /// The write phase's progress, in ReceiverKind::outputWork() units; null: none shown.
+    ProgressReporter* progress = nullptr;
 };
 
 /// @brief The walks over the blocker stream a kind can ride along with, in bake order. The
@@ -123,6 +126,9 @@ public:
     virtual nlohmann::json stats() const { return nullptr; }
     /// Writes the outputs. Every file goes through AtomicFile (no partial outputs).
     virtual void write(const OutputContext& context) = 0;
+    /// Units of work write() reports to OutputContext::progress (a camera: its rows); 0 when it
+    /// reports none, and the phase shows its elapsed time only.
+    virtual uint64_t outputWork() const { return 0; }
 
 private:
     bool quiet_ = true;
