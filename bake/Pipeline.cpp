@@ -437,7 +437,9 @@ void writeCapturedOutputs(const SceneDesc& scene, const BakeCapture& c, const st
     requireOutputFolder("write", output);  // as -o: a missing folder is more often a typo
     InputScope inputs;
     OutputSet outputs;
-    c.kind->write(OutputContext{scene, c.receivers, c.samples, c.results, output, c.firstPass});
+    // Silent, but where a cancel (the Python module's Ctrl-C) stops the write, leaving no file.
+    ProgressReporter progress("write", c.kind->outputWork(), /*quiet=*/true);
+    c.kind->write(OutputContext{scene, c.receivers, c.samples, c.results, output, c.firstPass, &progress});
     outputs.commit();
 }
 

@@ -264,10 +264,62 @@ void PyResult::write(const std::string& path) const {
     // Named temporaries (PENUMBRA_NO_TMPFILE, or a file system without O_TMPFILE) are removed by
     // a SIGTERM that would end the interpreter anyway, as the CLI removes them.
     const ScopedSignalCleanup cleanup;
-    translateErrors([&] {
-        py::gil_scoped_release release;
-        writeCapturedOutputs(desc, *capture, path);
+    // On a thread of its own, as a bake: Ctrl-C stops a camera's write between strips, and no
+    // file is left (a 10 s EXR write ran to its end, then raised).
+    if (InsideSource::depth > 0)
+        throw py::value_error("Result.write() was called from inside a source of a running bake, which it would wait for "
+                              "forever; write after the bake returns");
+    runInterruptibly([&] { writeCapturedOutputs(desc, *capture, path); }, py::none());
+}
+
+namespace {
+
+/// The callback's view of the phase running now.
+void reportProgress(const py::object& progress);
+
+}  // namespace
+
+void runInterruptibly(const std::function<void()>& work, const py::object& progress) {
+    std::mutex mutex;
+    std::condition_variable finishedChanged;
+    bool finished = false;
+    std::exception_ptr error;
+    std::thread worker([&] {
+        try {
+            std::lock_guard one(bakeMutex);
+            clearCancel();
+            work();
+        } catch (...) {
+            error = std::current_exception();
+        }
+        std::lock_guard lock(mutex);
+        finished = true;
+        finishedChanged.notify_all();
     });
+    // This thread keeps the GIL only to check for signals and to call the callback; a Python
+    // source on the bake's reader thread takes it in between.
+    std::optional<py::error_already_set> interrupted;
+    for (;;) {
+        {
+            py::gil_scoped_release release;
+            std::unique_lock lock(mutex);
+            if (finishedChanged.wait_for(lock, kPollInterval, [&] { return finished; })) break;
+        }
+        if (interrupted) continue;
+        try {
+            if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+            if (!progress.is_none()) reportProgress(progress);
+        } catch (py::error_already_set& e) {  // Ctrl-C, or the callback raised: the work stops
+            interrupted.emplace(std::move(e));
+            requestCancel();
+        }
+    }
+    {
+        py::gil_scoped_release release;
+        worker.join();
+    }
+    if (interrupted) throw std::move(*interrupted);
+    if (error) translateErrors([&] { std::rethrow_exception(error); });
 }
 
 namespace {
@@ -327,46 +379,7 @@ std::shared_ptr<PyResult> bake(std::shared_ptr<PyScene> scene, const std::string
     settings.capture = result->capture.get();
 
     const ScopedSignalCleanup cleanup;  // scratch and bucket files named for a moment (see write())
-    std::mutex mutex;
-    std::condition_variable finishedChanged;
-    bool finished = false;
-    std::exception_ptr error;
-    std::thread worker([&] {
-        try {
-            std::lock_guard one(bakeMutex);
-            clearCancel();
-            result->stats = runBake(result->desc, settings);
-        } catch (...) {
-            error = std::current_exception();
-        }
-        std::lock_guard lock(mutex);
-        finished = true;
-        finishedChanged.notify_all();
-    });
-    // This thread keeps the GIL only to check for signals and to call the callback; a Python
-    // source on the bake's reader thread takes it in between.
-    std::optional<py::error_already_set> interrupted;
-    for (;;) {
-        {
-            py::gil_scoped_release release;
-            std::unique_lock lock(mutex);
-            if (finishedChanged.wait_for(lock, kPollInterval, [&] { return finished; })) break;
-        }
-        if (interrupted) continue;
-        try {
-            if (PyErr_CheckSignals() != 0) throw py::error_already_set();
-            if (!progress.is_none()) reportProgress(progress);
-        } catch (py::error_already_set& e) {  // Ctrl-C, or the callback raised: the bake stops
-            interrupted.emplace(std::move(e));
-            requestCancel();
-        }
-    }
-    {
-        py::gil_scoped_release release;
-        worker.join();
-    }
-    if (interrupted) throw std::move(*interrupted);
-    if (error) translateErrors([&] { std::rethrow_exception(error); });
+    runInterruptibly([&] { result->stats = runBake(result->desc, settings); }, progress);
     if (!progress.is_none()) progress("done", py::float_(1.0), py::float_(0.0));
     return result;
 }

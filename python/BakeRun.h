@@ -72,6 +72,11 @@ struct PyResult {
     void write(const std::string& path) const;
 };
 
+/// @brief Runs @p work on a thread of its own while this (the caller's) thread checks for signals
+/// and calls @p progress (None: no callback) about ten times a second; Ctrl-C or a raising
+/// callback cancels the work (requestCancel()) and is raised once it has stopped. GIL held.
+void runInterruptibly(const std::function<void()>& work, const pybind11::object& progress);
+
 /// @brief penumbra.bake(): runBake on a thread of its own while this (the caller's) thread
 /// polls progress, calls the callback and watches for KeyboardInterrupt.
 std::shared_ptr<PyResult> bake(std::shared_ptr<PyScene> scene, const std::string& method, std::optional<int> threads,

@@ -259,6 +259,25 @@ def test_ctrl_c_stops_a_slow_source_between_its_items():
     assert sum(t > interrupted_at[0] for t in calls) <= 50  # the main thread polls every 0.1 s
 
 
+def test_ctrl_c_during_write_stops_it_and_leaves_no_file(tmp_path):
+    # write() ran to its end (10 s for a large EXR), left both files, then raised.
+    scene = grid_scene(type="camera", eye=[0, 6, 7], target=[0, 0.5, 0], up=[0, 1, 0], width=2000, height=1500)
+    scene["lights"][0]["samples"] = 1
+    result = penumbra.bake(penumbra.Scene(scene), threads=2)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        timer = threading.Timer(0.05, _thread.interrupt_main)  # seen by write()'s first check, 0.1 s in
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            result.write(str(tmp_path / "big.exr"))
+        timer.join()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert os.listdir(tmp_path) == []
+    result.write(str(tmp_path / "big.exr"))  # and the next write is not cancelled
+    assert sorted(os.listdir(tmp_path)) == ["big.exr", "big.png"]
+
+
 def test_a_bake_inside_a_source_is_refused_not_waited_for():
     # It waited for the bake that called the source: a hang only SIGKILL ended.
     def source():
