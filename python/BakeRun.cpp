@@ -296,15 +296,33 @@ void runInterruptibly(const std::function<void()>& work, const py::object& progr
         finished = true;
         finishedChanged.notify_all();
     });
+    // Whatever unwinds this frame (a daemon thread that finalization ends, in the callback or as
+    // it takes the GIL back) stops the worker first: it uses this frame's locals, and a joinable
+    // std::thread destroyed aborts the process.
+    struct StopOnUnwind {
+        std::thread& worker;
+        ~StopOnUnwind() {
+            if (!worker.joinable()) return;
+            requestCancel();
+            worker.join();
+        }
+    } stopWorker{worker};
     // This thread keeps the GIL only to check for signals and to call the callback; a Python
     // source on the bake's reader thread takes it in between.
     std::optional<py::error_already_set> interrupted;
     for (;;) {
+        // Not py::gil_scoped_release: taking the GIL back while the interpreter finalizes ends a
+        // daemon thread (pthread_exit), and in that guard's noexcept destructor the unwinding
+        // aborted the process ("terminate called without an active exception"). Here it unwinds
+        // this frame, and stopWorker stops the worker first.
+        PyThreadState* state = PyEval_SaveThread();
+        bool done = false;
         {
-            py::gil_scoped_release release;
             std::unique_lock lock(mutex);
-            if (finishedChanged.wait_for(lock, kPollInterval, [&] { return finished; })) break;
+            done = finishedChanged.wait_for(lock, kPollInterval, [&] { return finished; });
         }
+        PyEval_RestoreThread(state);
+        if (done) break;
         if (interrupted) continue;
         try {
             if (PyErr_CheckSignals() != 0) throw py::error_already_set();
@@ -314,7 +332,7 @@ void runInterruptibly(const std::function<void()>& work, const py::object& progr
             requestCancel();
         }
     }
-    {
+    if (worker.joinable()) {
         py::gil_scoped_release release;
         worker.join();
     }

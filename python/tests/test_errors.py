@@ -278,6 +278,21 @@ def test_ctrl_c_during_write_stops_it_and_leaves_no_file(tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["big.exr", "big.png"]
 
 
+def test_the_interpreter_exits_cleanly_while_a_daemon_thread_bakes(examples):
+    # "terminate called without an active exception", exit 134: finalization ends a daemon thread
+    # as it takes the GIL back, and that unwound through a noexcept guard and a joinable thread.
+    import subprocess
+    from conftest import BUILD
+    for delay, progress in ((0.5, "None"), (1.5, "None"), (1.5, "lambda *a: None"), (2.0, "None")):
+        code = (f"import sys, threading, time; sys.path.insert(0, {str(BUILD / 'python')!r}); import penumbra; "
+                f"scene = penumbra.Scene.from_json({str(examples / 'grids.json')!r}); "
+                f"threading.Thread(target=lambda: penumbra.bake(scene, threads=1, progress={progress}), daemon=True).start(); "
+                f"time.sleep({delay})")
+        done = subprocess.run(["/usr/bin/python3", "-c", code], capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0, done.stderr
+        assert "terminate" not in done.stderr
+
+
 def test_a_bake_inside_a_source_is_refused_not_waited_for():
     # It waited for the bake that called the source: a hang only SIGKILL ended.
     def source():
