@@ -134,7 +134,7 @@ void checkParsingFits(const SceneDesc& scene, const ReceiverKind& kind, const Ba
                       const CasterMemory& methodMemory) {
     if (budget.bytes == 0) return;
     const auto [parsing, file] = gltfParsingPeak(scene);
-    if (parsing < (TriangleSource::kNotableResidentBytes)) return;
+    if (parsing < TriangleSource::kNotableResidentBytes) return;
     const VectorSource none({});
     MemoryDemand before = demandBeforeScan(scene, kind, none, keepMasks, methodMemory, /*alpha=*/false);
     before.sourceBytes += parsing;

@@ -266,9 +266,7 @@ void PyResult::write(const std::string& path) const {
     const ScopedSignalCleanup cleanup;
     // On a thread of its own, as a bake: Ctrl-C stops a camera's write between strips, and no
     // file is left (a 10 s EXR write ran to its end, then raised).
-    if (InsideSource::depth > 0)
-        throw py::value_error("Result.write() was called from inside a source of a running bake, which it would wait for "
-                              "forever; write after the bake returns");
+    InsideSource::refuse("Result.write()");
     runInterruptibly([&] { writeCapturedOutputs(desc, *capture, path); }, py::none());
 }
 
@@ -384,9 +382,7 @@ BakeSettings settingsOf(const std::string& method, std::optional<int> threads, c
 std::shared_ptr<PyResult> bake(std::shared_ptr<PyScene> scene, const std::string& method, std::optional<int> threads,
                                py::object memoryBudget, py::object progress, std::optional<std::string> tmpDir, bool masks,
                                std::optional<std::string> output) {
-    if (InsideSource::depth > 0)
-        throw py::value_error("penumbra.bake() was called from inside a source of a running bake, which it would wait for "
-                              "forever; bake after the first one returns");
+    InsideSource::refuse("penumbra.bake()");
     auto result = std::make_shared<PyResult>();
     result->scene = scene;
     result->desc = scene->desc;

@@ -142,9 +142,7 @@ void bindFunctions(py::module_& m) {
         .def("__iter__", [](py::object self) { return self; })
         .def("__next__", &GenerateIterator::next);
     m.def("generate", [](std::shared_ptr<PyScene> scene, py::object chunk, bool flags) {
-              if (InsideSource::depth > 0)
-                  throw py::value_error("penumbra.generate() was called from inside a source of a running bake; call it after "
-                                        "the bake returns");
+              InsideSource::refuse("penumbra.generate()");
               const uint64_t size = countArgument(chunk, "generate", "chunk", kMaxGenerateChunk).value_or(0);
               return std::make_shared<GenerateIterator>(std::move(scene), size_t(size), flags);
           },

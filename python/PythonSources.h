@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <string>
 
 namespace penumbra::python {
 
@@ -34,6 +35,14 @@ struct InsideSource {
     ~InsideSource() { --depth; }
     InsideSource(const InsideSource&) = delete;
     InsideSource& operator=(const InsideSource&) = delete;
+
+    /// @brief Refuses @p call (`penumbra.bake()`, ...) on a thread inside a source's call.
+    /// @throw pybind11::value_error naming it: it would wait forever for the bake that called the source.
+    static void refuse(const char* call) {
+        if (depth > 0)
+            throw pybind11::value_error(std::string(call) + " was called from inside a source of a running bake, which it "
+                                        "would wait for forever; call it after the bake returns");
+    }
 };
 
 /// @brief Receiver points copied from NumPy when the scene was given them.

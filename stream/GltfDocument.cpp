@@ -72,6 +72,23 @@ std::string readJsonText(const std::string& path, std::optional<std::pair<uint64
     return text;
 }
 
+}  // namespace
+
+uint64_t gltfJsonTextBytes(const std::string& path) {
+    try {
+        RegularFile file(path);
+        unsigned char header[16] = {};
+        if (file.size() < sizeof(header)) return file.size();
+        file.read(header, sizeof(header), 0);
+        if (u32(header) != kGlbMagic) return file.size();          // a .gltf: all of it is JSON
+        return std::min<uint64_t>(u32(header + 12), file.size());  // the JSON chunk's length
+    } catch (const InputError&) {
+        return 0;
+    }
+}
+
+namespace {
+
 int componentsOf(const std::string& type) {
     if (type == "SCALAR") return 1;
     if (type == "VEC2") return 2;

@@ -163,6 +163,10 @@ struct GltfDocument {
 /// @throw InputError naming @p path and the offending object, e.g. `box.gltf: accessor 3 reads
 ///        past the end of bufferView 1 (needs 480 bytes, has 240)`; JSON syntax errors give the
 ///        parser's one-line message.
+/// @brief The length of @p path's JSON text without reading it: a GLB's JSON chunk (from its
+/// header), else the file's size; 0 when the file cannot be read (loading says why).
+uint64_t gltfJsonTextBytes(const std::string& path);
+
 GltfDocument loadGltfDocument(const std::string& path);
 
 /// Bytes of one component of @p componentType (0 for an invalid type).

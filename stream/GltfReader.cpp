@@ -5,7 +5,6 @@
 #include "stream/GltfDocument.h"
 #include "stream/GltfInstancing.h"
 #include "stream/GltfPrimitive.h"
-#include "stream/util/RegularFile.h"
 
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>
@@ -130,19 +129,7 @@ uint64_t GltfSource::parsingBytes() const { return doc_.jsonBytes * kGltfJsonPar
 
 }  // namespace
 
-uint64_t gltfParsingBytes(const std::string& path) {
-    try {
-        RegularFile file(path);
-        unsigned char header[16] = {};
-        if (file.size() < 16) return file.size() * kGltfJsonParseBytesPerByte;
-        file.read(header, sizeof(header), 0);
-        auto u32 = [&](int at) { return uint32_t(header[at]) | uint32_t(header[at + 1]) << 8 | uint32_t(header[at + 2]) << 16 | uint32_t(header[at + 3]) << 24; };
-        const bool glb = u32(0) == 0x46546C67u;  // "glTF"
-        return (glb ? std::min<uint64_t>(u32(12), file.size()) : file.size()) * kGltfJsonParseBytesPerByte;
-    } catch (const InputError&) {
-        return 0;
-    }
-}
+uint64_t gltfParsingBytes(const std::string& path) { return gltfJsonTextBytes(path) * kGltfJsonParseBytesPerByte; }
 
 namespace {
 
