@@ -1,5 +1,6 @@
 #include "bake/BakeMemory.h"
 
+#include "bake/cast/ClosedExemptions.h"
 #include "bake/cast/PenumbraCaster.h"
 #include "bake/cast/SampleMaskTable.h"
 #include "bake/light/SunLight.h"
@@ -76,11 +77,13 @@ MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, 
     addSampleDemand(d, samples, scene);
     if (const std::optional<uint64_t> triangles = geometry.knownSize(); methodMemory && triangles)
         d.methodBytes = methodMemory(*triangles, d.receivers, samples, scene.bakeOptions);
-    // Bucket buffers, the replay's read-ahead queue and the caster's ring of prepared chunks.
+    // Bucket buffers, the replay's read-ahead queue and the caster's ring of prepared chunks, and
+    // with closed casters the ring of the caster for the receivers they must not skip for.
     const BucketOptions buckets;
     d.bufferBytes = (scene.options.sortBlockers ? buckets.writeMemoryBytes() + buckets.readBufferBytes : 0) +
                     8 * kTriangleChunk * sizeof(Triangle) +
-                    PenumbraCaster::kMaxRingChunks * PenumbraCaster::preparedChunkBytes(scene.lights.size());
+                    PenumbraCaster::kMaxRingChunks * PenumbraCaster::preparedChunkBytes(scene.lights.size()) +
+                    (scene.options.closedCasters ? closedExemptCasterBytes(scene.lights.size()) : 0);
     return d;
 }
 

@@ -156,6 +156,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
         p.receivers = kind.receivers();
         checkReceiversFinite(scene, p.receivers);
         p.openedSolids = solids.finish();
+        p.options.closedSolidsKept = p.openedSolids.kept > 0;
         p.options.epsilonLength = epsilonLength(p.receivers, check.box());
         p.translucentScanned = check.translucent();
     }
@@ -186,6 +187,12 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     const std::optional<BlockShare> share =
         blockerShareOf(settings.shard, p.receivers.size(), p.triangleCount, casterEntry(settings.method).traits.memoryTiles);
     const bool solids = !p.openedSolids.ordinals.empty();
+    if (share && p.options.closedCasters && p.options.closedSolidsKept) {
+        // The receivers closed casters must not skip for are found from every closed face
+        // (ClosedExemptions.h), and a by-blockers shard reads only its share of them.
+        p.options.closedCasters = false;
+        if (!settings.quiet) printNote("closed casters are off in a by-blockers shard, which does not see every closed face");
+    }
     auto takeShare = [&](TriangleSourcePtr all) -> TriangleSourcePtr { return std::make_unique<BlockCyclicSource>(std::move(all), *share); };
     if (share && !solids) readAhead.rewindWrapped(takeShare);
     else source->rewind();

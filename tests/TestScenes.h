@@ -51,6 +51,14 @@ inline void addQuad(std::vector<Triangle>& out, glm::vec3 a, glm::vec3 b, glm::v
     out.push_back({{a, c, d}, 0});
 }
 
+/// Receivers at @p points, facing +y.
+inline ReceiverSet receiversFacingUp(const std::vector<glm::vec3>& points) {
+    ReceiverSet set;
+    set.position = points;
+    set.normal.assign(points.size(), glm::vec3(0, 1, 0));
+    return set;
+}
+
 /// Random receivers in a box with random unit normals.
 inline ReceiverSet randomReceivers(uint64_t seed, int count, glm::vec3 lo, glm::vec3 hi) {
     Rng rng(seed);

@@ -31,8 +31,13 @@ struct CastOptions {
     /// strictly behind it is skipped. A segment that crosses it enters the solid and leaves it
     /// through a triangle facing the light sample, which blocks it, so masks do not change as long
     /// as no light sample lies inside a closed solid (except for ties of the blocking rule:
-    /// segments that only graze the solid).
+    /// segments that only graze the solid). The receivers for which the face that should block
+    /// lies within the rule's epsilon are found before each tile and cast with every face
+    /// (ClosedExemptions.h).
     bool closedCasters = true;
+    /// Set by the scan: false when no closed solid stays closed, so closed casters have nothing
+    /// to skip and hpc spares the pass that finds the receivers they must not skip for.
+    bool closedSolidsKept = true;
     /// With table rows (the light on one side of T's plane), T's group volumes V_Gk are built only
     /// once T has reached more than this many receivers of a tile past the leaf prefilter: the rows
     /// decide every group of a receiver at once, so V_Gk pay only for blockers whose penumbra
@@ -105,6 +110,8 @@ struct CastStats {
     uint64_t trianglesProcessed = 0;
     uint64_t trianglesCulledAtRoot = 0;  ///< no tile root box intersected V_L
     uint64_t closedBackFaces = 0;        ///< closed-surface triangles facing away from every light
+    uint64_t closedExemptReceivers = 0;  ///< receivers cast with every face (ClosedExemptions.h)
+    double closedExemptSeconds = 0;      ///< wall time of the passes that found them
     uint64_t rebuilds = 0;
     uint64_t peakLiveMasks = 0;
     uint64_t peakMaskBytes = 0;

@@ -41,6 +41,8 @@ void addSequential(CastStats& total, const CastStats& s) {
     total.trianglesProcessed += s.trianglesProcessed;
     total.trianglesCulledAtRoot += s.trianglesCulledAtRoot;
     total.closedBackFaces += s.closedBackFaces;
+    total.closedExemptReceivers += s.closedExemptReceivers;
+    total.closedExemptSeconds += s.closedExemptSeconds;
     total.rebuilds += s.rebuilds;
     total.hardShadowTests += s.hardShadowTests;
     total.tableDecidedRelations += s.tableDecidedRelations;

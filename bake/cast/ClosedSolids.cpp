@@ -1,5 +1,7 @@
 #include "bake/cast/ClosedSolids.h"
 
+#include "stream/Translucency.h"
+
 #include <glm/common.hpp>
 
 #include <algorithm>
@@ -37,8 +39,9 @@ void ClosedSolidScan::closeSolid() {
         ++(balanced ? leaky.inward : leaky.solids), leaky.triangles += currentTriangles_;
         opened = true;
     }
+    opened = opened || (currentOpaque_ && currentSeeThrough_);
     if (opened) result_.ordinals.push_back(current_), result_.triangles += currentTriangles_;
-    else result_.smallestExtent = std::min({result_.smallestExtent, box_.hi.x - box_.lo.x, box_.hi.y - box_.lo.y, box_.hi.z - box_.lo.z});
+    else ++result_.kept, result_.smallestExtent = std::min({result_.smallestExtent, box_.hi.x - box_.lo.x, box_.hi.y - box_.lo.y, box_.hi.z - box_.lo.z});
     current_ = SolidSegmenter::kNone;
 }
 
@@ -51,9 +54,12 @@ void ClosedSolidScan::scan(std::span<const Triangle> chunk, uint32_t part) {
             currentTriangles_ = 0, currentPart_ = part;
             box_ = {glm::vec3(INFINITY), glm::vec3(-INFINITY)};
             edges_.reset(), volume_.reset();
+            currentOpaque_ = currentSeeThrough_ = false;
         }
         if (solid == SolidSegmenter::kNone) continue;
         ++currentTriangles_;
+        const bool opaque = blocksAsOpaque(t.flags) && alphaIdOf(t.flags) == 0;
+        currentOpaque_ = currentOpaque_ || opaque, currentSeeThrough_ = currentSeeThrough_ || !opaque;
         edges_.add(t), volume_.add(t);
         for (const glm::vec3& v : t.v) box_.lo = glm::min(box_.lo, v), box_.hi = glm::max(box_.hi, v);
     }

@@ -18,6 +18,9 @@
 /// wrong `"closed": true` mark would otherwise lose the shadows of the faces it skips. Such solids are counted per geometry entry,
 /// so that the bake can name the entries whose mark was wrong.
 ///
+/// A solid with both opaque faces and faces that may not block (cut-out, translucent or not
+/// casting) is opened too: the face where a segment leaves it might let the segment through.
+///
 /// Memory: one box and two edge sums while scanning, plus the ordinals of the opened solids
 /// (8 bytes each), which are only the solids that touch a light's box or are not watertight.
 
@@ -64,6 +67,7 @@ struct OpenedSolids {
         uint64_t triangles = 0;  ///< the triangles of both
     };
     std::vector<Leaky> leaky;
+    uint64_t kept = 0;                    ///< closed solids that stay closed
     /// The smallest side of the box of any solid that stays closed (+infinity: none).
     float smallestExtent = INFINITY;
     /// Set by the bake when closedCastersSafe() turned closed casters off for this scale.
@@ -114,6 +118,7 @@ private:
     SolidSegmenter segmenter_;
     uint64_t current_ = SolidSegmenter::kNone, currentTriangles_ = 0;
     uint32_t currentPart_ = 0;  ///< the entry the current solid began in
+    bool currentOpaque_ = false, currentSeeThrough_ = false;  ///< it has faces that block as opaque / may not
     Aabb box_{};
     EdgeBalance edges_;
     OutwardVolume volume_;

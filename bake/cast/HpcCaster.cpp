@@ -4,6 +4,7 @@
 // and resumed at a position in the replay (TileProgress, docs/distributed.md).
 
 #include "bake/cast/Caster.h"
+#include "bake/cast/ClosedExemptions.h"
 #include "bake/cast/PenumbraCaster.h"
 #include "bake/cast/SampleMaskTable.h"
 #include "stream/util/Memory.h"
@@ -44,6 +45,83 @@ struct ReplayCursor {
 
 /// The row of receiver @p r among a tile's sorted @p ids.
 size_t rowOf(std::span<const uint32_t> ids, uint32_t r) { return size_t(std::lower_bound(ids.begin(), ids.end(), r) - ids.begin()); }
+
+/// A tile's casters. `main` casts every receiver of the tile with the options as given, so closed
+/// casters may skip closed faces for any of them. `exempt` casts the closed faces alone, with
+/// closed casters off, for the receivers whose bits those skips could lose (ClosedExemptions.h):
+/// their masks are the OR of both, every face's bits, as the reference finds them.
+class TileCasters {
+public:
+    TileCasters(const CastContext& c, std::span<const uint32_t> open, std::vector<uint32_t> exempt, int tiles)
+        : c_(c), exemptIds_(std::move(exempt)) {
+        if (open.empty()) return;
+        main_.emplace(c.samples, c.receivers, c.sampleSets, c.options, tiles, open);
+        if (exemptIds_.empty()) return;
+        // Few receivers: one tile, and no sample tables to build for them.
+        exemptOptions_ = c.options;
+        exemptOptions_.closedCasters = exemptOptions_.sampleTable = false;
+        exempt_.emplace(c.samples, c.receivers, c.sampleSets, exemptOptions_, 1, exemptIds_);
+    }
+
+    explicit operator bool() const { return main_.has_value(); }
+    PenumbraCaster& main() { return *main_; }
+
+    void cast(std::span<const Triangle> part) {
+        main_->cast(part);
+        if (!exempt_) return;
+        closed_.clear();
+        for (const Triangle& t : part)
+            if (t.flags & kTriangleClosed) closed_.push_back(t);
+        for (size_t at = 0; at < closed_.size(); at += kClosedExemptChunk)
+            exempt_->cast(std::span<const Triangle>(closed_).subspan(at, std::min(kClosedExemptChunk, closed_.size() - at)));
+    }
+
+    void finish(const MaskVisitor& visit) {
+        if (!exempt_) return main_->finish(visit);
+        const int groups = c_.samples.groupCount();
+        VisibilityMasks extra(exemptIds_.size(), groups);
+        std::vector<uint8_t> extraFull(exemptIds_.size(), 0);
+        exempt_->finish([&](uint32_t r, const uint64_t* words, bool full) {
+            const size_t row = rowOf(exemptIds_, r);
+            extraFull[row] = full;
+            if (words) std::copy(words, words + groups, extra.row(row));
+        });
+        main_->finish([&](uint32_t r, const uint64_t* words, bool full) {
+            if (full || !std::binary_search(exemptIds_.begin(), exemptIds_.end(), r)) return visit(r, words, full);
+            const size_t row = rowOf(exemptIds_, r);
+            if (extraFull[row]) return visit(r, nullptr, true);
+            thread_local std::vector<uint64_t> merged;
+            merged.assign(extra.row(row), extra.row(row) + groups);
+            bool any = false, all = groups > 0;
+            for (int k = 0; k < groups; ++k) {
+                merged[k] |= words ? words[k] : 0;
+                any = any || merged[k], all = all && merged[k] == c_.samples.groups[k].fullMask();
+            }
+            // Reported as one caster would: full umbra as such, nothing blocked as null.
+            if (all) return visit(r, nullptr, true);
+            visit(r, any ? merged.data() : nullptr, false);
+        });
+    }
+
+    /// The two run at once: times are the main one's, work and memory add up.
+    CastStats stats() const {
+        CastStats s = main_->stats();
+        if (!exempt_) return s;
+        const CastStats e = exempt_->stats();
+        s.hierarchyBuildSeconds += e.hierarchyBuildSeconds, s.hierarchyBuildWallSeconds += e.hierarchyBuildWallSeconds;
+        s.rebuilds += e.rebuilds, s.hardShadowTests += e.hardShadowTests, s.tableDecidedRelations += e.tableDecidedRelations;
+        s.peakLiveMasks += e.peakLiveMasks, s.peakMaskBytes += e.peakMaskBytes;
+        s.peakHierarchyBytes += e.peakHierarchyBytes, s.receiverBytes += e.receiverBytes;
+        return s;
+    }
+
+private:
+    const CastContext& c_;
+    std::vector<uint32_t> exemptIds_;  ///< sorted
+    CastOptions exemptOptions_;
+    std::optional<PenumbraCaster> main_, exempt_;
+    std::vector<Triangle> closed_;  ///< the current chunk's closed faces, for `exempt`
+};
 
 class HpcCaster final : public Caster {
 public:
@@ -88,6 +166,7 @@ private:
         cursor.hashing = saves;
         rewindOnce(blockers);
         std::optional<TileProgress> prior = saves ? hooks->resume(tile.index, tile.count, tile.ids) : std::nullopt;
+        const std::vector<uint32_t> exempt = findExempt(blockers, tile.ids);
         if (prior && !skipTo(blockers, *prior, cursor)) {
             hooks->rejectProgress(tile.index, tile.count);
             prior.reset();
@@ -95,15 +174,17 @@ private:
             cursor = ReplayCursor{0, ReplayCursor{}.hash, saves};
         }
         // Receivers in full umbra already are final: only the others are cast.
-        std::vector<uint32_t> open;
+        std::vector<uint32_t> open, openExempt;
         for (size_t i = 0; i < tile.ids.size(); ++i)
-            if (!prior || !fullRow(prior->masks.row(i))) open.push_back(tile.ids[i]);
-        std::optional<PenumbraCaster> caster;
-        if (!open.empty()) caster.emplace(c_.samples, c_.receivers, c_.sampleSets, c_.options, subTiles(c_.threads), open);
+            if (!prior || !fullRow(prior->masks.row(i))) {
+                open.push_back(tile.ids[i]);
+                if (std::binary_search(exempt.begin(), exempt.end(), tile.ids[i])) openExempt.push_back(tile.ids[i]);
+            }
+        TileCasters caster(c_, open, std::move(openExempt), subTiles(c_.threads));
         // Triangles are counted as the sub-tiles finish them, with the work they took, so the
         // share and ETA follow the work rather than the count (ProgressEstimate.h); what a resumed
         // tile skipped is done.
-        if (caster) caster->setProgress([&progress](uint64_t triangles, uint64_t work) { progress.updateMeasured(triangles, work); });
+        if (caster) caster.main().setProgress([&progress](uint64_t triangles, uint64_t work) { progress.updateMeasured(triangles, work); });
         if (prior) progress.update(prior->replayed);
         double readSeconds = 0;
         std::vector<Triangle> chunk(kTriangleChunk);
@@ -119,7 +200,7 @@ private:
             // the tiles cast earlier chunks on the others.
             observe(part, cursor.position);
             cursor.add(part);
-            if (caster) caster->cast(part);
+            if (caster) caster.cast(part);
             progress.update(caster ? 0 : n);  // 0: where Ctrl-C (requestCancel) stops the cast
             const bool due = saves && hooks->progressDue();
             if (due) hooks->saveProgress(tile.index, tile.count, tile.ids, snapshot(caster, tile, prior, cursor));
@@ -132,9 +213,23 @@ private:
         observed_ = true;
         report(caster, tile, prior, sink);
         if (!caster) return;
-        CastStats s = caster->stats();
+        CastStats s = caster.stats();
         s.replayReadSeconds = readSeconds;
+        s.closedExemptReceivers = exempt.size();
+        s.closedExemptSeconds = exemptSeconds_;
+        exemptSeconds_ = 0;
         addSequential(stats_, s);
+    }
+
+    /// The receivers of @p ids that closed casters must not skip for: a pass over the whole
+    /// replay (every closed face, wherever a resumed tile starts), which is then rewound. None
+    /// when closed casters are off or no closed solid stayed closed.
+    std::vector<uint32_t> findExempt(TriangleSource& blockers, std::span<const uint32_t> ids) {
+        if (!c_.options.closedCasters || !c_.options.closedSolidsKept || ids.empty()) return {};
+        ScopedTimer timer(exemptSeconds_);
+        std::vector<uint32_t> exempt = findClosedExemptions(blockers, c_.samples, c_.receivers, c_.sampleSets, ids, c_.options);
+        blockers.rewind();
+        return exempt;
     }
 
     /// Reads the first @p prior.replayed blockers (observing them, casting none) and checks their
@@ -152,12 +247,12 @@ private:
     }
 
     /// The tile's masks now: what the caster found so far ORed into what @p prior restored.
-    TileProgress snapshot(std::optional<PenumbraCaster>& caster, const Tile& tile, const std::optional<TileProgress>& prior,
+    TileProgress snapshot(TileCasters& caster, const Tile& tile, const std::optional<TileProgress>& prior,
                           const ReplayCursor& cursor) const {
         TileProgress now{cursor.position, cursor.hash,
                          prior ? prior->masks : VisibilityMasks(tile.ids.size(), c_.samples.groupCount())};
         // finish() only flushes and reads the tiles, so the cast goes on after it.
-        if (caster) caster->finish([&](uint32_t r, const uint64_t* words, bool full) {
+        if (caster) caster.finish([&](uint32_t r, const uint64_t* words, bool full) {
             uint64_t* row = now.masks.row(rowOf(tile.ids, r));
             for (int k = 0; k < now.masks.groups; ++k)
                 row[k] = full ? c_.samples.groups[k].fullMask() : row[k] | (words ? words[k] : 0);
@@ -167,14 +262,14 @@ private:
 
     /// Every receiver of the tile to @p sink once: cast ones with @p prior ORed in, the ones
     /// @p prior had in full umbra as such.
-    void report(std::optional<PenumbraCaster>& caster, const Tile& tile, const std::optional<TileProgress>& prior,
+    void report(TileCasters& caster, const Tile& tile, const std::optional<TileProgress>& prior,
                 const CastSink& sink) const {
         if (prior)
             for (size_t i = 0; i < tile.ids.size(); ++i)
                 if (fullRow(prior->masks.row(i))) sink.masks(tile.ids[i], nullptr, true);
         if (!caster) return;
-        if (!prior) return caster->finish(sink.masks);
-        caster->finish([&](uint32_t r, const uint64_t* words, bool full) {
+        if (!prior) return caster.finish(sink.masks);
+        caster.finish([&](uint32_t r, const uint64_t* words, bool full) {
             if (full) return sink.masks(r, nullptr, true);
             thread_local std::vector<uint64_t> merged;
             const uint64_t* before = prior->masks.row(rowOf(tile.ids, r));
@@ -216,6 +311,7 @@ private:
     const CastContext c_;
     CastStats stats_;
     bool fresh_ = true, observed_ = false;
+    double exemptSeconds_ = 0;  ///< of the current tile's findExempt()
     uint64_t observedUpTo_ = 0;  ///< blockers the kind has seen, while observed_ is false
 };
 

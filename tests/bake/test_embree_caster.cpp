@@ -1,6 +1,8 @@
 // Tests for the Embree caster: it must agree with the brute-force reference (the blocking rule)
 // on every relation except ties, and ties must be rare; plus exact analytic cases.
 
+#include "TestScenes.h"
+
 #include "bake/rule/BlockingRule.h"
 #include "bake/peers/EmbreeCaster.h"
 #include "bake/rule/TieClassifier.h"
@@ -17,6 +19,7 @@
 #include <vector>
 
 using namespace penumbra;
+using penumbra::test::receiversFacingUp;
 
 namespace {
 
@@ -44,13 +47,6 @@ std::vector<uint32_t> assignSets(size_t n, int sets, uint64_t seed) {
     std::vector<uint32_t> s(n);
     for (size_t i = 0; i < n; ++i) s[i] = uint32_t(sampleSetOf(i, sets, seed));
     return s;
-}
-
-ReceiverSet makeReceivers(const std::vector<glm::vec3>& points) {
-    ReceiverSet r;
-    r.position = points;
-    r.normal.assign(points.size(), glm::vec3(0, 1, 0));
-    return r;
 }
 
 struct Comparison {
@@ -131,7 +127,7 @@ TEST_CASE("embree: ground grid under a blocker quad agrees with the reference", 
     std::vector<glm::vec3> points;
     for (int i = 0; i <= 20; ++i)
         for (int j = 0; j <= 20; ++j) points.push_back(glm::vec3(-2.0f + 0.2f * i, 0.0f, -2.0f + 0.2f * j));
-    ReceiverSet receivers = makeReceivers(points);
+    ReceiverSet receivers = receiversFacingUp(points);
     auto sets = assignSets(receivers.size(), samples.sets, seed);
 
     for (double epsilon : {1e-5, 1e-3}) {
@@ -167,7 +163,7 @@ TEST_CASE("embree: analytic umbra and fully lit receivers", "[embree]") {
         // Directly below the centre (in umbra), far outside (fully lit), just below the light's
         // centre but above the blocker (fully lit).
         ReceiverSet receivers =
-            makeReceivers({glm::vec3(0, 0, 0), glm::vec3(0.3f, -2, -0.2f), glm::vec3(100, 0, 0), glm::vec3(0, 2, 0)});
+            receiversFacingUp({glm::vec3(0, 0, 0), glm::vec3(0.3f, -2, -0.2f), glm::vec3(100, 0, 0), glm::vec3(0, 2, 0)});
         auto sets = assignSets(receivers.size(), samples.sets, seed);
         VisibilityMasks emb = castEmbree(samples, receivers, sets, triangles, ReceiverEpsilon{1e-5, 1.0});
         VisibilityMasks ref = castReference(samples, receivers, sets, triangles, ReceiverEpsilon{1e-5, 1.0});
@@ -250,7 +246,7 @@ TEST_CASE("embree: random triangle soups agree with the reference up to ties", "
             glm::dvec3 q = glm::dvec3(t.v[0]) + u * glm::dvec3(t.v[1] - t.v[0]) + v * glm::dvec3(t.v[2] - t.v[0]);
             points.push_back(glm::vec3(q));
         }
-        ReceiverSet receivers = makeReceivers(points);
+        ReceiverSet receivers = receiversFacingUp(points);
         auto sets = assignSets(receivers.size(), samples.sets, seed);
 
         Comparison c = compare(samples, receivers, sets, triangles, 1e-5);
@@ -268,7 +264,7 @@ TEST_CASE("embree: a receiver or sample beyond Embree's ray range is a one-line 
     std::vector<LightDesc> lights{rectLight({0, 3, 0}, 1.0, 16, 1)};
     LightSamples samples = generateLightSamples(lights, 16, 9);
     for (float far : {1e19f, -1e20f}) {
-        ReceiverSet receivers = makeReceivers({glm::vec3(0, 0, 0), glm::vec3(0, far, 0)});
+        ReceiverSet receivers = receiversFacingUp({glm::vec3(0, 0, 0), glm::vec3(0, far, 0)});
         auto sets = assignSets(receivers.size(), samples.sets, 9);
         CHECK_THROWS_WITH(castEmbree(samples, receivers, sets, {}, ReceiverEpsilon{1e-5, 1.0}),
                           Catch::Contains("--method embree: receiver 1") && Catch::Contains("beyond the range of Embree's rays"));
@@ -278,7 +274,7 @@ TEST_CASE("embree: a receiver or sample beyond Embree's ray range is a one-line 
 TEST_CASE("embree: no triangles gives all-zero masks", "[embree]") {
     std::vector<LightDesc> lights{rectLight({0, 3, 0}, 1.0, 64, 2)};
     LightSamples samples = generateLightSamples(lights, 64, 9);
-    ReceiverSet receivers = makeReceivers({glm::vec3(0, 0, 0), glm::vec3(1, 0, 1), glm::vec3(-1, 2, 0)});
+    ReceiverSet receivers = receiversFacingUp({glm::vec3(0, 0, 0), glm::vec3(1, 0, 1), glm::vec3(-1, 2, 0)});
     auto sets = assignSets(receivers.size(), samples.sets, 9);
 
     EmbreeStats stats;
@@ -333,7 +329,7 @@ TEST_CASE("embree: a long sliver near its short edge is neither missed nor block
         INFO(c.what);
         LightSamples samples = generateLightSamples({rectLight({0, 6, 0}, 4.0, 1, 1)}, 64, 1);
         samples.positions[0] = c.sample;  // the relation's own sample
-        const ReceiverSet receivers = makeReceivers({c.receiver});
+        const ReceiverSet receivers = receiversFacingUp({c.receiver});
         const std::vector<uint32_t> sets{0};
         // Every rotation of the vertices: the peer must not depend on which vertex comes first.
         for (int first = 0; first < 3; ++first) {
