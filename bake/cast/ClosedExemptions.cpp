@@ -15,6 +15,13 @@ namespace {
 
 double largestOf(const glm::dvec3& p) { return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
 
+/// The smallest largestOf() of any point in the box [@p lo, @p hi].
+double smallestCoordinate(const glm::vec3& lo, const glm::vec3& hi) {
+    double least = 0.0;
+    for (int i = 0; i < 3; ++i) least = std::max(least, lo[i] > 0.0f ? double(lo[i]) : hi[i] < 0.0f ? -double(hi[i]) : 0.0);
+    return least;
+}
+
 /// n . p - c, in the order the box bounds below use: each term of a point inside a box is at most
 /// (at least) that of the box's far (near) corner, and rounding is monotone, so a box culled by
 /// its bound holds no point that passes.
@@ -36,14 +43,13 @@ bool deepInsidePrism(const BlockerTriangle& g, const glm::dvec3& r, double margi
 /// BlockerCulls::prepare() takes it.
 bool closedOpaque(const Triangle& t) { return (t.flags & kTriangleClosed) && blocksAsOpaque(t.flags) && alphaIdOf(t.flags) == 0; }
 
-/// Whether the segment from @p r to one of @p samples crosses G from behind (r on G's far side
-/// from the sample, up to @p margin), its edge planes taken with a relative 1e-9 of slack: the
-/// rule's own test without its epsilon, and wider.
-bool segmentLeavesThrough(const BlockerTriangle& g, const glm::dvec3& r, double d, double margin,
-                          std::span<const glm::vec3> samples, double w) {
+/// Whether the segment from @p r (behind G) to one of @p samples crosses G, its edge planes taken
+/// with a relative 1e-9 of slack: the rule's own test without its epsilon, and wider.
+bool segmentLeavesThrough(const BlockerTriangle& g, const glm::dvec3& r, std::span<const glm::vec3> samples, double w) {
     for (const glm::vec3& sample : samples) {
+        // r is behind G (d < 0): only a sample in front of it can be reached through G.
+        if (!(g.side(glm::dvec3(sample), w) > 0.0)) continue;
         const HardShadowVolume h = makeHardShadowVolume(glm::dvec3(sample), w, g);
-        if (h.side == 0.0 || !(h.side * d > -margin)) continue;
         bool inside = true;
         for (int e = 0; e < 3 && inside; ++e) {
             const glm::dvec3 at = r - g.v[e];
@@ -61,10 +67,10 @@ bool closedFaceMayFailAt(const BlockerTriangle& g, const PenumbraVolume& volume,
     const double margin = closedExemptionMargin(largestOf(r), largestOf(g.v[0]));
     const double band = epsilon.at(r) + margin;
     const double d = planeValue(g.plane.n, glm::dot(g.plane.n, g.v[0]), r);
-    if (!(d >= -band && d <= margin)) return false;
+    if (!(d >= -band && d < -closedOnPlaneBand(largestOf(r), largestOf(g.v[0])))) return false;
     if (!contains(volume, r, volume.all())) return false;
     if (deepInsidePrism(g, r, margin)) return false;
-    return segmentLeavesThrough(g, r, d, margin, samples, w);
+    return segmentLeavesThrough(g, r, samples, w);
 }
 
 /// A bounding-volume hierarchy over receiver ids: median splits on the longest axis, 16 per leaf.
@@ -165,8 +171,11 @@ void ClosedExemptionFinder::scanFace(const Triangle& t) {
                                std::max(n.z * node.lo.z, n.z * node.hi.z) - c;
             const double near = std::min(n.x * node.lo.x, n.x * node.hi.x) + std::min(n.y * node.lo.y, n.y * node.hi.y) +
                                 std::min(n.z * node.lo.z, n.z * node.hi.z) - c;
-            if (far < -band || near > margin) continue;  // the slab around G's plane misses the box
-            if (!intersects(volume, Box{node.lo, node.hi}, active)) continue;
+            // The slab behind G's plane misses the box; the on-plane band taken at the box's point
+            // nearest the origin, where it is narrowest.
+            if (far < -band || near >= -closedOnPlaneBand(smallestCoordinate(node.lo, node.hi), vertex)) continue;
+            const Box box{node.lo, node.hi};
+            if (!(level == SimdLevel::Avx2 ? intersectsAvx2(volume, box, active) : intersects(volume, box, active))) continue;
             if (node.left) {
                 stack.push_back({node.left, active}), stack.push_back({node.right, active});
                 continue;

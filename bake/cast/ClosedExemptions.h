@@ -12,7 +12,7 @@
 ///
 /// So before a tile is cast, one pass over the closed faces marks every receiver r for which some
 /// closed face G that does not face away from a light has
-///  - r within [-(eps(r) + m), m] of G's plane (behind it, or on it up to roundoff m),
+///  - r behind G's plane by more than p (two float ulps of its coordinates) and at most eps(r) + m,
 ///  - r inside V_L of G for that light (a segment from r to the light may cross G), and
 ///  - r *not* inside G's prism by more than m (its projection on G's plane is outside G, or
 ///    within m of its edges), and
@@ -20,6 +20,13 @@
 ///    from behind, up to a relative 1e-9 on G's edges.
 /// A marked receiver is also cast against the closed faces alone with closed casters off, and its
 /// masks are the OR of both casts: every face's bits, as the reference finds them.
+///
+/// A receiver on G's plane up to p (a camera pixel on the coplanar face of the next box in a row,
+/// whose float hit point lies a few ulps off the plane) is not marked: a segment from it that
+/// leaves through G runs within p of G's plane all the way, so it enters the solid within p of
+/// G's edge, and that relation is a tie of the entry face's edge, whose tolerance holds 4 float
+/// ulps of the coordinates (bake/rule/TieClassifier.h). Marking such receivers cost more than
+/// closed casters save on rows of coplanar boxes (stop 55's sweep: 27 s of a 31 s bake).
 ///
 /// The third condition keeps receivers that lie *on* a light-facing face (a camera pixel on a box's
 /// top, with receiver_offset 0) unmarked, which is most receivers on closed solids. Let r lie in
@@ -44,6 +51,7 @@
 #include "receivers/ReceiverSet.h"
 #include "stream/TriangleSource.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -65,6 +73,11 @@ inline size_t closedExemptCasterBytes(size_t lights) { return 2 * BlockerBatch::
 /// @param extent |r|_inf (or the largest of a box of receivers)
 /// @param vertex |v0|_inf of the face
 inline double closedExemptionMargin(double extent, double vertex) { return 4e-12 * (extent + vertex); }
+
+/// @brief How far behind a closed face's plane a receiver must lie to be marked: two float ulps
+/// (2^-23) of the larger of its coordinates and the face's first vertex, half of the coordinates'
+/// share of the tie classifier's tolerances.
+inline double closedOnPlaneBand(double extent, double vertex) { return 0x1p-23 * std::max(extent, vertex); }
 
 /// @brief Whether closed face @p g (its V_L @p volume for one light) could be the face that fails
 /// to block a segment from @p r that entered its solid elsewhere: the four conditions above.

@@ -33,7 +33,7 @@ void ClosedSolidScan::closeSolid() {
         if (meets) ++result_.perLight[l], opened = true;
     }
     const bool balanced = edges_.balanced();
-    if (!balanced || !volume_.outward()) {
+    if (!balanced || !volume_.outward() || currentRunInward_) {
         if (result_.leaky.empty() || result_.leaky.back().part != currentPart_) result_.leaky.push_back({currentPart_, 0, 0, 0});
         OpenedSolids::Leaky& leaky = result_.leaky.back();
         ++(balanced ? leaky.inward : leaky.solids), leaky.triangles += currentTriangles_;
@@ -53,14 +53,18 @@ void ClosedSolidScan::scan(std::span<const Triangle> chunk, uint32_t part) {
             current_ = solid;
             currentTriangles_ = 0, currentPart_ = part;
             box_ = {glm::vec3(INFINITY), glm::vec3(-INFINITY)};
-            edges_.reset(), volume_.reset();
-            currentOpaque_ = currentSeeThrough_ = false;
+            edges_.reset(), volume_.reset(), runVolume_.reset();
+            currentOpaque_ = currentSeeThrough_ = currentRunInward_ = false;
         }
         if (solid == SolidSegmenter::kNone) continue;
         ++currentTriangles_;
         const bool opaque = blocksAsOpaque(t.flags) && alphaIdOf(t.flags) == 0;
         currentOpaque_ = currentOpaque_ || opaque, currentSeeThrough_ = currentSeeThrough_ || !opaque;
-        edges_.add(t), volume_.add(t);
+        edges_.add(t), volume_.add(t), runVolume_.add(t);
+        // A run of the solid's triangles whose edges balance is a closed surface of its own (the
+        // solid's parts are usually contiguous: an OBJ's objects, a glTF's primitives): each
+        // must be wound outward, or a part wound inward hides behind a larger one.
+        if (edges_.balanced()) currentRunInward_ = currentRunInward_ || !runVolume_.outward(), runVolume_.reset();
         for (const glm::vec3& v : t.v) box_.lo = glm::min(box_.lo, v), box_.hi = glm::max(box_.hi, v);
     }
 }

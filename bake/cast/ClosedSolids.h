@@ -15,6 +15,9 @@
 ///
 /// A solid that is not watertight (an edge without its reverse: a hole, a crack, a flipped face;
 /// EdgeBalance.h) or is wound inward (OutwardVolume) is opened as well, whatever the lights: a
+/// part of it wound inward counts, when its triangles are contiguous in the stream (each run
+/// whose edges balance is checked on its own; parts whose triangles interleave are checked as
+/// one); a
 /// wrong `"closed": true` mark would otherwise lose the shadows of the faces it skips. Such solids are counted per geometry entry,
 /// so that the bake can name the entries whose mark was wrong.
 ///
@@ -119,6 +122,8 @@ private:
     uint64_t current_ = SolidSegmenter::kNone, currentTriangles_ = 0;
     uint32_t currentPart_ = 0;  ///< the entry the current solid began in
     bool currentOpaque_ = false, currentSeeThrough_ = false;  ///< it has faces that block as opaque / may not
+    bool currentRunInward_ = false;  ///< a balanced run of its triangles was not wound outward
+    OutwardVolume runVolume_;        ///< the current run's, since the edges last balanced
     Aabb box_{};
     EdgeBalance edges_;
     OutwardVolume volume_;

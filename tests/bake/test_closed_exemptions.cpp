@@ -75,6 +75,9 @@ TEST_CASE("closed exemptions: a receiver beside a solid, within epsilon behind a
         CHECK_FALSE(closedFaceMayFailAt(g, volume, onFace, epsilon, set0, 1.0));
         CHECK_FALSE(closedFaceMayFailAt(g, volume, underFace, epsilon, set0, 1.0));
         CHECK_FALSE(closedFaceMayFailAt(g, volume, {5e-4, 0, 0}, epsilon, set0, 1.0));   // in front of the plane
+        // On the plane beside the solid (the coplanar face of a neighbour): a segment from it runs
+        // within roundoff of the plane to the solid's edge, a tie of the entry face's edge.
+        CHECK_FALSE(closedFaceMayFailAt(g, volume, {0, 0, 0.25}, epsilon, set0, 1.0));
         CHECK_FALSE(closedFaceMayFailAt(g, volume, {-5e-3, 0, 0}, epsilon, set0, 1.0));  // beyond eps: the face blocks
     }
     CHECK(faces == 2);
@@ -141,6 +144,32 @@ TEST_CASE("closed casters keep the shadow of a box on receivers within epsilon o
     CHECK(cmp.exitCode == 0);
     CHECK_THAT(cmp.out, Catch::Contains("only_a 0\n") && Catch::Contains("only_b 0\n") && !Catch::Contains("blocked_a 0\n"));
     CHECK(slurp(dir / "on.npy") == slurp(dir / "on-1.npy"));
+}
+
+TEST_CASE("a part of a closed entry wound inward is found when its triangles are contiguous", "[closed]") {
+    // One entry (one solid): a large crate wound outward, then a small one wound inward. Edges
+    // balance and the total volume is positive; the second run of balanced edges is not.
+    std::vector<Triangle> entry = closedBox({0, 0, 0}, {2, 2, 2});
+    for (Triangle t : closedBox({5, 0, 0}, {6, 1, 1})) {
+        std::swap(t.v[1], t.v[2]);
+        t.flags &= ~kTriangleSolidStart;
+        entry.push_back(t);
+    }
+    LightSamples samples;
+    ClosedSolidScan scan(samples);
+    scan.scan(entry);
+    OpenedSolids opened = scan.finish();
+    CHECK(opened.ordinals == std::vector<uint64_t>{0});
+    REQUIRE(opened.leaky.size() == 1);
+    CHECK(opened.leaky[0].inward == 1);
+    // Both wound outward: kept.
+    std::vector<Triangle> good = closedBox({0, 0, 0}, {2, 2, 2});
+    for (Triangle t : closedBox({5, 0, 0}, {6, 1, 1})) t.flags = kTriangleClosed, good.push_back(t);
+    ClosedSolidScan again(samples);
+    again.scan(good);
+    opened = again.finish();
+    CHECK(opened.ordinals.empty());
+    CHECK(opened.kept == 1);
 }
 
 TEST_CASE("a closed solid with faces that may let light through is opened", "[closed]") {
