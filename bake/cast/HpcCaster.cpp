@@ -166,7 +166,8 @@ private:
         cursor.hashing = saves;
         rewindOnce(blockers);
         std::optional<TileProgress> prior = saves ? hooks->resume(tile.index, tile.count, tile.ids) : std::nullopt;
-        const std::vector<uint32_t> exempt = findExempt(blockers, tile.ids);
+        double exemptSeconds = 0;
+        const std::vector<uint32_t> exempt = findExempt(blockers, tile.ids, exemptSeconds);
         if (prior && !skipTo(blockers, *prior, cursor)) {
             hooks->rejectProgress(tile.index, tile.count);
             prior.reset();
@@ -216,17 +217,16 @@ private:
         CastStats s = caster.stats();
         s.replayReadSeconds = readSeconds;
         s.closedExemptReceivers = exempt.size();
-        s.closedExemptSeconds = exemptSeconds_;
-        exemptSeconds_ = 0;
+        s.closedExemptSeconds = exemptSeconds;
         addSequential(stats_, s);
     }
 
     /// The receivers of @p ids that closed casters must not skip for: a pass over the whole
-    /// replay (every closed face, wherever a resumed tile starts), which is then rewound. None
-    /// when closed casters are off or no closed solid stayed closed.
-    std::vector<uint32_t> findExempt(TriangleSource& blockers, std::span<const uint32_t> ids) {
+    /// replay (every closed face, wherever a resumed tile starts), which is then rewound, timed
+    /// into @p seconds. None when closed casters are off or no closed solid stayed closed.
+    std::vector<uint32_t> findExempt(TriangleSource& blockers, std::span<const uint32_t> ids, double& seconds) {
         if (!c_.options.closedCasters || !c_.options.closedSolidsKept || ids.empty()) return {};
-        ScopedTimer timer(exemptSeconds_);
+        ScopedTimer timer(seconds);
         std::vector<uint32_t> exempt = findClosedExemptions(blockers, c_.samples, c_.receivers, c_.sampleSets, ids, c_.options);
         blockers.rewind();
         return exempt;
@@ -311,7 +311,6 @@ private:
     const CastContext c_;
     CastStats stats_;
     bool fresh_ = true, observed_ = false;
-    double exemptSeconds_ = 0;  ///< of the current tile's findExempt()
     uint64_t observedUpTo_ = 0;  ///< blockers the kind has seen, while observed_ is false
 };
 
