@@ -156,7 +156,9 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
         p.receivers = kind.receivers();
         checkReceiversFinite(scene, p.receivers);
         p.openedSolids = solids.finish();
-        p.options.closedSolidsKept = p.openedSolids.kept > 0;
+        // Nothing left to skip: this also spares hpc its pass that finds the receivers closed
+        // casters must not skip for (ClosedExemptions.h).
+        if (p.openedSolids.kept == 0) p.options.closedCasters = false;
         p.options.epsilonLength = epsilonLength(p.receivers, check.box());
         p.translucentScanned = check.translucent();
     }
@@ -187,7 +189,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     const std::optional<BlockShare> share =
         blockerShareOf(settings.shard, p.receivers.size(), p.triangleCount, casterEntry(settings.method).traits.memoryTiles);
     const bool solids = !p.openedSolids.ordinals.empty();
-    if (share && p.options.closedCasters && p.options.closedSolidsKept) {
+    if (share && p.options.closedCasters) {
         // The receivers closed casters must not skip for are found from every closed face
         // (ClosedExemptions.h), and a by-blockers shard reads only its share of them.
         p.options.closedCasters = false;

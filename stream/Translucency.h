@@ -43,6 +43,9 @@ constexpr bool isTranslucentId(uint32_t id) { return id >= kTranslucentIdBase; }
 /// True when a triangle with @p flags can block a relation: it casts shadows and is not
 /// translucent (a translucent triangle only attenuates, bake/cast/TranslucentBlockers.h).
 constexpr bool blocksAsOpaque(uint32_t flags) { return !(flags & kTriangleNoCast) && !isTranslucentId(alphaIdOf(flags)); }
+/// Casts and blocks every segment through it: opaque and without a cut-out (alpha id 0). Only
+/// such faces make a closed solid whose faces closed casters may skip.
+constexpr bool blocksWhole(uint32_t flags) { return blocksAsOpaque(flags) && alphaIdOf(flags) == 0; }
 
 /// @brief The fixed-point optical depth of transmittance @p t in [0, 1].
 inline uint32_t quantizeDepth(double t) {

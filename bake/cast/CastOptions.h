@@ -35,9 +35,6 @@ struct CastOptions {
     /// lies within the rule's epsilon are found before each tile and cast with every face
     /// (ClosedExemptions.h).
     bool closedCasters = true;
-    /// Set by the scan: false when no closed solid stays closed, so closed casters have nothing
-    /// to skip and hpc spares the pass that finds the receivers they must not skip for.
-    bool closedSolidsKept = true;
     /// With table rows (the light on one side of T's plane), T's group volumes V_Gk are built only
     /// once T has reached more than this many receivers of a tile past the leaf prefilter: the rows
     /// decide every group of a receiver at once, so V_Gk pay only for blockers whose penumbra

@@ -13,9 +13,7 @@
 namespace penumbra {
 namespace {
 
-double largestOf(const glm::dvec3& p) { return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
-
-/// The smallest largestOf() of any point in the box [@p lo, @p hi].
+/// The smallest largestCoordinate() of any point in the box [@p lo, @p hi].
 double smallestCoordinate(const glm::vec3& lo, const glm::vec3& hi) {
     double least = 0.0;
     for (int i = 0; i < 3; ++i) least = std::max(least, lo[i] > 0.0f ? double(lo[i]) : hi[i] < 0.0f ? -double(hi[i]) : 0.0);
@@ -39,9 +37,6 @@ bool deepInsidePrism(const BlockerTriangle& g, const glm::dvec3& r, double margi
     return true;
 }
 
-/// Whether @p t is a face closed casters may skip or cull by: closed, opaque and casting, as
-/// BlockerCulls::prepare() takes it.
-bool closedOpaque(const Triangle& t) { return (t.flags & kTriangleClosed) && blocksAsOpaque(t.flags) && alphaIdOf(t.flags) == 0; }
 
 /// Whether the segment from @p r (behind G) to one of @p samples crosses G, its edge planes taken
 /// with a relative 1e-9 of slack: the rule's own test without its epsilon, and wider.
@@ -64,10 +59,10 @@ bool segmentLeavesThrough(const BlockerTriangle& g, const glm::dvec3& r, std::sp
 
 bool closedFaceMayFailAt(const BlockerTriangle& g, const PenumbraVolume& volume, const glm::dvec3& r,
                          const ReceiverEpsilon& epsilon, std::span<const glm::vec3> samples, double w) {
-    const double margin = closedExemptionMargin(largestOf(r), largestOf(g.v[0]));
+    const double margin = closedExemptionMargin(largestCoordinate(r), largestCoordinate(g.v[0]));
     const double band = epsilon.at(r) + margin;
     const double d = planeValue(g.plane.n, glm::dot(g.plane.n, g.v[0]), r);
-    if (!(d >= -band && d < -closedOnPlaneBand(largestOf(r), largestOf(g.v[0])))) return false;
+    if (!(d >= -band && d < -closedOnPlaneBand(largestCoordinate(r), largestCoordinate(g.v[0])))) return false;
     if (!contains(volume, r, volume.all())) return false;
     if (deepInsidePrism(g, r, margin)) return false;
     return segmentLeavesThrough(g, r, samples, w);
@@ -115,9 +110,11 @@ struct ClosedExemptionFinder::Index {
 ClosedExemptionFinder::ClosedExemptionFinder(const LightSamples& samples, const ReceiverSet& receivers,
                                              std::span<const uint32_t> sampleSets, std::span<const uint32_t> ids,
                                              const CastOptions& options)
-    : samples_(samples), receivers_(receivers), sampleSets_(sampleSets), options_(options),
-      index_(std::make_unique<Index>(receivers, ids)), marked_(std::make_unique<std::atomic<uint8_t>[]>(ids.size())) {
+    : samples_(samples), receivers_(receivers), sampleSets_(sampleSets), epsilon_(receiverEpsilonOf(options)),
+      level_(hardShadowKernels(options.simd).level), index_(std::make_unique<Index>(receivers, ids)),
+      marked_(std::make_unique<std::atomic<uint8_t>[]>(ids.size())) {
     for (size_t i = 0; i < ids.size(); ++i) marked_[i].store(0, std::memory_order_relaxed);
+    if (!index_->nodes.empty()) root_ = {index_->nodes[0].lo, index_->nodes[0].hi};
     for (size_t l = 0; l < size_t(samples.lightCount()); ++l) {
         const uint32_t g0 = samples.lightFirstGroup[l], g1 = samples.lightFirstGroup[l + 1];
         const uint32_t first = g0 < g1 ? samples.groups[g0].first : 0;
@@ -138,7 +135,7 @@ void ClosedExemptionFinder::scan(std::span<const Triangle> blockers) {
     if (index_->nodes.empty()) return;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, blockers.size(), 64), [&](const tbb::blocked_range<size_t>& range) {
         for (size_t i = range.begin(); i != range.end(); ++i)
-            if (closedOpaque(blockers[i])) scanFace(blockers[i]);
+            if ((blockers[i].flags & kTriangleClosed) && blocksWhole(blockers[i].flags)) scanFace(blockers[i]);
     });
 }
 
@@ -146,11 +143,8 @@ void ClosedExemptionFinder::scanFace(const Triangle& t) {
     const BlockerTriangle g = BlockerTriangle::from(t);
     if (!g.valid) return;
     const Index& index = *index_;
-    const Box root{index.nodes[0].lo, index.nodes[0].hi};
-    const ReceiverEpsilon epsilon = receiverEpsilonOf(options_);
     const glm::dvec3& n = g.plane.n;
-    const double c = glm::dot(n, g.v[0]), vertex = largestOf(g.v[0]);
-    const SimdLevel level = hardShadowKernels(options_.simd).level;
+    const double c = glm::dot(n, g.v[0]), vertex = largestCoordinate(g.v[0]);
     PenumbraVolume volume;
     thread_local std::vector<std::pair<uint32_t, uint32_t>> stack;  // node, active planes
     bool tested = false;
@@ -158,7 +152,7 @@ void ClosedExemptionFinder::scanFace(const Triangle& t) {
         const ConvexBound& bound = samples_.lightBounds[l];
         if (facesAway(g, bound)) continue;  // skipped for this light, never the face that fails
         tested = true;
-        if (!buildPenumbraVolume(bound, g, volume, &root, level)) continue;  // V_L misses every receiver
+        if (!buildPenumbraVolume(bound, g, volume, &root_, level_)) continue;  // V_L misses every receiver
         stack.assign(1, {0u, volume.all()});
         while (!stack.empty()) {
             auto [at, active] = stack.back();
@@ -166,7 +160,7 @@ void ClosedExemptionFinder::scanFace(const Triangle& t) {
             const Index::Node& node = index.nodes[at];
             const double extent = largestCoordinate(Box{node.lo, node.hi});
             const double margin = closedExemptionMargin(extent, vertex);
-            const double band = epsilon.at(glm::dvec3(extent)) + margin;
+            const double band = epsilon_.at(glm::dvec3(extent)) + margin;
             const double far = std::max(n.x * node.lo.x, n.x * node.hi.x) + std::max(n.y * node.lo.y, n.y * node.hi.y) +
                                std::max(n.z * node.lo.z, n.z * node.hi.z) - c;
             const double near = std::min(n.x * node.lo.x, n.x * node.hi.x) + std::min(n.y * node.lo.y, n.y * node.hi.y) +
@@ -175,7 +169,7 @@ void ClosedExemptionFinder::scanFace(const Triangle& t) {
             // nearest the origin, where it is narrowest.
             if (far < -band || near >= -closedOnPlaneBand(smallestCoordinate(node.lo, node.hi), vertex)) continue;
             const Box box{node.lo, node.hi};
-            if (!(level == SimdLevel::Avx2 ? intersectsAvx2(volume, box, active) : intersects(volume, box, active))) continue;
+            if (!(level_ == SimdLevel::Avx2 ? intersectsAvx2(volume, box, active) : intersects(volume, box, active))) continue;
             if (node.left) {
                 stack.push_back({node.left, active}), stack.push_back({node.right, active});
                 continue;
@@ -183,7 +177,7 @@ void ClosedExemptionFinder::scanFace(const Triangle& t) {
             for (uint32_t i = node.begin; i < node.end; ++i) {
                 if (marked_[i].load(std::memory_order_relaxed)) continue;
                 const uint32_t id = index.ids[i];
-                if (closedFaceMayFailAt(g, volume, glm::dvec3(receivers_.position[id]), epsilon, samplesOf(id, l), bound.w))
+                if (closedFaceMayFailAt(g, volume, glm::dvec3(receivers_.position[id]), epsilon_, samplesOf(id, l), bound.w))
                     marked_[i].store(1, std::memory_order_relaxed);
             }
         }

@@ -112,9 +112,11 @@ private:
     const LightSamples& samples_;
     const ReceiverSet& receivers_;
     std::span<const uint32_t> sampleSets_;
-    const CastOptions& options_;
+    ReceiverEpsilon epsilon_;
+    SimdLevel level_;  ///< which code builds V_L and tests boxes against it
     std::vector<std::pair<uint32_t, uint32_t>> lightSamples_;  ///< per light: its first sample and count
     std::unique_ptr<Index> index_;
+    Box root_;  ///< the index's root box: V_L is abandoned once it leaves it outside
     std::unique_ptr<std::atomic<uint8_t>[]> marked_;  ///< per position in the index's ids
     std::atomic<uint64_t> facesTested_{0};
 };

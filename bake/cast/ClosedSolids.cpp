@@ -58,7 +58,7 @@ void ClosedSolidScan::scan(std::span<const Triangle> chunk, uint32_t part) {
         }
         if (solid == SolidSegmenter::kNone) continue;
         ++currentTriangles_;
-        const bool opaque = blocksAsOpaque(t.flags) && alphaIdOf(t.flags) == 0;
+        const bool opaque = blocksWhole(t.flags);
         currentOpaque_ = currentOpaque_ || opaque, currentSeeThrough_ = currentSeeThrough_ || !opaque;
         edges_.add(t), volume_.add(t), runVolume_.add(t);
         // A run of the solid's triangles whose edges balance is a closed surface of its own (the

@@ -223,9 +223,9 @@ private:
 
     /// The receivers of @p ids that closed casters must not skip for: a pass over the whole
     /// replay (every closed face, wherever a resumed tile starts), which is then rewound, timed
-    /// into @p seconds. None when closed casters are off or no closed solid stayed closed.
+    /// into @p seconds. None when closed casters are off (also when no closed solid stayed closed).
     std::vector<uint32_t> findExempt(TriangleSource& blockers, std::span<const uint32_t> ids, double& seconds) {
-        if (!c_.options.closedCasters || !c_.options.closedSolidsKept || ids.empty()) return {};
+        if (!c_.options.closedCasters || ids.empty()) return {};
         ScopedTimer timer(seconds);
         std::vector<uint32_t> exempt = findClosedExemptions(blockers, c_.samples, c_.receivers, c_.sampleSets, ids, c_.options);
         blockers.rewind();

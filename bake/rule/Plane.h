@@ -7,6 +7,7 @@
 #include <glm/vec3.hpp>
 
 #include <algorithm>
+#include <cmath>
 
 namespace penumbra {
 
@@ -35,6 +36,9 @@ inline double largestCoordinate(const Box& box) {
     const glm::vec3 far = glm::max(glm::abs(box.lo), glm::abs(box.hi));
     return std::max({far.x, far.y, far.z});
 }
+
+/// @brief The largest |coordinate| of @p p.
+inline double largestCoordinate(const glm::dvec3& p) { return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
 
 /// Result of classifying a box against one plane.
 enum class BoxSide { Outside, Straddles, Inside };
