@@ -4,9 +4,8 @@
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
 #include "stream/GltfBuffers.h"
-#include "stream/GltfMeshWriter.h"
+#include "stream/GltfConvert.h"
 #include "stream/GltfReader.h"
-#include "stream/IndexedMesh.h"
 #include "stream/util/InputFile.h"
 #include "stream/ObjReader.h"
 #include "stream/util/TextInput.h"
@@ -64,67 +63,11 @@ void writeObj(TriangleSource& in, const std::string& outPath) {
     file.commit();
 }
 
+/// A triangle soup: three vertices per triangle, no indices, as `generate` writes it.
 void writeGltf(TriangleSource& in, const std::string& outPath, bool binary) {
-    // The JSON states buffer and accessor sizes up front, so the positions are gathered first,
-    // straight into the bytes the buffer will hold.
-    std::vector<unsigned char> positionBytes;
-    uint64_t vertexCount = 0;
-    glm::vec3 lo(0.0f), hi(0.0f);
-    // A GLB's length fields are 32-bit; stay well inside them (headers and JSON need room too).
-    const uint64_t maxTriangles = (std::numeric_limits<uint32_t>::max() - (1u << 20)) / 36;
-    forEachChunk(in, [&](std::span<const Triangle> triangles) {
-        if (vertexCount / 3 + triangles.size() > maxTriangles)
-            fail(outPath, "more than {} triangles do not fit in one glTF buffer", maxTriangles);
-        if (vertexCount == 0 && !triangles.empty()) lo = hi = triangles[0].v[0];
-        for (const Triangle& t : triangles) {
-            for (const glm::vec3& p : t.v) {
-                const auto* bytes = reinterpret_cast<const unsigned char*>(&p);
-                positionBytes.insert(positionBytes.end(), bytes, bytes + sizeof p);
-                lo = glm::min(lo, p);
-                hi = glm::max(hi, p);
-            }
-            vertexCount += 3;
-        }
-    });
-
-    tinygltf::Model model;
-    model.asset.version = "2.0";
-    model.asset.generator = "penumbra";
-    if (vertexCount > 0) {
-        tinygltf::Buffer buffer;
-        buffer.data = std::move(positionBytes);
-        tinygltf::BufferView view;
-        view.buffer = 0;
-        view.byteLength = buffer.data.size();
-        view.target = TINYGLTF_TARGET_ARRAY_BUFFER;
-        tinygltf::Accessor accessor;
-        accessor.bufferView = 0;
-        accessor.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
-        accessor.type = TINYGLTF_TYPE_VEC3;
-        accessor.count = vertexCount;
-        accessor.minValues = {lo.x, lo.y, lo.z};  // required for POSITION by the spec
-        accessor.maxValues = {hi.x, hi.y, hi.z};
-        tinygltf::Primitive primitive;
-        primitive.attributes["POSITION"] = 0;
-        primitive.mode = TINYGLTF_MODE_TRIANGLES;
-        tinygltf::Mesh mesh;
-        mesh.primitives.push_back(primitive);
-        tinygltf::Node node;
-        node.mesh = 0;
-        model.buffers.push_back(std::move(buffer));
-        model.bufferViews.push_back(view);
-        model.accessors.push_back(accessor);
-        model.meshes.push_back(mesh);
-        model.nodes.push_back(node);
-        tinygltf::Scene scene;
-        scene.nodes.push_back(0);
-        model.scenes.push_back(scene);
-        model.defaultScene = 0;
-    }
-    // An empty source writes a model without scenes: tinygltf would serialize an empty scene
-    // as null, which its own loader then rejects.
-
-    writeGltfModel(model, outPath, binary);
+    GltfStreamWriter out(outPath, binary);
+    addTrianglesOf(in, out, "", GltfStreamWriter::Indexing::None);
+    out.commit();
 }
 
 }  // namespace
@@ -191,19 +134,24 @@ void convertGeometryFile(const std::string& inPath, const std::string& outPath, 
     const std::optional<GeometryFormat> in = geometryFormatOf(inPath);
     std::optional<OpeningProgress> opening;  // the readers' own passes ([check], [load])
     if (progressQuiet) opening.emplace(*progressQuiet);
-    if ((out == ".glb" || out == ".gltf") && in && *in != GeometryFormat::Ptri) {
-        // Meshes keep their normals, texture coordinates and names; corners are welded.
-        checkInputFile(inPath);
-        std::vector<IndexedMesh> meshes = loadIndexedMeshes(inPath, glm::mat4(1.0f));
-        for (IndexedMesh& m : meshes) m = weldVertices(m);
-        return writeIndexedGltf(meshes, outPath, out == ".glb");
+    auto openTriangles = [&] {
+        TriangleSourcePtr source = openGeometryFile(inPath);
+        if (!progressQuiet) return source;
+        const std::string phase = "convert " + std::filesystem::path(inPath).filename().string();
+        return TriangleSourcePtr(std::make_unique<ProgressSource>(std::move(source), phase, *progressQuiet));
+    };
+    if (out == ".glb" || out == ".gltf") {
+        GltfStreamWriter writer(outPath, out == ".glb");
+        if (in && *in != GeometryFormat::Ptri) {
+            // Meshes keep their normals, texture coordinates and names; corners are welded.
+            checkInputFile(inPath);
+            addMeshesOfFile(inPath, writer);
+        } else {  // a triangle stream: corners shared by position
+            addTrianglesOf(*openTriangles(), writer, std::filesystem::path(outPath).stem().string(), GltfStreamWriter::Indexing::Welded);
+        }
+        return writer.commit();
     }
-    TriangleSourcePtr source = openGeometryFile(inPath);
-    if (progressQuiet)
-        source = std::make_unique<ProgressSource>(std::move(source), "convert " + std::filesystem::path(inPath).filename().string(), *progressQuiet);
-    if (out == ".glb" || out == ".gltf")  // a triangle stream: corners shared by position
-        return writeIndexedGltf({meshOfTriangles(*source, std::filesystem::path(outPath).stem().string())}, outPath, out == ".glb");
-    convertGeometry(*source, outPath);
+    convertGeometry(*openTriangles(), outPath);
 }
 
 }  // namespace penumbra

@@ -53,9 +53,10 @@ GeometryInfo scanGeometry(TriangleSource& source);
 ///
 /// The format follows the extension: .ptri (PtriWriter, chunked and checksummed), .obj
 /// (streamed; three `v` lines and one `f` line per triangle, vertices not shared), or
-/// .glb / .gltf (one non-indexed FLOAT mesh with an identity node, the layout `generate` promises;
-/// buffered in memory because the JSON must state the buffer size; .gltf embeds the buffer as a
-/// base64 data URI). Floats are written so that they read back bit-identical. Triangle flags
+/// .glb / .gltf (one non-indexed FLOAT mesh with an identity node, the layout `generate` promises,
+/// in primitives of at most GltfStreamWriter::kOpenBytes, written through a scratch file because
+/// the JSON must state the buffer size first; .gltf embeds the buffer as a base64 data URI up to
+/// kMaxDataUriBytes, else writes it to STEM.bin beside it). Floats are written so that they read back bit-identical. Triangle flags
 /// survive only in .ptri.
 /// Output is atomic: a temporary in the same directory is renamed into place at the end.
 /// @throw InputError naming @p outPath for an unknown extension or a failed write, or when the
@@ -66,7 +67,8 @@ void convertGeometry(TriangleSource& in, const std::string& outPath);
 /// glTF keeps its meshes (one per OBJ o/g group or glTF node), their normals and texture
 /// coordinates (in glTF's convention), with identical corners welded; a .ptri
 /// written as glTF is one indexed mesh whose corners with bit-identical positions are shared
-/// (GltfMeshWriter.h); every other pair goes through convertGeometry().
+/// (GltfConvert.h, GltfStreamWriter.h: in bounded memory, a mesh larger than the writer's open
+/// bytes split into primitives); every other pair goes through convertGeometry().
 /// @param progressQuiet set: each pass over the input shows as a phase on stderr (`[check
 /// mesh.obj]` and `[load mesh.obj]` for a large OBJ, `[convert mesh.obj]` for the streamed
 /// pass), printed or quiet as given; unset (library callers, tests): no display.

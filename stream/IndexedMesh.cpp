@@ -30,20 +30,15 @@ namespace {
 
 bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
-/// Applies the load transform (and a node's world matrix) to a finished mesh. Normals use the
-/// inverse transpose so that non-uniform scales keep them perpendicular to the surface.
+/// Applies the load transform (and a node's world matrix) to a finished mesh.
 void place(IndexedMesh& mesh, const glm::dmat4& m, const std::string& path, bool positions = true) {
-    const glm::dmat3 normalMatrix = glm::transpose(glm::inverse(glm::dmat3(m)));
+    const MeshPlacement placement(m);
     for (glm::vec3& p : mesh.position) {
-        if (positions) p = glm::vec3(m * glm::dvec4(p, 1.0));
+        if (positions) p = placement.position(p);
         if (!finite(p)) fail(path, "a transformed vertex position is not finite");
     }
-    for (glm::vec3& n : mesh.normal) {
-        glm::dvec3 t = normalMatrix * glm::dvec3(n);
-        double length = glm::length(t);
-        n = length > 0 && std::isfinite(length) ? glm::vec3(t / length) : glm::vec3(0.0f);
-    }
-    if (glm::determinant(glm::dmat3(m)) < 0.0)
+    for (glm::vec3& n : mesh.normal) n = placement.normal(n);
+    if (placement.mirrors)
         for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3) std::swap(mesh.indices[t + 1], mesh.indices[t + 2]);
 }
 
@@ -214,10 +209,7 @@ private:
         if (!allNormals) mesh.normal.clear();
         if (!allUv0) mesh.uv0.clear();
         if (!allUv1) mesh.uv1.clear();
-        for (glm::vec3& n : mesh.normal) {
-            float length = glm::length(n);
-            n = length > 0 ? n / length : glm::vec3(0.0f);
-        }
+        for (glm::vec3& n : mesh.normal) n = unitOrZero(n);
         return mesh;
     }
 
@@ -226,6 +218,22 @@ private:
 };
 
 }  // namespace
+
+glm::vec3 unitOrZero(const glm::vec3& n) {
+    const float length = glm::length(n);
+    return length > 0 ? n / length : glm::vec3(0.0f);
+}
+
+MeshPlacement::MeshPlacement(const glm::dmat4& m)
+    : matrix(m), normalMatrix(glm::transpose(glm::inverse(glm::dmat3(m)))), mirrors(glm::determinant(glm::dmat3(m)) < 0.0) {}
+
+glm::vec3 MeshPlacement::position(const glm::vec3& p) const { return glm::vec3(matrix * glm::dvec4(p, 1.0)); }
+
+glm::vec3 MeshPlacement::normal(const glm::vec3& n) const {
+    const glm::dvec3 t = normalMatrix * glm::dvec3(n);
+    const double length = glm::length(t);
+    return length > 0 && std::isfinite(length) ? glm::vec3(t / length) : glm::vec3(0.0f);
+}
 
 std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::mat4& transform,
                                            const std::vector<std::string>& parts) {
@@ -236,10 +244,7 @@ std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::m
     }
     std::vector<IndexedMesh> meshes = loadObjMeshes(path, parts);
     for (IndexedMesh& mesh : meshes) {
-        for (glm::vec3& n : mesh.normal) {
-            float length = glm::length(n);
-            n = length > 0 ? n / length : glm::vec3(0.0f);
-        }
+        for (glm::vec3& n : mesh.normal) n = unitOrZero(n);
         // Positions go through the same float arithmetic as the blocker stream's
         // TransformedSource, so receivers and blockers of one OBJ have the same bits.
         // (An identity is not applied at all, as the blocker stream skips it: -0 stays -0.)

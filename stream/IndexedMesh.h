@@ -11,6 +11,7 @@
 /// growing downwards. OBJ `vt` has v growing upwards, so OBJ coordinates are stored as
 /// (u, 1 - v); an OBJ and a glTF exported from the same model then give the same layout.
 
+#include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
@@ -32,6 +33,22 @@ struct IndexedMesh {
     std::string name;                 ///< glTF mesh (or node) name; the file's stem for OBJ
 
     size_t triangleCount() const { return indices.size() / 3; }
+};
+
+/// @brief @p n scaled to unit length in float, or 0 when it has none (a normal as read).
+glm::vec3 unitOrZero(const glm::vec3& n);
+
+/// @brief Where a mesh is placed: positions by a matrix (in double), normals by its inverse
+/// transpose, so that non-uniform scales keep them perpendicular to the surface, and the winding
+/// reversed when the matrix mirrors, so that front faces stay front faces.
+struct MeshPlacement {
+    explicit MeshPlacement(const glm::dmat4& matrix);
+    glm::dmat4 matrix;
+    glm::dmat3 normalMatrix;
+    bool mirrors;
+    glm::vec3 position(const glm::vec3& p) const;
+    /// Unit length, or 0 for a normal the matrix sends to 0 or past the float range.
+    glm::vec3 normal(const glm::vec3& n) const;
 };
 
 /// @brief Loads every mesh of an OBJ (one per o/g group), .gltf or .glb file (one mesh per node

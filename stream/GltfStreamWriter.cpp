@@ -1,0 +1,312 @@
+#include "stream/GltfStreamWriter.h"
+
+#include "stream/GlbBuilder.h"
+#include "stream/GltfDocument.h"
+#include "stream/util/AnonymousFile.h"
+#include "stream/util/AtomicFile.h"
+#include "stream/util/Error.h"
+
+#include <glm/common.hpp>
+#include <nlohmann/json.hpp>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+
+#include <unistd.h>
+
+namespace penumbra {
+
+namespace {
+
+constexpr uint32_t kEmptySlot = std::numeric_limits<uint32_t>::max();
+constexpr int kFloat = 5126, kUnsignedInt = 5125;         // glTF componentType
+constexpr int kArrayBuffer = 34962, kElementBuffer = 34963;  // bufferView target
+// A GLB's length fields are 32-bit; stay well inside them (headers and JSON need room too).
+constexpr uint64_t kMaxBufferBytes = std::numeric_limits<uint32_t>::max() - (1u << 20);
+
+uint64_t mix(uint64_t x) {  // splitmix64's finalizer
+    x ^= x >> 30, x *= 0xbf58476d1ce4e5b9ull;
+    x ^= x >> 27, x *= 0x94d049bb133111ebull;
+    return x ^ (x >> 31);
+}
+
+}  // namespace
+
+/// The unnamed file the primitives' bytes wait in until commit().
+struct GltfStreamWriter::Scratch {
+    std::string dir = scratchDirectory();
+    int fd = createAnonymousFile(dir);
+    uint64_t size = 0;
+
+    Scratch() {
+        if (fd < 0) fail(dir, "cannot create a scratch file for the glTF being written: {}", std::strerror(errno));
+    }
+    ~Scratch() { ::close(fd); }
+
+    uint64_t append(const void* data, size_t bytes) {
+        const uint64_t at = size;
+        const char* p = static_cast<const char*>(data);
+        for (size_t done = 0; done < bytes;) {
+            const ssize_t n = ::pwrite(fd, p + done, bytes - done, off_t(at + done));
+            if (n < 0 && errno == EINTR) continue;
+            if (n <= 0) fail(dir, "cannot write the scratch file of the glTF being written: {}", std::strerror(n < 0 ? errno : EIO));
+            done += size_t(n);
+        }
+        size += bytes;
+        return at;
+    }
+    /// Calls @p consume with the file's bytes in order, a block at a time.
+    template <typename Consume>
+    void read(Consume&& consume) const {
+        std::vector<char> block(1u << 20);
+        for (uint64_t at = 0; at < size;) {
+            const ssize_t n = ::pread(fd, block.data(), size_t(std::min<uint64_t>(block.size(), size - at)), off_t(at));
+            if (n < 0 && errno == EINTR) continue;
+            if (n <= 0) fail(dir, "cannot read the scratch file of the glTF being written: {}", std::strerror(n < 0 ? errno : EIO));
+            consume(block.data(), size_t(n));
+            at += uint64_t(n);
+        }
+    }
+};
+
+/// A mesh: the primitives already in the scratch file, and the open one.
+struct GltfStreamWriter::Mesh {
+    struct Primitive {
+        uint64_t offset = 0;  ///< of POSITION; NORMAL, TEXCOORD_0/1 and indices follow in that order
+        uint64_t vertices = 0, indices = 0;
+        glm::vec3 lo{0.0f}, hi{0.0f};
+    };
+    std::string name;
+    GltfVertexLayout layout;
+    Indexing indexing;
+    std::vector<Primitive> written;
+    std::vector<glm::vec3> position, normal;
+    std::vector<glm::vec2> uv0, uv1;
+    std::vector<uint32_t> indices;
+    std::vector<uint32_t> slots;  ///< welding table: vertex ids, kEmptySlot when free
+
+    uint64_t vertexBytes() const { return 12 + (layout.normal ? 12 : 0) + (layout.uv0 ? 8 : 0) + (layout.uv1 ? 8 : 0); }
+    uint64_t openBytes() const { return position.size() * vertexBytes() + (indices.size() + slots.size()) * 4; }
+    bool open() const { return !position.empty(); }
+
+    /// The corner's bits as welding compares them, in @p words; @return how many.
+    size_t key(const GltfCorner& c, uint32_t (&words)[10]) const {
+        size_t n = 0;
+        auto put = [&](const float* f, size_t count) {
+            std::memcpy(words + n, f, count * 4);
+            n += count;
+        };
+        put(&c.position.x, 3);
+        if (layout.normal) put(&c.normal.x, 3);
+        if (layout.uv0) put(&c.uv0.x, 2);
+        if (layout.uv1) put(&c.uv1.x, 2);
+        return n;
+    }
+    GltfCorner corner(uint32_t v) const {
+        GltfCorner c;
+        c.position = position[v];
+        if (layout.normal) c.normal = normal[v];
+        if (layout.uv0) c.uv0 = uv0[v];
+        if (layout.uv1) c.uv1 = uv1[v];
+        return c;
+    }
+    uint32_t push(const GltfCorner& c) {
+        position.push_back(c.position);
+        if (layout.normal) normal.push_back(c.normal);
+        if (layout.uv0) uv0.push_back(c.uv0);
+        if (layout.uv1) uv1.push_back(c.uv1);
+        return uint32_t(position.size() - 1);
+    }
+    static uint64_t hashOf(const uint32_t* words, size_t n) {
+        uint64_t h = 0x9e3779b97f4a7c15ull;
+        for (size_t i = 0; i < n; ++i) h = mix(h ^ words[i]);
+        return h;
+    }
+    /// The vertex of corner @p c, added when no vertex has its bits.
+    uint32_t weld(const GltfCorner& c) {
+        if ((position.size() + 1) * 2 > slots.size()) rehash(std::max<size_t>(64, slots.size() * 2));
+        uint32_t words[10], other[10];
+        const size_t n = key(c, words);
+        const size_t mask = slots.size() - 1;
+        for (size_t s = size_t(hashOf(words, n)) & mask;; s = (s + 1) & mask) {
+            if (slots[s] == kEmptySlot) return slots[s] = push(c);
+            key(corner(slots[s]), other);
+            if (std::memcmp(words, other, n * 4) == 0) return slots[s];
+        }
+    }
+    void rehash(size_t size) {
+        slots.assign(size, kEmptySlot);
+        uint32_t words[10];
+        for (uint32_t v = 0; v < position.size(); ++v) {
+            const size_t n = key(corner(v), words);
+            size_t s = size_t(hashOf(words, n)) & (size - 1);
+            while (slots[s] != kEmptySlot) s = (s + 1) & (size - 1);
+            slots[s] = v;
+        }
+    }
+};
+
+GltfStreamWriter::GltfStreamWriter(std::string path, bool binary, uint64_t openBytes)
+    : path_(std::move(path)), binary_(binary), openLimit_(openBytes) {}
+
+GltfStreamWriter::~GltfStreamWriter() = default;
+
+int GltfStreamWriter::addMesh(std::string name, GltfVertexLayout layout, Indexing indexing) {
+    auto mesh = std::make_unique<Mesh>();
+    mesh->name = std::move(name);
+    mesh->layout = layout;
+    mesh->indexing = indexing;
+    if (indexing == Indexing::None) mesh->layout = {};  // a triangle soup has positions only
+    meshes_.push_back(std::move(mesh));
+    return int(meshes_.size() - 1);
+}
+
+void GltfStreamWriter::addTriangle(int meshId, const std::array<GltfCorner, 3>& corners) {
+    Mesh& mesh = *meshes_.at(size_t(meshId));
+    const uint64_t before = mesh.openBytes();
+    for (const GltfCorner& c : corners) {
+        if (mesh.indexing == Indexing::None)
+            mesh.push(c);
+        else
+            mesh.indices.push_back(mesh.weld(c));
+    }
+    openBytes_ += mesh.openBytes() - before;
+    const uint64_t total = openBytes_ + (scratch_ ? scratch_->size : 0);
+    if (total > kMaxBufferBytes)
+        fail(path_, "more than {} bytes of vertices and indices do not fit in one glTF buffer (at most 4 GiB)", kMaxBufferBytes);
+    if (openBytes_ > openLimit_) flushAll();
+}
+
+void GltfStreamWriter::flush(Mesh& mesh) {
+    if (!mesh.open()) return;
+    if (!scratch_) scratch_ = std::make_unique<Scratch>();
+    Mesh::Primitive p;
+    p.vertices = mesh.position.size();
+    p.indices = mesh.indices.size();
+    p.lo = p.hi = mesh.position[0];
+    for (const glm::vec3& v : mesh.position) p.lo = glm::min(p.lo, v), p.hi = glm::max(p.hi, v);
+    p.offset = scratch_->append(mesh.position.data(), mesh.position.size() * sizeof(glm::vec3));
+    scratch_->append(mesh.normal.data(), mesh.normal.size() * sizeof(glm::vec3));
+    scratch_->append(mesh.uv0.data(), mesh.uv0.size() * sizeof(glm::vec2));
+    scratch_->append(mesh.uv1.data(), mesh.uv1.size() * sizeof(glm::vec2));
+    scratch_->append(mesh.indices.data(), mesh.indices.size() * sizeof(uint32_t));
+    mesh.written.push_back(p);
+    openBytes_ -= mesh.openBytes();
+    mesh.position = {}, mesh.normal = {}, mesh.indices = {}, mesh.slots = {};
+    mesh.uv0 = {}, mesh.uv1 = {};
+}
+
+void GltfStreamWriter::flushAll() {
+    for (auto& mesh : meshes_) flush(*mesh);
+}
+
+size_t GltfStreamWriter::primitiveCount() const {
+    size_t n = 0;
+    for (const auto& mesh : meshes_) n += mesh->written.size();
+    return n;
+}
+
+std::string GltfStreamWriter::documentText(const std::string& uri) const {
+    nlohmann::json doc;
+    doc["asset"] = {{"version", "2.0"}, {"generator", "penumbra"}};
+    nlohmann::json views = nlohmann::json::array(), accessors = nlohmann::json::array();
+    nlohmann::json meshes = nlohmann::json::array(), nodes = nlohmann::json::array(), roots = nlohmann::json::array();
+    auto accessor = [&](uint64_t& offset, uint64_t count, int components, int target) {
+        static const char* const kTypes[] = {"", "SCALAR", "VEC2", "VEC3"};
+        const uint64_t bytes = count * uint64_t(components) * 4;
+        views.push_back({{"buffer", 0}, {"byteOffset", offset}, {"byteLength", bytes}, {"target", target}});
+        accessors.push_back({{"bufferView", views.size() - 1},
+                             {"componentType", target == kElementBuffer ? kUnsignedInt : kFloat},
+                             {"count", count},
+                             {"type", kTypes[components]}});
+        offset += bytes;
+        return accessors.size() - 1;
+    };
+    for (const auto& mesh : meshes_) {
+        if (mesh->written.empty()) continue;
+        nlohmann::json primitives = nlohmann::json::array();
+        for (const Mesh::Primitive& p : mesh->written) {
+            uint64_t at = p.offset;
+            nlohmann::json attributes, primitive;
+            attributes["POSITION"] = accessor(at, p.vertices, 3, kArrayBuffer);
+            accessors.back()["min"] = {p.lo.x, p.lo.y, p.lo.z};  // required for POSITION by the spec
+            accessors.back()["max"] = {p.hi.x, p.hi.y, p.hi.z};
+            if (mesh->layout.normal) attributes["NORMAL"] = accessor(at, p.vertices, 3, kArrayBuffer);
+            if (mesh->layout.uv0) attributes["TEXCOORD_0"] = accessor(at, p.vertices, 2, kArrayBuffer);
+            if (mesh->layout.uv1) attributes["TEXCOORD_1"] = accessor(at, p.vertices, 2, kArrayBuffer);
+            primitive["attributes"] = std::move(attributes);
+            if (p.indices > 0) primitive["indices"] = accessor(at, p.indices, 1, kElementBuffer);
+            primitive["mode"] = 4;  // TRIANGLES
+            primitives.push_back(std::move(primitive));
+        }
+        nlohmann::json m = {{"primitives", std::move(primitives)}}, node = {{"mesh", meshes.size()}};
+        if (!mesh->name.empty()) m["name"] = node["name"] = mesh->name;
+        meshes.push_back(std::move(m));
+        roots.push_back(nodes.size());
+        nodes.push_back(std::move(node));
+    }
+    // An empty model has no buffer and no scene (an empty scene would be invalid).
+    if (!meshes.empty()) {
+        nlohmann::json buffer = {{"byteLength", scratch_->size}};
+        if (!uri.empty()) buffer["uri"] = uri;
+        doc["buffers"] = nlohmann::json::array({std::move(buffer)});
+        doc["bufferViews"] = std::move(views);
+        doc["accessors"] = std::move(accessors);
+        doc["meshes"] = std::move(meshes);
+        doc["nodes"] = std::move(nodes);
+        doc["scenes"] = nlohmann::json::array({{{"nodes", std::move(roots)}}});
+        doc["scene"] = 0;
+    }
+    return binary_ ? doc.dump() : doc.dump(2);
+}
+
+void GltfStreamWriter::commit() {
+    flushAll();
+    const uint64_t payload = scratch_ ? scratch_->size : 0;
+    if (binary_) return writeGlb(documentText(""));
+    if (payload <= kMaxDataUriBytes) {
+        std::vector<uint8_t> bytes;
+        if (scratch_) scratch_->read([&](const char* p, size_t n) { bytes.insert(bytes.end(), p, p + n); });
+        const std::string text = documentText(payload ? "data:application/octet-stream;base64," + encodeBase64(bytes) : "");
+        return writeFileAtomically(path_, std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+    }
+    // Above what readers keep in a data URI, the buffer goes to STEM.bin beside the .gltf, as
+    // exporters do; it is removed again if the .gltf cannot be written.
+    const std::filesystem::path gltf(path_);
+    const std::filesystem::path bin = gltf.parent_path() / (gltf.stem().string() + ".bin");
+    {
+        AtomicFile file(bin.string());
+        scratch_->read([&](const char* p, size_t n) { file.write(p, n); });
+        file.commit();
+    }
+    try {
+        const std::string text = documentText(bin.filename().string());
+        writeFileAtomically(path_, std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+    } catch (...) {
+        std::error_code ignored;
+        std::filesystem::remove(bin, ignored);
+        throw;
+    }
+}
+
+void GltfStreamWriter::writeGlb(std::string json) {
+    json.resize((json.size() + 3) / 4 * 4, ' ');  // chunks are 4-byte aligned; JSON pads with spaces
+    const uint64_t payload = scratch_ ? scratch_->size : 0;  // floats and indices: a multiple of 4
+    const uint64_t total = 12 + 8 + json.size() + (payload ? 8 + payload : 0);
+    if (total > std::numeric_limits<uint32_t>::max())
+        fail(path_, "{} bytes do not fit in one GLB file (at most 4 GiB)", total);
+    AtomicFile file(path_);
+    auto word = [&](uint32_t w) { file.write(&w, 4); };
+    word(0x46546C67u), word(2), word(uint32_t(total));  // "glTF", version 2
+    word(uint32_t(json.size())), word(0x4E4F534Au);      // "JSON"
+    file.write(json.data(), json.size());
+    if (payload) {
+        word(uint32_t(payload)), word(0x004E4942u);  // "BIN\0"
+        scratch_->read([&](const char* p, size_t n) { file.write(p, n); });
+    }
+    file.commit();
+}
+
+}  // namespace penumbra
