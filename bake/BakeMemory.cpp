@@ -104,9 +104,12 @@ void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget) {
     std::string why;
     if (!demand.sourceDetail.empty() && demand.sourceBytes > worst.minimumBudget / 2) why = fmt::format(" ({})", demand.sourceDetail);
     const uint64_t least = leastNamedLimit(demand, budget);
-    throw InputError(fmt::format("{} {} is too small for up to {} receivers of {} light-sample groups each; at least {} is needed{}",
-                                 budget.subject(), formatBytes(budget.bytes + budget.overhead), demand.receivers, demand.groups,
-                                 budgetText(least), why));
+    // Receivers a kind finds only in its scan (a mesh's vertices) are not counted yet.
+    const std::string what =
+        demand.receivers > 0 ? fmt::format("up to {} receivers of {} light-sample groups each", demand.receivers, demand.groups)
+                             : fmt::format("the passes before the receivers are counted ({} light-sample groups each)", demand.groups);
+    throw InputError(fmt::format("{} {} is too small for {}; at least {} is needed{}", budget.subject(),
+                                 formatBytes(budget.bytes + budget.overhead), what, budgetText(least), why));
 }
 
 namespace {

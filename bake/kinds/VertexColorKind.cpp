@@ -351,6 +351,11 @@ const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, con
             file.colourUnorm16 = colourFormat == "unorm16";
             file.receiverClass = scene.receiverClasses[g.receiverClass];
             file.output = copyPath(scene.output, i, meshes.size());
+            // Known now, so that the plan before the scan counts the copy as the one after it
+            // does (a refusal named 82M, and 82M was refused again naming 83M).
+            std::error_code unknown;  // a missing file is reported when it is opened
+            file.fileBytes = std::filesystem::file_size(file.input, unknown);
+            if (unknown) file.fileBytes = 0;
             files.push_back(std::move(file));
         }
         return use == KindUse::Validate ? nullptr : std::make_unique<VertexColorKind>(std::move(files), std::move(camera));
