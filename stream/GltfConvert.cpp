@@ -31,17 +31,14 @@ struct ObjGroup {
     int mesh = -1;
 };
 
-/// The groups in the order they first appear, chosen as IndexedMesh.cpp's loader chooses them
-/// (group 0 holds the faces before any `o` or `g`; a later unnamed `g` gets a group of its own).
+/// The groups in the order they first appear (ObjGroupIndex, as IndexedMesh.cpp's loader).
 struct ObjGroups {
     std::vector<ObjGroup> list{1};
+    ObjGroupIndex index;
     size_t current = 0;
 
-    void select(std::string_view text) {
-        const std::string name(text);
-        current = list.size();
-        for (size_t i = 0; i < list.size(); ++i)
-            if (list[i].name == name && (i > 0 || !name.empty())) current = i;
+    void select(std::string_view name) {
+        current = index.select(name);
         if (current == list.size()) list.emplace_back().name = name;
     }
 };

@@ -10,8 +10,10 @@
 /// primitive. A mesh whose vertices fit in one primitive comes out exactly as a whole-mesh weld
 /// would make it; a larger one is split into primitives of its own vertices, a vertex on a split
 /// appearing in both. Splits depend only on the order of the triangles, so the bytes are the same
-/// on every run. The JSON (a few hundred bytes a primitive) is built at commit() and the scratch
-/// data copied behind it, so the disk holds the payload twice for a moment.
+/// on every run. Besides, each mesh costs about a kilobyte until commit() (its record and its
+/// primitives' offsets): 277 MB of RSS for an OBJ of 300,000 groups. At commit() the JSON is
+/// written as text straight to the file (twice for a .glb, whose header states its length first)
+/// and the scratch data copied behind it, so the disk holds the payload twice for a moment.
 ///
 /// Welding merges corners whose position, normal and texture coordinates (those the mesh has)
 /// agree bit for bit: -0 stays apart from +0, as a reader sees them. Vertices keep the order in
@@ -22,8 +24,10 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace penumbra {
@@ -75,9 +79,10 @@ private:
     struct Scratch;
     void flush(Mesh& mesh);
     void flushAll();
-    /// The JSON document; buffer 0 gets @p uri when it is not empty.
-    std::string documentText(const std::string& uri) const;
-    void writeGlb(std::string json);
+    /// @brief Writes the JSON document to @p sink in pieces; buffer 0 gets @p uri when it is
+    /// not empty. The same text on every call.
+    void writeDocument(const std::string& uri, const std::function<void(std::string_view)>& sink) const;
+    void writeGlb();
 
     std::string path_;
     bool binary_;

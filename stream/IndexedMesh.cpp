@@ -61,6 +61,7 @@ struct ObjParser {
     std::vector<glm::vec3> v, vn;
     std::vector<glm::vec2> vt;
     std::vector<ObjPart> parts;
+    ObjGroupIndex groups;
     size_t current = 0;
     std::vector<ObjCorner> face;
     std::vector<glm::vec3> positions;  // face's corners
@@ -92,10 +93,8 @@ struct ObjParser {
             const glm::vec3 t = parseObjVector(tokens, 2, "texture coordinate", where);
             vt.emplace_back(t.x, float(1.0 - double(t.y)));  // to glTF's top-left origin
         } else if (kind == "o" || kind == "g") {
-            const std::string name(tokens.rest());
-            current = parts.size();
-            for (size_t i = 0; i < parts.size(); ++i)
-                if (parts[i].name == name && (i > 0 || !name.empty())) current = i;
+            const std::string_view name = tokens.rest();
+            current = groups.select(name);
             if (current == parts.size()) parts.emplace_back().name = name;
         } else if (kind == "f") {
             const uint64_t counts[3] = {v.size(), vt.size(), vn.size()};

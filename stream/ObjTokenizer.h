@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -34,6 +35,25 @@ struct ObjLocation {
 /// first vertex an unknown statement, and every face index then pointed one vertex later).
 /// A "\r" anywhere else is not whitespace: `1.7\r960` is an unparsable number, not two.
 std::string_view objLineText(std::string_view raw, uint64_t lineNumber);
+
+/// @brief The parts of an OBJ as the receiver meshes and `convert` group them: part 0 holds the
+/// faces before any `o` or `g`; every other name (the empty one of a bare `g` too) is one part,
+/// however often it comes back. A hash, so that a file of a million groups is not quadratic.
+class ObjGroupIndex {
+public:
+    /// @brief The part named @p name, added at the end when new; @return its index.
+    size_t select(std::string_view name) {
+        const auto [it, added] = index_.emplace(std::string(name), count_);
+        count_ += added;
+        return it->second;
+    }
+    /// Parts so far, part 0 included.
+    size_t size() const { return count_; }
+
+private:
+    std::unordered_map<std::string, size_t> index_;
+    size_t count_ = 1;
+};
 
 /// Splits a line into whitespace-separated tokens (spaces, tabs, \v, \f), stopping at a '#' comment.
 class ObjTokens {

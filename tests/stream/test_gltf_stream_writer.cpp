@@ -7,6 +7,7 @@
 #include "stream/GltfConvert.h"
 #include "stream/GltfStreamWriter.h"
 #include "stream/IndexedMesh.h"
+#include "stream/ObjTokenizer.h"
 #include "stream/util/Error.h"
 #include "GltfValidator.h"
 #include "StreamTestFiles.h"
@@ -150,4 +151,29 @@ TEST_CASE("convert to glTF: a malformed OBJ writes nothing, even past the open b
     CHECK_THROWS_WITH(convertGeometryFile(dir.file("bad.obj"), dir.file("bad.glb")),
                       Catch::Contains("bad.obj:80001") && Catch::Contains("70000"));
     CHECK(dir.entries() == std::vector<std::string>{"bad.obj"});
+}
+
+TEST_CASE("ObjGroupIndex: a part per name, part 0 before any group, a bare g a part of its own", "[stream][obj]") {
+    ObjGroupIndex groups;
+    CHECK(groups.size() == 1);
+    CHECK(groups.select("a") == 1);
+    CHECK(groups.select("") == 2);  // a bare `g` is not part 0 (the faces before any group)
+    CHECK(groups.select("b") == 3);
+    CHECK(groups.select("a") == 1);
+    CHECK(groups.select("") == 2);
+    CHECK(groups.size() == 4);
+}
+
+TEST_CASE("convert to glTF: an OBJ of many groups gives a mesh per group, in order", "[stream][gltf]") {
+    ScratchDir dir("gltf-stream");
+    std::string text;
+    for (int i = 0; i < 5000; ++i)
+        text += fmt::format("g part{}\nv {} 0 0\nv {} 1 0\nv {} 0 1\nf -3 -2 -1\n", i % 2500, i, i, i);
+    writeText(dir.file("many.obj"), text);
+    convertGeometryFile(dir.file("many.obj"), dir.file("many.glb"));
+    const std::vector<IndexedMesh> meshes = loadIndexedMeshes(dir.file("many.glb"), glm::mat4(1.0f));
+    REQUIRE(meshes.size() == 2500);  // each name comes back once: its two triangles are one mesh
+    CHECK(meshes[7].name == "part7");
+    CHECK(meshes[7].indices.size() == 6);
+    CHECK(meshes[7].position[3] == glm::vec3(2507, 0, 0));
 }
