@@ -56,9 +56,35 @@ constexpr size_t kBufferBytes = 256 * 1024;
 std::mutex g_setMutex;
 OutputSet* g_openSet = nullptr;
 
+/// Removes the temporaries "BASE.tmp-<pid>-<n>" of processes that no longer run. A SIGKILL (or a
+/// power cut) between linking a staged name and renaming it over the old file, or while a named
+/// temporary is written, leaves one behind, since nothing can run then; the next write of the
+/// same file clears it. A live pid, this process's or another's (another bake writing the same
+/// file now, or an unrelated process that reuses the pid), keeps its files.
+void removeStaleTemporaries(const std::string& base) {
+    const std::filesystem::path path(base);
+    const std::string prefix = path.filename().string() + ".tmp-";
+    std::error_code ec;
+    for (const auto& entry : std::filesystem::directory_iterator(path.parent_path().empty() ? "." : path.parent_path(), ec)) {
+        const std::string name = entry.path().filename().string();
+        if (name.compare(0, prefix.size(), prefix) != 0) continue;
+        char* end = nullptr;
+        const long pid = std::strtol(name.c_str() + prefix.size(), &end, 10);
+        const std::string_view counter = end && *end == '-' ? std::string_view(end + 1) : std::string_view();
+        const auto digit = [](char c) { return c >= '0' && c <= '9'; };
+        if (pid <= 0 || counter.empty() || !std::all_of(counter.begin(), counter.end(), digit)) continue;
+        if (::kill(pid_t(pid), 0) != 0 && errno == ESRCH) {
+            std::error_code ignored;
+            std::filesystem::remove(entry.path(), ignored);
+        }
+    }
+}
+
 /// "BASE.tmp-<pid>-<n>": the pid keeps processes apart, the counter the files of one process.
+/// Stale ones of dead processes are removed first (removeStaleTemporaries).
 std::string uniqueName(const std::string& base) {
     static std::atomic<uint64_t> counter{0};
+    removeStaleTemporaries(base);
     return fmt::format("{}.tmp-{}-{}", base, static_cast<long>(::getpid()), counter.fetch_add(1));
 }
 

@@ -109,6 +109,31 @@ TEST_CASE("AtomicFile replaces an existing file only on commit", "[io]") {
     CHECK(slurp(target) == "new");
 }
 
+TEST_CASE("AtomicFile removes the temporaries a killed process left beside its file", "[io]") {
+    // SIGKILL between linking the staged name and renaming it over the old file (or while a named
+    // temporary is written) leaves "NAME.tmp-PID-N"; nothing can run then, so the next write of
+    // the same file clears those of processes that are gone, and only those.
+    ScratchDir dir;
+    const std::string target = dir.file("out.exr");
+    { std::ofstream(target) << "old"; }
+    const pid_t child = ::fork();
+    if (child == 0) ::_exit(0);
+    ::waitpid(child, nullptr, 0);  // a pid that no process has now
+    const std::string dead = target + ".tmp-" + std::to_string(child) + "-3";
+    const std::vector<std::string> kept = {target + ".tmp-1-3", target + ".tmp-" + std::to_string(::getpid()) + "-999",
+                                           target + ".tmp-x", dir.file("other.exr.tmp-" + std::to_string(child) + "-1")};
+    for (const std::string& f : kept) std::ofstream(f) << "keep";
+    std::ofstream(dead) << "stale";
+    const bool named = GENERATE(false, true);
+    NamedTemporaries fallback(named);
+    AtomicFile f(target);
+    f.write("new", 3);
+    f.commit();
+    CHECK(slurp(target) == "new");
+    CHECK_FALSE(fs::exists(dead));
+    for (const std::string& k : kept) CHECK(fs::exists(k));
+}
+
 TEST_CASE("AtomicFile destroyed without commit leaves nothing behind", "[io]") {
     ScratchDir dir;
     {
