@@ -78,6 +78,7 @@ void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, cons
     const std::vector<std::string> inputs = sceneInputs(scene);
     for (size_t i = 0; i < outputs.size(); ++i) {
         if (!folder[i]) checkOutputPath(outputs[i]), refuseInputs(outputs[i], inputs);
+        else checkOutputFolder(outputs[i]);  // before the work, not when the first shard file is written
         const std::string a = comparablePath(outputs[i]);
         for (size_t j = 0; j < i; ++j)
             if (a == comparablePath(outputs[j])) fail(outputs[i], "is named for two outputs of this bake; give each its own file");

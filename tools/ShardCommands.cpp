@@ -176,6 +176,23 @@ std::vector<uint64_t> combineLevels(const SlurmOptions& o) {
     return spans;
 }
 
+/// @p path as an `#SBATCH` value: in double quotes, which sbatch reads as one word (a folder with a
+/// space or an apostrophe), with a double quote escaped. checkJobFolder() keeps out what its
+/// file-name patterns would change.
+std::string sbatchQuoted(const std::string& path) {
+    std::string out = "\"";
+    for (char c : path) out += c == '"' ? std::string("\\\"") : std::string(1, c);
+    return out + "\"";
+}
+
+/// Refuses a job folder whose name sbatch's `--output` patterns would change: '%' starts a
+/// pattern (%a, %j) and a backslash turns them all off.
+void checkJobFolder(const std::string& dir) {
+    if (dir.find_first_of("%\\") != std::string::npos)
+        fail("--dir", "the job folder \"{}\" holds a '%' or a backslash, which Slurm's --output patterns would change; "
+             "give --dir a folder without them", printableLine(dir));
+}
+
 std::vector<SlurmScript> makeScripts(const SlurmOptions& o, const std::string& dir) {
     const std::string exe = shellQuoted(selfPath()), scene = shellQuoted(absolute(o.scene));
     const std::string head = scriptHead(o);
@@ -183,10 +200,10 @@ std::vector<SlurmScript> makeScripts(const SlurmOptions& o, const std::string& d
     const std::string tmp = o.tmp.empty() ? " --tmp \"${TMPDIR:-/tmp}\"" : " --tmp " + shellQuoted(o.tmp);
     std::vector<SlurmScript> scripts;
     scripts.push_back({"shards.sbatch",
-                       head + fmt::format("#SBATCH --job-name=penumbra-shards\n#SBATCH --array=0-{}\n#SBATCH --output={}/logs/shard-%a.log\n"
+                       head + fmt::format("#SBATCH --job-name=penumbra-shards\n#SBATCH --array=0-{}\n#SBATCH --output={}\n"
                                           "set -eu\n"
-                                          "exec {} bake {} --shard slurm --shard-by {} --shard-dir {} --threads {}{}{} --quiet\n",
-                                          o.shards - 1, dir, exe, scene, o.shardBy, shellQuoted(dir + "/shards"), o.threads, budget, tmp),
+                                          "exec {} bake {} --shard \"$SLURM_ARRAY_TASK_ID/{}\" --shard-by {} --shard-dir {} --threads {}{}{} --quiet\n",
+                                          o.shards - 1, sbatchQuoted(dir + "/logs/shard-%a.log"), exe, scene, o.shards, o.shardBy, shellQuoted(dir + "/shards"), o.threads, budget, tmp),
                        fmt::format("shards job {{}} ({} tasks)", o.shards)});
     std::string from = dir + "/shards";
     const std::vector<uint64_t> spans = combineLevels(o);
@@ -195,22 +212,22 @@ std::vector<SlurmScript> makeScripts(const SlurmOptions& o, const std::string& d
         const std::string to = fmt::format("{}/level-{}", dir, level);
         scripts.push_back({fmt::format("combine-{}.sbatch", level),
                            head + fmt::format("#SBATCH --job-name=penumbra-combine-{}\n#SBATCH --array=0-{}\n"
-                                              "#SBATCH --output={}/logs/combine-{}-%a.log\n"
+                                              "#SBATCH --output={}\n"
                                               "set -eu\n"
                                               "first=$((SLURM_ARRAY_TASK_ID * {})); last=$((first + {}))\n"
                                               "if [ \"$last\" -ge {} ]; then last={}; fi\n"
                                               "exec {} combine {} --range \"$first-$last\" --shard-dir {} --quiet\n",
-                                              level, tasks - 1, dir, level, span, span - 1, o.shards, o.shards - 1, exe,
+                                              level, tasks - 1, sbatchQuoted(fmt::format("{}/logs/combine-{}-%a.log", dir, level)), span, span - 1, o.shards, o.shards - 1, exe,
                                               shellQuoted(from), shellQuoted(to)),
                            fmt::format("combine job {{}} (level {}: {} tasks of {} shards)", level, tasks, span)});
         from = to;
     }
     const std::string output = o.output.empty() ? "" : " -o " + shellQuoted(absolute(o.output));
     scripts.push_back({"merge.sbatch",
-                       head + fmt::format("#SBATCH --job-name=penumbra-merge\n#SBATCH --output={}/logs/merge.log\n"
+                       head + fmt::format("#SBATCH --job-name=penumbra-merge\n#SBATCH --output={}\n"
                                           "set -eu\n"
-                                          "exec {} merge {} --shard-dir {}{} --stats {} --threads {}{} --quiet\n",
-                                          dir, exe, scene, shellQuoted(from), output, shellQuoted(dir + "/merge-stats.json"), o.threads, tmp),
+                                          "exec {} merge {} --shard-dir {}{} --stats {} --threads {}{}{} --quiet\n",
+                                          sbatchQuoted(dir + "/logs/merge.log"), exe, scene, shellQuoted(from), output, shellQuoted(dir + "/merge-stats.json"), o.threads, budget, tmp),
                        "merge job {}"});
     return scripts;
 }
@@ -250,7 +267,12 @@ void checkScriptValues(const SlurmOptions& o) {
 /// files are opened as a bake opens them, which reads an OBJ through once to check it). A budget
 /// that passes may still fail a shard's exact check after its scan.
 void checkShardBakes(const SlurmOptions& o) {
-    const SceneDesc scene = loadScene(o.scene);
+    SceneDesc scene = loadScene(o.scene);
+    // The merge job's outputs, as a bake checks them before its work: the kind's extension, a
+    // file the scene reads, a folder that cannot be written.
+    if (!o.output.empty()) scene.output = absolute(o.output), scene.outputFromScene = false;
+    validateReceiverKind(scene.receivers, scene);
+    checkBakeOutputs(scene, "", "");
     if (o.memoryBudget.empty()) return;
     BakeBudget budget;
     budget.bytes = parseMemoryBudget(o.memoryBudget);
@@ -267,6 +289,7 @@ void runSlurm(const SlurmOptions& o) {
     if (!o.output.empty()) requireOutputFolder("--output", o.output);  // now, not when the merge job runs
     const fs::path scene = fs::absolute(o.scene);
     const std::string dir = absolute(o.dir.empty() ? (scene.parent_path() / (scene.stem().string() + ".slurm")).string() : o.dir);
+    checkJobFolder(dir);
     const std::vector<SlurmScript> scripts = makeScripts(o, dir);
     if (o.dryRun) {
         for (size_t i = 0; i < scripts.size(); ++i)

@@ -2,7 +2,9 @@
 
 #include "stream/util/Error.h"
 
+#include <algorithm>
 #include <csignal>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 
@@ -59,7 +61,40 @@ std::optional<PartialFile> Checkpoints::readMatching(const std::string& path, ui
     return f;
 }
 
+void Checkpoints::checkOtherTilings(size_t tiles) {
+    if (tilingChecked_) return;
+    tilingChecked_ = true;
+    // "tile-T-of-M[.progress].pnpart" with another M: this bake under another memory budget or
+    // thread count looks only for its own names, and would bake from the start without a word.
+    std::vector<std::string> other;
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(settings_.checkpointDir, ec)) {
+        const std::string name = entry.path().filename().string();
+        unsigned long t = 0, m = 0;
+        int used = 0;
+        if (std::sscanf(name.c_str(), "tile-%lu-of-%lu%n", &t, &m, &used) != 2 || m == tiles) continue;
+        const std::string rest = name.substr(size_t(used));
+        if (rest != ".pnpart" && rest != ".progress.pnpart") continue;
+        try {  // only this bake's files: a folder may hold another bake's, which are not ours to judge
+            const PartialHeader h = readPartialHeader(entry.path().string());
+            if (h.sceneHash != header_.sceneHash || h.settingsHash != header_.settingsHash || h.contentHash != header_.contentHash) continue;
+        } catch (const InputError&) {
+            continue;  // damaged: its own tile count's bake reports it
+        }
+        other.push_back(entry.path().string());
+    }
+    if (other.empty()) return;
+    std::sort(other.begin(), other.end());
+    const std::string why = fmt::format("a checkpoint of this bake in another tiling (this bake has {} tile(s); --memory-budget or --threads changed)", tiles);
+    if (settings_.resume) fail(other.front(), "{}; remove it or bake without --resume", why);
+    if (!quiet_) printNote("{}: ignoring {} checkpoint file(s) of this bake in another tiling (this bake has {} tile(s); --memory-budget or --threads changed)",
+                           settings_.checkpointDir, other.size(), tiles);
+    // Superseded by this bake's own: removed with them once the outputs are in place.
+    written_.insert(written_.end(), other.begin(), other.end());
+}
+
 bool Checkpoints::restore(size_t tile, size_t tiles, std::span<const uint32_t> ids, VisibilityMasks& masks) {
+    checkOtherTilings(tiles);
     const std::string path = pathOf(tile, tiles);
     const std::optional<PartialFile> f = readMatching(path, PartialHeader::kCheckpoint, ids);
     if (!f) return false;

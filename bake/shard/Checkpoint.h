@@ -65,6 +65,11 @@ public:
     /// @throw InputError under `--resume`.
     void rejectProgress(size_t tile, size_t tiles);
 
+    /// @brief Looks once for this bake's checkpoints of another tile count than @p tiles: an error
+    /// under `--resume`, else one note, and they are removed with this bake's own.
+    /// @throw InputError naming the first such file under `--resume`.
+    void checkOtherTilings(size_t tiles);
+
     /// @brief Removes every checkpoint this bake wrote or restored (the bake is complete), then
     /// the checkpoint folder if nothing else is left in it.
     void removeAll() noexcept;
@@ -94,6 +99,7 @@ private:
     size_t restored_ = 0, saved_ = 0, resumed_ = 0, progressSaves_ = 0;
     uint64_t skipped_ = 0, lastSkipped_ = 0;
     bool progressPending_ = false;
+    bool tilingChecked_ = false;
     Stopwatch progressClock_;
     uint64_t chunksSinceSave_ = 0;  ///< chunks cast since the tile began or was last saved
     long killAfter_ = -1;  ///< PENUMBRA_TEST_KILL_AFTER_TILES: SIGKILL itself after that many saves (tests)

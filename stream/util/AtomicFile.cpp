@@ -473,4 +473,14 @@ void checkOutputPath(const std::string& path) {
     if (::access(dir.c_str(), W_OK | X_OK) != 0) fail(path, "cannot create file in {}: {}", dir.string(), errnoText(errno));
 }
 
+void checkOutputFolder(const std::string& path) {
+    if (path.empty()) throw InputError("cannot create a folder: the path is empty");
+    // The folder itself when it exists, else the nearest directory above it, where it will be made.
+    std::filesystem::path dir = std::filesystem::absolute(path);
+    std::error_code ec;
+    while (!std::filesystem::exists(dir, ec) && dir != dir.root_path()) dir = dir.parent_path();
+    if (!std::filesystem::is_directory(dir, ec)) fail(path, "cannot be made a folder: {} is not a directory", dir.string());
+    if (::access(dir.c_str(), W_OK | X_OK) != 0) fail(path, "cannot write into {}: {}", dir.string(), errnoText(errno));
+}
+
 }  // namespace penumbra

@@ -156,6 +156,13 @@ void ensureParentDirectory(const std::string& path);
 /// @throw InputError naming @p path.
 void checkOutputPath(const std::string& path);
 
+/// @brief The same check for a folder an output goes into (checkpoints, shard files, a dump): it,
+/// or the nearest directory above it where it will be made, must be a directory this process can
+/// write into (a read-only file system fails the check).
+/// @throw InputError "PATH: cannot be made a folder: X is not a directory" or "PATH: cannot write
+///        into X: REASON".
+void checkOutputFolder(const std::string& path);
+
 /// @brief True when `PENUMBRA_NO_TMPFILE` is set (to anything but "" or "0"): every anonymous
 /// file (outputs, bucket files) is then made the way file systems without O_TMPFILE need, for
 /// tests of that fallback.

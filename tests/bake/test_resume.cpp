@@ -258,6 +258,25 @@ TEST_CASE("a damaged checkpoint or one of another scene is refused under --resum
     CHECK(b.outputs() == b.expected);
 }
 
+TEST_CASE("checkpoints of another tiling are refused under --resume, noted and removed under --checkpoint",
+          "[shards][resume]") {
+    // A bake that looked only for its own tile count's names started over without a word, and
+    // left the other tiling's files in the folder for good.
+    ResumeBake b;
+    ScratchDir& dir = b.dir;
+    b.killed("PENUMBRA_TEST_KILL_AFTER_TILES=1");
+    REQUIRE(filesIn(dir / "ckpt").size() == 1);
+    const std::string untiled = " --threads 2 --dump " + dir / "dump";  // no budget: one tile, not three or more
+    requireCleanError(runPenumbra("bake " + b.scene + untiled + " --quiet --resume " + dir / "ckpt"), "another tiling");
+    RunResult noted = runPenumbra("bake " + b.scene + untiled + " --checkpoint " + dir / "ckpt");
+    INFO(noted.err);
+    REQUIRE(noted.exitCode == 0);
+    CHECK_THAT(noted.err, Catch::Contains("ignoring 1 checkpoint file(s) of this bake in another tiling (this bake has 1 tile(s)"));
+    CHECK(b.outputs() == b.expected);  // tiles never change the bytes
+    CHECK_FALSE(fs::exists(dir / "ckpt"));
+    CHECK_FALSE(hasTempFiles(dir.path));
+}
+
 TEST_CASE("checkpoints and shard files are synced before they are named, and their directory after", "[shards][resume][fsync]") {
     ScratchDir dir("resume-fsync");
     writeText(dir / "scene.json", kShardScene);

@@ -236,3 +236,49 @@ TEST_CASE("penumbra slurm refuses values that would break a job script's #SBATCH
     CHECK_FALSE(fs::exists(dir / "job"));
     CHECK(runPenumbra(base + " --partition gpu,cpu --time 1-12:00:00").exitCode == 0);
 }
+
+TEST_CASE("penumbra slurm quotes the job folder's log paths, names the shard count, and checks -o", "[shards][cli]") {
+    ScratchDir dir("slurm-quoting");
+    write(dir / "grass.json", grassScene("grass").dump());
+    const std::string job = dir / "it's a job";
+    RunResult r = runPenumbra("slurm " + dir / "grass.json" + " --shards 3 --dry-run --dir \"" + job + "\"");
+    REQUIRE(r.exitCode == 0);
+    // sbatch reads a double-quoted #SBATCH value as one word; unquoted, a space ended it there.
+    CHECK(r.out.find("#SBATCH --output=\"" + job + "/logs/shard-%a.log\"\n") != std::string::npos);
+    CHECK(r.out.find("#SBATCH --output=\"" + job + "/logs/merge.log\"\n") != std::string::npos);
+    // The shard count is in the script, so `sbatch --array=2 shards.sbatch` reruns shard 2 of 3
+    // (from the array's own count it baked the whole scene as shard 0 of 1).
+    CHECK(r.out.find("--shard \"$SLURM_ARRAY_TASK_ID/3\"") != std::string::npos);
+    // Slurm's file-name patterns would change a folder with '%' or a backslash.
+    RunResult percent = runPenumbra("slurm " + dir / "grass.json" + " --shards 3 --dry-run --dir " + dir / "100%");
+    CHECK(percent.exitCode == 1);
+    CHECK_THAT(percent.err, Catch::StartsWith("penumbra: error: --dir: the job folder"));
+    // The merge's -o is checked now, as a bake checks it, not by the merge job after every shard.
+    RunResult ext = runPenumbra("slurm " + dir / "grass.json" + " --shards 3 --dry-run --dir " + dir / "job -o " + dir / "out.png");
+    CHECK(ext.exitCode == 1);
+    CHECK_THAT(ext.err, Catch::Contains("camera receivers write .exr files"));
+    RunResult input = runPenumbra("slurm " + dir / "grass.json" + " --shards 3 --dry-run --dir " + dir / "job -o " + dir / "grass.json");
+    CHECK(input.exitCode == 1);
+    CHECK(runPenumbra("slurm " + dir / "grass.json" + " --shards 3 --dry-run --dir " + dir / "job -o " + dir / "out.exr").exitCode == 0);
+    // The merge job gets the budget its --mem was sized for, as the shards do.
+    RunResult budget = runPenumbra("slurm " + dir / "grass.json" + " --shards 3 --dry-run --memory-budget 2G --dir " + dir / "job");
+    REQUIRE(budget.exitCode == 0);
+    const std::string merge = budget.out.substr(budget.out.find("merge.sbatch"));
+    CHECK(merge.find("--memory-budget '2G'") != std::string::npos);
+}
+
+TEST_CASE("an unusable --shard-dir or --checkpoint folder is refused before the work", "[shards][cli]") {
+    // Found only when the first shard file was written, after the whole cast; a wrong -o was
+    // refused at once.
+    ScratchDir dir("shard-dir-check");
+    write(dir / "grass.json", grassScene("grass").dump());
+    write(dir / "afile", "not a folder");
+    for (const std::string& options : {" --shard 0/2 --shard-dir " + dir / "afile/sh", " --checkpoint " + dir / "afile/ck"}) {
+        INFO(options);
+        RunResult r = runPenumbra("bake " + dir / "grass.json" + " -q -o " + dir / "o.exr" + options);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.err, Catch::Contains("afile/") && Catch::Contains("is not a directory"));
+        CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+        CHECK_FALSE(fs::exists(dir / "o.exr"));
+    }
+}
