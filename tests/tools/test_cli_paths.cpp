@@ -184,7 +184,7 @@ TEST_CASE("a failing output of a bake leaves none of its outputs, and none half 
     // An unwritable location is found before any work: the dump directory is a file.
     write(dir / "file", "x");
     RunResult r = runPenumbra("bake " + (dir / "scene.json") + " --dump " + (dir / "file") + "/d");
-    requireCleanError(r, "Not a directory");
+    requireCleanError(r, "is not a directory");
     CHECK(r.err.find("[scan]") == std::string::npos);
     CHECK(slurp(dir / "out/x.exr") == "previous exr");
     CHECK_FALSE(hasTempFiles(dir.path));
