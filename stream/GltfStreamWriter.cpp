@@ -24,8 +24,6 @@ namespace {
 constexpr uint32_t kEmptySlot = std::numeric_limits<uint32_t>::max();
 constexpr int kFloat = 5126, kUnsignedInt = 5125;         // glTF componentType
 constexpr int kArrayBuffer = 34962, kElementBuffer = 34963;  // bufferView target
-// A GLB's length fields are 32-bit; stay well inside them (headers and JSON need room too).
-constexpr uint64_t kMaxBufferBytes = std::numeric_limits<uint32_t>::max() - (1u << 20);
 
 uint64_t mix(uint64_t x) {  // splitmix64's finalizer
     x ^= x >> 30, x *= 0xbf58476d1ce4e5b9ull;
@@ -149,8 +147,23 @@ struct GltfStreamWriter::Mesh {
     }
 };
 
+namespace {
+
+/// The file beside a .gltf that holds its buffer when a data URI would be too large.
+std::filesystem::path binPathOf(const std::string& gltf) {
+    const std::filesystem::path p(gltf);
+    return p.parent_path() / (p.stem().string() + ".bin");
+}
+
+}  // namespace
+
 GltfStreamWriter::GltfStreamWriter(std::string path, bool binary, uint64_t openBytes)
-    : path_(std::move(path)), binary_(binary), openLimit_(openBytes) {}
+    : path_(std::move(path)), binary_(binary), openLimit_(openBytes) {
+    // Whether the buffer goes to STEM.bin is known only at the end; a folder of that name is found now.
+    std::error_code ec;
+    const std::filesystem::path bin = binPathOf(path_);
+    if (!binary_ && std::filesystem::exists(bin, ec) && !std::filesystem::is_regular_file(bin, ec)) checkOutputPath(bin.string());
+}
 
 GltfStreamWriter::~GltfStreamWriter() = default;
 
@@ -320,8 +333,7 @@ void GltfStreamWriter::commit() {
     }
     // Above what readers keep in a data URI, the buffer goes to STEM.bin beside the .gltf, as
     // exporters do; it is removed again if the .gltf cannot be written.
-    const std::filesystem::path gltf(path_);
-    const std::filesystem::path bin = gltf.parent_path() / (gltf.stem().string() + ".bin");
+    const std::filesystem::path bin = binPathOf(path_);
     {
         AtomicFile file(bin.string());
         scratch_->read([&](const char* p, size_t n) { file.write(p, n); });

@@ -9,7 +9,8 @@
 /// scratch file (AnonymousFile.h, in `--tmp` or $TMPDIR) and the mesh goes on in a new
 /// primitive. A mesh whose vertices fit in one primitive comes out exactly as a whole-mesh weld
 /// would make it; a larger one is split into primitives of its own vertices, a vertex on a split
-/// appearing in both. Splits depend only on the order of the triangles, so the bytes are the same
+/// appearing in both. Meshes whose triangles interleave (OBJ groups that come back) are open
+/// together, so when together they pass the bound each is split too. Splits depend only on the order of the triangles, so the bytes are the same
 /// on every run. Besides, each mesh costs about a kilobyte until commit() (its record and its
 /// primitives' offsets): 277 MB of RSS for an OBJ of 300,000 groups. At commit() the JSON is
 /// written as text straight to the file (twice for a .glb, whose header states its length first)
@@ -46,6 +47,9 @@ struct GltfCorner {
 class GltfStreamWriter {
 public:
     static constexpr uint64_t kOpenBytes = 32ull << 20;
+    /// The most vertex and index bytes one file holds: a GLB's length fields are 32-bit, and its
+    /// headers and JSON need room too.
+    static constexpr uint64_t kMaxBufferBytes = (1ull << 32) - 1 - (1u << 20);
 
     enum class Indexing {
         Welded,  ///< indexed, corners that agree bit for bit share a vertex
@@ -55,6 +59,7 @@ public:
     /// @param path the .glb or .gltf to write (binary when @p binary); a .gltf keeps its buffer
     ///        in a data URI up to kMaxDataUriBytes, else in "STEM.bin" beside it.
     /// @param openBytes the memory bound above (tests use small values to force splits).
+    /// @throw InputError before any work when a .gltf's "STEM.bin" exists and is not a file.
     GltfStreamWriter(std::string path, bool binary, uint64_t openBytes = kOpenBytes);
     ~GltfStreamWriter();
     GltfStreamWriter(const GltfStreamWriter&) = delete;

@@ -177,3 +177,28 @@ TEST_CASE("convert to glTF: an OBJ of many groups gives a mesh per group, in ord
     CHECK(meshes[7].indices.size() == 6);
     CHECK(meshes[7].position[3] == glm::vec3(2507, 0, 0));
 }
+
+namespace {
+
+/// A source that says it holds more triangles than a glTF buffer takes, and must not be read.
+class HugeSource final : public TriangleSource {
+public:
+    size_t read(std::span<Triangle>) override { fail("huge", "read although the count was known to be too large"); }
+    void rewind() override {}
+    std::string name() const override { return "huge"; }
+    std::optional<uint64_t> sizeHint() const override { return 200'000'000; }
+};
+
+}  // namespace
+
+TEST_CASE("convert to glTF: what is known before the work is refused before it", "[stream][gltf]") {
+    ScratchDir dir("gltf-stream");
+    // 200M triangles of 36 bytes: past a GLB's 4 GiB, known from the count.
+    HugeSource huge;
+    CHECK_THROWS_WITH(convertGeometry(huge, dir.file("h.glb")), Catch::Contains("200000000 triangles do not fit in one glTF buffer"));
+    // A folder where a .gltf's buffer file would go.
+    writeText(dir.file("q.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    std::filesystem::create_directory(dir.file("q.bin"));
+    CHECK_THROWS_WITH(GltfStreamWriter(dir.file("q.gltf"), false), Catch::Contains("q.bin"));
+    CHECK(dir.entries() == std::vector<std::string>{"q.bin", "q.obj"});
+}
