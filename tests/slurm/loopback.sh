@@ -35,8 +35,9 @@ stop() {
 trap stop EXIT
 fail() { echo "FAIL: $*"; for f in "$D"/*.log "$D"/job-*/logs/*.log; do [ -f "$f" ] && { echo "== $f"; tail -20 "$f"; }; done; exit 1; }
 
-# munged as user munge with the key in /etc/munge/munge.key; one that runs already is used as it is.
-if ! pgrep -x munged >/dev/null; then
+# munged as user munge with the key in /etc/munge/munge.key; one that serves the default socket
+# already is used as it is (a munged on a socket of its own, another cluster's, is not one).
+if ! [ -S /run/munge/munge.socket.2 ] || ! munge -n </dev/null >/dev/null 2>&1; then
   [ -f /etc/munge/munge.key ] || { dd if=/dev/urandom of=/etc/munge/munge.key bs=1 count=128 2>/dev/null; chown munge:munge /etc/munge/munge.key; chmod 400 /etc/munge/munge.key; }
   mkdir -p /run/munge && chown munge:munge /run/munge
   runuser -u munge -- /usr/sbin/munged --pid-file=/run/munge/penumbra-test.pid || fail "munged did not start"
