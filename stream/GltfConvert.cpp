@@ -141,14 +141,15 @@ void addObjMeshes(const std::string& path, GltfStreamWriter& out) {
 // ---------------------------------------------------------------------------------------------
 // glTF
 
-/// The attributes every triangle primitive of mesh @p m has.
-GltfVertexLayout commonLayout(const GltfDocument& doc, GltfBytes& bytes, int m) {
+/// The attributes every triangle primitive of mesh @p m has, from the document alone (a reader
+/// would decode a Draco primitive to answer).
+GltfVertexLayout commonLayout(const GltfDocument& doc, int m) {
     GltfVertexLayout common{true, true, true};
     for (size_t p = 0; p < doc.meshes[size_t(m)].primitives.size(); ++p) {
-        const auto layout = gltfTrianglePrimitive(doc, m, int(p));
-        if (!layout) continue;
-        GltfPrimitiveReader reader(doc, bytes, *layout, true);
-        common.normal &= reader.has("NORMAL"), common.uv0 &= reader.has("TEXCOORD_0"), common.uv1 &= reader.has("TEXCOORD_1");
+        if (!gltfTrianglePrimitive(doc, m, int(p))) continue;
+        const GltfPrimitiveDesc& desc = doc.meshes[size_t(m)].primitives[p];
+        common.normal &= desc.attribute("NORMAL") >= 0, common.uv0 &= desc.attribute("TEXCOORD_0") >= 0;
+        common.uv1 &= desc.attribute("TEXCOORD_1") >= 0;
     }
     return common;
 }
@@ -183,7 +184,7 @@ void addGltfMeshes(const std::string& path, GltfStreamWriter& out) {
     GltfBytes bytes(doc, UINT64_MAX);  // meshopt views are decoded whole and kept, as for receivers
     for (const GltfMeshNode& placed : walkGltfScene(doc)) {
         const GltfInstancing instancing = gltfInstancingOf(doc, placed.node);
-        const GltfVertexLayout layout = commonLayout(doc, bytes, placed.mesh);
+        const GltfVertexLayout layout = commonLayout(doc, placed.mesh);
         const std::string& meshName = doc.meshes[size_t(placed.mesh)].name;
         const std::string name = !meshName.empty() ? meshName : doc.nodes[size_t(placed.node)].name;
         // EXT_mesh_gpu_instancing: a mesh per instance, where the blockers are.
