@@ -38,7 +38,10 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string&
     // most). 40 + 4 + 24, the allowance from before the items, covers each.
     plan.perReceiverBytes = 24 + 8 + 12 + 1 + 8ull * d.umbraWords + (32 + 1 + 8ull * d.umbraWords) / 4 + 8ull * d.groups +
                             40 + 4 + 24 + 8;
-    const uint64_t smallestTile = std::min<uint64_t>(std::max<uint64_t>(d.receivers, 1), kMinimumTileReceivers);
+    // Tiles cut the receivers cast, which for a by-receivers shard are its share only (cut as if
+    // it held them all, shard 0 of 4 took 32 tiles where the whole bake took 5).
+    const uint64_t cast = d.castReceivers ? std::min(d.castReceivers, d.receivers) : d.receivers;
+    const uint64_t smallestTile = std::min<uint64_t>(std::max<uint64_t>(cast, 1), kMinimumTileReceivers);
     const uint64_t outputPhase = plan.residentBytes + d.outputBytes;
     plan.minimumBudget = std::max({scanPhaseBytes(d), bucketPhase, outputPhase,
                                    plan.residentBytes + castSources + smallestTile * plan.perReceiverBytes});
@@ -61,7 +64,7 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string&
                                      budgetText(plan.minimumBudget + overhead + namedSlack), why));
     }
     const uint64_t perTile = (budget - plan.residentBytes - castSources) / plan.perReceiverBytes;
-    plan.tiles = int(std::max<uint64_t>(1, (d.receivers + perTile - 1) / std::max<uint64_t>(perTile, 1)));
+    plan.tiles = int(std::max<uint64_t>(1, (cast + perTile - 1) / std::max<uint64_t>(perTile, 1)));
     return plan;
 }
 

@@ -18,6 +18,7 @@ namespace penumbra {
 /// @brief What the plan needs to know about a bake.
 struct MemoryDemand {
     uint64_t receivers = 0;      ///< receivers (0 before the camera pass has counted them)
+    uint64_t castReceivers = 0;  ///< receivers the first pass casts (a by-receivers shard's share); 0: all
     uint64_t scanBytes = 0;      ///< held by the receiver kind during the scan pass (z-buffer + receiver set)
     uint64_t outputBytes = 0;    ///< held by the receiver kind while writing its outputs
     int groups = 1;              ///< light-sample groups: mask words per receiver

@@ -156,6 +156,8 @@ void scanScene(Bake& b) {
         const std::string methodKey = b.method.name + (scene.options.embreeRuleFilter ? "" : ":embree-native");
         b.sharded = std::make_unique<ShardedCast>(b.settings.shard, scene.file, methodKey, b.method.traits.memoryTiles,
                                                   b.p.receivers, b.p.sampleSets, b.p.samples, b.settings.quiet);
+        b.demand.castReceivers = b.sharded->castReceiverCount();
+        b.replan();  // a by-receivers shard's tiles cut its share, not every receiver
     }
 }
 

@@ -5,6 +5,7 @@
 #include "ShardScenes.h"
 
 #include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
 
 #include <filesystem>
 #include <fstream>
@@ -67,6 +68,21 @@ TEST_CASE("by-receivers shards with memory tiles and threads merge to the same b
     RunResult merge = runPenumbra("merge " + scene + " --shard-dir " + dir / "s" + " --quiet --dump " + dir / "merged");
     REQUIRE(merge.exitCode == 0);
     CHECK(shardSceneOutputs(dir.path.string(), dir / "merged") == expected);
+}
+
+TEST_CASE("a by-receivers shard's memory tiles cut its own share of the receivers", "[shards]") {
+    // Cut as if it held every receiver, each shard took as many tiles as a shard of them all.
+    ScratchDir dir("shards-plan");
+    const auto [scene, budget] = tiledShardScene(dir);
+    const std::string options = " --shard-by receivers --memory-budget " + std::to_string(budget) + " --stats " + dir / "s.json";
+    auto tilesOf = [&](const std::string& shard) {
+        bakeOk(scene + " --shard " + shard + " --shard-dir " + dir / ("s" + shard.substr(2)) + options);
+        return nlohmann::json::parse(slurp(dir / "s.json"))["memory_plan"]["tiles"].get<int>();
+    };
+    const int one = tilesOf("0/1"), four = tilesOf("0/4");
+    INFO("tiles of shard 0/1: " << one << ", of shard 0/4: " << four);
+    CHECK(one >= 3);
+    CHECK(four < one);
 }
 
 TEST_CASE("a merge casts an antialiased camera's refinement itself, to the same bytes", "[shards]") {
