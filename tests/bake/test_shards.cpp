@@ -73,8 +73,9 @@ TEST_CASE("by-receivers shards with memory tiles and threads merge to the same b
 TEST_CASE("a by-receivers shard's memory tiles cut its own share of the receivers", "[shards]") {
     // Cut as if it held every receiver, each shard took as many tiles as a shard of them all.
     ScratchDir dir("shards-plan");
-    const auto [scene, budget] = tiledShardScene(dir);
-    const std::string options = " --shard-by receivers --memory-budget " + std::to_string(budget) + " --stats " + dir / "s.json";
+    const TiledScene tiled = tiledShardScene(dir);  // no structured binding: lambdas capture it (clang)
+    const std::string scene = tiled.path;
+    const std::string options = " --shard-by receivers --memory-budget " + std::to_string(tiled.budget) + " --stats " + dir / "s.json";
     auto tilesOf = [&](const std::string& shard) {
         bakeOk(scene + " --shard " + shard + " --shard-dir " + dir / ("s" + shard.substr(2)) + options);
         return nlohmann::json::parse(slurp(dir / "s.json"))["memory_plan"]["tiles"].get<int>();
