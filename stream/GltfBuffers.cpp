@@ -54,13 +54,12 @@ bool keepImageUri(const std::string*, const std::string*, const tinygltf::Image*
     return false;  // never re-encode or move images: the copy keeps referring to the originals
 }
 
-/// The file beside @p path that holds buffer @p i of @p count external ones: "x.bin" for x.gltf.
+}  // namespace
+
 std::filesystem::path externalBufferPath(const std::string& path, size_t i, size_t count) {
     const std::filesystem::path p(path);
     return p.parent_path() / (p.stem().string() + (count == 1 ? std::string() : "-" + std::to_string(i)) + ".bin");
 }
-
-}  // namespace
 
 void writeGltfModel(tinygltf::Model& model, const std::string& path, bool binary, bool keepImageUris) {
     // A .gltf embeds its buffers as data: URIs only up to what a reader keeps in memory whole

@@ -8,6 +8,7 @@
 #include <tiny_gltf.h>
 
 #include <cstddef>
+#include <filesystem>
 #include <string>
 
 namespace penumbra {
@@ -21,6 +22,10 @@ int appendGltfAccessor(tinygltf::Model& model, const void* bytes, size_t size, i
 /// @brief Adds @p primitive as a mesh named @p name and a node drawing it.
 /// @return the node's index.
 int appendGltfMeshNode(tinygltf::Model& model, const std::string& name, tinygltf::Primitive primitive);
+
+/// @brief The file beside the .gltf @p path that holds buffer @p i of @p count external ones:
+/// "x.bin" for x.gltf when there is one, "x-0.bin", "x-1.bin"... when there are more.
+std::filesystem::path externalBufferPath(const std::string& path, size_t i, size_t count);
 
 /// @brief Encodes @p model (binary .glb when @p binary, else .gltf with its buffers as data URIs,
 /// or, above kMaxDataUriBytes, as "STEM.bin" files beside it) and writes it to @p path

@@ -1,6 +1,7 @@
 #include "stream/GltfStreamWriter.h"
 
 #include "stream/GlbBuilder.h"
+#include "stream/GltfBuffers.h"
 #include "stream/GltfDocument.h"
 #include "stream/util/AnonymousFile.h"
 #include "stream/util/AtomicFile.h"
@@ -147,21 +148,11 @@ struct GltfStreamWriter::Mesh {
     }
 };
 
-namespace {
-
-/// The file beside a .gltf that holds its buffer when a data URI would be too large.
-std::filesystem::path binPathOf(const std::string& gltf) {
-    const std::filesystem::path p(gltf);
-    return p.parent_path() / (p.stem().string() + ".bin");
-}
-
-}  // namespace
-
 GltfStreamWriter::GltfStreamWriter(std::string path, bool binary, uint64_t openBytes)
     : path_(std::move(path)), binary_(binary), openLimit_(openBytes) {
     // Whether the buffer goes to STEM.bin is known only at the end; a folder of that name is found now.
     std::error_code ec;
-    const std::filesystem::path bin = binPathOf(path_);
+    const std::filesystem::path bin = externalBufferPath(path_, 0, 1);
     if (!binary_ && std::filesystem::exists(bin, ec) && !std::filesystem::is_regular_file(bin, ec)) checkOutputPath(bin.string());
 }
 
@@ -333,7 +324,7 @@ void GltfStreamWriter::commit() {
     }
     // Above what readers keep in a data URI, the buffer goes to STEM.bin beside the .gltf, as
     // exporters do; it is removed again if the .gltf cannot be written.
-    const std::filesystem::path bin = binPathOf(path_);
+    const std::filesystem::path bin = externalBufferPath(path_, 0, 1);
     {
         AtomicFile file(bin.string());
         scratch_->read([&](const char* p, size_t n) { file.write(p, n); });

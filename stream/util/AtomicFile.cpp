@@ -461,14 +461,24 @@ void ensureParentDirectory(const std::string& path) {
         fail(path, "cannot create directory {}: {}", parent.string(), errnoText(ENOTDIR));
 }
 
+namespace {
+
+/// @p path, or the nearest of its parents that exists (where a file or folder under it is made).
+std::filesystem::path nearestExisting(std::filesystem::path path) {
+    std::error_code ec;
+    while (!std::filesystem::exists(path, ec) && path != path.root_path()) path = path.parent_path();
+    return path;
+}
+
+}  // namespace
+
 void checkOutputPath(const std::string& path) {
     if (path.empty()) throw InputError("cannot create file: the output path is empty");
     std::string resolved;
     if (inspectTarget(path, resolved) == AtomicFile::Target::Special) return;
     // The nearest existing directory above the file must be one we can create files in.
-    std::filesystem::path dir = std::filesystem::absolute(resolved).parent_path();
     std::error_code ec;
-    while (!std::filesystem::exists(dir, ec) && dir != dir.root_path()) dir = dir.parent_path();
+    const std::filesystem::path dir = nearestExisting(std::filesystem::absolute(resolved).parent_path());
     if (!std::filesystem::is_directory(dir, ec)) fail(path, "cannot create file: {} is not a directory", dir.string());
     if (::access(dir.c_str(), W_OK | X_OK) != 0) fail(path, "cannot create file in {}: {}", dir.string(), errnoText(errno));
 }
@@ -476,9 +486,8 @@ void checkOutputPath(const std::string& path) {
 void checkOutputFolder(const std::string& path) {
     if (path.empty()) throw InputError("cannot create a folder: the path is empty");
     // The folder itself when it exists, else the nearest directory above it, where it will be made.
-    std::filesystem::path dir = std::filesystem::absolute(path);
     std::error_code ec;
-    while (!std::filesystem::exists(dir, ec) && dir != dir.root_path()) dir = dir.parent_path();
+    const std::filesystem::path dir = nearestExisting(std::filesystem::absolute(path));
     if (!std::filesystem::is_directory(dir, ec)) fail(path, "cannot be made a folder: {} is not a directory", dir.string());
     if (::access(dir.c_str(), W_OK | X_OK) != 0) fail(path, "cannot write into {}: {}", dir.string(), errnoText(errno));
 }
