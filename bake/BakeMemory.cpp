@@ -58,12 +58,13 @@ void addSampleDemand(MemoryDemand& demand, const LightSamples& samples, const Sc
                 SampleMaskTable::plannedBytes(samples, l, scene.options.sampleTableAngles, scene.options.sampleTableOffsets);
 }
 
-MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const TriangleSource& geometry, bool dump,
+MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const TriangleSource& geometry, MaskKeeping masks,
                               const CasterMemory& methodMemory, bool alpha) {
     MemoryDemand d;
-    d.dumpMasks = dump;
+    d.dumpMasks = masks.kept;
     d.scanBytes = kind.passBytes(StreamPass::Scan);
     d.receivers = kind.receiverBound().value_or(0);
+    if (masks.shares > 1) d.castReceivers = d.maskRows = (d.receivers + masks.shares - 1) / masks.shares;  // 0 while unknown: all
     d.kindBytes = kind.maxResidentBytes(d.receivers, geometry.knownSize());
     d.outputBytes = kind.outputBytes(d.receivers);
     // The sources read ahead on a thread of their own (PrefetchSource: 4 chunks queued, one being
@@ -136,13 +137,13 @@ std::pair<uint64_t, std::string> gltfParsingPeak(const SceneDesc& scene) {
 /// A budget that cannot hold the largest glTF's parse is refused before it is parsed: the refusal
 /// after the opening peaked at 124 MB under --memory-budget 32M (8.6 MiB of JSON), which a job
 /// capped at its budget does not survive. The plan after the opening still checks the rest.
-void checkParsingFits(const SceneDesc& scene, const ReceiverKind& kind, const BakeBudget& budget, bool keepMasks,
+void checkParsingFits(const SceneDesc& scene, const ReceiverKind& kind, const BakeBudget& budget, MaskKeeping masks,
                       const CasterMemory& methodMemory) {
     if (budget.bytes == 0) return;
     const auto [parsing, file] = gltfParsingPeak(scene);
     if (parsing < TriangleSource::kNotableResidentBytes) return;
     const VectorSource none({});
-    MemoryDemand before = demandBeforeScan(scene, kind, none, keepMasks, methodMemory, /*alpha=*/false);
+    MemoryDemand before = demandBeforeScan(scene, kind, none, masks, methodMemory, /*alpha=*/false);
     before.sourceBytes += parsing;
     before.sourceDetail = fmt::format("{}: its glTF JSON takes about {} to parse", file, formatBytes(parsing));
     checkBeforeScan(before, budget);
@@ -150,16 +151,16 @@ void checkParsingFits(const SceneDesc& scene, const ReceiverKind& kind, const Ba
 
 }  // namespace
 
-TriangleSourcePtr openCheckedBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const BakeBudget& budget, bool keepMasks,
+TriangleSourcePtr openCheckedBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const BakeBudget& budget, MaskKeeping masks,
                                         bool quiet, MemoryDemand& demand,
                                         const CasterMemory& methodMemory) {
-    checkParsingFits(scene, kind, budget, keepMasks, methodMemory);  // before the alpha plan and the opening parse glTF
+    checkParsingFits(scene, kind, budget, masks, methodMemory);  // before the alpha plan and the opening parse glTF
     checkSceneAlphaBudget(scene, budget.bytes, budget.label, budget.overhead, budget.namedSlack);  // before a texture is decoded (opening builds the table)
     TriangleSourcePtr geometry = [&] {
         OpeningProgress opening(quiet);  // an OBJ's check pass shows as a phase
         return openSceneGeometry(scene);
     }();
-    demand = demandBeforeScan(scene, kind, *geometry, keepMasks, methodMemory);
+    demand = demandBeforeScan(scene, kind, *geometry, masks, methodMemory);
     checkBeforeScan(demand, budget);
     return geometry;
 }

@@ -64,7 +64,7 @@ BakeBudget fitAddressSpace(uint64_t memoryBudget, int& threads, bool quiet);
 ///        knows its triangle count before it is read: a budget named without it was refused
 ///        again after the scan by ssv and embree.
 /// @param alpha false: leave out the glTF cut-out tables, whose plan parses the files' JSON.
-MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const TriangleSource& geometry, bool dump,
+MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const TriangleSource& geometry, MaskKeeping masks,
                               const CasterMemory& methodMemory = {},
                               bool alpha = true);
 
@@ -83,11 +83,11 @@ uint64_t leastNamedLimit(const MemoryDemand& demand, const BakeBudget& budget);
 /// that alone does not fit @p budget is refused before it is decoded, then the sources are opened
 /// (a large OBJ's check pass shown as a phase unless @p quiet: OpeningProgress) and the demand
 /// before the scan is checked. Shared by the bake and `penumbra slurm`, which runs it for its shards.
-/// @param keepMasks every receiver's masks are kept (a dump, a shard file, checkpoints)
+/// @param masks whose masks are kept once cast (a dump, a shard file, checkpoints)
 /// @param demand set to demandBeforeScan()
 /// @return the opened geometry
 /// @throw InputError as checkSceneAlphaBudget(), the sources and checkBeforeScan()
-TriangleSourcePtr openCheckedBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const BakeBudget& budget, bool keepMasks,
+TriangleSourcePtr openCheckedBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, const BakeBudget& budget, MaskKeeping masks,
                                         bool quiet, MemoryDemand& demand,
                                         const CasterMemory& methodMemory = {});
 

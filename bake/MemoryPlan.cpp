@@ -14,17 +14,24 @@ uint64_t scanPhaseBytes(const MemoryDemand& d) {
     return kBaselineBytes + d.alphaBytes + std::max(d.alphaBuildBytes, d.bufferBytes + d.scanBytes + d.sourceBytes);
 }
 
+uint64_t keptMaskBytes(const MemoryDemand& d) {
+    if (!d.dumpMasks) return 0;
+    const uint64_t row = 8ull * uint64_t(d.groups);
+    if (d.maskRows == 0 || d.maskRows >= d.receivers) return d.receivers * row;
+    return d.maskRows * row + d.receivers * sizeof(uint32_t);
+}
+
 MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string& label, uint64_t overhead,
                       uint64_t namedSlack) {
     MemoryPlan plan;
     plan.budget = budget;
     // Resident for the whole bake, per receiver: the receiver set (position, normal, pixel, depth:
     // 32 bytes), its sample set (4), its results (visibility 4, irradiance 12) and its place in
-    // the id list and the tile partition (8).
-    const uint64_t residentPerReceiver = 32 + 4 + 16 + 8 + (d.dumpMasks ? 8ull * d.groups : 0);
+    // the id list and the tile partition (8). Then the masks kept whole, if any.
+    const uint64_t residentPerReceiver = 32 + 4 + 16 + 8;
     plan.residentBytes =
         kBaselineBytes + d.bufferBytes + d.sampleBytes + d.kindBytes + d.methodBytes + d.alphaBytes + d.translucentBytes +
-        d.receivers * residentPerReceiver;
+        d.receivers * residentPerReceiver + keptMaskBytes(d);
     // The scan pass holds what the receiver kind needs (a camera's z-buffer and the receiver set
     // it makes, as the kind reports) and the sources; that is freed before casting starts. The
     // bucket pass reads the sources again with everything resident.

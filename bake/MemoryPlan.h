@@ -15,16 +15,28 @@
 
 namespace penumbra {
 
+/// @brief Whose masks a bake keeps whole once they are cast (a dump, a shard file, checkpoints,
+/// a library caller).
+struct MaskKeeping {
+    bool kept = false;
+    /// > 1: a by-receivers shard of this many keeps its share's only, at most ceil(receivers /
+    /// shares) rows (receiverSharesBeforeScan(); MemoryDemand::castReceivers once it is known).
+    uint32_t shares = 1;
+};
+
 /// @brief What the plan needs to know about a bake.
 struct MemoryDemand {
     uint64_t receivers = 0;      ///< receivers (0 before the camera pass has counted them)
     uint64_t castReceivers = 0;  ///< receivers the first pass casts (a by-receivers shard's share); 0: all
+    uint64_t maskRows = 0;       ///< masks kept for this many receivers only (that share; MaskKeeping); 0: all
     uint64_t scanBytes = 0;      ///< held by the receiver kind during the scan pass (z-buffer + receiver set)
     uint64_t outputBytes = 0;    ///< held by the receiver kind while writing its outputs
     int groups = 1;              ///< light-sample groups: mask words per receiver
     int umbraWords = 1;          ///< ceil(groups / 64)
     uint64_t sampleBytes = 0;    ///< light sample positions
-    bool dumpMasks = false;      ///< --dump keeps every receiver's final mask
+    /// Masks are kept once cast (MaskKeeping): every receiver's, or with maskRows below receivers
+    /// a by-receivers shard's share and a row index per receiver (VisibilityMasks).
+    bool dumpMasks = false;
     uint64_t bufferBytes = 0;    ///< bucket buffers, chunks and other fixed buffers
     uint64_t kindBytes = 0;      ///< held by the receiver kind through casting (smooth shading's vertex table, a refinement pass)
     uint64_t methodBytes = 0;    ///< held by the method while it casts (CasterEntry::memory: a ray caster's scene)
@@ -55,6 +67,9 @@ struct MemoryPlan {
     int tiles = 1;                 ///< receiver tiles processed one after another
     uint64_t minimumBudget = 0;    ///< the smallest budget that works (one smallest tile)
 };
+
+/// @brief Bytes of the masks @p d keeps whole once cast (MemoryDemand::dumpMasks).
+uint64_t keptMaskBytes(const MemoryDemand& d);
 
 /// Bytes the process needs before any bake data (code, libraries, thread stacks, allocator).
 inline constexpr uint64_t kBaselineBytes = 48ull << 20;

@@ -79,7 +79,10 @@ struct Bake {
     Prepared p;
     BucketStats buckets;
     ReceiverResults results;
-    VisibilityMasks masks;  ///< every receiver's masks, for --dump only
+    /// The masks kept whole (keepMasks()): every receiver's, or only castShare's
+    VisibilityMasks masks;
+    /// A by-receivers shard's receivers (receiverShareOf()), found after the scan; else empty.
+    std::optional<std::vector<uint32_t>> castShare;
     std::unique_ptr<Caster> caster;
     std::unique_ptr<ShardedCast> sharded;  ///< shards, merges and checkpoints, else null
     TileHooks tileHooks;
@@ -102,6 +105,12 @@ struct Bake {
     /// caller that asked.
     bool keepMasks() const {
         return dump() || ShardedCast::keepsMasks(settings.shard) || (settings.capture && settings.capture->wantMasks);
+    }
+    /// Masks kept for a by-receivers shard's share only: nobody asked for every receiver's.
+    bool keepsShareOnly() const { return castShare && !dump() && !(settings.capture && settings.capture->wantMasks); }
+    MaskKeeping maskKeeping() const {
+        const bool library = settings.capture && settings.capture->wantMasks;
+        return {keepMasks(), dump() || library ? 1u : receiverSharesBeforeScan(settings.shard, method.traits.memoryTiles)};
     }
     void replan() {
         plan = budget.plan(demand);
@@ -128,7 +137,7 @@ void scanScene(Bake& b) {
     if (b.settings.shard.casting() && b.dump()) fail("--dump", "a shard writes no outputs; give --dump to penumbra merge");
     TriangleSourcePtr geometry = [&] {
         ScopedTimer timer(b.openSeconds);
-        return openCheckedBeforeScan(scene, *b.kind, b.budget, b.keepMasks(), b.settings.quiet, b.demand, b.method.memory);
+        return openCheckedBeforeScan(scene, *b.kind, b.budget, b.maskKeeping(), b.settings.quiet, b.demand, b.method.memory);
     }();
     // Without a budget the machine is the bound: refuse before any work what it cannot hold.
     checkMemoryFits(scene.file, "the scan pass", scanPhaseBytes(b.demand));
@@ -142,6 +151,10 @@ void scanScene(Bake& b) {
         if (b.method.memory) b.demand.methodBytes = b.method.memory(triangles, prepared.receivers.size(), prepared.samples, scene.bakeOptions);
         addSampleDemand(b.demand, prepared.samples, scene);
         b.demand.translucentBytes = translucentBytes(prepared.translucentScanned, b.threads, prepared.samples);
+        // A by-receivers shard's tiles cut its share, and it keeps masks for its share only.
+        b.castShare = receiverShareOf(b.settings.shard, prepared.receivers, b.method.traits.memoryTiles);
+        b.demand.castReceivers = b.castShare ? b.castShare->size() : 0;
+        b.demand.maskRows = b.keepsShareOnly() ? b.castShare->size() : 0;
         b.minimum = b.budget.plan(b.demand).minimumBudget;
     };
     b.p = prepare(scene, b.settings, *b.kind, std::move(geometry), afterScan, b.streamSeconds, b.buckets);
@@ -150,14 +163,13 @@ void scanScene(Bake& b) {
     b.replan();
     checkMemoryFits(scene.file, "casting", b.plan.minimumBudget);
     b.results.resize(b.p.receivers.size(), int(b.p.lights.size()));
-    if (b.keepMasks()) b.masks = VisibilityMasks(b.p.receivers.size(), b.p.samples.groupCount());
+    if (b.keepsShareOnly()) b.masks = VisibilityMasks(b.p.receivers.size(), b.p.samples.groupCount(), *b.castShare);
+    else if (b.keepMasks()) b.masks = VisibilityMasks(b.p.receivers.size(), b.p.samples.groupCount());
     b.firstPass = b.p.receivers.size();
     if (ShardedCast::keepsMasks(b.settings.shard)) {
         const std::string methodKey = b.method.name + (scene.options.embreeRuleFilter ? "" : ":embree-native");
         b.sharded = std::make_unique<ShardedCast>(b.settings.shard, scene.file, methodKey, b.method.traits.memoryTiles,
                                                   b.p.receivers, b.p.sampleSets, b.p.samples, b.settings.quiet);
-        b.demand.castReceivers = b.sharded->castReceiverCount();
-        b.replan();  // a by-receivers shard's tiles cut its share, not every receiver
     }
 }
 
@@ -279,7 +291,7 @@ bool refineReceivers(Bake& b) {
     for (size_t i = b.firstPass; i < p.receivers.size(); ++i)
         p.sampleSets.push_back(uint32_t(sampleSetOf(i, p.samples.sets, b.scene.seed)));
     b.results.extend(p.receivers.size());
-    if (b.masks.groups) b.masks.words.resize(p.receivers.size() * size_t(b.masks.groups), 0);
+    if (b.masks.groups && b.masks.rowOf.empty()) b.masks.words.resize(p.receivers.size() * size_t(b.masks.groups), 0);
     b.demand.receivers = p.receivers.size();
     b.demand.kindBytes = b.kind->residentBytes();
     b.demand.outputBytes = b.kind->outputBytes(p.receivers.size());

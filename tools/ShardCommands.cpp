@@ -277,7 +277,7 @@ void checkShardBakes(const SlurmOptions& o) {
     BakeBudget budget;
     budget.bytes = parseMemoryBudget(o.memoryBudget);
     MemoryDemand demand;
-    openCheckedBeforeScan(scene, *makeReceiverKind(scene.receivers, scene), budget, /*keepMasks=*/true, /*quiet=*/false, demand);
+    openCheckedBeforeScan(scene, *makeReceiverKind(scene.receivers, scene), budget, MaskKeeping{true}, /*quiet=*/false, demand);
 }
 
 }  // namespace

@@ -4,6 +4,11 @@
 
 namespace penumbra {
 
+VisibilityMasks::VisibilityMasks(size_t receivers, int groupCount, std::span<const uint32_t> kept)
+    : groups(groupCount), words(kept.size() * size_t(groupCount), 0), rowOf(receivers, kNotKept) {
+    for (size_t i = 0; i < kept.size(); ++i) rowOf[kept[i]] = uint32_t(i);
+}
+
 bool VisibilityMasks::blocked(size_t r, const LightSamples& s, uint32_t sample) const {
     for (int k = 0; k < groups; ++k) {
         const LightSampleGroup& g = s.groups[k];
@@ -22,7 +27,7 @@ std::vector<uint64_t> VisibilityMasks::toDumpLayout(const LightSamples& s) const
     const size_t n = receivers(), words = (size_t(s.sampleCount) + 63) / 64;
     std::vector<uint64_t> out(n * words, 0);
     for (size_t r = 0; r < n; ++r)
-        for (int k = 0; k < groups; ++k) {
+        for (int k = 0; k < groups && keeps(r); ++k) {
             const LightSampleGroup& g = s.groups[k];
             for (uint64_t bits = row(r)[k]; bits; bits &= bits - 1) {
                 uint32_t sample = g.first + uint32_t(std::countr_zero(bits));

@@ -91,6 +91,19 @@ std::vector<uint32_t> shardReceivers(const ReceiverSet& receivers, const std::ve
     return partitionReceivers(receivers, ids, int(count))[index];
 }
 
+std::optional<std::vector<uint32_t>> receiverShareOf(const ShardSettings& settings, const ReceiverSet& receivers, bool tiles) {
+    if (!settings.casting() || settings.count <= 1 || !tiles) return std::nullopt;
+    if (resolveShardCut(settings.cut, receivers.size(), settings.count, tiles) != ShardCut::Receivers) return std::nullopt;
+    std::vector<uint32_t> ids(receivers.size());
+    for (uint32_t r = 0; r < ids.size(); ++r) ids[r] = r;
+    return shardReceivers(receivers, ids, settings.index, settings.count);
+}
+
+uint32_t receiverSharesBeforeScan(const ShardSettings& settings, bool tiles) {
+    const bool cut = settings.casting() && settings.count > 1 && tiles && settings.cut == ShardCut::Receivers;
+    return cut ? settings.count : 1;
+}
+
 std::optional<BlockShare> blockerShareOf(const ShardSettings& settings, size_t receivers, uint64_t triangles, bool tiles) {
     if (!settings.casting() || settings.count <= 1) return std::nullopt;
     if (resolveShardCut(settings.cut, receivers, settings.count, tiles) != ShardCut::Blockers) return std::nullopt;

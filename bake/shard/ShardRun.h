@@ -57,6 +57,17 @@ std::string shardFilePath(const std::string& dir, uint32_t index, uint32_t count
 std::vector<uint32_t> shardReceivers(const ReceiverSet& receivers, const std::vector<uint32_t>& ids, uint32_t index,
                                      uint32_t count);
 
+/// @brief The receivers a by-receivers shard casts (its share, in id order), or nullopt when the
+/// bake casts every receiver (not a casting shard, one shard, or cut by blockers). @p tiles as for
+/// resolveShardCut(); a cut by receivers without tiles is ShardedCast's error, not decided here.
+std::optional<std::vector<uint32_t>> receiverShareOf(const ShardSettings& settings, const ReceiverSet& receivers, bool tiles);
+
+/// @brief N when the bake is shard I of N cut by receivers by its settings alone (`--shard-by
+/// receivers`, a method with tiles), else 1. The median splits give every part at most
+/// ceil(receivers / N), which bounds the share before the scan has placed the receivers; an
+/// automatic cut is decided by the receivers the scan finds (receiverShareOf()).
+uint32_t receiverSharesBeforeScan(const ShardSettings& settings, bool tiles);
+
 /// @brief Which share of the blocker stream a by-blockers shard casts (stream/BlockCyclicSource.h),
 /// or nullopt when the bake casts every blocker (not a shard, cut by receivers, or one shard).
 /// The block size follows from @p triangles, the whole stream's count, the same in every shard.

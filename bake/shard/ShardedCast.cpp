@@ -61,13 +61,6 @@ TileHooks ShardedCast::tileHooks(VisibilityMasks& masks, std::function<void(uint
     return hooks;
 }
 
-uint64_t ShardedCast::castReceiverCount() const {
-    if (!settings_.casting() || cut_ != ShardCut::Receivers) return 0;  // every receiver
-    std::vector<uint32_t> ids(receivers_.size());
-    for (uint32_t r = 0; r < ids.size(); ++r) ids[r] = r;
-    return shardReceivers(receivers_, ids, settings_.index, settings_.count).size();
-}
-
 void ShardedCast::writeShard(const VisibilityMasks& masks) {
     writeShardFile(settings_, cut_, id_, samples_, masks, present_);
 }

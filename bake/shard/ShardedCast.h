@@ -51,9 +51,6 @@ public:
     /// @brief For the stats JSON (`"shard"`): the shard and cut, receivers cast, checkpointed
     /// tiles restored and written.
     nlohmann::json stats() const;
-    /// @brief Receivers this bake's first pass casts: a by-receivers shard's share, else 0 (all;
-    /// MemoryDemand::castReceivers).
-    uint64_t castReceiverCount() const;
 
 private:
     ShardSettings settings_;

@@ -86,6 +86,35 @@ TEST_CASE("a by-receivers shard's memory tiles cut its own share of the receiver
     CHECK(four < one);
 }
 
+TEST_CASE("a by-receivers shard keeps masks for its share only, under a budget the whole bake's masks exceed", "[shards]") {
+    // Every receiver's masks were kept in each shard: its minimum budget did not fall with N.
+    ScratchDir dir("shards-share-masks");
+    const TiledScene tiled = tiledShardScene(dir);  // no structured binding: lambdas capture it (clang)
+    const std::string scene = tiled.path;
+    auto planOf = [&](const std::string& shard) {
+        bakeOk(scene + " --shard " + shard + " --shard-by receivers --shard-dir " + dir / "plan-shards" + " --stats " + dir / "s.json");
+        return nlohmann::json::parse(slurp(dir / "s.json"));
+    };
+    const nlohmann::json one = planOf("0/1"), four = planOf("0/4");
+    const uint64_t receivers = one["receivers"].get<uint64_t>();
+    const uint64_t all = one["memory_plan"]["minimum_budget_bytes"].get<uint64_t>();
+    const uint64_t share = four["memory_plan"]["minimum_budget_bytes"].get<uint64_t>();
+    INFO(receivers << " receivers: shard 0/1 needs " << all << " bytes, shard 0/4 " << share);
+    REQUIRE(all == tiled.budget);  // two groups of 8 bytes per receiver, as for a dump
+    CHECK(all - share >= 7 * receivers);  // a quarter of 16 bytes and a 4-byte row index each
+    // Every shard of four bakes below what one holding every receiver's masks needs, and they
+    // merge to the unsharded bytes.
+    bakeOk(scene + " --dump " + dir / "whole" + " -o " + dir / "whole.exr");
+    for (int i = 0; i < 4; ++i)
+        bakeOk(scene + fmt::format(" --shard {}/4 --shard-by receivers --shard-dir {} --memory-budget {}", i, dir / "s", all - 1));
+    const RunResult merge = runPenumbra("merge " + scene + " --shard-dir " + dir / "s" + " --quiet --dump " + dir / "merged" + " -o " +
+                                        dir / "merged.exr");
+    INFO(merge.err);
+    REQUIRE(merge.exitCode == 0);
+    CHECK(slurp(dir / "merged/masks.npy") == slurp(dir / "whole/masks.npy"));
+    CHECK(slurp(dir / "merged.exr") == slurp(dir / "whole.exr"));
+}
+
 TEST_CASE("a merge casts an antialiased camera's refinement itself, to the same bytes", "[shards]") {
     ScratchDir dir("shards-aa");
     writeText(dir / "aa.json", R"({
