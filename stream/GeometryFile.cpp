@@ -5,6 +5,7 @@
 #include "stream/util/Error.h"
 #include "stream/GltfBuffers.h"
 #include "stream/GltfConvert.h"
+#include "stream/GltfDocument.h"
 #include "stream/GltfReader.h"
 #include "stream/util/InputFile.h"
 #include "stream/ObjReader.h"
@@ -156,6 +157,7 @@ void convertGeometryFile(const std::string& inPath, const std::string& outPath, 
         }
         return writer.commit();
     }
+    if (in == GeometryFormat::Gltf) warnIfMaterialsDropped(inPath, loadGltfDocument(inPath));
     convertGeometry(*openTriangles(), outPath);
 }
 

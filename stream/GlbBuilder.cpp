@@ -5,6 +5,8 @@
 
 #include <stb/stb_image_write.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 
 namespace penumbra {
@@ -59,6 +61,16 @@ int GlbBuilder::addAccessor(const void* data, size_t count, int componentType, c
     nlohmann::json a = {{"bufferView", addView(data, count * size_t(components * bytes))},
                         {"componentType", componentType}, {"count", count}, {"type", type}};
     if (normalized) a["normalized"] = true;
+    if (componentType == 5126 && count > 0) {  // glTF requires POSITION's bounds; every float accessor gets them
+        std::vector<float> lo(size_t(components), INFINITY), hi(size_t(components), -INFINITY);
+        for (size_t i = 0; i < count * size_t(components); ++i) {
+            float x;
+            std::memcpy(&x, static_cast<const uint8_t*>(data) + 4 * i, 4);
+            lo[i % size_t(components)] = std::min(lo[i % size_t(components)], x);
+            hi[i % size_t(components)] = std::max(hi[i % size_t(components)], x);
+        }
+        a["min"] = lo, a["max"] = hi;
+    }
     return append("accessors", std::move(a));
 }
 

@@ -17,6 +17,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 
 namespace penumbra {
 namespace {
@@ -179,10 +180,33 @@ void addGltfMesh(const GltfDocument& doc, GltfBytes& bytes, int m, const MeshPla
     }
 }
 
+/// Triangles of mesh @p m's triangle primitives, in all and with materials that cut out or let
+/// light through (alphaMode MASK or BLEND), which the output carries as plain surfaces.
+std::pair<uint64_t, uint64_t> meshTriangles(const GltfDocument& doc, int m) {
+    uint64_t all = 0, notOpaque = 0;
+    for (size_t p = 0; p < doc.meshes[size_t(m)].primitives.size(); ++p) {
+        const auto primitive = gltfTrianglePrimitive(doc, m, int(p));
+        if (!primitive) continue;
+        all += primitive->triangles;
+        const int material = doc.meshes[size_t(m)].primitives[p].material;
+        if (material >= 0 && doc.materials.materials[size_t(material)].alphaMode != GltfMaterialDesc::AlphaMode::Opaque)
+            notOpaque += primitive->triangles;
+    }
+    return {all, notOpaque};
+}
+
 void addGltfMeshes(const std::string& path, GltfStreamWriter& out) {
     const GltfDocument doc = loadGltfDocument(path);
     GltfBytes bytes(doc, UINT64_MAX);  // meshopt views are decoded whole and kept, as for receivers
-    for (const GltfMeshNode& placed : walkGltfScene(doc)) {
+    const std::vector<GltfMeshNode> placedMeshes = walkGltfScene(doc);
+    uint64_t total = 0;
+    for (const GltfMeshNode& placed : placedMeshes)
+        total += meshTriangles(doc, placed.mesh).first * gltfInstancingOf(doc, placed.node).instances;
+    warnIfMaterialsDropped(path, doc);
+    std::optional<ProgressReporter> progress;  // inside convert's scope only, as the OBJ passes
+    if (const std::optional<bool> quiet = OpeningProgress::active())
+        progress.emplace("convert " + std::filesystem::path(path).filename().string(), total, *quiet);
+    for (const GltfMeshNode& placed : placedMeshes) {
         const GltfInstancing instancing = gltfInstancingOf(doc, placed.node);
         const GltfVertexLayout layout = commonLayout(doc, placed.mesh);
         const std::string& meshName = doc.meshes[size_t(placed.mesh)].name;
@@ -192,11 +216,23 @@ void addGltfMeshes(const std::string& path, GltfStreamWriter& out) {
             const int id = out.addMesh(instancing.instances > 1 ? fmt::format("{} instance {}", name, i) : name, layout);
             const MeshPlacement placement(placed.world * gltfInstanceLocal(doc, bytes, instancing, placed.node, i));
             addGltfMesh(doc, bytes, placed.mesh, placement, layout, id, out);
+            if (progress) progress->update(meshTriangles(doc, placed.mesh).first);
         }
     }
 }
 
 }  // namespace
+
+void warnIfMaterialsDropped(const std::string& path, const GltfDocument& doc) {
+    uint64_t notOpaque = 0;
+    for (const GltfMeshNode& placed : walkGltfScene(doc))
+        notOpaque += meshTriangles(doc, placed.mesh).second * gltfInstancingOf(doc, placed.node).instances;
+    if (notOpaque > 0)
+        printWarning("{}: {} triangle(s) with cut-out or blended materials (alphaMode MASK or BLEND) are written as plain "
+                     "surfaces: convert carries geometry, not materials, so they will block as opaque ones; bake the "
+                     "original file to keep them",
+                     path, notOpaque);
+}
 
 void addMeshesOfFile(const std::string& path, GltfStreamWriter& out) {
     if (lowercaseExtension(path) == ".obj") return addObjMeshes(path, out);

@@ -16,6 +16,8 @@
 
 namespace penumbra {
 
+struct GltfDocument;
+
 /// @brief Every mesh of the OBJ or glTF at @p path, as loadIndexedMeshes() loads them: one mesh
 /// per OBJ o/g group with faces (named after the group, or the file's stem when there is one),
 /// or per glTF node that draws one (per instance of EXT_mesh_gpu_instancing), with the normals
@@ -25,6 +27,10 @@ namespace penumbra {
 /// @throw InputError naming the file and line (or accessor) for malformed input, and "file
 ///        changed while it was being read" when the passes disagree.
 void addMeshesOfFile(const std::string& path, GltfStreamWriter& out);
+
+/// @brief Warns once, naming @p path, when the glTF @p doc draws triangles whose materials cut out
+/// or blend (alphaMode MASK or BLEND): `convert` writes geometry only, so they lose them.
+void warnIfMaterialsDropped(const std::string& path, const GltfDocument& doc);
 
 /// @brief The triangles of @p source, from its start, as one mesh named @p name.
 void addTrianglesOf(TriangleSource& source, GltfStreamWriter& out, std::string name,

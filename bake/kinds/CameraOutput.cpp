@@ -197,6 +197,10 @@ private:
         if (at(kA, local) == 0.f) setSurface(0, local, g.begin);  // the centre saw nothing: the first covered sub-pixel's
         const float a = float(count / refinement_.subPixels);
         at(kA, local) = a;
+        // R, G, B are associated with A, as OpenEXR defines them and compositors read them (a
+        // straight colour over a background gave edges a bright halo); the data layers keep the
+        // covered sub-pixels' mean.
+        for (size_t k = kR; k <= kB; ++k) at(k, local) *= a;
         // Coverage blends with the background.
         setColour(local, a * c_.tone(glm::vec3(shade / count)) + (1.f - a) * glm::vec3(PreviewTone::kBackground));
     }

@@ -151,6 +151,32 @@ TEST_CASE("antialiased camera bakes match the reference bit for bit and do not d
     }
 }
 
+TEST_CASE("an antialiased silhouette's R, G, B are premultiplied by its coverage, and its data layers are not", "[camera][antialias]") {
+    // A straight colour with A < 1 gave every silhouette a bright halo over a background.
+    ScratchDir dir("antialias-alpha");
+    std::ofstream(dir / "scene.obj") << "v -1.3 0 -0.9\nv 1.1 0 -1.2\nv 1.2 0 1\nv -1 0 1.3\nf 1 3 2\nf 1 4 3\n";  // floor, facing up
+    nlohmann::json scene = edgeScene(48, 36, true);
+    scene["exr"] = {{"rgb", "visibility"}};  // R, G, B the visible fraction; irradiance.R/G/B the irradiance
+    Baked grey = bake(dir, scene);
+    scene["exr"] = {{"rgb", "irradiance"}};
+    Baked colour = bake(dir, scene);
+    const std::vector<float>& a = grey.image.channels["A"];
+    REQUIRE(colour.image.channels["A"] == a);
+    int partial = 0;
+    for (size_t px = 0; px < a.size(); ++px) {
+        INFO("pixel " << px << " A " << a[px]);
+        if (a[px] == 0.f) CHECK(colour.image.channels["R"][px] == 0.f);
+        if (a[px] == 0.f || a[px] == 1.f) continue;
+        ++partial;
+        const float v = grey.image.channels["visibility.V"][px], e = grey.image.channels["irradiance.R"][px];  // covered means
+        CHECK(v == 1.f);  // nothing blocks the light: the data layer is not scaled by A
+        CHECK(grey.image.channels["R"][px] == v * a[px]);
+        CHECK(colour.image.channels["R"][px] == e * a[px]);
+        CHECK(colour.image.channels["visibility.V"][px] == v);
+    }
+    CHECK(partial > 20);  // the quad's edges cross the view
+}
+
 TEST_CASE("antialias settings are checked with the key named", "[camera][antialias]") {
     ScratchDir dir("antialias-bad");
     writeEdgeGeometry(dir);

@@ -6,6 +6,8 @@
 #include "bake/output/ImageWriters.h"
 #include "stream/util/Npy.h"
 
+#include "GltfValidator.h"
+
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
@@ -129,6 +131,16 @@ TEST_CASE("bad input gives one clean line and a non-zero exit", "[cli]") {
     REQUIRE(runPenumbra("make-example gltf-tree -o " + (dir / "tree.glb")).exitCode == 0);
     CHECK(runPenumbra("info -q " + (dir / "tree.glb")).exitCode == 0);
     CHECK_FALSE(hasTempFiles(dir.path));
+    // The checked-in example is what the command writes, and valid glTF (POSITION bounds included).
+    CHECK(slurp(dir / "tree.glb") == slurp(std::string(PENUMBRA_SOURCE_DIR) + "/examples/gltf-tree.glb"));
+    std::string validatorDir, log;
+    if (!validatorAvailable(validatorDir)) {
+        WARN("skipped: gltf-validator not installed under " << validatorDir << " (./setup.sh installs it)");
+        return;
+    }
+    const int code = validateGltf(dir / "tree.glb", validatorDir, log);
+    INFO(log);
+    CHECK(code == 0);
 }
 
 TEST_CASE("a full disk while writing outputs leaves no partial file", "[cli]") {

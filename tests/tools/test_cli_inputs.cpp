@@ -318,6 +318,24 @@ TEST_CASE("info, convert and generate show their passes over a large input as ph
     }
 }
 
+TEST_CASE("convert from glTF shows its pass and says when cut-out materials become plain surfaces", "[cli][inputs][progress]") {
+    // glTF to glTF showed nothing, and every output lost the tree's MASK leaf cards silently.
+    ScratchDir dir("convert-gltf-progress");
+    REQUIRE(runPenumbra("make-example gltf-tree -o " + (dir / "tree.glb")).exitCode == 0);
+    const std::string warning = "tree.glb: 280 triangle(s) with cut-out or blended materials (alphaMode MASK or BLEND) are written as plain surfaces";
+    for (const char* out : {"copy.glb", "copy.gltf", "copy.ptri", "copy.obj"}) {
+        const RunResult r = runPenumbra("convert " + (dir / "tree.glb") + " " + (dir / out));
+        INFO(out << "\n" << r.err);
+        REQUIRE(r.exitCode == 0);
+        CHECK_THAT(r.err, Catch::Contains(warning) && Catch::Contains("[convert tree.glb] 100.0% (292/292) done in "));
+        const RunResult quiet = runPenumbra("convert -q " + (dir / "tree.glb") + " " + (dir / out));
+        CHECK_THAT(quiet.err, Catch::Contains(warning) && !Catch::Contains("[convert"));
+    }
+    const RunResult opaque = runPenumbra("convert " + (dir / "copy.glb") + " " + (dir / "again.glb"));  // materials gone: nothing to say
+    CHECK(opaque.exitCode == 0);
+    CHECK_THAT(opaque.err, !Catch::Contains("warning"));
+}
+
 TEST_CASE("a bake shows the load of a large OBJ that a lightmap's receivers come from", "[cli][inputs][progress]") {
     ScratchDir dir("lightmap-load-progress");
     std::string text;
