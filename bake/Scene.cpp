@@ -26,7 +26,7 @@ glm::dvec3 colour(const JsonParams& j, const std::string& key, const glm::dvec3&
     const nlohmann::json* raw = j.raw(key);
     glm::dvec3 c = raw && raw->is_number() ? glm::dvec3(j.number(key)) : j.vec3(key, fallback);
     for (int i = 0; i < 3; ++i)
-        if (!(c[i] >= 0) || !std::isfinite(c[i])) fail(j.where(key), "must be finite and non-negative");
+        if (!(c[i] >= 0) || !std::isfinite(c[i])) fail(j.where(key), "must be finite and non-negative, got {}", c[i]);
     return c;
 }
 

@@ -360,7 +360,12 @@ BakeSettings settingsOf(const std::string& method, std::optional<int> threads, c
     settings.quiet = true;
     if (!memoryBudget.is_none()) {
         if (py::isinstance<py::str>(memoryBudget)) {
-            settings.memoryBudget = translateErrors([&] { return parseByteSize(memoryBudget.cast<std::string>(), "memory_budget"); });
+            // A malformed size is a wrong value, as a wrong int is: ValueError, not penumbra.Error.
+            try {
+                settings.memoryBudget = parseByteSize(memoryBudget.cast<std::string>(), "memory_budget");
+            } catch (const InputError& e) {
+                throw py::value_error(e.what());
+            }
         } else {
             // An int of bytes; anything else (a negative or float count, a list) is named here,
             // not as pybind11's "Unable to cast Python instance to C++ type".

@@ -58,7 +58,7 @@ glm::dvec3 CameraDesc::pixelDirection(int x, int y) const { return directionThro
 void validateCamera(const CameraDesc& c) {
     if (c.width < 1 || c.height < 1 || c.width > 65536 || c.height > 65536)
         fail(c.where, "width and height must be in 1..65536, got {}x{}", c.width, c.height);
-    if (!(c.fovDeg > 0.0 && c.fovDeg < 180.0)) fail(c.where, "fov_deg must be in (0, 180), got {}", c.fovDeg);
+    if (!(c.fovDeg > 0.0 && c.fovDeg < 180.0)) fail(c.where.empty() ? std::string("fov_deg") : c.where + ".fov_deg", "must be in (0, 180), got {}", c.fovDeg);
     glm::dvec3 f = c.target - c.eye;
     if (!(glm::length(f) > 0.0)) fail(c.where, "eye and target are the same point");
     if (c.layers < 1 || c.layers > 16) fail(c.where, "layers must be in 1..16, got {}", c.layers);

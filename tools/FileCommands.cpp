@@ -1,10 +1,12 @@
 #include "FileCommands.h"
 
+#include "bake/BakeOutputs.h"
 #include "bake/TbbControl.h"
 #include "bake/output/VolumeSlice.h"
 #include "stream/GeometryFile.h"
 #include "stream/ProgressSource.h"
 #include "stream/util/Error.h"
+#include "stream/util/PathText.h"
 
 #include <fmt/format.h>
 
@@ -89,6 +91,9 @@ std::optional<int> runFileCommand(const FileCommands& c, std::string& context) {
     }
     if (*c.sliceCommand) {
         context = c.sliceIn;
+        // As every other command: no folders made for a path typed by hand, and the name says PNG.
+        if (lowercaseExtension(c.sliceOut) != ".png") fail(c.sliceOut, "vdb-slice writes a PNG: name the output .png");
+        requireOutputFolder("output", c.sliceOut);
         // One thread under an address-space limit: OpenVDB reads with TBB, whose workers could
         // not start at 155-160 MiB and aborted the process after the PNG was written.
         const ScopedTbbControl one(tbb::global_control::max_allowed_parallelism, addressSpaceLimit() != 0 ? 1 : 0);

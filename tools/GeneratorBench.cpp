@@ -140,11 +140,13 @@ void runBenchGenerators(const BenchGeneratorsOptions& options) {
         if (t < 1 || t > 1024) throw InputError(fmt::format("--threads: each count must be in 1..1024, got {}", t));
     if (options.threads.empty()) throw InputError("--threads: give at least one thread count");
     if (options.repeat < 1 || options.repeat > 100) throw InputError(fmt::format("--repeat: must be in 1..100, got {}", options.repeat));
+    if (!options.jsonPath.empty()) checkOutputPath(options.jsonPath);  // before minutes of measuring, as bench table2
     nlohmann::json result = benchGenerators(options.triangles, options.threads, options.only, options.repeat);
     if (result["generators"].empty()) throw InputError("--only: no generator matches \"" + options.only + "\"");
     fmt::print("{}", generatorBenchTable(result));
     if (!options.jsonPath.empty()) {
         std::string text = result.dump(2) + "\n";
+        ensureParentDirectory(options.jsonPath);
         writeFileAtomically(options.jsonPath, std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
     }
 }

@@ -253,6 +253,8 @@ void checkScriptValues(const SlurmOptions& o) {
     requireInRange("--shards", o.shards, 1, 65536);
     requireInRange("--threads", o.threads, 1, kMaxThreads);
     requireInRange("--fan-in", o.fanIn, 0, 65536);
+    // A combine of one file is that file: 1 would mean no tree, which 0 says.
+    if (o.fanIn == 1) fail("--fan-in", "must be 0 (no tree) or at least 2, got 1");
     const auto control = [](const std::string& v) { return std::any_of(v.begin(), v.end(), [](char c) { return uint8_t(c) < 0x20 || c == 0x7f; }); };
     const auto space = [](const std::string& v) { return v.find(' ') != std::string::npos; };
     for (const auto& [option, value] : {std::pair{"--partition", &o.partition}, std::pair{"--time", &o.time}})

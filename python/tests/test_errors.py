@@ -132,6 +132,9 @@ def test_bad_budget_or_chunk_is_named_before_any_work():
     for budget in (-5, 1.5, True, [1], 2**70):
         with pytest.raises(ValueError, match=r"memory_budget: expected bytes as a non-negative int or a size such as '512M'"):
             penumbra.bake(scene, memory_budget=budget)
+    for budget in ("12Q", "lots"):  # a malformed size string too (it was a penumbra.Error)
+        with pytest.raises(ValueError, match=r"memory_budget"):
+            penumbra.bake(scene, memory_budget=budget)
     with pytest.raises(ValueError, match=r"generate\(\): chunk must be in 0..16777216, got 1099511627776"):
         penumbra.generate(scene, chunk=2**40)
     # pybind's own conversion answered these with a dump of every signature.

@@ -234,6 +234,8 @@ TEST_CASE("penumbra slurm refuses values that would break a job script's #SBATCH
     CHECK(path.exitCode == 1);
     CHECK_THAT(path.err, Catch::StartsWith("penumbra: error: --dir: a path with a line break"));
     CHECK_FALSE(fs::exists(dir / "job"));
+    // A fan-in of one would combine each file alone: no tree, which 0 says.
+    CHECK(runPenumbra(base + " --fan-in 1").err == "penumbra: error: --fan-in: must be 0 (no tree) or at least 2, got 1\n");
     CHECK(runPenumbra(base + " --partition gpu,cpu --time 1-12:00:00").exitCode == 0);
 }
 

@@ -124,9 +124,16 @@ TEST_CASE("volume: box voxels match a points bake exactly, every baked voxel is 
     CHECK_THAT(outside.err, Catch::Contains("outside the grid"));
 
     // The slice never replaces its input, by any name, and reads regular files only.
-    requireCleanError(runPenumbra("vdb-slice " + (dir / "out/v.vdb") + " " + (dir / "out/v.vdb") + " --axis y --at 0.5"), "is also an input");
+    std::filesystem::create_symlink(dir / "out/v.vdb", dir / "link.png");
+    requireCleanError(runPenumbra("vdb-slice " + (dir / "out/v.vdb") + " " + (dir / "link.png") + " --axis y --at 0.5"), "is also an input");
     CHECK(slurp(dir / "out/v.vdb").compare(0, 4, " BDV") == 0);  // still a VDB (its magic number)
     requireCleanError(runPenumbra("vdb-slice /dev/zero " + (dir / "z.png") + " --axis y --at 0"), "is a character device");
+    // A folder typed by hand is not made (it made /nonexistent_dir), and the output is named .png.
+    requireCleanError(runPenumbra("vdb-slice " + (dir / "out/v.vdb") + " " + (dir / "typo/deeper/s.png") + " --axis y --at 0.5"),
+                      "typo");
+    CHECK_FALSE(std::filesystem::exists(dir / "typo"));
+    requireCleanError(runPenumbra("vdb-slice " + (dir / "out/v.vdb") + " " + (dir / "s.jpg") + " --axis y --at 0.5"),
+                      "s.jpg: vdb-slice writes a PNG: name the output .png");
     // --axis and --at are required, as the synopsis says (without them it sliced along y at 0).
     for (const std::string& missing : {" --axis y", " --at 0.5"}) {
         RunResult usage = runPenumbra("vdb-slice " + (dir / "out/v.vdb") + " " + (dir / "m.png") + missing);

@@ -130,6 +130,12 @@ TEST_CASE("bench generators measures every generator", "[procedural][cli]") {
         CHECK_THAT(r.out, Catch::Contains(name));
     nlohmann::json j = nlohmann::json::parse(slurp(dir / "gen.json"));
     for (const auto& g : j["generators"]) CHECK(g["results"][0]["triangles_per_second"].get<double>() > 0);
+    // An unwritable --json is refused before the measuring, not after it.
+    write(dir / "afile", "x");
+    RunResult late = runPenumbra("bench generators --triangles 20000 --threads 1 --json " + (dir / "afile/gen.json"));
+    CHECK(late.exitCode == 1);
+    CHECK(late.out.empty());
+    CHECK_THAT(late.err, Catch::Contains("afile"));
     RunResult bad = runPenumbra("bench generators --threads 0");
     CHECK(bad.exitCode == 1);
     CHECK_THAT(bad.err, Catch::Contains("--threads"));
