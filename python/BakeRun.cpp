@@ -355,8 +355,17 @@ void reportProgress(const py::object& progress) {
 BakeSettings settingsOf(const std::string& method, std::optional<int> threads, const py::object& memoryBudget,
                         const std::optional<std::string>& tmpDir) {
     BakeSettings settings;
-    translateErrors([&] { settings.method = casterEntry(method).name; });
+    // Wrong argument values are ValueErrors named as the arguments are, not as the CLI's options.
+    try {
+        settings.method = casterEntry(method).name;
+    } catch (const InputError& e) {
+        std::string text = e.what();
+        if (text.rfind("--method: ", 0) == 0) text = "method: " + text.substr(10);
+        throw py::value_error(text);
+    }
     settings.threads = threads.value_or(0);
+    if (settings.threads < 0 || settings.threads > kMaxThreads)
+        throw py::value_error(fmt::format("threads: must be in 0..{} (0 or None: all cores), got {}", kMaxThreads, settings.threads));
     settings.quiet = true;
     if (!memoryBudget.is_none()) {
         if (py::isinstance<py::str>(memoryBudget)) {

@@ -132,6 +132,13 @@ def test_bad_budget_or_chunk_is_named_before_any_work():
     for budget in (-5, 1.5, True, [1], 2**70):
         with pytest.raises(ValueError, match=r"memory_budget: expected bytes as a non-negative int or a size such as '512M'"):
             penumbra.bake(scene, memory_budget=budget)
+    # A wrong method or thread count is a ValueError named as the argument (it was a
+    # penumbra.Error naming the CLI's --method and --threads).
+    with pytest.raises(ValueError, match=r'^method: unknown method "foo" \(known: hpc'):
+        penumbra.bake(scene, method="foo")
+    for threads in (-3, 100000):
+        with pytest.raises(ValueError, match=r"^threads: must be in 0\.\.4096"):
+            penumbra.bake(scene, threads=threads)
     for budget in ("12Q", "lots"):  # a malformed size string too (it was a penumbra.Error)
         with pytest.raises(ValueError, match=r"memory_budget"):
             penumbra.bake(scene, memory_budget=budget)
