@@ -24,8 +24,15 @@ Checkpoints::Checkpoints(const ShardSettings& settings, PartialHeader header, co
     if (const char* kill = std::getenv("PENUMBRA_TEST_KILL_AFTER_TILES"); kill && *kill) killAfter_ = std::atol(kill);
 }
 
+std::string Checkpoints::shardPrefix() const {
+    // A shard's checkpoints are named by it, so that shards given one folder keep their own: with
+    // the same names they replaced each other's, and a --resume then refused the other shard's.
+    if (!settings_.casting()) return "";
+    return "shard-" + std::to_string(settings_.index) + "-of-" + std::to_string(settings_.count) + ".";
+}
+
 std::string Checkpoints::pathOf(size_t tile, size_t tiles, const char* suffix) const {
-    const std::string name = "tile-" + std::to_string(tile) + "-of-" + std::to_string(tiles) + suffix + ".pnpart";
+    const std::string name = shardPrefix() + "tile-" + std::to_string(tile) + "-of-" + std::to_string(tiles) + suffix + ".pnpart";
     return (fs::path(settings_.checkpointDir) / name).string();
 }
 
@@ -68,8 +75,11 @@ void Checkpoints::checkOtherTilings(size_t tiles) {
     // thread count looks only for its own names, and would bake from the start without a word.
     std::vector<std::string> other;
     std::error_code ec;
+    const std::string prefix = shardPrefix();
     for (const auto& entry : fs::directory_iterator(settings_.checkpointDir, ec)) {
-        const std::string name = entry.path().filename().string();
+        const std::string full = entry.path().filename().string();
+        if (full.compare(0, prefix.size(), prefix) != 0) continue;  // another shard's, or not a shard's
+        const std::string name = full.substr(prefix.size());
         unsigned long t = 0, m = 0;
         int used = 0;
         if (std::sscanf(name.c_str(), "tile-%lu-of-%lu%n", &t, &m, &used) != 2 || m == tiles) continue;

@@ -12,7 +12,7 @@
 /// is left empty.
 ///
 /// Within a tile, every `--checkpoint-every` seconds of cast (and on SIGTERM) the tile's masks so
-/// far are saved as `tile-T-of-M.progress.pnpart`, with the position in the replay they hold; a
+/// far are saved as `tile-T-of-M.progress.pnpart` (a shard's names start `shard-I-of-N.`), with the position in the replay they hold; a
 /// resume restores them and casts only the rest of the replay (HpcCaster, TileProgress).
 
 #include "bake/cast/Caster.h"
@@ -86,6 +86,8 @@ public:
 
 private:
     std::string pathOf(size_t tile, size_t tiles, const char* suffix = "") const;
+    /// "shard-I-of-N." for a shard's checkpoints, "" for a whole bake's.
+    std::string shardPrefix() const;
     void reject(const std::string& path, const std::string& why);
     /// @brief Reads @p path if it exists and checks that it is a @p role file of this bake and
     /// of a tile of exactly @p ids; a mismatch is reject()ed. @return the file, or nullopt.

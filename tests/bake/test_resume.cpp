@@ -305,3 +305,35 @@ TEST_CASE("checkpoints and shard files are synced before they are named, and the
         CHECK(calls[link + 1].find("fsync(") != std::string::npos);
     }
 }
+
+TEST_CASE("shards given one checkpoint folder keep their own checkpoints and resume from them", "[shards][resume]") {
+    // The names were the tile's alone: shard 1's tile 0 replaced shard 0's, and shard 0's
+    // --resume then refused it as a checkpoint of other settings.
+    ResumeBake b;
+    const std::string shards = b.dir / "shards";
+    auto shardCommand = [&](int i) {
+        return "bake " + b.scene + b.common.substr(0, b.common.find(" --dump")) + fmt::format(" --shard {}/2 --shard-by receivers", i) +
+               " --shard-dir " + shards + " --resume " + b.dir / "ckpt" + " --quiet";
+    };
+    for (int i = 0; i < 2; ++i) {
+        RunResult r = runPenumbra(shardCommand(i), "PENUMBRA_TEST_KILL_AFTER_TILES=1");
+        INFO(r.err);
+        REQUIRE(r.exitCode == 128 + 9);
+    }
+    const std::vector<std::string> saved = filesIn(b.dir / "ckpt");
+    REQUIRE(saved.size() == 2);
+    CHECK(saved[0].rfind("shard-0-of-2.tile-0-of-", 0) == 0);
+    CHECK(saved[1].rfind("shard-1-of-2.tile-0-of-", 0) == 0);
+    for (int i = 0; i < 2; ++i) {
+        const std::string stats = b.dir / fmt::format("s{}.json", i);
+        RunResult r = runPenumbra(shardCommand(i) + " --stats " + stats);
+        INFO(r.err);
+        REQUIRE(r.exitCode == 0);
+        CHECK(nlohmann::json::parse(slurp(stats))["shard"]["tiles_restored"] == 1);
+    }
+    CHECK_FALSE(fs::exists(b.dir / "ckpt"));  // both complete: their checkpoints and the folder are gone
+    RunResult merge = runPenumbra("merge " + b.scene + " --shard-dir " + shards + " --quiet --dump " + b.dir / "dump");
+    INFO(merge.err);
+    REQUIRE(merge.exitCode == 0);
+    CHECK(b.outputs() == b.expected);
+}
