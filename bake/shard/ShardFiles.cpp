@@ -214,10 +214,21 @@ std::string combineShardFiles(const std::vector<std::string>& inputs, std::optio
     PartialHeader h = first;
     h.part = covers.first, h.partEnd = covers.end;
     std::error_code ec;
+    fs::path existing = fs::absolute(outDir, ec);  // the nearest folder that is already there
+    while (!existing.empty() && !fs::exists(existing, ec) && existing.has_parent_path() && existing != existing.parent_path())
+        existing = existing.parent_path();
     fs::create_directories(outDir, ec);
     if (ec) fail(outDir, "cannot create the shard directory: {}", ec.message());
     const std::string out = combinedFilePath(outDir, covers, first.parts);
-    writePartialStates(out, h, states, masks);
+    try {
+        writePartialStates(out, h, states, masks);
+    } catch (...) {
+        // A failed combine leaves none of the folders it made.
+        for (fs::path made = fs::absolute(outDir, ec); made != existing && made.has_parent_path() && fs::is_empty(made, ec);
+             made = made.parent_path())
+            if (!fs::remove(made, ec)) break;
+        throw;
+    }
     return out;
 }
 

@@ -176,6 +176,11 @@ TEST_CASE("combine and merge refuse overlaps, gaps and files of other bakes", "[
     bakeOk("bake " + scene + " --shard 3/4 --shard-by receivers --shard-dir " + dir / "r");
     requireCleanError(runPenumbra("combine " + dir / "s/shard-2-of-4.pnpart " + dir / "r/shard-3-of-4.pnpart --shard-dir " + dir / "x"), "cut by");
     CHECK_FALSE(fs::exists(dir / "x"));
+    // A write that fails (a full disk) leaves neither a file nor the folder it made for it.
+    const RunResult full = runPenumbra("combine " + dir / "s" + " --range 0-1 --shard-dir " + dir / "y/z", "prlimit --fsize=100");
+    CHECK(full.exitCode == 1);
+    CHECK_THAT(full.err, Catch::StartsWith("penumbra: error: "));
+    CHECK_FALSE(fs::exists(dir / "y"));
     CHECK_FALSE(hasTempFiles(dir.path));
 }
 
