@@ -155,7 +155,14 @@ TriangleSourcePtr openCheckedBeforeScan(const SceneDesc& scene, const ReceiverKi
                                         bool quiet, MemoryDemand& demand,
                                         const CasterMemory& methodMemory) {
     checkParsingFits(scene, kind, budget, masks, methodMemory);  // before the alpha plan and the opening parse glTF
-    checkSceneAlphaBudget(scene, budget.bytes, budget.label, budget.overhead, budget.namedSlack);  // before a texture is decoded (opening builds the table)
+    // Before a texture is decoded (opening builds the table); its refusal names at least what the
+    // plan before the scan will ask for, sources aside.
+    uint64_t leastOtherwise = 0;
+    if (budget.bytes > 0) {
+        const VectorSource none({});
+        leastOtherwise = leastNamedLimit(demandBeforeScan(scene, kind, none, masks, methodMemory, /*alpha=*/false), budget);
+    }
+    checkSceneAlphaBudget(scene, budget.bytes, budget.label, budget.overhead, budget.namedSlack, leastOtherwise);
     TriangleSourcePtr geometry = [&] {
         OpeningProgress opening(quiet);  // an OBJ's check pass shows as a phase
         return openSceneGeometry(scene);

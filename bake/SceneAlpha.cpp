@@ -90,7 +90,7 @@ const GltfAlphaState* planSceneAlpha(const SceneDesc& scene) {
 }
 
 void checkSceneAlphaBudget(const SceneDesc& scene, uint64_t budgetBytes, const std::string& label, uint64_t overhead,
-                           uint64_t namedSlack) {
+                           uint64_t namedSlack, uint64_t leastOtherwise) {
     const GltfAlphaState* state = planSceneAlpha(scene);
     if (!state || budgetBytes == 0) return;
     auto check = [&](const GltfAlphaImage& image) {
@@ -101,7 +101,7 @@ void checkSceneAlphaBudget(const SceneDesc& scene, uint64_t budgetBytes, const s
         if (needed > budgetBytes)
             fail(image.where, "a {} x {} texture needs {} to decode; with the bake's baseline ({}), {} {} is too small: at least {} is needed",
                  image.width, image.height, formatBytes(image.decodeBytes + image.bitBytes), formatBytes(kBaselineBytes), label,
-                 formatBytes(budgetBytes + overhead), budgetText(needed + overhead + namedSlack));
+                 formatBytes(budgetBytes + overhead), budgetText(std::max(needed + overhead + namedSlack, leastOtherwise)));
     };
     for (const SceneAlphaEntry& e : state->entries)
         for (const GltfAlphaImage& image : e.plan.images) check(image);

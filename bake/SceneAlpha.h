@@ -60,9 +60,12 @@ const GltfAlphaState* planSceneAlpha(const SceneDesc& scene);
 /// with the bake's baseline when it is decoded.
 /// @param overhead, @p namedSlack as BakeBudget's: the limit the message names is the budget plus
 ///        @p overhead, and the least it asks for adds @p namedSlack.
+/// @param leastOtherwise the least budget or limit the checks after this one would name (the
+///        plan before the scan without the sources), named instead when it is larger: naming the
+///        texture's need alone sent a user to a budget the next check refused again (49M, then 115M).
 /// @throw InputError "FILE: material M ("name"): image I: ...", naming the least budget or limit.
 void checkSceneAlphaBudget(const SceneDesc& scene, uint64_t budgetBytes, const std::string& label, uint64_t overhead = 0,
-                           uint64_t namedSlack = 0);
+                           uint64_t namedSlack = 0, uint64_t leastOtherwise = 0);
 
 /// @brief Step 2 (once per scene): decodes the textures and gives the triangles their ids.
 /// @return for generator entry @p geometry with an outline texture, its built texture (ids: the
