@@ -3,6 +3,7 @@
 #include "bake/cast/ClosedExemptions.h"
 #include "bake/cast/PenumbraCaster.h"
 #include "bake/cast/SampleMaskTable.h"
+#include "bake/cast/TileCaster.h"
 #include "bake/light/SunLight.h"
 #include "bake/SceneAlpha.h"
 #include "bake/WorkPlan.h"
@@ -52,6 +53,7 @@ void addSampleDemand(MemoryDemand& demand, const LightSamples& samples, const Sc
     demand.groups = samples.groupCount();
     demand.umbraWords = (demand.groups + 63) / 64;
     demand.sampleBytes = samples.positions.size() * sizeof(glm::vec3);
+    demand.subTileBytes = TileCaster::fixedBytes(samples);
     if (scene.options.sampleTable)  // one copy per caster; casters (memory tiles) run one at a time
         for (uint32_t l = 0; l < uint32_t(samples.lightCount()); ++l)
             demand.sampleBytes +=
@@ -144,6 +146,7 @@ void checkParsingFits(const SceneDesc& scene, const ReceiverKind& kind, const Ba
     if (parsing < TriangleSource::kNotableResidentBytes) return;
     const VectorSource none({});
     MemoryDemand before = demandBeforeScan(scene, kind, none, masks, methodMemory, /*alpha=*/false);
+    before.threads = budget.threads;
     before.sourceBytes += parsing;
     before.sourceDetail = fmt::format("{}: its glTF JSON takes about {} to parse", file, formatBytes(parsing));
     checkBeforeScan(before, budget);
@@ -160,7 +163,9 @@ TriangleSourcePtr openCheckedBeforeScan(const SceneDesc& scene, const ReceiverKi
     uint64_t leastOtherwise = 0;
     if (budget.bytes > 0) {
         const VectorSource none({});
-        leastOtherwise = leastNamedLimit(demandBeforeScan(scene, kind, none, masks, methodMemory, /*alpha=*/false), budget);
+        MemoryDemand rough = demandBeforeScan(scene, kind, none, masks, methodMemory, /*alpha=*/false);
+        rough.threads = budget.threads;
+        leastOtherwise = leastNamedLimit(rough, budget);
     }
     checkSceneAlphaBudget(scene, budget.bytes, budget.label, budget.overhead, budget.namedSlack, leastOtherwise);
     TriangleSourcePtr geometry = [&] {
@@ -168,6 +173,7 @@ TriangleSourcePtr openCheckedBeforeScan(const SceneDesc& scene, const ReceiverKi
         return openSceneGeometry(scene);
     }();
     demand = demandBeforeScan(scene, kind, *geometry, masks, methodMemory);
+    demand.threads = budget.threads;
     checkBeforeScan(demand, budget);
     return geometry;
 }

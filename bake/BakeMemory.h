@@ -38,6 +38,7 @@ struct BakeBudget {
     /// limit to the next. A limit named without them was refused again (200M named 240M, then 244M).
     uint64_t namedSlack = 0;
     std::string label = "--memory-budget";
+    int threads = 1;  ///< threads that cast: each holds sub-tiles (MemoryDemand::threads)
     /// The scene, named before an address-space limit's refusals (a --memory-budget one names the
     /// option, which is enough).
     std::string where;

@@ -50,8 +50,10 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string&
     const uint64_t cast = d.castReceivers ? std::min(d.castReceivers, d.receivers) : d.receivers;
     const uint64_t smallestTile = std::min<uint64_t>(std::max<uint64_t>(cast, 1), kMinimumTileReceivers);
     const uint64_t outputPhase = plan.residentBytes + d.outputBytes;
+    // Each sub-tile's fixed state (one sub-tile per thread at least) comes on top of a tile's receivers.
+    auto fixedOf = [&](int perThread) { return subTilesAtOnce(d.threads, perThread) * d.subTileBytes; };
     plan.minimumBudget = std::max({scanPhaseBytes(d), bucketPhase, outputPhase,
-                                   plan.residentBytes + castSources + smallestTile * plan.perReceiverBytes});
+                                   plan.residentBytes + castSources + fixedOf(1) + smallestTile * plan.perReceiverBytes});
     if (d.refinement.addedReceivers > 0) {
         MemoryDemand after = d;
         after.refinement = {};
@@ -70,7 +72,9 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string&
                                      formatBytes(budget + overhead), d.receivers, d.groups,
                                      budgetText(plan.minimumBudget + overhead + namedSlack), why));
     }
-    const uint64_t perTile = (budget - plan.residentBytes - castSources) / plan.perReceiverBytes;
+    const uint64_t room = budget - plan.residentBytes - castSources;
+    while (plan.subTilesPerThread > 1 && fixedOf(plan.subTilesPerThread) > room / 2) plan.subTilesPerThread /= 2;
+    const uint64_t perTile = (room - std::min(room, fixedOf(plan.subTilesPerThread))) / plan.perReceiverBytes;
     plan.tiles = int(std::max<uint64_t>(1, (cast + perTile - 1) / std::max<uint64_t>(perTile, 1)));
     return plan;
 }

@@ -29,6 +29,10 @@ struct MemoryDemand {
     uint64_t receivers = 0;      ///< receivers (0 before the camera pass has counted them)
     uint64_t castReceivers = 0;  ///< receivers the first pass casts (a by-receivers shard's share); 0: all
     uint64_t maskRows = 0;       ///< masks kept for this many receivers only (that share; MaskKeeping); 0: all
+    /// Held by each sub-tile of a memory tile whatever its receivers (TileCaster::fixedBytes):
+    /// a memory tile is cast by subTiles() of them at once.
+    uint64_t subTileBytes = 0;
+    int threads = 1;             ///< threads that cast
     uint64_t scanBytes = 0;      ///< held by the receiver kind during the scan pass (z-buffer + receiver set)
     uint64_t outputBytes = 0;    ///< held by the receiver kind while writing its outputs
     int groups = 1;              ///< light-sample groups: mask words per receiver
@@ -65,8 +69,15 @@ struct MemoryPlan {
     uint64_t residentBytes = 0;    ///< held for the whole bake (receivers, results, buffers, baseline)
     uint64_t perReceiverBytes = 0; ///< hierarchy + worst-case mask of one receiver in a tile
     int tiles = 1;                 ///< receiver tiles processed one after another
+    /// Sub-tiles per thread within a memory tile (HpcCaster): 4 evens the threads' work out; fewer
+    /// when their fixed bytes (MemoryDemand::subTileBytes) would take more than half the room.
+    int subTilesPerThread = 4;
     uint64_t minimumBudget = 0;    ///< the smallest budget that works (one smallest tile)
 };
+
+/// @brief Sub-tiles alive at once while a memory tile is cast with @p perThread per thread: one
+/// with one thread, and the caster of the closed faces' exempt receivers (one more).
+inline uint64_t subTilesAtOnce(int threads, int perThread) { return (threads > 1 ? uint64_t(perThread) * uint64_t(threads) : 1) + 1; }
 
 /// @brief Bytes of the masks @p d keeps whole once cast (MemoryDemand::dumpMasks).
 uint64_t keptMaskBytes(const MemoryDemand& d);

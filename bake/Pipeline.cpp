@@ -98,7 +98,7 @@ struct Bake {
         : scene(s), settings(b), method(casterEntry(b.method)),
           threads(b.threads > 0 ? b.threads : int(tbb::info::default_concurrency())),
           budget(fitAddressSpace(b.memoryBudget, threads, b.quiet)) {
-        budget.where = s.file;
+        budget.where = s.file, budget.threads = threads;
     }
     bool dump() const { return !settings.dumpDir.empty(); }
     /// Every receiver's masks are kept: for the dump, a shard file, checkpoints, or a library
@@ -178,6 +178,7 @@ void makeCaster(Bake& b) {
     if (b.caster) return;
     CastContext context{p.samples, p.receivers,       p.sampleSets,      p.options, b.scene.bakeOptions,
                         b.threads, b.plan.tiles,      b.settings.quiet, {},        nullptr};
+    context.subTilesPerThread = b.plan.subTilesPerThread;
     // A merge gives the kind its pass over the faces itself (mergeShards), once.
     if (b.kind->wantsPass(StreamPass::Cast) && !b.settings.shard.merge && !b.settings.shard.casting())
         context.observeChunk = [&b](std::span<const Triangle> c) { b.kind->consume(StreamPass::Cast, StreamChunk{c}); };

@@ -278,6 +278,7 @@ void checkShardBakes(const SlurmOptions& o) {
     if (o.memoryBudget.empty()) return;
     BakeBudget budget;
     budget.bytes = parseMemoryBudget(o.memoryBudget);
+    budget.threads = std::max(1, o.threads);
     MemoryDemand demand;
     openCheckedBeforeScan(scene, *makeReceiverKind(scene.receivers, scene), budget, MaskKeeping{true}, /*quiet=*/false, demand);
 }

@@ -87,6 +87,7 @@ struct CastContext {
     std::function<void(std::span<const Triangle>)> observeChunk;
     const ReceiverPolygons* polygons = nullptr;  ///< lightmap receivers' polygons, when the kind has them
     const TileHooks* tileHooks = nullptr;        ///< for the first cast (receivers from 0), or null
+    int subTilesPerThread = 4;                   ///< hpc: sub-tiles per thread in a memory tile (MemoryPlan)
 };
 
 /// @brief One bake's method.

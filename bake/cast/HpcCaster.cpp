@@ -18,10 +18,12 @@
 namespace penumbra {
 namespace {
 
-/// Within a memory tile, threads work on disjoint sub-tiles, four per thread: more sub-tiles even
-/// out uneven work (measured on GRIDS with a barrier per chunk, 2 threads: 2 per thread cast in
-/// 4.28 s, 4 in 3.86 s, 8 in 3.92 s; docs/performance.md, "Parallelism").
-int subTiles(int threads) { return threads > 1 ? 4 * threads : 1; }
+/// Within a memory tile, threads work on disjoint sub-tiles, four per thread unless the plan has
+/// no room for their fixed state (MemoryPlan::subTilesPerThread): more sub-tiles even out uneven
+/// work (measured on GRIDS with a barrier per chunk, 2 threads: 2 per thread cast in 4.28 s, 4 in
+/// 3.86 s, 8 in 3.92 s; docs/performance.md, "Parallelism"). The bits do not depend on it.
+/// MemoryPlan.h's subTilesAtOnce() counts these, and the exempt receivers' caster.
+int subTiles(int threads, int perThread) { return threads > 1 ? perThread * threads : 1; }
 
 /// How far a tile's cast is in the replay: blockers read, and (when progress is saved) a hash of
 /// their bytes, so that a resumed tile can check that it skips exactly the blockers it restored.
@@ -181,7 +183,7 @@ private:
                 open.push_back(tile.ids[i]);
                 if (std::binary_search(exempt.begin(), exempt.end(), tile.ids[i])) openExempt.push_back(tile.ids[i]);
             }
-        TileCasters caster(c_, open, std::move(openExempt), subTiles(c_.threads));
+        TileCasters caster(c_, open, std::move(openExempt), subTiles(c_.threads, c_.subTilesPerThread));
         // Triangles are counted as the sub-tiles finish them, with the work they took, so the
         // share and ETA follow the work rather than the count (ProgressEstimate.h); what a resumed
         // tile skipped is done.

@@ -11,8 +11,9 @@ uint32_t MaskPool::allocate() {
         free_.pop_back();
     } else {
         slot = next_++;
-        if (slot / kBlock >= blocks_.size())
-            blocks_.push_back(std::make_unique<uint64_t[]>(size_t(kBlock) * words_));  // value-initialised: zero
+        // Not zeroed here: each mask is as it is handed out, so pages no mask reached stay untouched.
+        if ((slot >> blockShift_) >= blocks_.size())
+            blocks_.push_back(std::unique_ptr<uint64_t[]>(new uint64_t[(size_t(1) << blockShift_) * size_t(words_)]));
     }
     std::fill_n(data(slot), words_, 0ull);
     peakLive_ = std::max(peakLive_, ++live_);

@@ -37,6 +37,14 @@ TileCaster::TileCaster(const LightSamples& s, const CastOptions& o, const std::v
     hardReady.assign(size_t(s.sets) * groupCount, 0);
 }
 
+size_t TileCaster::fixedBytes(const LightSamples& samples) {
+    size_t blocksPerSet = 0;
+    for (const LightSampleGroup& g : samples.groups) blocksPerSet += (g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes;
+    const size_t groups = size_t(samples.groupCount()), sets = size_t(samples.sets);
+    return sets * blocksPerSet * sizeof(HardShadowBlock) + groups * sizeof(PenumbraVolume) + sets * groups * sizeof(uint32_t) +
+           MaskPool::slackBytes(int(groups));
+}
+
 void TileCaster::build(std::vector<ReceiverInput> inputs) {
     {
         ScopedTimer timer(stats_.buildSeconds);

@@ -36,6 +36,11 @@ public:
     /// @param tables the sample mask table per light, or nullptr when the option is off
     TileCaster(const LightSamples& s, const CastOptions& o, const std::vector<SampleMaskTable>* t);
 
+    /// @brief Bytes a tile holds whatever its receivers, for memory planning: the hard-shadow
+    /// blocks of every sample set (80 bytes a sample), the group volumes, and its mask pool's
+    /// last block. With 65,536 samples per light that is 6 MiB a light.
+    static size_t fixedBytes(const LightSamples& samples);
+
     /// @brief Builds the hierarchy over the tile's receivers (optimization D off: every mask now).
     void build(std::vector<ReceiverInput> inputs);
 

@@ -202,6 +202,29 @@ TEST_CASE("a budget that cannot be met fails before any work, naming a budget th
     }
 }
 
+TEST_CASE("many samples per light: the budget a refusal names holds on one and two threads", "[outofcore][memory]") {
+    // Each sub-tile's fixed state grows with the samples (80 bytes a sample for its hard-shadow
+    // blocks, a kilobyte a group for its volumes), and the mask pool handed out masks in blocks of
+    // 4096: 16 lights of 65,536 samples peaked at 2.4 GB under a 292M budget the refusal had named.
+    ScratchDir dir("budget-many-samples");
+    nlohmann::json s = scene(grass(10), 32, 24);
+    nlohmann::json light = s["lights"][0];
+    light["samples"] = 65536, light["sample_sets"] = 1;
+    s["lights"] = nlohmann::json::array({light, light, light, light});
+    for (const char* threads : {"1", "2"}) {
+        const Bake tooSmall = bake(dir, s, std::string("--memory-budget 16M --threads ") + threads);
+        INFO(tooSmall.err);
+        REQUIRE(tooSmall.exitCode == 1);
+        const std::string named = namedBudget(tooSmall.err);
+        REQUIRE_FALSE(named.empty());
+        const Bake enough = bake(dir, s, "--memory-budget " + named + " --threads " + threads);
+        INFO(enough.err);
+        REQUIRE(enough.exitCode == 0);
+        INFO(threads << " thread(s), --memory-budget " << named << ": peak RSS " << enough.rss());
+        CHECK(enough.rss() <= double(enough.stats["memory_plan"]["budget_bytes"].get<uint64_t>()));
+    }
+}
+
 TEST_CASE("a budget too small for parsing a glTF's JSON is refused before the JSON is parsed", "[outofcore][memory]") {
     // The refusal came after the parse (about 13 bytes per byte of JSON): 124 MB of peak for a
     // 32M refusal, which a job whose memory is capped at its budget does not live to print.
