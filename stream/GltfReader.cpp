@@ -1,5 +1,7 @@
 #include "stream/GltfReader.h"
 
+#include "stream/util/InputFile.h"
+
 #include "stream/util/Error.h"
 #include "stream/GltfBytes.h"
 #include "stream/GltfDocument.h"
@@ -65,6 +67,8 @@ private:
     std::shared_ptr<const GltfAlphaIds> alpha_;
     const GltfPrimitiveAlpha* blockAlpha_ = nullptr;  ///< the current draw's, or null: opaque
     std::unique_ptr<GltfBytes> bytes_;
+    std::vector<std::pair<std::string, FileStamp>> stamps_;  ///< the buffer files, as first read
+    bool passStarts_ = false;  ///< rewound: read() checks the stamps first
     std::vector<GltfPrimitiveLayout> layouts_;
     std::vector<Draw> draws_;
     uint64_t triangleCount_ = 0;
@@ -94,6 +98,11 @@ GltfSource::GltfSource(std::string path, std::shared_ptr<const GltfAlphaIds> alp
     placeScene();
     bytes_ = std::make_unique<GltfBytes>(doc_, decodeBudget_);
     block_.reserve(kBlockTriangles);
+    // The files every pass reads buffers from: the .glb itself, or the .gltf's .bin files.
+    for (const GltfBuffer& b : doc_.buffers)
+        if (b.source == GltfBuffer::Source::GlbChunk || b.source == GltfBuffer::Source::File)
+            if (std::none_of(stamps_.begin(), stamps_.end(), [&](const auto& s) { return s.first == b.file; }))
+                stamps_.emplace_back(b.file, FileStamp::of(b.file));
 }
 
 void GltfSource::placeScene() {
@@ -157,6 +166,8 @@ std::string GltfSource::residentDetail() const {
 }
 
 void GltfSource::rewind() {
+    // Checked as the next pass starts reading (a rewind never throws).
+    passStarts_ = true;
     draw_ = 0, blockStart_ = 0, placement_ = 0, instance_ = 0, next_ = 0;
     blockLoaded_ = currentReady_ = false;
     reader_.reset();
@@ -211,6 +222,12 @@ void GltfSource::advance() {
 }
 
 size_t GltfSource::read(std::span<Triangle> out) {
+    if (passStarts_) {
+        // A buffer rewritten in place between passes (an exporter saving moved vertices at the
+        // same size) gave receivers of one version and shadows of another, exit 0.
+        for (const auto& [file, stamp] : stamps_) requireUnchangedFile(file, stamp);
+        passStarts_ = false;
+    }
     size_t written = 0;
     while (written < out.size() && draw_ < draws_.size()) {
         if (!blockLoaded_) loadBlock();

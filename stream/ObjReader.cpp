@@ -1,6 +1,7 @@
 #include "stream/ObjReader.h"
 
 #include "stream/util/Error.h"
+#include "stream/util/InputFile.h"
 #include "stream/util/Memory.h"
 #include "stream/util/Progress.h"
 #include "stream/ObjTokenizer.h"
@@ -152,7 +153,8 @@ uint64_t regularFileSize(const std::string& path) { return RegularFile(path).siz
 class ObjSource final : public TriangleSource {
 public:
     ObjSource(const std::string& path, std::vector<std::string> parts)
-        : path_(path), fileBytes_(regularFileSize(path)), lines_(path), vertices_(path), parts_(std::move(parts)) {
+        : path_(path), fileBytes_(regularFileSize(path)), stamp_(FileStamp::of(path)), lines_(path), vertices_(path),
+          parts_(std::move(parts)) {
         lines_.close();  // opened again by the scan, on the first read() or sizeHint()
     }
 
@@ -190,6 +192,7 @@ private:
 
     std::string path_;
     uint64_t fileBytes_;
+    FileStamp stamp_;  ///< the version checked: every pass reads it (nextPolygon())
     LineReader lines_;
     VertexStore vertices_;  // the only per-mesh data kept, in bounded memory
     std::vector<std::string> parts_;  // o/g groups streamed; empty: all
@@ -297,6 +300,7 @@ bool ObjSource::nextPolygon() {
         if (regularFileSize(path_) != fileBytes_)
             fail(path_, "file changed while it was being read: it had {} bytes when checked, {} now", fileBytes_,
                  regularFileSize(path_));
+        requireUnchangedFile(path_, stamp_);  // the same size, rewritten or replaced
         lines_.open();
         lines_.seek(firstFaceOffset_, linesBeforeFirstFace_);
     }

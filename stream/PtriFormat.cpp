@@ -83,6 +83,7 @@ size_t readFully(std::FILE* file, void* data, size_t size, const std::string& pa
 struct OpenFile {
     std::FILE* file;
     PtriInfo info;
+    FileStamp stamp;  ///< the version verified
 };
 
 /// Opens @p path and verifies everything the header promises (see readPtriHeader).
@@ -129,7 +130,8 @@ OpenFile openVerified(const std::string& path) {
         uint64_t chunkBytes = kPtriChunkHeaderBytes + uint64_t(info.chunkTriangles(k)) * kPtriTriangleBytes;
         fail(path, "truncated in chunk {} (expected {} bytes, found {})", k, chunkBytes, size - start);
     }
-    return {guard.release(), info};
+    const FileStamp stamp = FileStamp::of(::fileno(file), path);
+    return {guard.release(), info, stamp};
 }
 
 class PtriSource final : public TriangleSource {
@@ -138,7 +140,7 @@ public:
         OpenFile opened = openVerified(path);
         // Closed until the first read(): a scene may open many files before streaming any.
         std::fclose(opened.file);
-        info_ = opened.info;
+        info_ = opened.info, stamp_ = opened.stamp;
     }
     ~PtriSource() override { closeFile(); }
     PtriSource(const PtriSource&) = delete;
@@ -160,13 +162,14 @@ private:
     std::string path_;
     std::FILE* file_ = nullptr;
     PtriInfo info_;
+    FileStamp stamp_;  ///< every pass reads this version (checked as the file is reopened)
     uint64_t nextChunk_ = 0;
     std::vector<Triangle> chunk_;  // the current chunk, verified
     size_t used_ = 0;              // triangles of chunk_ already handed out
 };
 
 void PtriSource::rewind() {
-    closeFile();  // reopened by the next read()
+    closeFile();  // reopened by the next read(), which checks it is still the file read first
     nextChunk_ = 0;
     chunk_.clear();
     used_ = 0;
@@ -177,6 +180,7 @@ void PtriSource::loadChunk() {
     uint32_t expectedCount = info_.chunkTriangles(k);
     size_t expectedBytes = kPtriChunkHeaderBytes + size_t(expectedCount) * kPtriTriangleBytes;
     if (!file_) {
+        requireUnchangedFile(path_, stamp_);
         file_ = std::fopen(path_.c_str(), "rb");
         if (!file_) fail(path_, "cannot open: {}", std::strerror(errno));
         // Every chunk before k is full, so chunk k's offset follows from the header.

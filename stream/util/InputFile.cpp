@@ -37,6 +37,33 @@ void requireRegular(const struct stat& st, const std::string& path) {
 
 }  // namespace
 
+namespace {
+FileStamp stampOf(const struct stat& st) {
+    return {st.st_dev, st.st_ino, int64_t(st.st_size), int64_t(st.st_mtim.tv_sec), int64_t(st.st_mtim.tv_nsec)};
+}
+}  // namespace
+
+FileStamp FileStamp::of(const std::string& path) {
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0) fail(path, "cannot stat: {}", errnoText(errno));
+    return stampOf(st);
+}
+
+FileStamp FileStamp::of(int fd, const std::string& path) {
+    struct stat st {};
+    if (::fstat(fd, &st) != 0) fail(path, "cannot stat: {}", errnoText(errno));
+    return stampOf(st);
+}
+
+void requireUnchangedFile(const std::string& path, const FileStamp& first) {
+    const FileStamp now = FileStamp::of(path);
+    if (now == first) return;
+    const std::string how = now.device != first.device || now.inode != first.inode ? std::string("replaced by another file")
+                            : now.size != first.size ? fmt::format("rewritten ({} bytes, then {})", first.size, now.size)
+                                                     : std::string("rewritten in place (its modification time moved)");
+    fail(path, "file changed while it was being read: {} after an earlier pass of this run had read it", how);
+}
+
 const char* fileKindName(mode_t mode) {
     if (S_ISREG(mode)) return "a regular file";
     if (S_ISDIR(mode)) return "a directory";

@@ -30,6 +30,27 @@ std::FILE* openInputStream(const std::string& path);
 /// @throw InputError as openInputFile().
 void checkInputFile(const std::string& path);
 
+/// @brief One version of a file: its device, inode, size and modification time. A file replaced
+/// (renamed over, as `penumbra generate` writes) or rewritten in place has another, even at the
+/// same size. Readers that read a file once per pass keep the first pass's stamp and require the
+/// same at each later pass: receivers from one version and shadows from another were baked with
+/// exit 0.
+struct FileStamp {
+    dev_t device = 0;
+    ino_t inode = 0;
+    int64_t size = 0, modifiedSeconds = 0, modifiedNanoseconds = 0;
+    bool operator==(const FileStamp&) const = default;
+
+    /// @throw InputError "PATH: cannot stat: REASON".
+    static FileStamp of(const std::string& path);
+    /// The file open as @p fd (named @p path in the error).
+    static FileStamp of(int fd, const std::string& path);
+};
+
+/// @brief Requires @p path to be the version @p first stamps.
+/// @throw InputError "PATH: file changed while it was being read: ..." naming what changed.
+void requireUnchangedFile(const std::string& path, const FileStamp& first);
+
 /// @brief What kind of file a stat mode is, for messages: "a directory", "a FIFO", ...
 const char* fileKindName(mode_t mode);
 

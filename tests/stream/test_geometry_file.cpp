@@ -11,6 +11,8 @@
 #include <catch2/catch.hpp>
 
 #include <cfloat>
+#include <chrono>
+#include <filesystem>
 #include <cmath>
 #include <random>
 
@@ -232,4 +234,45 @@ TEST_CASE("GeometryFile: a .gltf too large for a data URI keeps its buffer in a 
     VectorSource small({tri({0, 0, 0}, {1, 0, 0}, {0, 1, 0})});
     convertGeometry(small, dir.file("small.gltf"));
     CHECK_FALSE(std::filesystem::exists(dir.file("small.bin")));
+}
+
+TEST_CASE("GeometryFile: a file replaced or rewritten between two passes is an error, not another mesh", "[stream][geometry]") {
+    // A bake reads its files once per pass: a .ptri renamed over, or a .glb or .bin rewritten at
+    // the same size between the scan and the bucket pass, gave receivers of one version and
+    // shadows of another, exit 0.
+    ScratchDir dir("geometry-changed");
+    std::vector<Triangle> first = awkwardTriangles(), second = first;
+    std::swap(second.front(), second.back());  // the same count and size, other triangles
+    for (const char* name : {"x.ptri", "x.glb", "x.gltf", "x.obj"})
+        for (const bool rename : {true, false}) {
+            INFO(name << (rename ? ": renamed over" : ": rewritten in place"));
+            const std::string path = dir.file(name), other = dir.file(std::string("other-") + name);
+            VectorSource a(first), b(second);
+            convertGeometry(a, path);
+            convertGeometry(b, other);
+            TriangleSourcePtr source = openGeometryFile(path);
+            CHECK(sameBits(readAll(*source), first));  // the first pass
+            if (rename) {
+                std::filesystem::rename(other, path);
+            } else {
+                // In place: the same inode, a later modification time (set, as two writes may
+                // fall within one tick of the file system's clock).
+                const auto before = std::filesystem::last_write_time(path);
+                std::filesystem::copy_file(other, path, std::filesystem::copy_options::overwrite_existing);
+                std::filesystem::last_write_time(path, before + std::chrono::seconds(1));
+                // A .gltf's triangles are in its .bin when large, else in the JSON, read once.
+            }
+            source->rewind();
+            std::string error = "no error";
+            try {
+                readAll(*source);
+            } catch (const InputError& e) {
+                error = e.what();
+            }
+            if (std::string(name) == "x.gltf") {  // the buffer is a data URI in the JSON, parsed once: the first version throughout
+                CHECK(error == "no error");
+                continue;
+            }
+            CHECK_THAT(error, Catch::Contains(path + ": file changed while it was being read"));
+        }
 }

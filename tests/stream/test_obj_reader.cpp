@@ -164,7 +164,9 @@ TEST_CASE("OBJ: a file changed between passes is an error, not another mesh", "[
     std::string sameSize = full;
     sameSize.replace(sameSize.size() - 8, 8, "# 2 4 3\n");
     REQUIRE(sameSize.size() == full.size());
-    CHECK_THAT(changedTo(sameSize), Catch::Contains("file changed while it was being read: 2 triangles when checked, 1 in this pass"));
+    // Caught as the pass starts when the file's modification time moved (FileStamp), else by the
+    // count at the end of the pass (two writes within one tick of the file system's clock).
+    CHECK_THAT(changedTo(sameSize), Catch::Contains("m.obj: file changed while it was being read"));
 }
 
 TEST_CASE("OBJ: files without faces", "[stream][obj]") {
