@@ -1,4 +1,5 @@
 #include "stream/util/AtomicFile.h"
+#include "stream/util/PathText.h"
 
 #include "stream/util/Error.h"
 #include "stream/util/InputFile.h"
@@ -420,9 +421,13 @@ void OutputSet::commit() {
         // Two files of the set for one path (a stats file named like the camera's PNG): one would
         // replace the other without a word. The up-front checks cannot know every file a receiver
         // kind derives from the output; this one sees them all.
+        // Compared as comparablePath() spells them: ./o2/a.png, $PWD/o2/a.png and L/a.png (L a
+        // link to o2) are one file.
+        std::vector<std::string> keys;
+        for (const auto& f : files_) keys.push_back(comparablePath(f->targetPath));
         for (size_t i = 0; i < files_.size(); ++i)
             for (size_t j = 0; j < i; ++j)
-                if (files_[i]->target == AtomicFile::Target::Regular && files_[i]->targetPath == files_[j]->targetPath)
+                if (files_[i]->target == AtomicFile::Target::Regular && keys[i] == keys[j])
                     fail(files_[i]->finalPath, "is named for two outputs of this bake; give each its own file");
         // Every rename is staged first, so a failure to link one leaves no file of the set in place.
         for (auto& f : files_)

@@ -12,7 +12,12 @@ std::string lowercaseExtension(const std::string& path) {
 }
 
 std::string comparablePath(const std::string& path) {
-    const std::filesystem::path p = std::filesystem::absolute(path).lexically_normal();
+    // Symbolic links resolved as far as the path exists (a folder reached through a link is the
+    // folder), then "." and ".." folded: o2/a.exr, ./o2/a.exr and L/a.exr with L -> o2 compare equal.
+    std::error_code ec;
+    std::filesystem::path p = std::filesystem::weakly_canonical(std::filesystem::absolute(path), ec);
+    if (ec) p = std::filesystem::absolute(path);
+    p = p.lexically_normal();
     return (p.has_filename() ? p : p.parent_path()).string();
 }
 

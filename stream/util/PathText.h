@@ -11,8 +11,9 @@ namespace penumbra {
 /// @brief The extension of @p path with its dot, lower-cased ("scene.GLB" -> ".glb"; "" if none).
 std::string lowercaseExtension(const std::string& path);
 
-/// @brief @p path absolute and lexically normal, without a trailing separator ("d/" and "./d"
-/// name what "d" names): equal for two names of one output, as far as the text can tell.
+/// @brief @p path absolute, with symbolic links resolved as far as it exists, and lexically
+/// normal, without a trailing separator ("d/", "./d" and "l" with l -> d name what "d" names):
+/// equal for two names of one output.
 std::string comparablePath(const std::string& path);
 
 }  // namespace penumbra

@@ -128,6 +128,16 @@ TEST_CASE("two outputs of one bake never share a file, the derived ones included
         requireCleanError(runPenumbra(bake + args), "is named for two outputs of this bake");
         for (const char* name : {"x.exr", "x.png", "d"}) CHECK_FALSE(std::filesystem::exists(dir / name));
     }
+    // Other spellings of one file: through "." and "..", or through a link to the folder (the
+    // stats replaced the EXR, exit 0).
+    std::filesystem::create_directory(dir / "sub");
+    std::filesystem::create_directory_symlink(dir.path, dir / "link");
+    for (const std::string& args : {" --stats " + (dir / "sub/../x.png"), " --stats " + dir.path.string() + "/./x.exr",
+                                    " --stats " + (dir / "link/x.exr"), " --visibility " + (dir / "link/x.png")}) {
+        INFO(args);
+        requireCleanError(runPenumbra(bake + args), "is named for two outputs of this bake");
+        for (const char* name : {"x.exr", "x.png"}) CHECK_FALSE(std::filesystem::exists(dir / name));
+    }
     RunResult apart = runPenumbra(bake + " --visibility " + (dir / "v.npy") + " --stats " + (dir / "s.json") + " --dump " + (dir / "d"));
     CHECK(apart.exitCode == 0);
     for (const char* name : {"x.exr", "x.png", "v.npy", "s.json", "d/masks.npy"}) CHECK(std::filesystem::exists(dir / name));
