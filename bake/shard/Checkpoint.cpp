@@ -3,6 +3,7 @@
 #include "stream/util/Error.h"
 
 #include <algorithm>
+#include <cctype>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -11,8 +12,40 @@
 namespace penumbra {
 namespace fs = std::filesystem;
 
-Checkpoints::Checkpoints(const ShardSettings& settings, PartialHeader header, const LightSamples& samples, bool quiet)
-    : settings_(settings), header_(std::move(header)), samples_(samples), quiet_(quiet) {
+namespace {
+
+/// "STEM-HASH." for the scene file @p sceneFile: its stem (letters, digits, '-', '_' and '.'
+/// kept) and 8 hex digits of a hash of its absolute path. Two scene files' bakes that share a
+/// checkpoint folder then keep their own files: with one name per tile, the second replaced the
+/// first's checkpoints (noting them as another scene's), and removed them when it was done.
+std::string scenePrefix(const std::string& sceneFile) {
+    if (sceneFile.empty()) return "";
+    std::string stem;
+    for (char c : fs::path(sceneFile).stem().string())
+        if (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.') stem += c;
+    std::error_code ec;
+    fs::path full = fs::weakly_canonical(fs::absolute(sceneFile), ec);
+    if (ec) full = fs::absolute(sceneFile);
+    Fnv64 hash;
+    const std::string text = full.string();
+    hash.add(text.data(), text.size());
+    return fmt::format("{}-{:08x}.", stem.empty() ? "scene" : stem, uint32_t(hash.value ^ (hash.value >> 32)));
+}
+
+}  // namespace
+
+std::string checkpointNamePrefix(const std::string& sceneFile, const ShardSettings& settings) {
+    std::string prefix = scenePrefix(sceneFile);
+    // A shard's checkpoints are named by it too, so that shards given one folder keep their own:
+    // with the same names they replaced each other's, and a --resume then refused the other's.
+    if (settings.casting()) prefix += "shard-" + std::to_string(settings.index) + "-of-" + std::to_string(settings.count) + ".";
+    return prefix;
+}
+
+Checkpoints::Checkpoints(const ShardSettings& settings, PartialHeader header, const LightSamples& samples, bool quiet,
+                         const std::string& sceneFile)
+    : settings_(settings), header_(std::move(header)), samples_(samples), quiet_(quiet),
+      namePrefix_(checkpointNamePrefix(sceneFile, settings)) {
     header_.role = PartialHeader::kCheckpoint;
     std::error_code ec;
     // --resume promises saved work; a folder that is not there is more often a typo than a start.
@@ -24,15 +57,15 @@ Checkpoints::Checkpoints(const ShardSettings& settings, PartialHeader header, co
     if (const char* kill = std::getenv("PENUMBRA_TEST_KILL_AFTER_TILES"); kill && *kill) killAfter_ = std::atol(kill);
 }
 
-std::string Checkpoints::shardPrefix() const {
-    // A shard's checkpoints are named by it, so that shards given one folder keep their own: with
-    // the same names they replaced each other's, and a --resume then refused the other shard's.
-    if (!settings_.casting()) return "";
-    return "shard-" + std::to_string(settings_.index) + "-of-" + std::to_string(settings_.count) + ".";
+void Checkpoints::ensureFolder() const {
+    // Another bake of this folder may have finished and removed it (a job requeued while the
+    // first still ran lost its whole cast to "cannot create file").
+    std::error_code ec;
+    if (!fs::is_directory(settings_.checkpointDir, ec)) fs::create_directories(settings_.checkpointDir, ec);
 }
 
 std::string Checkpoints::pathOf(size_t tile, size_t tiles, const char* suffix) const {
-    const std::string name = shardPrefix() + "tile-" + std::to_string(tile) + "-of-" + std::to_string(tiles) + suffix + ".pnpart";
+    const std::string name = namePrefix_ + "tile-" + std::to_string(tile) + "-of-" + std::to_string(tiles) + suffix + ".pnpart";
     return (fs::path(settings_.checkpointDir) / name).string();
 }
 
@@ -75,7 +108,7 @@ void Checkpoints::checkOtherTilings(size_t tiles) {
     // thread count looks only for its own names, and would bake from the start without a word.
     std::vector<std::string> other;
     std::error_code ec;
-    const std::string prefix = shardPrefix();
+    const std::string& prefix = namePrefix_;
     for (const auto& entry : fs::directory_iterator(settings_.checkpointDir, ec)) {
         const std::string full = entry.path().filename().string();
         if (full.compare(0, prefix.size(), prefix) != 0) continue;  // another shard's, or not a shard's
@@ -149,6 +182,7 @@ void Checkpoints::saveProgress(size_t tile, size_t tiles, std::span<const uint32
     std::vector<uint8_t> present(size_t(header_.receivers), 0);
     for (uint32_t r : ids) present[r] = 1;
     const std::string path = pathOf(tile, tiles, ".progress");
+    ensureFolder();
     writePartialFile(path, h, samples_, masks, present);
     written_.push_back(path);
     ++progressSaves_;
@@ -162,6 +196,7 @@ void Checkpoints::save(size_t tile, size_t tiles, std::span<const uint32_t> ids,
     std::vector<uint8_t> present(size_t(header_.receivers), 0);
     for (uint32_t r : ids) present[r] = 1;
     const std::string path = pathOf(tile, tiles);
+    ensureFolder();
     writePartialFile(path, h, samples_, masks, present);
     written_.push_back(path);
     std::error_code ec;

@@ -12,7 +12,8 @@
 /// is left empty.
 ///
 /// Within a tile, every `--checkpoint-every` seconds of cast (and on SIGTERM) the tile's masks so
-/// far are saved as `tile-T-of-M.progress.pnpart` (a shard's names start `shard-I-of-N.`), with the position in the replay they hold; a
+/// far are saved as `STEM-HASH.tile-T-of-M.progress.pnpart` (the scene file's stem and a hash of its
+/// path; a shard's names add `shard-I-of-N.`), with the position in the replay they hold; a
 /// resume restores them and casts only the rest of the replay (HpcCaster, TileProgress).
 
 #include "bake/cast/Caster.h"
@@ -26,12 +27,19 @@
 
 namespace penumbra {
 
+/// @brief What every checkpoint file of a bake of @p sceneFile starts with: "STEM-HASH." (the
+/// file's stem and a hash of its absolute path), then "shard-I-of-N." for a shard.
+std::string checkpointNamePrefix(const std::string& sceneFile, const ShardSettings& settings);
+
 /// @brief The checkpoint directory of one bake.
 class Checkpoints {
 public:
     /// @param settings the bake's shard settings: checkpointDir, resume, and the shard it casts
     /// @param header the bake's identity (hashes, cut, receivers, groups); part and parts are set per tile
-    Checkpoints(const ShardSettings& settings, PartialHeader header, const LightSamples& samples, bool quiet);
+    /// @param sceneFile names the checkpoints (namePrefix()), so that bakes of other scene files
+    ///        may share the folder
+    Checkpoints(const ShardSettings& settings, PartialHeader header, const LightSamples& samples, bool quiet,
+                const std::string& sceneFile = "");
 
     /// @brief Restores tile @p tile of @p tiles (receivers @p ids) into @p masks when its
     /// checkpoint exists and matches. @return whether it did.
@@ -86,8 +94,10 @@ public:
 
 private:
     std::string pathOf(size_t tile, size_t tiles, const char* suffix = "") const;
-    /// "shard-I-of-N." for a shard's checkpoints, "" for a whole bake's.
-    std::string shardPrefix() const;
+    /// "STEM-HASH." naming the scene file, then "shard-I-of-N." for a shard's checkpoints.
+    std::string namePrefix() const { return namePrefix_; }
+    /// Makes the folder again when another bake's end removed it.
+    void ensureFolder() const;
     void reject(const std::string& path, const std::string& why);
     /// @brief Reads @p path if it exists and checks that it is a @p role file of this bake and
     /// of a tile of exactly @p ids; a mismatch is reject()ed. @return the file, or nullopt.
@@ -97,6 +107,7 @@ private:
     PartialHeader header_;
     const LightSamples& samples_;
     bool quiet_;
+    std::string namePrefix_;
     std::vector<std::string> written_;
     size_t restored_ = 0, saved_ = 0, resumed_ = 0, progressSaves_ = 0;
     uint64_t skipped_ = 0, lastSkipped_ = 0;

@@ -27,7 +27,7 @@ ShardedCast::ShardedCast(const ShardSettings& settings, const std::string& scene
     h.settingsHash = shard.value;
     h.receivers = receivers.size(), h.groups = uint32_t(samples.groupCount());
     h.lightFirstGroup = samples.lightFirstGroup;
-    checkpoints_ = std::make_unique<Checkpoints>(settings_, std::move(h), samples, quiet);
+    checkpoints_ = std::make_unique<Checkpoints>(settings_, std::move(h), samples, quiet, sceneFile);
 }
 
 ShardedCast::~ShardedCast() = default;

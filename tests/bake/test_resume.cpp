@@ -5,8 +5,11 @@
 
 #include "ShardScenes.h"
 
+#include "bake/shard/Checkpoint.h"
+
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -153,7 +156,8 @@ TEST_CASE("a tile killed or stopped in the middle resumes from its progress chec
     fs::remove_all(dir / "out"), fs::remove_all(dir / "dump");
     // --checkpoint-every 0: the tile's progress is saved after every chunk of the replay.
     const std::string command = "bake " + common + " --checkpoint " + dir / "ckpt" + " --checkpoint-every 0 --quiet";
-    const std::string progress = dir / "ckpt/tile-0-of-1.progress.pnpart";
+    const std::string progressName = penumbra::checkpointNamePrefix(dir / "scene.json", {}) + "tile-0-of-1.progress.pnpart";
+    const std::string progress = dir / ("ckpt/" + progressName);
     auto replayed = [&] {  // the replay position in the progress file's header (docs/distributed.md)
         std::ifstream in(progress, std::ios::binary);
         in.seekg(56);  // after the part end of format 3
@@ -168,7 +172,7 @@ TEST_CASE("a tile killed or stopped in the middle resumes from its progress chec
         RunResult r = runPenumbra(command, "PENUMBRA_TEST_KILL_AT=cast");
         INFO(r.err);
         REQUIRE(r.exitCode == 137);
-        REQUIRE(filesIn(dir / "ckpt") == std::vector<std::string>{"tile-0-of-1.progress.pnpart"});
+        REQUIRE(filesIn(dir / "ckpt") == std::vector<std::string>{progressName});
         CHECK(replayed() > last);
         last = replayed();
         CHECK_FALSE(hasTempFiles(dir.path));
@@ -206,7 +210,7 @@ TEST_CASE("a tile's progress is refused when the replay differs from the blocker
       "receivers": {"type": "points", "path": "points.csv"}, "output": "out/p.npy"})");
     const std::string bake = "bake " + dir / "scene.json" + " --checkpoint-every 0";
     REQUIRE(runPenumbra(bake + " --quiet --checkpoint " + dir / "ckpt", "PENUMBRA_TEST_KILL_AT=cast").exitCode == 137);
-    REQUIRE(fs::exists(dir / "ckpt/tile-0-of-1.progress.pnpart"));
+    REQUIRE(fs::exists(dir / ("ckpt/" + penumbra::checkpointNamePrefix(dir / "scene.json", {}) + "tile-0-of-1.progress.pnpart")));
 
     // The same scene file, receivers and light samples, but other blockers: the changed file makes
     // another scene (its size and time are in the scene hash), and the saved progress is of
@@ -237,12 +241,24 @@ TEST_CASE("a damaged checkpoint or one of another scene is refused under --resum
     fs::resize_file(file, fs::file_size(file) - 3);
     requireCleanError(runPenumbra("bake " + scene + common + " --quiet --resume " + dir / "ckpt"), "truncated");
 
-    // A checkpoint of another scene is never used.
-    std::string other = slurp(scene);
+    // A checkpoint of another scene is never used: the scene file edited since (another scene
+    // file's bakes name their checkpoints apart, below).
+    const std::string original = slurp(scene);
+    const auto modified = fs::last_write_time(scene);  // the EXR's capDate: put back with the text
+    std::string other = original;
     other.replace(other.find("\"radius\": 0.5"), 13, "\"radius\": 0.6");
-    writeText(dir / "other.json", other);
     b.killed("PENUMBRA_TEST_KILL_AFTER_TILES=1");  // a sound one again
-    requireCleanError(runPenumbra("bake " + dir / "other.json" + common + " --quiet --resume " + dir / "ckpt"), "another scene");
+    writeText(scene, other);
+    requireCleanError(runPenumbra("bake " + scene + common + " --quiet --resume " + dir / "ckpt"), "another scene");
+    writeText(scene, original);
+    fs::last_write_time(scene, modified);
+    // A bake of another scene file in the same folder keeps its own checkpoints, and removes
+    // only its own: it replaced this one's, and removed them when it was done.
+    writeText(dir / "other.json", other);
+    RunResult otherBake = runPenumbra("bake " + dir / "other.json" + common + " -o " + dir / "other.exr" + " --quiet --checkpoint " + dir / "ckpt");
+    INFO(otherBake.err);
+    REQUIRE(otherBake.exitCode == 0);
+    CHECK(filesIn(dir / "ckpt") == std::vector<std::string>{files[0]});
 
     fs::resize_file(file, fs::file_size(file) - 3);
     RunResult noted = runPenumbra("bake " + scene + common + " --checkpoint " + dir / "ckpt");
@@ -320,10 +336,12 @@ TEST_CASE("shards given one checkpoint folder keep their own checkpoints and res
         INFO(r.err);
         REQUIRE(r.exitCode == 128 + 9);
     }
-    const std::vector<std::string> saved = filesIn(b.dir / "ckpt");
+    std::vector<std::string> saved = filesIn(b.dir / "ckpt");
+    std::sort(saved.begin(), saved.end());
     REQUIRE(saved.size() == 2);
-    CHECK(saved[0].rfind("shard-0-of-2.tile-0-of-", 0) == 0);
-    CHECK(saved[1].rfind("shard-1-of-2.tile-0-of-", 0) == 0);
+    const std::string stem = penumbra::checkpointNamePrefix(b.scene, {});
+    CHECK(saved[0].rfind(stem + "shard-0-of-2.tile-0-of-", 0) == 0);
+    CHECK(saved[1].rfind(stem + "shard-1-of-2.tile-0-of-", 0) == 0);
     for (int i = 0; i < 2; ++i) {
         const std::string stats = b.dir / fmt::format("s{}.json", i);
         RunResult r = runPenumbra(shardCommand(i) + " --stats " + stats);
