@@ -101,11 +101,7 @@ BucketWriter::~BucketWriter() {
 
 void BucketWriter::open() {
     std::string parent = options_.tmpDir;
-    if (parent.empty()) {
-        std::error_code ec;
-        parent = std::filesystem::temp_directory_path(ec).string();
-        if (ec) fail("$TMPDIR", "cannot find the temporary directory: {}", ec.message());
-    }
+    if (parent.empty()) parent = systemTempDirectory();
 
     // pid keeps processes apart, the counter keeps several writers of one process apart, and a
     // leftover of a killed run with a recycled pid just makes us take the next number.

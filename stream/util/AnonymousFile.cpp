@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <cerrno>
+#include <cstdlib>
 #include <filesystem>
 #include <mutex>
 
@@ -43,9 +44,15 @@ std::string scratchDirectory() {
         std::lock_guard<std::mutex> lock(scratchMutex);
         if (!scratch.empty()) return scratch;
     }
+    return systemTempDirectory();
+}
+
+std::string systemTempDirectory() {
+    const char* env = std::getenv("TMPDIR");
+    if (!env || !*env) return "/tmp";
     std::error_code ec;
-    std::string dir = std::filesystem::temp_directory_path(ec).string();
-    if (ec) fail("$TMPDIR", "cannot find the temporary directory: {}", ec.message());
+    const std::string dir = std::filesystem::temp_directory_path(ec).string();
+    if (ec) fail(fmt::format("$TMPDIR ({})", env), "cannot use it as the temporary directory: {}", ec.message());
     return dir;
 }
 

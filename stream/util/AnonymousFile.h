@@ -16,6 +16,9 @@ int createAnonymousFile(const std::string& dir);
 /// @brief Where scratch files go: `--tmp` when set (setScratchDirectory), else the system temp
 /// dir ($TMPDIR). @throw InputError when neither can be found.
 std::string scratchDirectory();
+/// @brief The system temp dir: $TMPDIR, or /tmp when it is unset or empty (as mktemp and Python
+/// take it). @throw InputError naming $TMPDIR's value when it is not a usable directory.
+std::string systemTempDirectory();
 /// @brief Sets the scratch directory for this process (empty: the system temp dir).
 void setScratchDirectory(const std::string& dir);
 

@@ -20,9 +20,11 @@ namespace penumbra {
 /// well-formed UTF-8 (file names) are kept. Messages quote tokens from the input, and a damaged
 /// file's token must neither break the error's one line nor write raw bytes to a terminal.
 /// A line longer than kMaxPrintableLine bytes is cut there and says how much was left out (a
-/// library's message can quote megabytes of a damaged file).
+/// library's message can quote megabytes of a damaged file). Two paths of PATH_MAX (4096) and
+/// the reason after them fit: at 1 KiB, "does not exist (create it first)" was cut from a
+/// message quoting an 800-character path twice.
 std::string printableLine(std::string_view text);
-inline constexpr size_t kMaxPrintableLine = 1024;
+inline constexpr size_t kMaxPrintableLine = 9216;
 
 class InputError : public std::runtime_error {
 public:

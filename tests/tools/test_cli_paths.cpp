@@ -274,6 +274,19 @@ TEST_CASE("an output folder that does not exist, or through a file, is refused a
     CHECK_FALSE(fs::exists(dir.path / "typo"));
     requireCleanError(runPenumbra("bake " + (dir / "scene.json") + " -q -o " + (dir / "afile/x.exr")), "afile is not a folder");
     CHECK(slurp(dir / "afile") == "a file");
+    // A path long enough that the message quotes it twice still ends with the reason (a line cut
+    // at 1 KiB lost it).
+    const std::string deep = dir / (std::string(200, 'a') + "/" + std::string(200, 'b') + "/" + std::string(200, 'c') + "/x.exr");
+    requireCleanError(runPenumbra("bake " + (dir / "scene.json") + " -q -o " + deep), "does not exist (create it first)");
+}
+
+TEST_CASE("$TMPDIR: empty means /tmp, and one that is no folder is named by its value", "[cli][paths]") {
+    ScratchDir dir("tmpdir");
+    write(dir / "quad.obj", kQuad);
+    write(dir / "scene.json", sceneOf("quad.obj").dump());
+    CHECK(runPenumbra("bake " + (dir / "scene.json") + " -q", "TMPDIR=").exitCode == 0);  // as mktemp and Python take it
+    requireCleanError(runPenumbra("bake " + (dir / "scene.json") + " -q", "TMPDIR=" + (dir / "nowhere")),
+                      "$TMPDIR (" + (dir / "nowhere") + "): cannot use it as the temporary directory");
 }
 
 TEST_CASE("the folders of --stats, --visibility and --dump are made, as the README says", "[cli][paths]") {
