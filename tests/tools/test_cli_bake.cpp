@@ -131,16 +131,18 @@ TEST_CASE("bad input gives one clean line and a non-zero exit", "[cli]") {
     REQUIRE(runPenumbra("make-example gltf-tree -o " + (dir / "tree.glb")).exitCode == 0);
     CHECK(runPenumbra("info -q " + (dir / "tree.glb")).exitCode == 0);
     CHECK_FALSE(hasTempFiles(dir.path));
-    // The checked-in example is what the command writes, and valid glTF (POSITION bounds included).
-    CHECK(slurp(dir / "tree.glb") == slurp(std::string(PENUMBRA_SOURCE_DIR) + "/examples/gltf-tree.glb"));
+    // What the command writes, and the checked-in example it wrote (with another compiler the
+    // last bits of the trunk's sines may differ), are valid glTF, POSITION bounds included.
     std::string validatorDir, log;
     if (!validatorAvailable(validatorDir)) {
         WARN("skipped: gltf-validator not installed under " << validatorDir << " (./setup.sh installs it)");
         return;
     }
-    const int code = validateGltf(dir / "tree.glb", validatorDir, log);
-    INFO(log);
-    CHECK(code == 0);
+    for (const std::string& file : {dir / "tree.glb", std::string(PENUMBRA_SOURCE_DIR) + "/examples/gltf-tree.glb"}) {
+        const int code = validateGltf(file, validatorDir, log);
+        INFO(file << "\n" << log);
+        CHECK(code == 0);
+    }
 }
 
 TEST_CASE("a full disk while writing outputs leaves no partial file", "[cli]") {
