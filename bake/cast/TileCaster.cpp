@@ -21,6 +21,10 @@ constexpr uint32_t kSplitTableMinimumBits = 48;
 /// (docs/performance.md, "Alpha tests by group"); a group with fewer candidates tests its hits.
 constexpr int kAlphaBoundMinimumBits = 32;
 
+/// Hard-shadow blocks holding group @p g's samples, four a block: the constructor's layout and
+/// fixedBytes()'s plan of it.
+size_t blocksOf(const LightSampleGroup& g) { return (g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes; }
+
 }  // namespace
 
 TileCaster::TileCaster(const LightSamples& s, const CastOptions& o, const std::vector<SampleMaskTable>* t)
@@ -31,7 +35,7 @@ TileCaster::TileCaster(const LightSamples& s, const CastOptions& o, const std::v
     groupVolumes.resize(groupCount);
     for (const LightSampleGroup& g : s.groups) {
         blockFirst.push_back(uint32_t(blocksPerSet));
-        blocksPerSet += (g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes;
+        blocksPerSet += blocksOf(g);
     }
     hardBlocks.resize(size_t(s.sets) * blocksPerSet);
     hardReady.assign(size_t(s.sets) * groupCount, 0);
@@ -39,7 +43,7 @@ TileCaster::TileCaster(const LightSamples& s, const CastOptions& o, const std::v
 
 size_t TileCaster::fixedBytes(const LightSamples& samples) {
     size_t blocksPerSet = 0;
-    for (const LightSampleGroup& g : samples.groups) blocksPerSet += (g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes;
+    for (const LightSampleGroup& g : samples.groups) blocksPerSet += blocksOf(g);
     const size_t groups = size_t(samples.groupCount()), sets = size_t(samples.sets);
     return sets * blocksPerSet * sizeof(HardShadowBlock) + groups * sizeof(PenumbraVolume) + sets * groups * sizeof(uint32_t) +
            MaskPool::slackBytes(int(groups));
