@@ -32,14 +32,23 @@ std::string scenePrefix(const std::string& sceneFile) {
     return fmt::format("{}-{:08x}.", stem.empty() ? "scene" : stem, uint32_t(hash.value ^ (hash.value >> 32)));
 }
 
+/// "shard-I-of-N." for a shard's checkpoints, else "". A shard's checkpoints are named by it too,
+/// so that shards given one folder keep their own: with the same names they replaced each
+/// other's, and a --resume then refused the other's.
+std::string shardNamePart(const ShardSettings& settings) {
+    return settings.casting() ? "shard-" + std::to_string(settings.index) + "-of-" + std::to_string(settings.count) + "." : "";
+}
+
+/// Whether @p head is a scene prefix as scenePrefix() makes it: "STEM-" then 8 hex digits and '.'.
+bool isScenePrefix(const std::string& head) {
+    if (head.size() < 11 || head.back() != '.' || head[head.size() - 10] != '-') return false;
+    return std::all_of(head.end() - 9, head.end() - 1, [](char c) { return std::isxdigit(static_cast<unsigned char>(c)) != 0; });
+}
+
 }  // namespace
 
 std::string checkpointNamePrefix(const std::string& sceneFile, const ShardSettings& settings) {
-    std::string prefix = scenePrefix(sceneFile);
-    // A shard's checkpoints are named by it too, so that shards given one folder keep their own:
-    // with the same names they replaced each other's, and a --resume then refused the other's.
-    if (settings.casting()) prefix += "shard-" + std::to_string(settings.index) + "-of-" + std::to_string(settings.count) + ".";
-    return prefix;
+    return scenePrefix(sceneFile) + shardNamePart(settings);
 }
 
 Checkpoints::Checkpoints(const ShardSettings& settings, PartialHeader header, const LightSamples& samples, bool quiet,
@@ -101,31 +110,48 @@ std::optional<PartialFile> Checkpoints::readMatching(const std::string& path, ui
     return f;
 }
 
+bool Checkpoints::sameBake(const std::string& path) const {
+    try {  // only this bake's files: a folder may hold another bake's, which are not ours to judge
+        const PartialHeader h = readPartialHeader(path);
+        return h.sceneHash == header_.sceneHash && h.settingsHash == header_.settingsHash && h.contentHash == header_.contentHash;
+    } catch (const InputError&) {
+        return false;  // damaged: its own bake reports it
+    }
+}
+
 void Checkpoints::checkOtherTilings(size_t tiles) {
     if (tilingChecked_) return;
     tilingChecked_ = true;
     // "tile-T-of-M[.progress].pnpart" with another M: this bake under another memory budget or
     // thread count looks only for its own names, and would bake from the start without a word.
+    // The same names under another scene prefix: this bake's scene file was moved (or copied)
+    // since they were saved; they are this bake's if their header says so, and are adopted.
     std::vector<std::string> other;
+    std::vector<std::pair<std::string, std::string>> moved;  // from, to
     std::error_code ec;
     const std::string& prefix = namePrefix_;
+    const std::string shardPart = shardNamePart(settings_);
     for (const auto& entry : fs::directory_iterator(settings_.checkpointDir, ec)) {
         const std::string full = entry.path().filename().string();
-        if (full.compare(0, prefix.size(), prefix) != 0) continue;  // another shard's, or not a shard's
-        const std::string name = full.substr(prefix.size());
+        const bool ours = full.starts_with(prefix);
+        std::string name = ours ? full.substr(prefix.size()) : "";  // from "tile-"
+        if (!ours) {
+            const size_t at = full.rfind(shardPart + "tile-");
+            if (prefix.empty() || at == std::string::npos || !isScenePrefix(full.substr(0, at))) continue;  // another shard's
+            name = full.substr(at + shardPart.size());
+        }
         unsigned long t = 0, m = 0;
         int used = 0;
-        if (std::sscanf(name.c_str(), "tile-%lu-of-%lu%n", &t, &m, &used) != 2 || m == tiles) continue;
+        if (std::sscanf(name.c_str(), "tile-%lu-of-%lu%n", &t, &m, &used) != 2) continue;
         const std::string rest = name.substr(size_t(used));
         if (rest != ".pnpart" && rest != ".progress.pnpart") continue;
-        try {  // only this bake's files: a folder may hold another bake's, which are not ours to judge
-            const PartialHeader h = readPartialHeader(entry.path().string());
-            if (h.sceneHash != header_.sceneHash || h.settingsHash != header_.settingsHash || h.contentHash != header_.contentHash) continue;
-        } catch (const InputError&) {
-            continue;  // damaged: its own tile count's bake reports it
-        }
-        other.push_back(entry.path().string());
+        if (ours && m == tiles) continue;
+        if (!sameBake(entry.path().string())) continue;
+        if (ours) other.push_back(entry.path().string());
+        else if (m == tiles && !fs::exists(fs::path(settings_.checkpointDir) / (prefix + name), ec))
+            moved.emplace_back(entry.path().string(), (fs::path(settings_.checkpointDir) / (prefix + name)).string());
     }
+    adoptMoved(moved);
     if (other.empty()) return;
     std::sort(other.begin(), other.end());
     const std::string why = fmt::format("a checkpoint of this bake in another tiling (this bake has {} tile(s); --memory-budget or --threads changed)", tiles);
@@ -134,6 +160,20 @@ void Checkpoints::checkOtherTilings(size_t tiles) {
                            settings_.checkpointDir, other.size(), tiles);
     // Superseded by this bake's own: removed with them once the outputs are in place.
     written_.insert(written_.end(), other.begin(), other.end());
+}
+
+void Checkpoints::adoptMoved(std::vector<std::pair<std::string, std::string>> moved) {
+    if (moved.empty()) return;
+    std::sort(moved.begin(), moved.end());
+    size_t adopted = 0;
+    std::error_code ec;
+    for (const auto& [from, to] : moved) {
+        fs::rename(from, to, ec);  // within one folder: atomic; a failure leaves the tile to be cast
+        adopted += !ec;
+    }
+    if (adopted && !quiet_)
+        printNote("{}: using {} checkpoint file(s) of this bake saved under another path of its scene file (moved or copied)",
+                  settings_.checkpointDir, adopted);
 }
 
 bool Checkpoints::restore(size_t tile, size_t tiles, std::span<const uint32_t> ids, VisibilityMasks& masks) {
@@ -150,6 +190,7 @@ bool Checkpoints::restore(size_t tile, size_t tiles, std::span<const uint32_t> i
 }
 
 std::optional<TileProgress> Checkpoints::resumeTile(size_t tile, size_t tiles, std::span<const uint32_t> ids) {
+    checkOtherTilings(tiles);
     progressClock_.reset(), chunksSinceSave_ = 0;
     const std::string path = pathOf(tile, tiles, ".progress");
     const std::optional<PartialFile> f = readMatching(path, PartialHeader::kTileProgress, ids);

@@ -74,7 +74,9 @@ public:
     void rejectProgress(size_t tile, size_t tiles);
 
     /// @brief Looks once for this bake's checkpoints of another tile count than @p tiles: an error
-    /// under `--resume`, else one note, and they are removed with this bake's own.
+    /// under `--resume`, else one note, and they are removed with this bake's own. This bake's
+    /// checkpoints of @p tiles tiles named after another path of the scene file (it was moved
+    /// since) are renamed to this bake's names, with a note.
     /// @throw InputError naming the first such file under `--resume`.
     void checkOtherTilings(size_t tiles);
 
@@ -99,6 +101,10 @@ private:
     /// Makes the folder again when another bake's end removed it.
     void ensureFolder() const;
     void reject(const std::string& path, const std::string& why);
+    /// Whether @p path's header is this bake's (scene, settings, content); false when unreadable.
+    bool sameBake(const std::string& path) const;
+    /// Renames each (from, to) of checkOtherTilings(): this bake's files under another scene path.
+    void adoptMoved(std::vector<std::pair<std::string, std::string>> moved);
     /// @brief Reads @p path if it exists and checks that it is a @p role file of this bake and
     /// of a tile of exactly @p ids; a mismatch is reject()ed. @return the file, or nullopt.
     std::optional<PartialFile> readMatching(const std::string& path, uint32_t role, std::span<const uint32_t> ids);

@@ -355,3 +355,24 @@ TEST_CASE("shards given one checkpoint folder keep their own checkpoints and res
     REQUIRE(merge.exitCode == 0);
     CHECK(b.outputs() == b.expected);
 }
+
+TEST_CASE("a bake resumed after its scene file was moved uses the checkpoints saved under the old path",
+          "[shards][resume]") {
+    // Checkpoints are named after the scene file's path, so that bakes of different scene files
+    // may share a folder; a --resume after a move found none of its own and cast from the start
+    // without a word. Their headers say whose they are, so they are renamed and used.
+    ResumeBake b;
+    ScratchDir& dir = b.dir;
+    b.killed("PENUMBRA_TEST_KILL_AFTER_TILES=1");
+    REQUIRE(b.checkpoints() == 1);
+    const std::string moved = dir / "moved.json";
+    fs::rename(b.scene, moved);  // keeps its modification time: the same scene
+    RunResult r = runPenumbra("bake " + moved + b.common + " --resume " + dir / "ckpt" + " --stats " + dir / "s.json");
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.err, Catch::Contains("using 1 checkpoint file(s) of this bake saved under another path of its scene file"));
+    CHECK(slurp(dir / "s.json").find("\"tiles_restored\": 1") != std::string::npos);
+    CHECK(b.outputs() == b.expected);
+    CHECK_FALSE(fs::exists(dir / "ckpt"));
+    CHECK_FALSE(hasTempFiles(dir.path));
+}
