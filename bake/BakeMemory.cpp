@@ -22,9 +22,16 @@
 
 namespace penumbra {
 
-BakeBudget fitAddressSpace(uint64_t memoryBudget, int& threads, bool quiet) {
+void warnFewerThreads(const BakeBudget& budget, bool quiet) {
+    if (budget.threads < budget.threadsWanted && !quiet)
+        fmt::print(stderr, "penumbra: warning: the address-space limit of {} leaves room for {} thread{} (of {})\n",
+                   formatBytes(addressSpaceLimit()), budget.threads, budget.threads == 1 ? "" : "s", budget.threadsWanted);
+}
+
+BakeBudget fitAddressSpace(uint64_t memoryBudget, int& threads, bool quiet, int asked) {
     BakeBudget budget;
     budget.bytes = memoryBudget;
+    budget.threads = threads, budget.threadsWanted = asked > 0 ? asked : threads;
     const uint64_t limit = addressSpaceLimit();
     if (limit == 0) return budget;
     useOneMallocArena();
@@ -32,12 +39,11 @@ BakeBudget fitAddressSpace(uint64_t memoryBudget, int& threads, bool quiet) {
     // reserved stacks. The baseline of the plan stands for what is resident of it.
     const uint64_t mapped = mappedNotResidentBytes() + 2 * kReadAheadStackBytes + (16ull << 20);
     auto room = [&](int n) { return int64_t(limit) - int64_t(mapped) - int64_t(n - 1) * int64_t(kWorkerStackBytes); };
-    const int wanted = threads;
+    const int wanted = budget.threadsWanted;
     // Keep at least the baseline and a little for the bake's own data per thread.
     while (threads > 1 && room(threads) < int64_t(kBaselineBytes + (16ull << 20) * uint64_t(threads))) --threads;
-    if (threads < wanted && !quiet)
-        fmt::print(stderr, "penumbra: warning: the address-space limit of {} leaves room for {} thread{} (of {})\n",
-                   formatBytes(limit), threads, threads == 1 ? "" : "s", wanted);
+    budget.threads = threads;
+    warnFewerThreads(budget, quiet);
     const int64_t left = std::max<int64_t>(room(threads), 0);
     budget.overhead = limit - uint64_t(left);
     // A limit below what is mapped leaves nothing (left is 0), and the overhead is then the limit
@@ -111,8 +117,10 @@ void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget) {
     const std::string what =
         demand.receivers > 0 ? fmt::format("up to {} receivers of {} light-sample groups each", demand.receivers, demand.groups)
                              : fmt::format("the passes before the receivers are counted ({} light-sample groups each)", demand.groups);
-    throw InputError(fmt::format("{} {} is too small for {}; at least {} is needed{}", budget.subject(),
-                                 formatBytes(budget.bytes + budget.overhead), what, budgetText(least), why));
+    std::string message = fmt::format("{} {} is too small for {}; at least {} is needed{}", budget.subject(),
+                                      refusedBudgetText(budget.bytes + budget.overhead), what, budgetText(least), why);
+    if (budget.addressSpace() && budget.threads > 1) throw ThreadsDoNotFit(message);
+    throw InputError(message);
 }
 
 namespace {

@@ -39,6 +39,7 @@ struct BakeBudget {
     uint64_t namedSlack = 0;
     std::string label = "--memory-budget";
     int threads = 1;  ///< threads that cast: each holds sub-tiles (MemoryDemand::threads)
+    int threadsWanted = 1;  ///< threads asked for, before an address-space limit lowered them
     /// The scene, named before an address-space limit's refusals (a --memory-budget one names the
     /// option, which is enough).
     std::string where;
@@ -46,6 +47,15 @@ struct BakeBudget {
     /// What a refusal starts with: "--memory-budget", or "SCENE: the address-space limit ... of".
     std::string subject() const { return where.empty() || label == "--memory-budget" ? label : where + ": " + label; }
     MemoryPlan plan(const MemoryDemand& demand) const { return planMemory(demand, bytes, subject(), overhead, namedSlack); }
+    /// Whether the budget is the process's address-space limit (not a --memory-budget within it).
+    bool addressSpace() const { return label != "--memory-budget"; }
+};
+
+/// @brief checkBeforeScan()'s refusal under an address-space limit with more than one thread:
+/// each thread fewer frees a stack and a thread's sub-tiles, so the bake is tried again on fewer
+/// (runBake()) before it is refused.
+struct ThreadsDoNotFit : InputError {
+    using InputError::InputError;
 };
 
 /// Stack reserved per TBB worker (set through tbb::global_control) and per read-ahead thread.
@@ -57,7 +67,10 @@ inline constexpr uint64_t kMappedJitterBytes = 2ull << 20;
 /// @brief The budget for @p memoryBudget under this process's address-space limit, if any: with a
 /// limit, malloc keeps one arena, thread stacks and what is already mapped are set aside, and
 /// @p threads is lowered (with a warning unless @p quiet) until a bake can fit.
-BakeBudget fitAddressSpace(uint64_t memoryBudget, int& threads, bool quiet);
+/// @param wanted the threads first asked for (0: @p threads), named by the warning
+BakeBudget fitAddressSpace(uint64_t memoryBudget, int& threads, bool quiet, int wanted = 0);
+/// @brief The warning of a lowered thread count, when @p budget's threads are fewer than wanted.
+void warnFewerThreads(const BakeBudget& budget, bool quiet);
 
 /// @brief The demand known before the scan pass: the kind's scan buffers and worst cases, the
 /// opened sources' working sets, light samples and fixed buffers.
@@ -72,7 +85,8 @@ MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, 
 /// @brief Sets the sample groups and sample bytes (positions and sample mask tables) of @p samples.
 void addSampleDemand(MemoryDemand& demand, const LightSamples& samples, const SceneDesc& scene);
 
-/// @brief Check 1 above. @throw InputError naming the worst-case minimum.
+/// @brief Check 1 above. @throw InputError naming the worst-case minimum (ThreadsDoNotFit under
+/// an address-space limit with more than one thread).
 void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget);
 
 /// @brief The least budget or limit a refusal before the scan names for @p demand: the plan's

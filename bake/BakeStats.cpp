@@ -38,6 +38,8 @@ nlohmann::json counters(const BakeStatsInputs& in) {
             {"closed_solids_opened", opened.ordinals.size()},
             {"closed_triangles_opened", opened.triangles},
             {"closed_solids_not_watertight", opened.leakySolids()},
+            {"closed_solids_crossing", opened.crossingSolids()},
+            {"closed_solids_too_large_to_check", opened.uncheckedSolids()},
             {"closed_casters_off_for_scale", opened.castersOffForScale},
             {"closed_exempt_receivers", in.cast.closedExemptReceivers},
             {"closed_exempt_time_s", in.cast.closedExemptSeconds},

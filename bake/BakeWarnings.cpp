@@ -151,6 +151,12 @@ std::vector<std::string> leakySolidWarnings(const OpenedSolids& opened, const Sc
                                        "flipped face)", leaky.solids, leaky.solids == 1 ? "is" : "are"));
         if (leaky.inward)
             what.push_back(fmt::format("{} of its solids {} wound inward (or flat)", leaky.inward, leaky.inward == 1 ? "is" : "are"));
+        if (leaky.crossing)
+            what.push_back(fmt::format("{} of its solids {} faces that cross one another (a surface pushed through itself)",
+                                       leaky.crossing, leaky.crossing == 1 ? "has" : "have"));
+        if (leaky.unchecked)
+            what.push_back(fmt::format("{} of its solids {} more than {} triangles, too many to check for faces that cross",
+                                       leaky.unchecked, leaky.unchecked == 1 ? "has" : "have", kMaxCheckedSolidTriangles));
         warnings.push_back(fmt::format("{} is marked closed, but {} ({} triangles); cast as open surfaces, which keeps every shadow",
                                        entry, fmt::join(what, " and "), leaky.triangles));
     }

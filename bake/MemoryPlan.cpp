@@ -9,6 +9,14 @@ namespace penumbra {
 
 std::string budgetText(uint64_t bytes) { return fmt::format("{}M", (bytes + (1u << 20) - 1) >> 20); }
 
+std::string refusedBudgetText(uint64_t bytes) {
+    // Rounded to nearest, 102.8 MiB was "103 MiB is too small ...; at least 103M is needed".
+    if (bytes < (1u << 20)) return formatBytes(bytes);
+    if (bytes % (1u << 20) == 0) return fmt::format("{} MiB", bytes >> 20);
+    const uint64_t tenths = bytes * 10 / (1u << 20);
+    return fmt::format("{}.{} MiB", tenths / 10, tenths % 10);
+}
+
 uint64_t scanPhaseBytes(const MemoryDemand& d) {
     // The alpha table is built just before the scan reads anything: its build peak comes first.
     return kBaselineBytes + d.alphaBytes + std::max(d.alphaBuildBytes, d.bufferBytes + d.scanBytes + d.sourceBytes);
@@ -69,7 +77,7 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string&
         else if (d.refinement.addedReceivers > 0)
             why = fmt::format(" (with the antialiasing pass's up to {} more receivers)", d.refinement.addedReceivers);
         throw InputError(fmt::format("{} {} is too small for {} receivers of {} light-sample groups each; at least {} is needed{}", label,
-                                     formatBytes(budget + overhead), d.receivers, d.groups,
+                                     refusedBudgetText(budget + overhead), d.receivers, d.groups,
                                      budgetText(plan.minimumBudget + overhead + namedSlack), why));
     }
     const uint64_t room = budget - plan.residentBytes - castSources;

@@ -82,7 +82,9 @@ inline uint64_t subTilesAtOnce(int threads, int perThread) { return (threads > 1
 /// @brief Bytes of the masks @p d keeps whole once cast (MemoryDemand::dumpMasks).
 uint64_t keptMaskBytes(const MemoryDemand& d);
 
-/// Bytes the process needs before any bake data (code, libraries, thread stacks, allocator).
+/// Bytes the process needs before any bake data (code, libraries, thread stacks, allocator). A
+/// small bake peaks at 15-17 MiB in all, so the baseline also holds the few fixed buffers no
+/// phase names, such as the scan's closed-solid check (kSolidCheckBytes, 2.25 MiB at most).
 inline constexpr uint64_t kBaselineBytes = 48ull << 20;
 /// A tile is never cut smaller than this many receivers.
 inline constexpr uint64_t kMinimumTileReceivers = 4096;
@@ -103,5 +105,8 @@ uint64_t scanPhaseBytes(const MemoryDemand& demand);
 
 /// @brief @p bytes rounded up to a whole MiB, as a --memory-budget value: "109M".
 std::string budgetText(uint64_t bytes);
+/// @brief A budget that was refused, for the same messages: whole MiB as "103 MiB", else rounded
+/// down to a tenth ("102.7 MiB"; under 1 MiB as formatBytes()), so that it never reads as the amount named as enough.
+std::string refusedBudgetText(uint64_t bytes);
 
 }  // namespace penumbra

@@ -97,8 +97,8 @@ struct Bake {
     Bake(const SceneDesc& s, const BakeSettings& b)
         : scene(s), settings(b), method(casterEntry(b.method)),
           threads(b.threads > 0 ? b.threads : int(tbb::info::default_concurrency())),
-          budget(fitAddressSpace(b.memoryBudget, threads, b.quiet)) {
-        budget.where = s.file, budget.threads = threads;
+          budget(fitAddressSpace(b.memoryBudget, threads, /*quiet=*/true, b.threadsWanted)) {
+        budget.where = s.file, budget.threads = threads;  // the warning of fewer threads once the pre-scan check passes
     }
     bool dump() const { return !settings.dumpDir.empty(); }
     /// Every receiver's masks are kept: for the dump, a shard file, checkpoints, or a library
@@ -137,7 +137,9 @@ void scanScene(Bake& b) {
     if (b.settings.shard.casting() && b.dump()) fail("--dump", "a shard writes no outputs; give --dump to penumbra merge");
     TriangleSourcePtr geometry = [&] {
         ScopedTimer timer(b.openSeconds);
-        return openCheckedBeforeScan(scene, *b.kind, b.budget, b.maskKeeping(), b.settings.quiet, b.demand, b.method.memory);
+        TriangleSourcePtr opened = openCheckedBeforeScan(scene, *b.kind, b.budget, b.maskKeeping(), b.settings.quiet, b.demand, b.method.memory);
+        warnFewerThreads(b.budget, b.settings.quiet);
+        return opened;
     }();
     // Without a budget the machine is the bound: refuse before any work what it cannot hold.
     checkMemoryFits(scene.file, "the scan pass", scanPhaseBytes(b.demand));
@@ -377,6 +379,13 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         return bakeScene(b, total);
     } catch (const std::bad_alloc&) {
         failOutOfMemory(b);
+    } catch (const ThreadsDoNotFit&) {
+        // Refused before the scan read anything: each thread fewer frees a stack and its
+        // sub-tiles, so try again on one fewer (README: "uses fewer threads if it must").
+        BakeSettings fewer = settings;
+        fewer.threadsWanted = b.budget.threadsWanted;
+        fewer.threads = b.threads - 1;
+        return runBake(scene, fewer);
     } catch (const std::exception& e) {
         // TBB could not start its workers (an address-space or process limit): nothing is
         // committed yet, so bake again on one thread, which starts none.

@@ -21,6 +21,8 @@ inline constexpr int kMaxThreads = 4096;
 struct BakeSettings {
     std::string method = "hpc";  ///< a registered method (bake/cast/Caster.h: casterNames())
     int threads = 0;          ///< 0: all cores; at most kMaxThreads
+    /// The threads first asked for, when runBake() tries again on fewer (ThreadsDoNotFit); 0: threads.
+    int threadsWanted = 0;
     std::string statsPath;    ///< JSON stats, optional
     std::string dumpDir;      ///< receivers.npy, samples.npy, masks.npy, optional
     std::string visibilityPath;  ///< --visibility: every receiver's visible fraction as float32 .npy, optional

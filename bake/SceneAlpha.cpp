@@ -101,7 +101,7 @@ void checkSceneAlphaBudget(const SceneDesc& scene, uint64_t budgetBytes, const s
         if (needed > budgetBytes)
             fail(image.where, "a {} x {} texture needs {} to decode; with the bake's baseline ({}), {} {} is too small: at least {} is needed",
                  image.width, image.height, formatBytes(image.decodeBytes + image.bitBytes), formatBytes(kBaselineBytes), label,
-                 formatBytes(budgetBytes + overhead), budgetText(std::max(needed + overhead + namedSlack, leastOtherwise)));
+                 refusedBudgetText(budgetBytes + overhead), budgetText(std::max(needed + overhead + namedSlack, leastOtherwise)));
     };
     for (const SceneAlphaEntry& e : state->entries)
         for (const GltfAlphaImage& image : e.plan.images) check(image);

@@ -32,11 +32,15 @@ void ClosedSolidScan::closeSolid() {
                            a.lo.z <= box_.hi.z && a.hi.z >= box_.lo.z;
         if (meets) ++result_.perLight[l], opened = true;
     }
-    const bool balanced = edges_.balanced();
-    if (!balanced || !volume_.outward() || currentRunInward_) {
-        if (result_.leaky.empty() || result_.leaky.back().part != currentPart_) result_.leaky.push_back({currentPart_, 0, 0, 0});
+    const bool balanced = edges_.balanced(), outward = balanced && volume_.outward() && !currentRunInward_;
+    // Crossings are looked for only in a solid that passed the cheaper checks (and is not opened
+    // for a light already: it is cast as open either way).
+    const bool crossing = outward && !opened && !tooMany_ && solidMayCrossItself(triangles_);
+    if (!outward || crossing || (!opened && tooMany_)) {
+        if (result_.leaky.empty() || result_.leaky.back().part != currentPart_) result_.leaky.push_back({currentPart_});
         OpenedSolids::Leaky& leaky = result_.leaky.back();
-        ++(balanced ? leaky.inward : leaky.solids), leaky.triangles += currentTriangles_;
+        ++(!balanced ? leaky.solids : !outward ? leaky.inward : crossing ? leaky.crossing : leaky.unchecked);
+        leaky.triangles += currentTriangles_;
         opened = true;
     }
     opened = opened || (currentOpaque_ && currentSeeThrough_);
@@ -54,7 +58,8 @@ void ClosedSolidScan::scan(std::span<const Triangle> chunk, uint32_t part) {
             currentTriangles_ = 0, currentPart_ = part;
             box_ = {glm::vec3(INFINITY), glm::vec3(-INFINITY)};
             edges_.reset(), volume_.reset(), runVolume_.reset();
-            currentOpaque_ = currentSeeThrough_ = currentRunInward_ = false;
+            currentOpaque_ = currentSeeThrough_ = currentRunInward_ = tooMany_ = false;
+            triangles_.clear();
         }
         if (solid == SolidSegmenter::kNone) continue;
         ++currentTriangles_;
@@ -66,6 +71,9 @@ void ClosedSolidScan::scan(std::span<const Triangle> chunk, uint32_t part) {
         // must be wound outward, or a part wound inward hides behind a larger one.
         if (edges_.balanced()) currentRunInward_ = currentRunInward_ || !runVolume_.outward(), runVolume_.reset();
         for (const glm::vec3& v : t.v) box_.lo = glm::min(box_.lo, v), box_.hi = glm::max(box_.hi, v);
+        if (tooMany_) continue;
+        if (triangles_.size() < kMaxCheckedSolidTriangles) triangles_.push_back({{t.v[0], t.v[1], t.v[2]}});
+        else tooMany_ = true, triangles_ = {};  // given back: the solid is opened unchecked
     }
 }
 

@@ -24,10 +24,16 @@
 /// A solid with both opaque faces and faces that may not block (cut-out, translucent or not
 /// casting) is opened too: the face where a segment leaves it might let the segment through.
 ///
-/// Memory: one box and two edge sums while scanning, plus the ordinals of the opened solids
-/// (8 bytes each), which are only the solids that touch a light's box or are not watertight.
+/// So is a solid whose triangles cross one another (SolidSelfIntersection.h: a watertight,
+/// outward surface pushed through itself has regions of negative winding number), and one of
+/// more than kMaxCheckedSolidTriangles triangles, which the scan cannot hold to check.
+///
+/// Memory: one box and two edge sums while scanning, the current solid's triangles up to
+/// kMaxCheckedSolidTriangles (kSolidCheckBytes), plus the ordinals of the opened solids (8 bytes
+/// each), which are only the solids that touch a light's box, are not watertight or cross themselves.
 
 #include "bake/cast/EdgeBalance.h"
+#include "bake/cast/SolidSelfIntersection.h"
 #include "bake/light/Light.h"
 #include "stream/TriangleSource.h"
 
@@ -67,7 +73,9 @@ struct OpenedSolids {
         uint32_t part = 0;
         uint64_t solids = 0;     ///< of the entry's closed solids, those not watertight
         uint64_t inward = 0;     ///< those watertight but wound inward (or flat)
-        uint64_t triangles = 0;  ///< the triangles of both
+        uint64_t crossing = 0;   ///< those watertight and outward whose triangles cross one another
+        uint64_t unchecked = 0;  ///< those watertight and outward too large to check for crossings
+        uint64_t triangles = 0;  ///< the triangles of all four
     };
     std::vector<Leaky> leaky;
     uint64_t kept = 0;                    ///< closed solids that stay closed
@@ -78,6 +86,17 @@ struct OpenedSolids {
     uint64_t leakySolids() const {
         uint64_t n = 0;
         for (const Leaky& l : leaky) n += l.solids + l.inward;
+        return n;
+    }
+    /// Solids opened because their triangles cross, and because they were too many to check.
+    uint64_t crossingSolids() const {
+        uint64_t n = 0;
+        for (const Leaky& l : leaky) n += l.crossing;
+        return n;
+    }
+    uint64_t uncheckedSolids() const {
+        uint64_t n = 0;
+        for (const Leaky& l : leaky) n += l.unchecked;
         return n;
     }
 };
@@ -127,6 +146,8 @@ private:
     Aabb box_{};
     EdgeBalance edges_;
     OutwardVolume volume_;
+    std::vector<SolidTriangle> triangles_;  ///< the current solid's, up to kMaxCheckedSolidTriangles
+    bool tooMany_ = false;                  ///< the current solid has more
     OpenedSolids result_;
 };
 

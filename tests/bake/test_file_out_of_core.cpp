@@ -415,3 +415,27 @@ TEST_CASE("the CLI loads OpenVDB only for volumes: it is a plugin, not a depende
     CHECK_THAT(err, Catch::Contains("\"volume\" receivers need the plugin penumbra_volume.so, which is not in " + dir.path.string()));
     CHECK_FALSE(std::filesystem::exists(dir / "w.vdb"));
 }
+
+TEST_CASE("under an address-space limit that fits fewer threads, a bake asking for more runs on fewer", "[outofcore][memory]") {
+    // The check before the scan never lowered the thread count: --threads 8 was refused at a limit
+    // where --threads 2 baked (README: "uses fewer threads if it must, and says so").
+    ScratchDir dir("as-threads");
+    nlohmann::json s = {{"geometry", {{{"type", "grid"}, {"size", 3}, {"cells", 8}, {"bar", 0.3}, {"thickness", 0.05}, {"levels", 2},
+                                       {"height", 0.8}, {"floor_size", 8}}}},
+                        {"lights", {{{"type", "rect"}, {"center", {0.5, 5, 0.3}}, {"u", {0.8, 0, 0}}, {"v", {0, 0, 0.8}}, {"samples", 1024},
+                                     {"sample_sets", 2}}}},
+                        {"receivers", {{"type", "camera"}, {"eye", {0, 4.5, 6}}, {"target", {0, 0.4, 0}}, {"width", 480}, {"height", 360}, {"layers", 4}}},
+                        {"output", "one.exr"}};
+    std::ofstream(dir / "bake.json") << s.dump();
+    // The smallest limit (in steps of 8 MiB) under which one thread bakes.
+    uint64_t limit = 0;
+    for (uint64_t mib = 120; mib <= 400 && limit == 0; mib += 8)
+        if (runPenumbra("bake " + (dir / "bake.json") + " -q --threads 1", "prlimit --as=" + std::to_string(mib << 20)).exitCode == 0)
+            limit = mib << 20;
+    REQUIRE(limit > 0);
+    RunResult r = runPenumbra("bake " + (dir / "bake.json") + " --threads 8 -o " + (dir / "many.exr"), "prlimit --as=" + std::to_string(limit));
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    CHECK_THAT(r.err, Catch::Contains("leaves room for") && Catch::Contains("(of 8)"));
+    CHECK(slurp(dir / "many.exr") == slurp(dir / "one.exr"));
+}

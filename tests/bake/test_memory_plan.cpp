@@ -38,7 +38,7 @@ TEST_CASE("a budget below one smallest tile names the smallest budget that works
     } catch (const InputError& e) {
         message = e.what();
     }
-    CHECK_THAT(message, Catch::StartsWith("--memory-budget 1.00 MiB is too small") && Catch::Contains("at least " + budgetText(p.minimumBudget) + " is needed"));
+    CHECK_THAT(message, Catch::StartsWith("--memory-budget 1 MiB is too small") && Catch::Contains("at least " + budgetText(p.minimumBudget) + " is needed"));
     CHECK(planMemory(d, p.minimumBudget).tiles >= 1);
 }
 
@@ -73,7 +73,7 @@ TEST_CASE("a tiled bake under --memory-budget is bit-identical to an untiled one
 
     RunResult tooSmall = runPenumbra("bake " + (dir / "scene.json") + " -q --memory-budget 1M");
     CHECK(tooSmall.exitCode == 1);
-    CHECK_THAT(tooSmall.err, Catch::Contains("--memory-budget 1.00 MiB is too small") && Catch::Contains("at least"));
+    CHECK_THAT(tooSmall.err, Catch::Contains("--memory-budget 1 MiB is too small") && Catch::Contains("at least"));
     CHECK(lineCount(tooSmall.err) == 1);
 }
 
@@ -144,4 +144,13 @@ TEST_CASE("an antialiased bake too large for its budget fails once, before its a
         CHECK(fits.exitCode == 0);
         CHECK(slurp(dir / "b.exr") == slurp(dir / "out/a.exr"));
     }
+}
+
+TEST_CASE("a refused budget never reads as the amount named as enough", "[memory]") {
+    // 102.8 MiB read "103 MiB is too small ...; at least 103M is needed".
+    CHECK(refusedBudgetText(107789912) == "102.7 MiB");
+    CHECK(budgetText(107789912) == "103M");
+    CHECK(refusedBudgetText(103ull << 20) == "103 MiB");
+    CHECK(refusedBudgetText((103ull << 20) - 1) == "102.9 MiB");
+    CHECK(refusedBudgetText(1024) == "1.00 KiB");
 }
