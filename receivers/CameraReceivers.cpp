@@ -1,4 +1,5 @@
 #include "receivers/CameraReceivers.h"
+#include "stream/util/Memory.h"
 #include "receivers/PolygonSpan.h"
 
 #include "stream/util/Error.h"
@@ -329,7 +330,7 @@ ReceiverSet CameraRasterizer::finish() {
                 for (int sx = 0; sx < sub_; ++sx, ++slot)
                     if (std::isfinite(depth_[slot])) emit(slot, x0 + sx, y0 + sy, refined_[i]);
         }
-        depth_ = {}, normal_ = {}, triangle_ = {}, lookup_ = {}, class_ = {};
+        releaseStorage(depth_), releaseStorage(normal_), releaseStorage(triangle_), releaseStorage(lookup_), releaseStorage(class_);
         return set;
     }
     for (size_t layer = 0; layer < L; ++layer)
@@ -338,7 +339,7 @@ ReceiverSet CameraRasterizer::finish() {
                 size_t p = size_t(y) * W + x, slot = p * L + layer;
                 if (std::isfinite(depth_[slot])) emit(slot, x, y, uint32_t(layer * size_t(W) * H + p));
             }
-    depth_ = {}, normal_ = {}, triangle_ = {}, triangleId_ = {}, class_ = {};
+    releaseStorage(depth_), releaseStorage(normal_), releaseStorage(triangle_), releaseStorage(triangleId_), releaseStorage(class_);
     return set;
 }
 

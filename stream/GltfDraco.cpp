@@ -1,5 +1,6 @@
 #include "stream/GltfDraco.h"
 
+#include "stream/util/Memory.h"
 #include "stream/util/Error.h"
 
 #include <draco/compression/decode.h>
@@ -33,7 +34,7 @@ DracoPrimitive decodeDracoPrimitive(const GltfDocument& doc, GltfBytes& bytes, c
     } catch (const std::exception& e) {  // allocation failures inside the decoder
         fail(where, "KHR_draco_mesh_compression data does not decode: {}", e.what());
     }
-    input = {};
+    releaseStorage(input);
     if (!mesh) fail(where, "KHR_draco_mesh_compression data holds no mesh");
 
     const uint64_t points = mesh->num_points(), faces = mesh->num_faces();

@@ -82,8 +82,10 @@ public:
 private:
     struct Mesh;
     struct Scratch;
-    void flush(Mesh& mesh);
-    void flushAll();
+    /// Writes @p mesh's open primitive to the scratch file; @p keepStorage keeps its arrays'
+    /// capacity (the mesh being added to), else it is given back.
+    void flush(Mesh& mesh, bool keepStorage = false);
+    void flushAll(const Mesh* current = nullptr);
     /// @brief Writes the JSON document to @p sink in pieces; buffer 0 gets @p uri when it is
     /// not empty. The same text on every call.
     void writeDocument(const std::string& uri, const std::function<void(std::string_view)>& sink) const;

@@ -1,5 +1,6 @@
 #include "stream/VertexStore.h"
 
+#include "stream/util/Memory.h"
 #include "stream/util/AnonymousFile.h"
 #include "stream/util/Error.h"
 
@@ -26,7 +27,7 @@ uint64_t VertexStore::residentBytes(uint64_t vertices) {
 void VertexStore::clear() {
     if (fd_ >= 0) ::close(fd_);
     fd_ = -1;
-    resident_ = {}, tail_ = {}, cache_ = {};
+    releaseStorage(resident_), releaseStorage(tail_), releaseStorage(cache_);
     count_ = spilled_ = 0;
 }
 

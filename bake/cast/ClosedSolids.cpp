@@ -1,5 +1,6 @@
 #include "bake/cast/ClosedSolids.h"
 
+#include "stream/util/Memory.h"
 #include "stream/Translucency.h"
 
 #include <glm/common.hpp>
@@ -73,7 +74,7 @@ void ClosedSolidScan::scan(std::span<const Triangle> chunk, uint32_t part) {
         for (const glm::vec3& v : t.v) box_.lo = glm::min(box_.lo, v), box_.hi = glm::max(box_.hi, v);
         if (tooMany_) continue;
         if (triangles_.size() < kMaxCheckedSolidTriangles) triangles_.push_back({{t.v[0], t.v[1], t.v[2]}});
-        else tooMany_ = true, triangles_ = {};  // given back: the solid is opened unchecked
+        else tooMany_ = true, releaseStorage(triangles_);  // given back: the solid is opened unchecked
     }
 }
 
