@@ -33,7 +33,9 @@ void ClosedSolidScan::closeSolid() {
                            a.lo.z <= box_.hi.z && a.hi.z >= box_.lo.z;
         if (meets) ++result_.perLight[l], opened = true;
     }
-    const bool balanced = edges_.balanced(), outward = balanced && volume_.outward() && !currentRunInward_;
+    // With the triangles held, every part is checked, not only those contiguous in the stream.
+    const bool balanced = edges_.balanced(),
+               outward = balanced && volume_.outward() && !currentRunInward_ && (tooMany_ || !solidHasInwardPart(triangles_));
     // Crossings are looked for only in a solid that passed the cheaper checks (and is not opened
     // for a light already: it is cast as open either way).
     const bool crossing = outward && !opened && !tooMany_ && solidMayCrossItself(triangles_);

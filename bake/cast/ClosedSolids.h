@@ -15,9 +15,9 @@
 ///
 /// A solid that is not watertight (an edge without its reverse: a hole, a crack, a flipped face;
 /// EdgeBalance.h) or is wound inward (OutwardVolume) is opened as well, whatever the lights: a
-/// part of it wound inward counts, when its triangles are contiguous in the stream (each run
-/// whose edges balance is checked on its own; parts whose triangles interleave are checked as
-/// one); a
+/// part of it wound inward counts: each run whose edges balance is checked as it streams, and a
+/// solid of up to kMaxCheckedSolidTriangles has each of its edge-connected parts checked
+/// (solidHasInwardPart()), so parts whose triangles interleave are told apart too; a
 /// wrong `"closed": true` mark would otherwise lose the shadows of the faces it skips. Such solids are counted per geometry entry,
 /// so that the bake can name the entries whose mark was wrong.
 ///

@@ -1,8 +1,12 @@
 #include "bake/cast/SolidSelfIntersection.h"
 
+#include "stream/util/Memory.h"
+
 #include <glm/geometric.hpp>
 
 #include <algorithm>
+#include <array>
+#include <utility>
 #include <cmath>
 
 namespace penumbra {
@@ -137,6 +141,46 @@ bool trianglesMayCross(const SolidTriangle& ta, const SolidTriangle& tb) {
         }
     }
     return true;
+}
+
+bool solidHasInwardPart(const std::vector<SolidTriangle>& triangles) {
+    // Edges as corner pairs, sorted so that the two sides of each edge are neighbours: 4 bytes
+    // per edge and per triangle besides the triangles, then union-find over the triangles.
+    const uint32_t n = uint32_t(triangles.size());
+    auto corner = [&](uint32_t edge, int end) {
+        const glm::vec3& v = triangles[edge / 3].v[(edge % 3 + uint32_t(end)) % 3];
+        return std::array<float, 3>{v.x + 0.0f, v.y + 0.0f, v.z + 0.0f};  // -0 and +0 are one point
+    };
+    auto ends = [&](uint32_t edge) {
+        auto a = corner(edge, 0), b = corner(edge, 1);
+        return a < b ? std::pair(a, b) : std::pair(b, a);
+    };
+    std::vector<uint32_t> edges(size_t(n) * 3);
+    for (uint32_t e = 0; e < edges.size(); ++e) edges[e] = e;
+    std::sort(edges.begin(), edges.end(), [&](uint32_t x, uint32_t y) { return ends(x) < ends(y) || (ends(x) == ends(y) && x < y); });
+    std::vector<uint32_t> parent(n);
+    for (uint32_t t = 0; t < n; ++t) parent[t] = t;
+    auto root = [&](uint32_t t) {
+        while (parent[t] != t) t = parent[t] = parent[parent[t]];
+        return t;
+    };
+    for (size_t i = 1; i < edges.size(); ++i)
+        if (ends(edges[i]) == ends(edges[i - 1])) parent[root(edges[i] / 3)] = root(edges[i - 1] / 3);
+    releaseStorage(edges);
+    // Each part's signed volume relative to its first triangle's first corner (as OutwardVolume).
+    std::vector<double> sum(n, 0.0), magnitude(n, 0.0);
+    std::vector<uint32_t> first(n, ~0u);
+    for (uint32_t t = 0; t < n; ++t) {
+        const uint32_t r = root(t);
+        if (first[r] == ~0u) first[r] = t;
+        const dvec3 o(triangles[first[r]].v[0]);
+        const dvec3 a = dvec3(triangles[t].v[0]) - o, b = dvec3(triangles[t].v[1]) - o, c = dvec3(triangles[t].v[2]) - o;
+        const double term = glm::dot(a, glm::cross(b, c));
+        sum[r] += term, magnitude[r] += std::abs(term);
+    }
+    for (uint32_t t = 0; t < n; ++t)
+        if (root(t) == t && !(sum[t] > 1e-9 * magnitude[t])) return true;
+    return false;
 }
 
 bool solidMayCrossItself(std::vector<SolidTriangle>& triangles) {

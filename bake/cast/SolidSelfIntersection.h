@@ -43,9 +43,16 @@ bool trianglesMayCross(const SolidTriangle& a, const SolidTriangle& b);
 /// out: they bound nothing. Reorders @p triangles.
 bool solidMayCrossItself(std::vector<SolidTriangle>& triangles);
 
+/// @brief Whether a part of @p triangles (triangles joined through shared edges, corners matched
+/// by exact float values) is wound inward or flat: its signed volume is not positive beyond
+/// rounding. A part wound inward has winding number -1 inside, whatever its place in the stream
+/// (the scan's running check sees only parts whose triangles are contiguous).
+bool solidHasInwardPart(const std::vector<SolidTriangle>& triangles);
+
 /// Triangles of one solid that the scan holds to check it; a larger solid is cast as open.
 inline constexpr size_t kMaxCheckedSolidTriangles = size_t(1) << 16;
-/// Bytes the scan holds for that check at most (the triangles, sorted in place), for the memory plan.
-inline constexpr size_t kSolidCheckBytes = kMaxCheckedSolidTriangles * sizeof(SolidTriangle);
+/// Bytes the scan holds for those checks at most: the triangles (sorted in place), and while the
+/// parts are found an edge index, a parent, a first triangle and two sums per triangle.
+inline constexpr size_t kSolidCheckBytes = kMaxCheckedSolidTriangles * (sizeof(SolidTriangle) + 5 * sizeof(uint32_t) + 2 * sizeof(double));
 
 }  // namespace penumbra

@@ -181,3 +181,28 @@ TEST_CASE("a closed OBJ pushed through itself keeps every shadow, and the bake n
     CHECK(cmp.exitCode == 0);
     CHECK_THAT(cmp.out, Catch::Contains("only_a 0\n") && Catch::Contains("only_b 0\n") && !Catch::Contains("blocked_a 0\n"));
 }
+
+TEST_CASE("a part wound inward is found even when its triangles interleave with another part's", "[closed][crossing]") {
+    // Two crates in one solid, the small one wound inward, their triangles alternating in the
+    // stream (split by material over shared primitives): the running check saw one surface of
+    // positive volume, and receivers inside the small crate lost its shadows (stop-55 sweep).
+    std::vector<SolidTriangle> outer = box(glm::scale(glm::mat4(1), glm::vec3(2))), inner = box(glm::translate(glm::mat4(1), glm::vec3(5, 0, 0)));
+    std::vector<Triangle> stream;
+    for (size_t i = 0; i < outer.size(); ++i) {
+        stream.push_back({{outer[i].v[0], outer[i].v[1], outer[i].v[2]}, kTriangleClosed});
+        stream.push_back({{inner[i].v[0], inner[i].v[2], inner[i].v[1]}, kTriangleClosed});  // wound inward
+    }
+    CHECK(solidHasInwardPart(std::vector<SolidTriangle>(inner.size(), SolidTriangle{})) == true);  // flat parts count too
+    LightSamples samples;
+    ClosedSolidScan scan(samples);
+    scan.scan(stream);
+    const OpenedSolids opened = scan.finish();
+    CHECK(opened.ordinals == std::vector<uint64_t>{0});
+    REQUIRE(opened.leaky.size() == 1);
+    CHECK(opened.leaky[0].inward == 1);
+    // Both wound outward, interleaved the same way: kept.
+    std::vector<SolidTriangle> both;
+    for (size_t i = 0; i < outer.size(); ++i) both.push_back(outer[i]), both.push_back(inner[i]);
+    CHECK_FALSE(solidHasInwardPart(both));
+    CHECK_FALSE(solidMayCrossItself(both));
+}
