@@ -152,7 +152,7 @@ std::vector<std::string> leakySolidWarnings(const OpenedSolids& opened, const Sc
         if (leaky.inward)
             what.push_back(fmt::format("{} of its solids {} wound inward (or flat)", leaky.inward, leaky.inward == 1 ? "is" : "are"));
         if (leaky.crossing)
-            what.push_back(fmt::format("{} of its solids {} faces that cross one another (a surface pushed through itself)",
+            what.push_back(fmt::format("{} of its solids {} faces that cross one another, or more than two at one edge (a surface pushed through itself)",
                                        leaky.crossing, leaky.crossing == 1 ? "has" : "have"));
         if (leaky.unchecked)
             what.push_back(fmt::format("{} of its solids {} more than {} triangles, too many to check for faces that cross",

@@ -34,11 +34,11 @@ void ClosedSolidScan::closeSolid() {
         if (meets) ++result_.perLight[l], opened = true;
     }
     // With the triangles held, every part is checked, not only those contiguous in the stream.
-    const bool balanced = edges_.balanced(),
-               outward = balanced && volume_.outward() && !currentRunInward_ && (tooMany_ || !solidHasInwardPart(triangles_));
+    const SolidParts parts = tooMany_ ? SolidParts{} : solidParts(triangles_);
+    const bool balanced = edges_.balanced(), outward = balanced && volume_.outward() && !currentRunInward_ && !parts.inward;
     // Crossings are looked for only in a solid that passed the cheaper checks (and is not opened
     // for a light already: it is cast as open either way).
-    const bool crossing = outward && !opened && !tooMany_ && solidMayCrossItself(triangles_);
+    const bool crossing = outward && !opened && !tooMany_ && (parts.sharedEdge || solidMayCrossItself(triangles_));
     if (!outward || crossing || (!opened && tooMany_)) {
         if (result_.leaky.empty() || result_.leaky.back().part != currentPart_) result_.leaky.push_back({currentPart_});
         OpenedSolids::Leaky& leaky = result_.leaky.back();

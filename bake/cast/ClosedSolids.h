@@ -17,7 +17,7 @@
 /// EdgeBalance.h) or is wound inward (OutwardVolume) is opened as well, whatever the lights: a
 /// part of it wound inward counts: each run whose edges balance is checked as it streams, and a
 /// solid of up to kMaxCheckedSolidTriangles has each of its edge-connected parts checked
-/// (solidHasInwardPart()), so parts whose triangles interleave are told apart too; a
+/// (solidParts()), so parts whose triangles interleave are told apart too; a
 /// wrong `"closed": true` mark would otherwise lose the shadows of the faces it skips. Such solids are counted per geometry entry,
 /// so that the bake can name the entries whose mark was wrong.
 ///

@@ -143,7 +143,8 @@ bool trianglesMayCross(const SolidTriangle& ta, const SolidTriangle& tb) {
     return true;
 }
 
-bool solidHasInwardPart(const std::vector<SolidTriangle>& triangles) {
+SolidParts solidParts(const std::vector<SolidTriangle>& triangles) {
+    SolidParts result;
     // Edges as corner pairs, sorted so that the two sides of each edge are neighbours: 4 bytes
     // per edge and per triangle besides the triangles, then union-find over the triangles.
     const uint32_t n = uint32_t(triangles.size());
@@ -164,8 +165,12 @@ bool solidHasInwardPart(const std::vector<SolidTriangle>& triangles) {
         while (parent[t] != t) t = parent[t] = parent[parent[t]];
         return t;
     };
-    for (size_t i = 1; i < edges.size(); ++i)
-        if (ends(edges[i]) == ends(edges[i - 1])) parent[root(edges[i] / 3)] = root(edges[i - 1] / 3);
+    for (size_t i = 1, run = 1; i < edges.size(); ++i) {
+        const bool same = ends(edges[i]) == ends(edges[i - 1]);
+        run = same ? run + 1 : 1;
+        result.sharedEdge = result.sharedEdge || run > 2;
+        if (same) parent[root(edges[i] / 3)] = root(edges[i - 1] / 3);
+    }
     releaseStorage(edges);
     // Each part's signed volume relative to its first triangle's first corner (as OutwardVolume).
     std::vector<double> sum(n, 0.0), magnitude(n, 0.0);
@@ -179,8 +184,8 @@ bool solidHasInwardPart(const std::vector<SolidTriangle>& triangles) {
         sum[r] += term, magnitude[r] += std::abs(term);
     }
     for (uint32_t t = 0; t < n; ++t)
-        if (root(t) == t && !(sum[t] > 1e-9 * magnitude[t])) return true;
-    return false;
+        if (root(t) == t && !(sum[t] > 1e-9 * magnitude[t])) result.inward = true;
+    return result;
 }
 
 bool solidMayCrossItself(std::vector<SolidTriangle>& triangles) {

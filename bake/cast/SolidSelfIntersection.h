@@ -43,11 +43,21 @@ bool trianglesMayCross(const SolidTriangle& a, const SolidTriangle& b);
 /// out: they bound nothing. Reorders @p triangles.
 bool solidMayCrossItself(std::vector<SolidTriangle>& triangles);
 
-/// @brief Whether a part of @p triangles (triangles joined through shared edges, corners matched
-/// by exact float values) is wound inward or flat: its signed volume is not positive beyond
-/// rounding. A part wound inward has winding number -1 inside, whatever its place in the stream
-/// (the scan's running check sees only parts whose triangles are contiguous).
-bool solidHasInwardPart(const std::vector<SolidTriangle>& triangles);
+/// @brief What the parts of a solid show (triangles joined through shared edges, corners matched
+/// by exact float values).
+struct SolidParts {
+    /// A part is wound inward or flat: its signed volume is not positive beyond rounding. It has
+    /// winding number -1 inside, whatever its place in the stream (the scan's running check sees
+    /// only parts whose triangles are contiguous).
+    bool inward = false;
+    /// An edge is used by more than two triangles. Two sheets that cross along a line of shared
+    /// edges (a fold welded where it passes through itself, an extruded figure eight) meet only
+    /// at edges that both share, where no pair of triangles crosses: trianglesMayCross() cannot
+    /// see them (a stop-58 sweep: 1,536 of 1,536 relations lost). Such a solid is treated as
+    /// crossing; so are two solids of one entry that share an edge, which only costs speed.
+    bool sharedEdge = false;
+};
+SolidParts solidParts(const std::vector<SolidTriangle>& triangles);
 
 /// Triangles of one solid that the scan holds to check it; a larger solid is cast as open.
 inline constexpr size_t kMaxCheckedSolidTriangles = size_t(1) << 16;

@@ -192,7 +192,7 @@ TEST_CASE("a part wound inward is found even when its triangles interleave with 
         stream.push_back({{outer[i].v[0], outer[i].v[1], outer[i].v[2]}, kTriangleClosed});
         stream.push_back({{inner[i].v[0], inner[i].v[2], inner[i].v[1]}, kTriangleClosed});  // wound inward
     }
-    CHECK(solidHasInwardPart(std::vector<SolidTriangle>(inner.size(), SolidTriangle{})) == true);  // flat parts count too
+    CHECK(solidParts(std::vector<SolidTriangle>(inner.size(), SolidTriangle{})).inward);  // flat parts count too
     LightSamples samples;
     ClosedSolidScan scan(samples);
     scan.scan(stream);
@@ -203,6 +203,29 @@ TEST_CASE("a part wound inward is found even when its triangles interleave with 
     // Both wound outward, interleaved the same way: kept.
     std::vector<SolidTriangle> both;
     for (size_t i = 0; i < outer.size(); ++i) both.push_back(outer[i]), both.push_back(inner[i]);
-    CHECK_FALSE(solidHasInwardPart(both));
+    CHECK_FALSE(solidParts(both).inward);
+    CHECK_FALSE(solidParts(both).sharedEdge);
     CHECK_FALSE(solidMayCrossItself(both));
+}
+
+TEST_CASE("sheets that cross along edges both share are a crossing", "[closed][crossing]") {
+    // An extruded figure eight: its two lobes meet at the edge (2,0,1)-(2,1,1), which four faces
+    // use; no pair of faces crosses, and one lobe is wound inward (stop-58 sweep: receivers in
+    // it lost every shadow).
+    const glm::vec3 c[10] = {{0, 0, 0}, {0, 0, 2}, {0, 1, 0}, {0, 1, 2}, {2, 0, 1}, {2, 1, 1}, {3, 0, 0}, {3, 0, 2}, {3, 1, 0}, {3, 1, 2}};
+    const int f[16][3] = {{1, 6, 5}, {1, 3, 6}, {5, 10, 8}, {5, 6, 10}, {8, 9, 7}, {8, 10, 9}, {7, 6, 5}, {7, 9, 6},
+                          {5, 4, 2}, {5, 6, 4}, {2, 3, 1}, {2, 4, 3}, {3, 4, 6}, {1, 5, 2}, {6, 9, 10}, {5, 8, 7}};
+    std::vector<SolidTriangle> bowtie;
+    for (const auto& t : f) bowtie.push_back({{c[t[0] - 1], c[t[1] - 1], c[t[2] - 1]}});
+    CHECK(solidParts(bowtie).sharedEdge);
+    std::vector<Triangle> stream;
+    for (const SolidTriangle& s : bowtie) stream.push_back({{s.v[0], s.v[1], s.v[2]}, kTriangleClosed});
+    LightSamples samples;
+    ClosedSolidScan scan(samples);
+    scan.scan(stream);
+    const OpenedSolids opened = scan.finish();
+    CHECK(opened.ordinals == std::vector<uint64_t>{0});
+    CHECK(opened.crossingSolids() + opened.leakySolids() == 1);
+    std::vector<SolidTriangle> plain = box(glm::mat4(1));
+    CHECK_FALSE(solidParts(plain).sharedEdge);
 }
