@@ -119,7 +119,13 @@ void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget) {
                              : fmt::format("the passes before the receivers are counted ({} light-sample groups each)", demand.groups);
     std::string message = fmt::format("{} {} is too small for {}; at least {} is needed{}", budget.subject(),
                                       refusedBudgetText(budget.bytes + budget.overhead), what, budgetText(least), why);
-    if (budget.addressSpace() && budget.threads > 1) throw ThreadsDoNotFit(message);
+    if (budget.addressSpace() && budget.threads > 1) {
+        // Each thread fewer leaves its stack's room to the bake: one try with as many fewer as
+        // the shortfall needs (not one at a time: every try opens the geometry again).
+        const uint64_t shortfall = scanPhaseBytes(demand) - budget.bytes;
+        const uint64_t fewer = std::max<uint64_t>(1, (shortfall + kWorkerStackBytes - 1) / kWorkerStackBytes);
+        throw ThreadsDoNotFit(message, int(std::max<int64_t>(1, int64_t(budget.threads) - int64_t(fewer))));
+    }
     throw InputError(message);
 }
 

@@ -55,7 +55,8 @@ struct BakeBudget {
 /// each thread fewer frees a stack and a thread's sub-tiles, so the bake is tried again on fewer
 /// (runBake()) before it is refused.
 struct ThreadsDoNotFit : InputError {
-    using InputError::InputError;
+    ThreadsDoNotFit(const std::string& message, int fewer) : InputError(message), threads(fewer) {}
+    int threads;  ///< the most threads whose freed stacks would make up the shortfall (at least 1)
 };
 
 /// Stack reserved per TBB worker (set through tbb::global_control) and per read-ahead thread.

@@ -379,12 +379,12 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
         return bakeScene(b, total);
     } catch (const std::bad_alloc&) {
         failOutOfMemory(b);
-    } catch (const ThreadsDoNotFit&) {
-        // Refused before the scan read anything: each thread fewer frees a stack and its
-        // sub-tiles, so try again on one fewer (README: "uses fewer threads if it must").
+    } catch (const ThreadsDoNotFit& e) {
+        // Refused before the scan read anything: each thread fewer frees a stack, so try again
+        // on as few as make up the shortfall (README: "uses fewer threads if it must").
         BakeSettings fewer = settings;
         fewer.threadsWanted = b.budget.threadsWanted;
-        fewer.threads = b.threads - 1;
+        fewer.threads = std::min(e.threads, b.threads - 1);
         return runBake(scene, fewer);
     } catch (const std::exception& e) {
         // TBB could not start its workers (an address-space or process limit): nothing is
