@@ -84,7 +84,7 @@ uint64_t keptMaskBytes(const MemoryDemand& d);
 
 /// Bytes the process needs before any bake data (code, libraries, thread stacks, allocator). A
 /// small bake peaks at 15-17 MiB in all, so the baseline also holds the few fixed buffers no
-/// phase names, such as the scan's closed-solid check (kSolidCheckBytes, 4.5 MiB at most).
+/// phase names, such as the scan's closed-solid check (kSolidCheckBytes, 6.25 MiB at most).
 inline constexpr uint64_t kBaselineBytes = 48ull << 20;
 /// A tile is never cut smaller than this many receivers.
 inline constexpr uint64_t kMinimumTileReceivers = 4096;

@@ -172,19 +172,11 @@ SolidParts solidParts(const std::vector<SolidTriangle>& triangles) {
         if (same) parent[root(edges[i] / 3)] = root(edges[i - 1] / 3);
     }
     releaseStorage(edges);
-    // Each part's signed volume relative to its first triangle's first corner (as OutwardVolume).
-    std::vector<double> sum(n, 0.0), magnitude(n, 0.0);
-    std::vector<uint32_t> first(n, ~0u);
-    for (uint32_t t = 0; t < n; ++t) {
-        const uint32_t r = root(t);
-        if (first[r] == ~0u) first[r] = t;
-        const dvec3 o(triangles[first[r]].v[0]);
-        const dvec3 a = dvec3(triangles[t].v[0]) - o, b = dvec3(triangles[t].v[1]) - o, c = dvec3(triangles[t].v[2]) - o;
-        const double term = glm::dot(a, glm::cross(b, c));
-        sum[r] += term, magnitude[r] += std::abs(term);
-    }
+    // Each part's signed volume, kept at its root triangle.
+    std::vector<OutwardVolume> volume(n);
+    for (uint32_t t = 0; t < n; ++t) volume[root(t)].add(Triangle{{triangles[t].v[0], triangles[t].v[1], triangles[t].v[2]}, 0});
     for (uint32_t t = 0; t < n; ++t)
-        if (root(t) == t && !(sum[t] > 1e-9 * magnitude[t])) result.inward = true;
+        if (root(t) == t && !volume[t].outward()) result.inward = true;
     return result;
 }
 

@@ -19,6 +19,7 @@
 /// bound) without sharing the vertex count as crossing: such a solid is cast as an open surface,
 /// which is exact, only slower.
 
+#include "bake/cast/EdgeBalance.h"
 #include "stream/Triangle.h"
 
 #include <glm/vec3.hpp>
@@ -62,7 +63,7 @@ SolidParts solidParts(const std::vector<SolidTriangle>& triangles);
 /// Triangles of one solid that the scan holds to check it; a larger solid is cast as open.
 inline constexpr size_t kMaxCheckedSolidTriangles = size_t(1) << 16;
 /// Bytes the scan holds for those checks at most: the triangles (sorted in place), and while the
-/// parts are found an edge index, a parent, a first triangle and two sums per triangle.
-inline constexpr size_t kSolidCheckBytes = kMaxCheckedSolidTriangles * (sizeof(SolidTriangle) + 5 * sizeof(uint32_t) + 2 * sizeof(double));
+/// parts are found three edge indices, a parent and a part's volume sums per triangle.
+inline constexpr size_t kSolidCheckBytes = kMaxCheckedSolidTriangles * (sizeof(SolidTriangle) + 4 * sizeof(uint32_t) + sizeof(OutwardVolume));
 
 }  // namespace penumbra
