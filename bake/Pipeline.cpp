@@ -48,7 +48,7 @@ namespace {
 /// pass instead, a budget that the first refusal named was refused again, with a larger number.
 uint64_t translucentBytes(uint64_t triangles, int threads, const LightSamples& samples) {
     if (triangles == 0) return 0;
-    return triangles * (sizeof(Triangle) + TranslucentBlockers::bytesFor(1)) +
+    return triangles * sizeof(Triangle) + TranslucentBlockers::bytesFor(triangles, samples) +
            uint64_t(threads) * uint64_t(samples.sampleCount) * 3 * sizeof(uint32_t);
 }
 
@@ -194,7 +194,7 @@ void makeCaster(Bake& b) {
 const TranslucentBlockers* translucentBlockers(Bake& b) {
     std::call_once(b.translucentOnce, [&b] {
         const char* partialFiles = !b.sharded ? nullptr : b.settings.shard.count ? "--shard" : "--checkpoint";
-        b.translucent = translucentPass(*b.opaqueView, b.p.samples, b.method.name, b.method.traits, partialFiles);
+        b.translucent = translucentPass(*b.opaqueView, b.p.samples, b.method.name, b.method.traits, partialFiles, b.p.options.simd);
     });
     return b.translucent.get();
 }

@@ -22,18 +22,22 @@ double distanceToSegment(const glm::dvec3& p, const glm::dvec3& a, const glm::dv
 
 }  // namespace
 
-TranslucentBlockers::TranslucentBlockers(TriangleSource& blockers, const LightSamples& samples) : samples_(&samples) {
+TranslucentBlockers::TranslucentBlockers(TriangleSource& blockers, const LightSamples& samples, SimdLevel simd,
+                                         uint64_t cacheBytes)
+    : samples_(&samples) {
     blockers.rewind();
     std::vector<Triangle> chunk(kTriangleChunk);
     while (const size_t n = blockers.read(chunk))
         for (size_t i = 0; i < n; ++i) add(chunk[i]);
     blockers.rewind();
-    prepareGroups();
+    prepare(simd, cacheBytes);
 }
 
-TranslucentBlockers::TranslucentBlockers(std::span<const Triangle> triangles, const LightSamples& samples) : samples_(&samples) {
+TranslucentBlockers::TranslucentBlockers(std::span<const Triangle> triangles, const LightSamples& samples, SimdLevel simd,
+                                         uint64_t cacheBytes)
+    : samples_(&samples) {
     for (const Triangle& t : triangles) add(t);
-    prepareGroups();
+    prepare(simd, cacheBytes);
 }
 
 void TranslucentBlockers::add(const Triangle& t) {
@@ -47,11 +51,13 @@ void TranslucentBlockers::add(const Triangle& t) {
     tris_.push_back(b), spheres_.push_back(s), depths_.push_back(opticalDepthOf(id));
 }
 
-void TranslucentBlockers::prepareGroups() {
+void TranslucentBlockers::prepare(SimdLevel simd, uint64_t cacheBytes) {
     const LightSamples& ls = *samples_;
     groups_.assign(ls.groups.size(), Sphere{});
     for (size_t k = 0; k < ls.groups.size(); ++k) {
         const LightSampleGroup& g = ls.groups[k];
+        blockFirst_.push_back(uint32_t(blocksPerSet_));
+        blocksPerSet_ += (g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes;
         if (ls.w(g.light) == 0.0) continue;  // directions: no sphere, every sample is tested
         glm::dvec3 lo(INFINITY), hi(-INFINITY);
         for (int set = 0; set < ls.sets; ++set)
@@ -62,44 +68,77 @@ void TranslucentBlockers::prepareGroups() {
         groups_[k].centre = 0.5 * (lo + hi);
         groups_[k].radius = 0.5 * glm::length(hi - lo);
     }
+    kernels_ = hardShadowKernels(simd);
+    // A volume depends on the sample and the triangle only: build the first triangles' once.
+    const uint64_t perTriangle = uint64_t(ls.sets) * blocksPerSet_ * sizeof(HardShadowBlock);
+    cached_ = perTriangle ? size_t(std::min<uint64_t>(tris_.size(), cacheBytes / perTriangle)) : 0;
+    cache_.resize(cached_ * size_t(ls.sets) * blocksPerSet_);
+    for (size_t i = 0; i < cached_; ++i)
+        for (int set = 0; set < ls.sets; ++set)
+            for (size_t k = 0; k < ls.groups.size(); ++k) {
+                const LightSampleGroup& g = ls.groups[k];
+                HardShadowBlock* blocks = &cache_[(i * size_t(ls.sets) + size_t(set)) * blocksPerSet_ + blockFirst_[k]];
+                for (uint32_t lane0 = 0; lane0 < g.count; lane0 += HardShadowBlock::kLanes)
+                    kernels_.build(blocks[lane0 / HardShadowBlock::kLanes], &ls.position(set, int(g.first + lane0)),
+                                   int(std::min<uint32_t>(HardShadowBlock::kLanes, g.count - lane0)), ls.w(g.light), tris_[i]);
+            }
 }
 
-size_t TranslucentBlockers::bytes() const { return bytesFor(tris_.size()) + groups_.size() * sizeof(Sphere); }
+size_t TranslucentBlockers::bytes() const {
+    return tris_.size() * (sizeof(BlockerTriangle) + sizeof(Sphere) + sizeof(OpticalDepth)) + groups_.size() * sizeof(Sphere) +
+           cache_.size() * sizeof(HardShadowBlock);
+}
 
-uint64_t TranslucentBlockers::bytesFor(uint64_t triangles) {
-    return triangles * (sizeof(BlockerTriangle) + sizeof(Sphere) + sizeof(OpticalDepth));
+uint64_t TranslucentBlockers::bytesFor(uint64_t triangles, const LightSamples& samples) {
+    size_t blocks = 0;
+    for (const LightSampleGroup& g : samples.groups) blocks += (g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes;
+    const uint64_t cached = std::min(kCachedBlockBytes, triangles * uint64_t(samples.sets) * blocks * sizeof(HardShadowBlock));
+    return triangles * (sizeof(BlockerTriangle) + sizeof(Sphere) + sizeof(OpticalDepth)) + samples.groups.size() * sizeof(Sphere) +
+           cached;
+}
+
+const HardShadowBlock* TranslucentBlockers::blocksOf(size_t i, int set, size_t k, uint64_t open, HardShadowBlock* scratch,
+                                                     uint32_t& which) const {
+    which = blocksHolding(open);
+    if (i < cached_) return &cache_[(i * size_t(samples_->sets) + size_t(set)) * blocksPerSet_ + blockFirst_[k]];
+    const LightSampleGroup& g = samples_->groups[k];
+    for (uint32_t todo = which; todo; todo &= todo - 1) {
+        const int b = __builtin_ctz(todo), lane0 = b * HardShadowBlock::kLanes;
+        kernels_.build(scratch[b], &samples_->position(set, int(g.first) + lane0),
+                       std::min<int>(HardShadowBlock::kLanes, int(g.count) - lane0), samples_->w(g.light), tris_[i]);
+    }
+    return scratch;
 }
 
 bool TranslucentBlockers::depthAt(const glm::dvec3& r, int set, const uint64_t* groupWords, bool fullUmbra,
-                                  const ReceiverEpsilon& epsilon, const AlphaTable& alpha, std::span<uint32_t> depth) const {
+                                  const ReceiverEpsilon& epsilon, const AlphaTable&, std::span<uint32_t> depth) const {
     std::fill(depth.begin(), depth.end(), 0u);
     if (fullUmbra || tris_.empty()) return false;
     const LightSamples& ls = *samples_;
     const double eps = epsilon.at(r);
     uint64_t tested = 0, crossed = 0;
+    HardShadowBlock scratch[64 / HardShadowBlock::kLanes];
     for (size_t i = 0; i < tris_.size(); ++i) {
         const BlockerTriangle& t = tris_[i];
         const double dist = distanceBehind(t, r);
         if (!(std::abs(dist) > eps)) continue;  // the rule blocks nothing within eps of the plane
+        const EdgeOffsets at(t, r);
         for (size_t k = 0; k < ls.groups.size(); ++k) {
             const LightSampleGroup& g = ls.groups[k];
             const uint64_t open = ~(groupWords ? groupWords[k] : 0ull) & g.fullMask();
             if (!open) continue;
-            const double w = ls.w(g.light);
-            if (w != 0.0) {  // no segment of the group comes near the triangle: a generous margin
+            if (ls.w(g.light) != 0.0) {  // no segment of the group comes near the triangle: a generous margin
                 const double reach = groups_[k].radius + spheres_[i].radius;
                 const double d = distanceToSegment(spheres_[i].centre, r, groups_[k].centre);
                 if (d > reach * (1.0 + 1e-6) + 1e-9 * (glm::length(r - groups_[k].centre) + reach)) continue;
             }
-            for (uint64_t bits = open; bits; bits &= bits - 1) {
-                const int j = std::countr_zero(bits);
-                const int sample = int(g.first) + j;
-                const glm::dvec3 l(ls.position(set, sample));
-                ++tested;
-                const HardShadowVolume h = makeHardShadowVolume(l, w, t);
-                if (!blocks(h, t, r, dist, eps)) continue;  // no max_distance on translucent entries (Scene.cpp)
-                ++crossed;
-                uint32_t* d = &depth[size_t(sample) * 3];
+            uint32_t which = 0;
+            const HardShadowBlock* blocks = blocksOf(i, set, k, open, scratch, which);
+            // No max_distance on translucent entries (Scene.cpp): the kernels are the whole rule.
+            const uint64_t hit = kernels_.test(blocks, which, at, dist, eps) & open;
+            tested += uint64_t(std::popcount(open)), crossed += uint64_t(std::popcount(hit));
+            for (uint64_t bits = hit; bits; bits &= bits - 1) {
+                uint32_t* d = &depth[size_t(int(g.first) + std::countr_zero(bits)) * 3];
                 for (int c = 0; c < 3; ++c) d[c] = addDepth(d[c], depths_[i][c]);
             }
         }
@@ -131,7 +170,7 @@ uint64_t OpaqueOnlySource::skip(uint64_t count) {
 
 std::unique_ptr<TranslucentBlockers> translucentPass(const OpaqueOnlySource& view, const LightSamples& samples,
                                                      const std::string& method, const CasterTraits& traits,
-                                                     const char* partialFiles) {
+                                                     const char* partialFiles, SimdLevel simd) {
     if (!view.complete()) throw std::logic_error("--method " + method + " reported a receiver before reading every blocker");
     if (view.translucent().empty()) return nullptr;
     if (partialFiles)
@@ -140,7 +179,7 @@ std::unique_ptr<TranslucentBlockers> translucentPass(const OpaqueOnlySource& vie
     // A method without masks (penumbra-map) weighs every sample's transmittance as if no opaque
     // blocker stood in the way; its visible fraction then scales the tinted irradiance.
     if (traits.translucency) return nullptr;  // Embree's filter weighs them
-    return std::make_unique<TranslucentBlockers>(view.translucent(), samples);
+    return std::make_unique<TranslucentBlockers>(view.translucent(), samples, simd);
 }
 
 std::vector<uint64_t> samplesOutsideSubset(const LightSamples& samples, int perLight) {

@@ -13,10 +13,16 @@
 /// for a receiver and a group of point samples only when a bounding-sphere test proves that no
 /// segment of the group can reach it, and for the receiver when it lies within eps of the
 /// triangle's plane (where the rule blocks nothing).
-/// Memory: the translucent triangles (BlockerTriangle, their bounding spheres and depths), held
-/// for the bake, and one scratch row of samples x 3 depths per thread.
+/// The segments are tested four samples at a time with the hard-shadow kernels the casters use
+/// (HardShadowBlock.h: the rule's expressions lane by lane, so the same bits as blocks()). A hard
+/// shadow volume depends on the sample and the triangle only, so the blocks of the first
+/// triangles, up to kCachedBlockBytes, are built once for every sample set; the rest are built
+/// per receiver and group.
+/// Memory: the translucent triangles (BlockerTriangle, their bounding spheres and depths) and the
+/// cached blocks, held for the bake, and one scratch row of samples x 3 depths per thread.
 
 #include "bake/cast/Caster.h"
+#include "bake/cast/HardShadowBlock.h"
 #include "bake/light/Light.h"
 #include "bake/rule/BlockingRule.h"
 #include "stream/AlphaTable.h"
@@ -32,19 +38,29 @@ namespace penumbra {
 
 class TranslucentBlockers {
 public:
+    /// Hard-shadow blocks built once, at most: 8 MiB (80 KiB a triangle at 256 samples in 4 sets).
+    static constexpr uint64_t kCachedBlockBytes = uint64_t(8) << 20;
+
     TranslucentBlockers() = default;
     /// @brief Reads @p blockers once (then rewinds it) and keeps its translucent triangles that
     /// cast shadows, for the samples @p samples.
-    TranslucentBlockers(TriangleSource& blockers, const LightSamples& samples);
+    /// @param simd the kernels' instruction set (every level gives the same bits)
+    /// @param cacheBytes at most this many bytes of blocks are built once (tests lower it)
+    TranslucentBlockers(TriangleSource& blockers, const LightSamples& samples, SimdLevel simd = SimdLevel::Auto,
+                        uint64_t cacheBytes = kCachedBlockBytes);
     /// @brief The same from triangles in memory (tests, methods that hold the scene).
-    TranslucentBlockers(std::span<const Triangle> triangles, const LightSamples& samples);
+    TranslucentBlockers(std::span<const Triangle> triangles, const LightSamples& samples, SimdLevel simd = SimdLevel::Auto,
+                        uint64_t cacheBytes = kCachedBlockBytes);
 
     bool empty() const { return tris_.empty(); }
     size_t size() const { return tris_.size(); }
+    /// Triangles whose blocks are built once (the first ones, up to the cache's bytes).
+    size_t cachedTriangles() const { return cached_; }
     /// @brief Bytes held for the bake (the memory plan's part for translucency).
     size_t bytes() const;
-    /// @brief Bytes held for @p triangles translucent triangles (before they are read).
-    static uint64_t bytesFor(uint64_t triangles);
+    /// @brief Bytes held for @p triangles translucent triangles of @p samples, at most (before
+    /// they are read): their cast form and their cached blocks.
+    static uint64_t bytesFor(uint64_t triangles, const LightSamples& samples);
 
     /// @brief Receiver @p r's per-sample depth: @p depth (sampleCount x 3, sample-major) gets, for
     /// each sample not set in @p groupWords, the saturating sum of the depths of the translucent
@@ -60,7 +76,10 @@ public:
 
 private:
     void add(const Triangle& t);
-    void prepareGroups();
+    void prepare(SimdLevel simd, uint64_t cacheBytes);
+    /// Triangle @p i's blocks of group @p k in set @p set: the cached ones, or those of the
+    /// samples in @p open built into @p scratch. @p which gets the blocks holding them.
+    const HardShadowBlock* blocksOf(size_t i, int set, size_t k, uint64_t open, HardShadowBlock* scratch, uint32_t& which) const;
 
     struct Sphere {
         glm::dvec3 centre{0.0};
@@ -71,6 +90,10 @@ private:
     std::vector<Sphere> spheres_;      ///< per triangle
     std::vector<OpticalDepth> depths_; ///< per triangle
     std::vector<Sphere> groups_;       ///< per sample group, over all sets (point samples only)
+    HardShadowKernels kernels_;
+    std::vector<uint32_t> blockFirst_;      ///< group k's first block within a set
+    size_t blocksPerSet_ = 0, cached_ = 0;  ///< blocks of one triangle and set; triangles cached
+    std::vector<HardShadowBlock> cache_;    ///< [triangle < cached_][set][block]
 };
 
 /// @brief A non-owning view of @p inner in which translucent triangles carry kTriangleNoCast:
@@ -112,7 +135,7 @@ private:
 /// @throw std::logic_error when the method reported a receiver before reading every blocker
 std::unique_ptr<TranslucentBlockers> translucentPass(const OpaqueOnlySource& view, const LightSamples& samples,
                                                      const std::string& method, const CasterTraits& traits,
-                                                     const char* partialFiles);
+                                                     const char* partialFiles, SimdLevel simd = SimdLevel::Auto);
 
 /// @brief A mask (one word per group, LightSampleGroup layout) with every sample set but
 /// @p perLight of each light's (or all it has), spread over the light by farthest-point

@@ -203,6 +203,9 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
     }
     glm::dvec3 e(0.0);
     const bool planar = light.planar();
+    // Neighbouring samples mostly cross the same panes: each distinct depth's exp2 once.
+    uint32_t lastDepth[3] = {0, 0, 0};
+    glm::dvec3 lastTransmittance(1.0);
     for (uint32_t k = g0; k < g1; ++k) {
         const LightSampleGroup& g = samples_.groups[k];
         const uint64_t word = blockedWord(k);
@@ -210,7 +213,12 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
         for (uint64_t visible = ~word & g.fullMask(); visible; visible &= visible - 1) {
             const int sample = int(g.first) + std::countr_zero(visible);
             // Translucent blockers crossed: the sample's weight per channel.
-            const glm::dvec3 weight = depth ? light.weight * transmittance(&depth[size_t(sample) * 3]) : light.weight;
+            glm::dvec3 weight = light.weight;
+            if (depth) {
+                const uint32_t* d = &depth[size_t(sample) * 3];
+                if (!std::equal(d, d + 3, lastDepth)) lastTransmittance = transmittance(d), std::copy(d, d + 3, lastDepth);
+                weight *= lastTransmittance;
+            }
             // A sun's sample is a direction (w = 0): the receiver's position does not matter.
             const glm::dvec3 l(samples_.position(set, sample));
             glm::dvec3 d = light.sun ? l : l - p;

@@ -385,3 +385,69 @@ TEST_CASE("translucency: a preview's tint samples cover the light evenly", "[tra
     INFO("covering radius " << cover);
     CHECK(cover < 0.2);
 }
+
+TEST_CASE("translucency: the pass gives the rule's bits per sample, with blocks cached or built per receiver, at every SIMD level",
+          "[translucent][exact]") {
+    // Random panes, some edge-on to the light or seen nearly along their plane, receivers at random
+    // and on segments through a pane's edges and vertices (where the edge planes decide), a rect
+    // light of 100 samples (a group of 36 after one of 64) and a sun. The brute force is blocks()
+    // per sample and triangle, with none of the pass's culls.
+    Rng rng(59);
+    const uint32_t id = translucentId({0.5, 0.25, 0.125}, "test");
+    std::vector<Triangle> tris;
+    for (int i = 0; i < 24; ++i) {
+        const glm::vec3 c(float(rng.uniform(-1, 1)), float(rng.uniform(0.5, 2.5)), float(rng.uniform(-1, 1)));
+        Triangle t{};
+        for (glm::vec3& v : t.v) v = c + glm::vec3(float(rng.uniform(-0.6, 0.6)), float(rng.uniform(-0.1, 0.1)) * float(i % 3), float(rng.uniform(-0.6, 0.6)));
+        if (i % 5 == 0) t.v[2] = t.v[0] + (t.v[1] - t.v[0]) * 0.5f + glm::vec3(0, 1e-4f, 0);  // a sliver
+        t.flags = withAlphaId(0, id);
+        tris.push_back(t);
+    }
+    const LightSamples samples = generateLightSamples({rectLight({0.2, 4, 0.1}, {0.7, 0, 0}, {0, 0.3, 0.6}, 100, 3),
+                                                       sunLight({0.3, -1, 0.2}, 4.0, 64, 3)}, 64, 11);
+    REQUIRE(samples.groups.size() == 3);
+    uint64_t blocksPerSet = 0;  // of one triangle
+    for (const LightSampleGroup& g : samples.groups) blocksPerSet += (g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes;
+    const uint64_t fiveTriangles = 5 * uint64_t(samples.sets) * blocksPerSet * sizeof(HardShadowBlock);
+    ReceiverEpsilon epsilon;
+    epsilon.length = 4;
+    std::vector<glm::dvec3> receivers;
+    for (int i = 0; i < 150; ++i) receivers.push_back({rng.uniform(-2, 2), rng.uniform(-0.5, 1.5), rng.uniform(-2, 2)});
+    for (int i = 0; i < 150; ++i) {  // the segment from a sample passes through a pane's edge or vertex
+        const Triangle& t = tris[size_t(i) % tris.size()];
+        const glm::dvec3 a(t.v[i % 3]), b(t.v[(i + 1) % 3]), l(samples.position(i % 3, i % 100));
+        const glm::dvec3 on = i % 4 == 0 ? a : a + (b - a) * double(rng.uniform());
+        receivers.push_back(l + (on - l) * rng.uniform(1.2, 3.0));
+    }
+    std::vector<uint32_t> want(size_t(samples.sampleCount) * 3), got(want.size());
+    std::vector<SimdLevel> levels = {SimdLevel::Scalar, SimdLevel::Sse2};
+    if (simdSupported(SimdLevel::Avx2)) levels.push_back(SimdLevel::Avx2);
+    size_t crossings = 0;
+    for (const SimdLevel level : levels)
+        for (const uint64_t cache : {uint64_t(0), fiveTriangles, TranslucentBlockers::kCachedBlockBytes}) {
+            const TranslucentBlockers pass(tris, samples, level, cache);
+            INFO(simdName(level) << ", " << pass.cachedTriangles() << " triangles cached");
+            CHECK(pass.cachedTriangles() == (cache == 0 ? 0u : cache < TranslucentBlockers::kCachedBlockBytes ? 5u : tris.size()));
+            for (size_t ri = 0; ri < receivers.size(); ++ri) {
+                const glm::dvec3& r = receivers[ri];
+                const int set = int(ri % 3);
+                const uint64_t opaque[3] = {ri % 2 ? rng.next() : 0, ri % 3 ? 0 : rng.next(), 0};
+                std::fill(want.begin(), want.end(), 0u);
+                for (const LightSampleGroup& g : samples.groups)
+                    for (uint32_t j = 0; j < g.count; ++j) {
+                        if (opaque[&g - samples.groups.data()] >> j & 1) continue;
+                        const int s = int(g.first + j);
+                        for (const Triangle& t : tris) {
+                            if (!blocks(glm::dvec3(samples.position(set, s)), samples.w(g.light), r, BlockerTriangle::from(t), epsilon)) continue;
+                            for (int c = 0; c < 3; ++c) want[size_t(s) * 3 + c] = addDepth(want[size_t(s) * 3 + c], opticalDepthOf(id)[c]);
+                            ++crossings;
+                        }
+                    }
+                const bool any = pass.depthAt(r, set, opaque, false, epsilon, AlphaTable(), got);
+                INFO("receiver " << ri);
+                REQUIRE(got == want);
+                CHECK(any == (std::count(want.begin(), want.end(), 0u) != std::ptrdiff_t(want.size())));
+            }
+        }
+    CHECK(crossings > 10000);  // the segments did cross panes, near their edges too
+}
