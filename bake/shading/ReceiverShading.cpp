@@ -84,27 +84,38 @@ double sampleSumScalar(const double* x, const double* y, const double* z, size_t
     return (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
 }
 
-__attribute__((target("avx2"))) double sampleSumAvx2(const double* x, const double* y, const double* z, size_t n, glm::dvec3 p,
-                                                     glm::dvec3 normal, glm::dvec3 emitter, const uint64_t* visible) {
-    const __m256d px = _mm256_set1_pd(p.x), py = _mm256_set1_pd(p.y), pz = _mm256_set1_pd(p.z);
-    const __m256d nx = _mm256_set1_pd(normal.x), ny = _mm256_set1_pd(normal.y), nz = _mm256_set1_pd(normal.z);
-    const __m256d ex = _mm256_set1_pd(-emitter.x), ey = _mm256_set1_pd(-emitter.y), ez = _mm256_set1_pd(-emitter.z);
-    const __m256d tiny = _mm256_set1_pd(1e-300), one = _mm256_set1_pd(1.0), zero = _mm256_setzero_pd();
-    const __m256i laneBits = _mm256_setr_epi64x(1, 2, 4, 8);
-    __m256d acc = zero;
-    size_t j = 0;
-    for (; j + 4 <= n; j += 4) {
-        const uint64_t nibble = visible ? visible[j >> 6] >> (j & 63) & 15u : 15u;  // j % 4 == 0: within one word
-        if (!nibble) continue;  // a receiver in shadow skips its hidden samples four at a time
-        const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(x + j), px), dy = _mm256_sub_pd(_mm256_loadu_pd(y + j), py),
-                      dz = _mm256_sub_pd(_mm256_loadu_pd(z + j), pz);
+/// sampleTerm() of four consecutive samples, with the same correctly rounded operations in each
+/// lane (no fused multiply-add), so the same bits.
+struct SampleTermsAvx2 {
+    __m256d px, py, pz, nx, ny, nz, ex, ey, ez, tiny, one, zero;
+    __attribute__((target("avx2"))) SampleTermsAvx2(glm::dvec3 p, glm::dvec3 normal, glm::dvec3 emitter)
+        : px(_mm256_set1_pd(p.x)), py(_mm256_set1_pd(p.y)), pz(_mm256_set1_pd(p.z)), nx(_mm256_set1_pd(normal.x)),
+          ny(_mm256_set1_pd(normal.y)), nz(_mm256_set1_pd(normal.z)), ex(_mm256_set1_pd(-emitter.x)), ey(_mm256_set1_pd(-emitter.y)),
+          ez(_mm256_set1_pd(-emitter.z)), tiny(_mm256_set1_pd(1e-300)), one(_mm256_set1_pd(1.0)), zero(_mm256_setzero_pd()) {}
+    __attribute__((target("avx2"))) __m256d at(const double* x, const double* y, const double* z) const {
+        const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(x), px), dy = _mm256_sub_pd(_mm256_loadu_pd(y), py),
+                      dz = _mm256_sub_pd(_mm256_loadu_pd(z), pz);
         const __m256d d2 = _mm256_max_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz)), tiny);
         const __m256d inv = _mm256_div_pd(one, _mm256_sqrt_pd(d2));
         const __m256d dn = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(nx, dx), _mm256_mul_pd(ny, dy)), _mm256_mul_pd(nz, dz));
         // -(e . d) as (-e.x) dx + (-e.y) dy + (-e.z) dz: negation commutes with rounding.
         const __m256d de = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(ex, dx), _mm256_mul_pd(ey, dy)), _mm256_mul_pd(ez, dz));
         const __m256d cr = _mm256_max_pd(_mm256_mul_pd(dn, inv), zero), ce = _mm256_max_pd(_mm256_mul_pd(de, inv), zero);
-        const __m256d term = _mm256_div_pd(_mm256_mul_pd(cr, ce), d2);
+        return _mm256_div_pd(_mm256_mul_pd(cr, ce), d2);
+    }
+};
+
+__attribute__((target("avx2"))) double sampleSumAvx2(const double* x, const double* y, const double* z, size_t n, glm::dvec3 p,
+                                                     glm::dvec3 normal, glm::dvec3 emitter, const uint64_t* visible) {
+    const SampleTermsAvx2 terms(p, normal, emitter);
+    const __m256d zero = terms.zero;
+    const __m256i laneBits = _mm256_setr_epi64x(1, 2, 4, 8);
+    __m256d acc = zero;
+    size_t j = 0;
+    for (; j + 4 <= n; j += 4) {
+        const uint64_t nibble = visible ? visible[j >> 6] >> (j & 63) & 15u : 15u;  // j % 4 == 0: within one word
+        if (!nibble) continue;  // a receiver in shadow skips its hidden samples four at a time
+        const __m256d term = terms.at(x + j, y + j, z + j);
         const __m256i shown = _mm256_cmpeq_epi64(_mm256_and_si256(_mm256_set1_epi64x(int64_t(nibble)), laneBits), laneBits);
         acc = _mm256_add_pd(acc, _mm256_and_pd(term, _mm256_castsi256_pd(shown)));
     }
@@ -122,6 +133,47 @@ double sampleSum(const double* x, const double* y, const double* z, size_t n, gl
                  const uint64_t* visible = nullptr) {
     static const bool avx2 = __builtin_cpu_supports("avx2");
     return avx2 ? sampleSumAvx2(x, y, z, n, p, normal, emitter, visible) : sampleSumScalar(x, y, z, n, p, normal, emitter, visible);
+}
+
+/// Adds @p term, tinted by the transmittance of optical depths @p d, to @p sum; @p last and
+/// @p lastT keep the last depths' transmittance (neighbouring samples cross the same panes).
+inline void addTinted(glm::dvec3& sum, double term, const uint32_t* d, uint32_t* last, glm::dvec3& lastT) {
+    if (!std::equal(d, d + 3, last)) lastT = transmittance(d), std::copy(d, d + 3, last);
+    sum += lastT * term;
+}
+
+/// Σ T_j term_j over the visible samples [0, n), in sample order: sampleSum()'s terms, each tinted
+/// by its sample's transmittance (@p depth: 3 depths per sample). The AVX2 path computes the terms
+/// four at a time with sampleTerm()'s bits and adds them in the same order, so both agree.
+glm::dvec3 tintedSampleSumScalar(const double* x, const double* y, const double* z, size_t n, glm::dvec3 p, glm::dvec3 normal,
+                                 glm::dvec3 emitter, const uint64_t* visible, const uint32_t* depth) {
+    glm::dvec3 sum(0.0), lastT(1.0);
+    uint32_t last[3] = {0, 0, 0};
+    for (size_t j = 0; j < n; ++j)
+        if (isVisible(visible, j)) addTinted(sum, sampleTerm(x[j], y[j], z[j], p, normal, emitter), depth + 3 * j, last, lastT);
+    return sum;
+}
+
+__attribute__((target("avx2"))) glm::dvec3 tintedSampleSumAvx2(const double* x, const double* y, const double* z, size_t n,
+                                                               glm::dvec3 p, glm::dvec3 normal, glm::dvec3 emitter,
+                                                               const uint64_t* visible, const uint32_t* depth) {
+    const SampleTermsAvx2 terms(p, normal, emitter);
+    glm::dvec3 sum(0.0), lastT(1.0);
+    uint32_t last[3] = {0, 0, 0};
+    alignas(32) double lanes[4];
+    size_t j = 0;
+    for (; j + 4 <= n; j += 4) {
+        uint64_t nibble = visible[j >> 6] >> (j & 63) & 15u;  // j % 4 == 0: within one word
+        if (!nibble) continue;
+        _mm256_store_pd(lanes, terms.at(x + j, y + j, z + j));
+        for (; nibble; nibble &= nibble - 1) {
+            const int i = std::countr_zero(nibble);
+            addTinted(sum, lanes[i], depth + 3 * (j + size_t(i)), last, lastT);
+        }
+    }
+    for (; j < n; ++j)
+        if (isVisible(visible, j)) addTinted(sum, sampleTerm(x[j], y[j], z[j], p, normal, emitter), depth + 3 * j, last, lastT);
+    return sum;
 }
 
 /// atan2(@p y, @p x) for y >= 0 (an angle in [0, pi]) within 3e-8 rad: Abramowitz & Stegun
@@ -182,9 +234,9 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
     blocked = 0;
     const uint32_t g0 = samples_.lightFirstGroup[li], g1 = samples_.lightFirstGroup[li + 1];
     auto blockedWord = [&](uint32_t k) { return fullUmbra ? samples_.groups[k].fullMask() : (groupWords ? groupWords[k] : 0); };
-    // Opaque blockers (the common case): the visible samples' terms summed four at a time, the
+    // A planar emitter (the common case): the visible samples' terms computed four at a time, the
     // light's weight applied once.
-    if (!depth && sumsInLanes(light, n) && size_t(light.samples) <= kMaxMaskedSamples) {
+    if (sumsInLanes(light, n) && size_t(light.samples) <= kMaxMaskedSamples) {
         uint64_t visible[kMaxMaskedSamples / 64 + 1];
         std::fill_n(visible, size_t(light.samples + 63) / 64 + 1, 0);  // a group may straddle into the last word
         const uint32_t lightFirst = samples_.groups[g0].first;
@@ -199,7 +251,9 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
             visible[at >> 6] |= shown << shift;
             if (shift && g.count > 64 - shift) visible[(at >> 6) + 1] |= shown >> (64 - shift);
         }
-        return anyShown ? light.weight * lightSampleSum(r, li, visible) : glm::dvec3(0.0);
+        if (!anyShown) return glm::dvec3(0.0);
+        // Through translucent blockers each term takes its sample's transmittance (in sample order).
+        return depth ? light.weight * lightTintedSum(r, li, visible, depth) : light.weight * lightSampleSum(r, li, visible);
     }
     glm::dvec3 e(0.0);
     const bool planar = light.planar();
@@ -242,19 +296,31 @@ bool ReceiverShader::sumsInLanes(const PerLight& light, const glm::dvec3& n) {
     return !light.sun && light.planar() && n != glm::dvec3(0.0);
 }
 
-double ReceiverShader::lightSampleSum(uint32_t r, int li, const uint64_t* visible) const {
+const double* ReceiverShader::lightSamplesX(uint32_t r, int li) const {
     std::call_once(soaOnce_, [&] {
         const size_t n = samples_.positions.size();
         soa_.resize(3 * n);
         for (size_t i = 0; i < n; ++i)
             for (int c = 0; c < 3; ++c) soa_[c * n + i] = samples_.positions[i][c];
     });
-    const PerLight& light = lights_[li];
+    return soa_.data() + size_t(sets_[r]) * samples_.sampleCount + samples_.groups[samples_.lightFirstGroup[li]].first;
+}
+
+double ReceiverShader::lightSampleSum(uint32_t r, int li, const uint64_t* visible) const {
+    const double* x = lightSamplesX(r, li);
     const size_t total = samples_.positions.size();
-    const size_t first = size_t(sets_[r]) * samples_.sampleCount + samples_.groups[samples_.lightFirstGroup[li]].first;
-    const double* x = soa_.data() + first;
-    return sampleSum(x, x + total, x + 2 * total, size_t(light.samples), glm::dvec3(receivers_.position[r]),
-                     glm::dvec3(receivers_.normal[r]), light.normal, visible);
+    return sampleSum(x, x + total, x + 2 * total, size_t(lights_[li].samples), glm::dvec3(receivers_.position[r]),
+                     glm::dvec3(receivers_.normal[r]), lights_[li].normal, visible);
+}
+
+glm::dvec3 ReceiverShader::lightTintedSum(uint32_t r, int li, const uint64_t* visible, const uint32_t* depth) const {
+    static const bool avx2 = __builtin_cpu_supports("avx2");
+    const double* x = lightSamplesX(r, li);
+    const size_t total = samples_.positions.size(), n = size_t(lights_[li].samples);
+    const glm::dvec3 p(receivers_.position[r]), normal(receivers_.normal[r]);
+    const uint32_t* lightDepth = depth + 3 * size_t(samples_.groups[samples_.lightFirstGroup[li]].first);
+    return avx2 ? tintedSampleSumAvx2(x, x + total, x + 2 * total, n, p, normal, lights_[li].normal, visible, lightDepth)
+                : tintedSampleSumScalar(x, x + total, x + 2 * total, n, p, normal, lights_[li].normal, visible, lightDepth);
 }
 
 glm::dvec3 ReceiverShader::unoccludedIrradiance(uint32_t r, int li) const {

@@ -108,6 +108,11 @@ private:
     /// Light @p li's terms at receiver @p r without its weight, over the samples set in
     /// @p visible (bit j: the light's sample j; null: all), four at a time.
     double lightSampleSum(uint32_t r, int li, const uint64_t* visible) const;
+    /// The same with each term times its sample's transmittance (@p depth: 3 per sample, all
+    /// lights' samples), summed in sample order.
+    glm::dvec3 lightTintedSum(uint32_t r, int li, const uint64_t* visible, const uint32_t* depth) const;
+    /// Light @p li's sample x coordinates in receiver @p r's set (y and z follow, a set apart).
+    const double* lightSamplesX(uint32_t r, int li) const;
     /// The samples as three arrays of double per set (x, then y, then z), made on first use.
     mutable std::vector<double> soa_;
     mutable std::once_flag soaOnce_;
