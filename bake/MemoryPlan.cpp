@@ -84,6 +84,10 @@ MemoryPlan planMemory(const MemoryDemand& d, uint64_t budget, const std::string&
     while (plan.subTilesPerThread > 1 && fixedOf(plan.subTilesPerThread) > room / 2) plan.subTilesPerThread /= 2;
     const uint64_t perTile = (room - std::min(room, fixedOf(plan.subTilesPerThread))) / plan.perReceiverBytes;
     plan.tiles = int(std::max<uint64_t>(1, (cast + perTile - 1) / std::max<uint64_t>(perTile, 1)));
+    // The refinement's receivers come later, into what is spare now: leave it to them.
+    const uint64_t castPeak = fixedOf(plan.subTilesPerThread) + (cast + uint64_t(plan.tiles) - 1) / uint64_t(plan.tiles) * plan.perReceiverBytes;
+    if (d.refinement.addedReceivers == 0 && room > castPeak && budget > outputPhase)
+        plan.spareBytes = std::min(room - castPeak, budget - outputPhase);
     return plan;
 }
 

@@ -73,6 +73,9 @@ struct MemoryPlan {
     /// when their fixed bytes (MemoryDemand::subTileBytes) would take more than half the room.
     int subTilesPerThread = 4;
     uint64_t minimumBudget = 0;    ///< the smallest budget that works (one smallest tile)
+    /// What a budget leaves beyond the plan's peak while casting and writing (0 without one):
+    /// room for caches that speed the cast up but need not be planned (the translucent pass's).
+    uint64_t spareBytes = 0;
 };
 
 /// @brief Sub-tiles alive at once while a memory tile is cast with @p perThread per thread: one
@@ -84,7 +87,8 @@ uint64_t keptMaskBytes(const MemoryDemand& d);
 
 /// Bytes the process needs before any bake data (code, libraries, thread stacks, allocator). A
 /// small bake peaks at 15-17 MiB in all, so the baseline also holds the few fixed buffers no
-/// phase names, such as the scan's closed-solid check (kSolidCheckBytes, 6.25 MiB at most).
+/// phase names, such as the scan's closed-solid check (kSolidCheckBytes, 6.25 MiB at most) and,
+/// in a bake without a budget, the translucent pass's cached blocks (8 MiB at most).
 inline constexpr uint64_t kBaselineBytes = 48ull << 20;
 /// A tile is never cut smaller than this many receivers.
 inline constexpr uint64_t kMinimumTileReceivers = 4096;

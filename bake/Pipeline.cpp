@@ -48,7 +48,7 @@ namespace {
 /// pass instead, a budget that the first refusal named was refused again, with a larger number.
 uint64_t translucentBytes(uint64_t triangles, int threads, const LightSamples& samples) {
     if (triangles == 0) return 0;
-    return triangles * sizeof(Triangle) + TranslucentBlockers::bytesFor(triangles, samples) +
+    return triangles * sizeof(Triangle) + TranslucentBlockers::bytesFor(triangles, samples, 0) +
            uint64_t(threads) * uint64_t(samples.sampleCount) * 3 * sizeof(uint32_t);
 }
 
@@ -194,7 +194,13 @@ void makeCaster(Bake& b) {
 const TranslucentBlockers* translucentBlockers(Bake& b) {
     std::call_once(b.translucentOnce, [&b] {
         const char* partialFiles = !b.sharded ? nullptr : b.settings.shard.count ? "--shard" : "--checkpoint";
-        b.translucent = translucentPass(*b.opaqueView, b.p.samples, b.method.name, b.method.traits, partialFiles, b.p.options.simd);
+        // The blocks built once speed the pass up (3x on examples/glass.json) but are not needed:
+        // under a budget they take only what the plan leaves spare, so that they never change
+        // what a budget admits (the translucent triangles are counted only after the scan: blocks
+        // in the plan would make a budget that the first refusal named fail a second time).
+        const uint64_t cacheBytes = std::min(TranslucentBlockers::kCachedBlockBytes, b.budget.bytes == 0 ? UINT64_MAX : b.plan.spareBytes);
+        b.translucent = translucentPass(*b.opaqueView, b.p.samples, b.method.name, b.method.traits, partialFiles, b.p.options.simd,
+                                        cacheBytes);
     });
     return b.translucent.get();
 }

@@ -381,6 +381,7 @@ TriangleSourcePtr openGeometry(const SceneDesc& scene, bool exporting) {
         if (!g.transform.isIdentity())
             source = std::make_unique<TransformedSource>(std::move(source), g.transform.matrix(),
                                                          fmt::format("{}: geometry[{}].transform", scene.file, i));
+        source = std::make_unique<FiniteSource>(std::move(source), fmt::format("{}: geometry[{}] ({})", scene.file, i, g.type));
         if (g.closed)
             source = std::make_unique<FlagSource>(std::move(source), *g.closed ? kTriangleClosed : 0u,
                                                   *g.closed ? 0u : kTriangleClosed | kTriangleSolidStart);

@@ -3,9 +3,13 @@
 #include "bake/kinds/ReceiverKind.h"
 #include "stream/AlphaImage.h"
 #include "stream/GeometryFile.h"
+#include "stream/GltfConvert.h"
+#include "stream/GltfDocument.h"
 #include "stream/util/Error.h"
 #include "bake/MemoryPlan.h"
 #include "stream/util/Memory.h"
+
+#include <fmt/ranges.h>
 
 #include <cmath>
 #include <filesystem>
@@ -142,6 +146,25 @@ const SceneOutlineTexture* sceneOutlineTexture(const SceneDesc& scene, size_t ge
     std::lock_guard lock(state.mutex);
     built(scene);
     return &*it;
+}
+
+void warnExportDrops(const SceneDesc& scene) {
+    for (size_t i = 0; i < scene.geometry.size(); ++i) {
+        const GeometryDesc& g = scene.geometry[i];
+        if (const std::string path = gltfPathOf(scene, g); !path.empty()) warnIfMaterialsDropped(path, loadGltfDocument(path), "generate");
+        std::vector<std::string> keys;
+        if (g.translucentId) keys.push_back("\"translucent\"");
+        if (g.maxDistance) keys.push_back("\"max_distance\"");
+        bool texture = false;
+        if (scene.gltfAlpha)
+            for (const SceneOutlineTexture& t : scene.gltfAlpha->textures) texture |= t.geometry == i;
+        if (texture) keys.push_back("its leaf or petal texture");
+        if (keys.empty()) continue;
+        printWarning("{}: {}: {} not written: generate writes triangles only, so these block as plain opaque ones{}; bake the scene "
+                     "to keep {}",
+                     scene.file, g.path, fmt::format("{}", fmt::join(keys, ", ")), texture ? " (cut-outs with the built-in outline)" : "",
+                     keys.size() > 1 ? "them" : "it");
+    }
 }
 
 }  // namespace penumbra

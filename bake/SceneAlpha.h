@@ -73,6 +73,12 @@ void checkSceneAlphaBudget(const SceneDesc& scene, uint64_t budgetBytes, const s
 /// @throw InputError "FILE: geometry[i].leaf_texture: ..." for a missing or undecodable image.
 const SceneOutlineTexture* sceneOutlineTexture(const SceneDesc& scene, size_t geometry);
 
+/// @brief Warns, per entry of @p scene, about what `generate` cannot write to a geometry file:
+/// a glTF's cut-out and blended materials (with their count), and the entry's "translucent",
+/// "max_distance" and "leaf_texture"/"petal_texture" keys. Such triangles block as opaque
+/// ones (or with the built-in outline) when the file is baked.
+void warnExportDrops(const SceneDesc& scene);
+
 /// @brief Step 2 (once per scene): decodes the textures and gives the triangles their ids.
 /// @return the ids of geometry entry @p geometry, or null when it has none.
 std::shared_ptr<const GltfAlphaIds> sceneAlphaIds(const SceneDesc& scene, size_t geometry);

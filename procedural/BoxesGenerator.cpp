@@ -101,6 +101,8 @@ ColonnadeParams parseColonnadeParams(const SourceRequest& request) {
     JsonParams j(request.params, request.file, request.path);
     ColonnadeParams p;
     p.center = j.vec3("center", p.center);
+    for (int a = 0; a < 3; ++a)  // the generators' common bound, where floats still hold the parts
+        if (!(std::abs(p.center[a]) <= 1e9)) fail(j.where("center"), "must be within +-1e9, got {}", p.center[a]);
     p.courtyard = j.vec2("courtyard", p.courtyard);
     p.gallery = j.number("gallery", p.gallery);
     if (const nlohmann::json* c = j.raw("columns")) {

@@ -92,6 +92,10 @@ GridParams parseGridParams(const SourceRequest& request) {
     j.finish();
     // Coordinates stay where floats can hold them (the generators' common bound, 1e9).
     if (!(p.size > 0 && p.size <= 1e9)) fail(j.where("size"), "must be in (0, 1e9], got {}", p.size);
+    for (int a = 0; a < 3; ++a)
+        if (!(std::abs(p.center[a]) <= 1e9)) fail(j.where("center"), "must be within +-1e9, got {}", p.center[a]);
+    // Multiplied by each level's index: a step beyond a turn means nothing and overflows.
+    if (!(std::abs(p.rotateStep) <= 360)) fail(j.where("rotate_step_deg"), "must be within +-360, got {}", p.rotateStep);
     for (auto [key, value] : {std::pair{"height", p.height}, {"spacing", p.spacing}, {"thickness", p.thickness}})
         if (!(std::abs(value) <= 1e9)) fail(j.where(key), "must be within +-1e9, got {}", value);
     if (!(std::abs(p.height) + p.levels * std::abs(p.spacing) <= 1e9))

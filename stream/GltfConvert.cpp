@@ -223,15 +223,15 @@ void addGltfMeshes(const std::string& path, GltfStreamWriter& out) {
 
 }  // namespace
 
-void warnIfMaterialsDropped(const std::string& path, const GltfDocument& doc) {
+void warnIfMaterialsDropped(const std::string& path, const GltfDocument& doc, const char* command) {
     uint64_t notOpaque = 0;
     for (const GltfMeshNode& placed : walkGltfScene(doc))
         notOpaque += meshTriangles(doc, placed.mesh).second * gltfInstancingOf(doc, placed.node).instances;
     if (notOpaque > 0)
         printWarning("{}: {} triangle(s) with cut-out or blended materials (alphaMode MASK or BLEND) are written as plain "
-                     "surfaces: convert carries geometry, not materials, so they will block as opaque ones; bake the "
-                     "original file to keep them",
-                     path, notOpaque);
+                     "surfaces: {} carries geometry, not materials, so they will block as opaque ones; bake the "
+                     "original to keep them",
+                     path, notOpaque, command);
 }
 
 void addMeshesOfFile(const std::string& path, GltfStreamWriter& out) {

@@ -29,8 +29,9 @@ struct GltfDocument;
 void addMeshesOfFile(const std::string& path, GltfStreamWriter& out);
 
 /// @brief Warns once, naming @p path, when the glTF @p doc draws triangles whose materials cut out
-/// or blend (alphaMode MASK or BLEND): `convert` writes geometry only, so they lose them.
-void warnIfMaterialsDropped(const std::string& path, const GltfDocument& doc);
+/// or blend (alphaMode MASK or BLEND): @p command (`convert`, `generate`) writes geometry only,
+/// so they lose them.
+void warnIfMaterialsDropped(const std::string& path, const GltfDocument& doc, const char* command = "convert");
 
 /// @brief The triangles of @p source, from its start, as one mesh named @p name.
 void addTrianglesOf(TriangleSource& source, GltfStreamWriter& out, std::string name,

@@ -1,5 +1,7 @@
 #include "stream/TriangleSource.h"
 
+#include "stream/util/Error.h"
+
 #include <algorithm>
 
 namespace penumbra {
@@ -8,6 +10,16 @@ size_t VectorSource::read(std::span<Triangle> out) {
     size_t n = std::min(out.size(), triangles_.size() - next_);
     std::copy_n(triangles_.begin() + static_cast<std::ptrdiff_t>(next_), n, out.begin());
     next_ += n;
+    return n;
+}
+
+size_t FiniteSource::read(std::span<Triangle> out) {
+    const size_t n = inner_->read(out);
+    for (size_t i = 0; i < n; ++i)
+        if (!isFinite(out[i]))
+            fail(where_, "triangle {} has a non-finite (NaN or infinite) vertex: the entry's numbers or its transform overflow float",
+                 position_ + i);
+    position_ += n;
     return n;
 }
 

@@ -118,6 +118,27 @@ private:
     size_t current_ = 0;
 };
 
+/// @brief Refuses NaN and infinite vertices as they stream by, naming @p where (a scene's entry)
+/// and the triangle's index in it: a generator's numbers or a transform can overflow float, and
+/// every writer (`generate` to .obj or .glb) and the bake must stop there, not write "inf".
+class FiniteSource final : public DecoratedSource {
+public:
+    FiniteSource(TriangleSourcePtr inner, std::string where) : DecoratedSource(std::move(inner)), where_(std::move(where)) {}
+    /// @throw InputError at the first triangle with a non-finite coordinate
+    size_t read(std::span<Triangle> out) override;
+    void rewind() override { inner_->rewind(), position_ = 0; }
+    uint64_t skip(uint64_t count) override {
+        const uint64_t n = inner_->skip(count);
+        position_ += n;
+        return n;
+    }
+    uint32_t part() const override { return inner_->part(); }
+
+private:
+    std::string where_;
+    uint64_t position_ = 0;
+};
+
 /// @brief Sets and clears bits of Triangle::flags on everything another source delivers (a scene
 /// entry's "closed": true or false). Marking a source closed also starts a solid at its first
 /// triangle (kTriangleSolidStart), so the entry is at least one solid of its own.

@@ -1,3 +1,4 @@
+#include "bake/SceneAlpha.h"
 #include "Generate.h"
 
 #include "bake/BakeMemory.h"
@@ -67,6 +68,7 @@ uint64_t generateOnce(const GenerateOptions& options) {
     const Stopwatch watch;
     SceneDesc scene = loadScene(options.scene);
     checkOutputAgainstInputs(scene, options.output);
+    warnExportDrops(scene);  // what a geometry file cannot hold, before the work
     TriangleSourcePtr source;
     {
         OpeningProgress opening(options.quiet);  // a large OBJ's check pass: [check mesh.obj]

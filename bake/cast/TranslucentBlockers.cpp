@@ -89,10 +89,10 @@ size_t TranslucentBlockers::bytes() const {
            cache_.size() * sizeof(HardShadowBlock);
 }
 
-uint64_t TranslucentBlockers::bytesFor(uint64_t triangles, const LightSamples& samples) {
+uint64_t TranslucentBlockers::bytesFor(uint64_t triangles, const LightSamples& samples, uint64_t cacheBytes) {
     size_t blocks = 0;
     for (const LightSampleGroup& g : samples.groups) blocks += (g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes;
-    const uint64_t cached = std::min(kCachedBlockBytes, triangles * uint64_t(samples.sets) * blocks * sizeof(HardShadowBlock));
+    const uint64_t cached = std::min(cacheBytes, triangles * uint64_t(samples.sets) * blocks * sizeof(HardShadowBlock));
     return triangles * (sizeof(BlockerTriangle) + sizeof(Sphere) + sizeof(OpticalDepth)) + samples.groups.size() * sizeof(Sphere) +
            cached;
 }
@@ -170,7 +170,7 @@ uint64_t OpaqueOnlySource::skip(uint64_t count) {
 
 std::unique_ptr<TranslucentBlockers> translucentPass(const OpaqueOnlySource& view, const LightSamples& samples,
                                                      const std::string& method, const CasterTraits& traits,
-                                                     const char* partialFiles, SimdLevel simd) {
+                                                     const char* partialFiles, SimdLevel simd, uint64_t cacheBytes) {
     if (!view.complete()) throw std::logic_error("--method " + method + " reported a receiver before reading every blocker");
     if (view.translucent().empty()) return nullptr;
     if (partialFiles)
@@ -179,7 +179,7 @@ std::unique_ptr<TranslucentBlockers> translucentPass(const OpaqueOnlySource& vie
     // A method without masks (penumbra-map) weighs every sample's transmittance as if no opaque
     // blocker stood in the way; its visible fraction then scales the tinted irradiance.
     if (traits.translucency) return nullptr;  // Embree's filter weighs them
-    return std::make_unique<TranslucentBlockers>(view.translucent(), samples, simd);
+    return std::make_unique<TranslucentBlockers>(view.translucent(), samples, simd, cacheBytes);
 }
 
 std::vector<uint64_t> samplesOutsideSubset(const LightSamples& samples, int perLight) {

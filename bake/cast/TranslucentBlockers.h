@@ -59,8 +59,8 @@ public:
     /// @brief Bytes held for the bake (the memory plan's part for translucency).
     size_t bytes() const;
     /// @brief Bytes held for @p triangles translucent triangles of @p samples, at most (before
-    /// they are read): their cast form and their cached blocks.
-    static uint64_t bytesFor(uint64_t triangles, const LightSamples& samples);
+    /// they are read): their cast form and up to @p cacheBytes of cached blocks.
+    static uint64_t bytesFor(uint64_t triangles, const LightSamples& samples, uint64_t cacheBytes);
 
     /// @brief Receiver @p r's per-sample depth: @p depth (sampleCount x 3, sample-major) gets, for
     /// each sample not set in @p groupWords, the saturating sum of the depths of the translucent
@@ -135,7 +135,8 @@ private:
 /// @throw std::logic_error when the method reported a receiver before reading every blocker
 std::unique_ptr<TranslucentBlockers> translucentPass(const OpaqueOnlySource& view, const LightSamples& samples,
                                                      const std::string& method, const CasterTraits& traits,
-                                                     const char* partialFiles, SimdLevel simd = SimdLevel::Auto);
+                                                     const char* partialFiles, SimdLevel simd = SimdLevel::Auto,
+                                                     uint64_t cacheBytes = TranslucentBlockers::kCachedBlockBytes);
 
 /// @brief A mask (one word per group, LightSampleGroup layout) with every sample set but
 /// @p perLight of each light's (or all it has), spread over the light by farthest-point
