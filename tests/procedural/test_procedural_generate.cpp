@@ -86,6 +86,58 @@ TEST_CASE("generate reports bad scenes and options in one clean line", "[procedu
     CHECK_FALSE(std::filesystem::exists(dir / "out.ptri"));
 }
 
+TEST_CASE("generate refuses vertices that overflow float in every format, naming the entry", "[procedural][cli]") {
+    // Seven nested scatters of scale 1e6 (every key in range) overflow float: bake and .ptri
+    // refused them, .obj and .glb were written with "inf" and exit 0.
+    ScratchDir dir("generate-overflow");
+    nlohmann::json inner = {{"type", "boxes"}, {"boxes", {{{0, 0, 0}, {1, 1, 1}}}}};
+    for (int i = 0; i < 7; ++i) inner = {{"type", "scatter"}, {"count", 1}, {"scale", 1e6}, {"source", inner}};
+    nlohmann::json s = nlohmann::json::parse(kScene);
+    s["geometry"] = nlohmann::json::array({{{"type", "grid"}, {"cells", 2}}, inner});
+    write(dir / "scene.json", s.dump());
+    for (const char* ext : {".obj", ".glb", ".gltf", ".ptri"}) {
+        INFO(ext);
+        RunResult r = runPenumbra("generate " + (dir / "scene.json") + " -q -o " + (dir / (std::string("out") + ext)));
+        CHECK(r.exitCode == 1);
+        CHECK(lineCount(r.err) == 1);
+        CHECK_THAT(r.err, Catch::Contains("scene.json: geometry[1] (scatter): triangle 0 has a non-finite"));
+        CHECK_FALSE(std::filesystem::exists(dir / (std::string("out") + ext)));
+    }
+    RunResult bake = runPenumbra("bake " + (dir / "scene.json") + " -q -o " + (dir / "out.exr"));
+    CHECK(bake.exitCode == 1);
+    CHECK_THAT(bake.err, Catch::Contains("geometry[1] (scatter)"));
+    // Keys that multiply or place without a bound of their own.
+    for (auto [key, value] : {std::pair{"center", nlohmann::json{1e30, 0, 0}}, {"rotate_step_deg", nlohmann::json(1e308)}}) {
+        s["geometry"] = nlohmann::json::array({{{"type", "grid"}, {key, value}}});
+        write(dir / "grid.json", s.dump());
+        RunResult r = runPenumbra("generate " + (dir / "grid.json") + " -q -o " + (dir / "grid.obj"));
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.err, Catch::Contains(std::string("grid.json: geometry[0].") + key + ": must be within"));
+    }
+    s["geometry"] = nlohmann::json::array({{{"type", "colonnade"}, {"center", {0, -2e9, 0}}}});
+    write(dir / "colonnade.json", s.dump());
+    CHECK_THAT(runPenumbra("generate " + (dir / "colonnade.json") + " -q -o " + (dir / "c.obj")).err,
+               Catch::Contains("colonnade.json: geometry[0].center: must be within +-1e9"));
+}
+
+TEST_CASE("generate warns about what a geometry file cannot hold", "[procedural][cli]") {
+    ScratchDir dir("generate-drops");
+    REQUIRE(runPenumbra("make-example gltf-tree -o " + (dir / "tree.glb")).exitCode == 0);
+    write(dir / "pane.obj", "v 0 1 0\nv 1 1 0\nv 0 1 1\nf 1 2 3\n");
+    nlohmann::json s = nlohmann::json::parse(kScene);
+    s["geometry"] = nlohmann::json::array({{{"type", "gltf"}, {"path", "tree.glb"}},
+                                           {{"type", "obj"}, {"path", "pane.obj"}, {"translucent", {{"color", {1, 0, 0}}, {"opacity", 0.5}}}},
+                                           {{"type", "obj"}, {"path", "pane.obj"}, {"max_distance", 2}}});
+    write(dir / "scene.json", s.dump());
+    RunResult r = runPenumbra("generate " + (dir / "scene.json") + " -o " + (dir / "out.ptri"));
+    INFO(r.err);
+    CHECK(r.exitCode == 0);
+    CHECK_THAT(r.err, Catch::Contains("tree.glb: 280 triangle(s) with cut-out or blended materials") &&
+                          Catch::Contains("generate carries geometry"));
+    CHECK_THAT(r.err, Catch::Contains("scene.json: geometry[1]: \"translucent\" not written"));
+    CHECK_THAT(r.err, Catch::Contains("scene.json: geometry[2]: \"max_distance\" not written"));
+}
+
 TEST_CASE("generate under an address-space limit names one that works before building anything", "[procedural][cli][memory]") {
     // A forest's variants are built on the first read: generating failed with a bare "out of
     // memory" at every limit, even one far above what it then needed.
