@@ -278,7 +278,13 @@ void registerFileSourceTypes() {
     for (const char* type : {"obj", "gltf", "glb", "ptri", "file"})
         registerSourceType(type, [type = std::string(type)](const SourceRequest& r) {
             JsonParams j(r.params, r.file, r.path);
-            std::string path = resolveScenePath(r.baseDir, j.string("path"), j.where("path"));
+            const std::string given = j.string("path");
+            if (given.empty()) fail(j.where("path"), "must name a file, got \"\"");
+            std::string path = resolveScenePath(r.baseDir, given, j.where("path"));
+            // The key, for a file that is not there: with several entries (or nested scatters) a
+            // bare "rock.obj: cannot open" does not say which one names it.
+            std::error_code ec;
+            if (!std::filesystem::exists(path, ec)) fail(j.where("path"), "{}: no such file", path);
             const std::vector<std::string> parts = geometryParts(j);
             j.finish();
             if (type == "file" && geometryFormatOf(path) == GeometryFormat::Gltf)

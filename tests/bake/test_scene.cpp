@@ -119,6 +119,29 @@ TEST_CASE("a transform beyond float range is named by its key, and its vertices 
     }
 }
 
+TEST_CASE("a geometry file's path that is empty or names no file is an error naming its key", "[scene]") {
+    registerFileSourceTypes();
+    registerProceduralGenerators();
+    const std::filesystem::path dir = std::filesystem::temp_directory_path() / "penumbra-scene-path";
+    std::filesystem::create_directories(dir);
+    json s = minimal();
+    s["geometry"].push_back({{"type", "scatter"}, {"count", 2}, {"source", {{"type", "obj"}, {"path", ""}}}});
+    for (const char* path : {"", "rock.obj"}) {
+        s["geometry"][1]["source"]["path"] = path;
+        const SceneDesc scene = parseScene(s, (dir / "scene.json").string());
+        INFO(path);
+        try {
+            openSceneGeometry(scene);
+            FAIL("no error");
+        } catch (const InputError& e) {
+            const std::string what = e.what();
+            CHECK_THAT(what, Catch::StartsWith((dir / "scene.json").string() + ": geometry[1].source.path: ") &&
+                                 Catch::Contains(*path ? "rock.obj: no such file" : "must name a file"));
+        }
+    }
+    std::filesystem::remove_all(dir);
+}
+
 TEST_CASE("a sun's radiance, like every light's, may be one number for grey", "[scene]") {
     json s = minimal();
     s["lights"][0] = {{"type", "sun"}, {"direction", {0, -1, 0}}, {"radiance", 20000}};
