@@ -58,7 +58,12 @@ BakeBudget fitAddressSpace(uint64_t memoryBudget, int& threads, bool quiet, int 
 void addSampleDemand(MemoryDemand& demand, const LightSamples& samples, const SceneDesc& scene) {
     demand.groups = samples.groupCount();
     demand.umbraWords = (demand.groups + 63) / 64;
-    demand.sampleBytes = samples.positions.size() * sizeof(glm::vec3);
+    const uint64_t positions = uint64_t(samples.sets) * uint64_t(samples.sampleCount);  // a layout holds none yet
+    demand.sampleBytes = positions * sizeof(glm::vec3);
+    // generateLightSamples(): the float positions (12), each light's points gathered as doubles
+    // for its bound (24), their 2D copies for the hull, passed by value, and its output (3 x 16),
+    // and the allocator's rounding; measured 105 MB for a million positions.
+    demand.sampleBuildBytes = positions * 104;
     demand.subTileBytes = TileCaster::fixedBytes(samples);
     if (scene.options.sampleTable)  // one copy per caster; casters (memory tiles) run one at a time
         for (uint32_t l = 0; l < uint32_t(samples.lightCount()); ++l)
@@ -82,7 +87,7 @@ MemoryDemand demandBeforeScan(const SceneDesc& scene, const ReceiverKind& kind, 
     d.sourceDuringCast = !scene.options.sortBlockers;
     if (const GltfAlphaState* state = alpha ? planSceneAlpha(scene) : nullptr)
         d.alphaBytes = state->tableBytes, d.alphaBuildBytes = state->buildBytes;
-    const LightSamples samples = generateLightSamples(scene.lights, scene.options.groupSize, scene.seed);
+    const LightSamples samples = lightSampleLayout(scene.lights, scene.options.groupSize);
     addSampleDemand(d, samples, scene);
     if (const std::optional<uint64_t> triangles = geometry.knownSize(); methodMemory && triangles)
         d.methodBytes = methodMemory(*triangles, d.receivers, samples, scene.bakeOptions);

@@ -18,8 +18,9 @@ std::string refusedBudgetText(uint64_t bytes) {
 }
 
 uint64_t scanPhaseBytes(const MemoryDemand& d) {
-    // The alpha table is built just before the scan reads anything: its build peak comes first.
-    return kBaselineBytes + d.alphaBytes + std::max(d.alphaBuildBytes, d.bufferBytes + d.scanBytes + d.sourceBytes);
+    // The alpha table is built and the samples generated just before the scan reads anything:
+    // their build peaks come first.
+    return kBaselineBytes + d.alphaBytes + std::max({d.alphaBuildBytes, d.sampleBuildBytes, d.bufferBytes + d.scanBytes + d.sourceBytes});
 }
 
 uint64_t keptMaskBytes(const MemoryDemand& d) {

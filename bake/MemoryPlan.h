@@ -38,6 +38,9 @@ struct MemoryDemand {
     int groups = 1;              ///< light-sample groups: mask words per receiver
     int umbraWords = 1;          ///< ceil(groups / 64)
     uint64_t sampleBytes = 0;    ///< light sample positions
+    /// Held while the samples are generated, before the scan reads anything: their positions and
+    /// the light bounds' copies of every set's points and their hull (about 100 bytes a position).
+    uint64_t sampleBuildBytes = 0;
     /// Masks are kept once cast (MaskKeeping): every receiver's, or with maskRows below receivers
     /// a by-receivers shard's share and a row index per receiver (VisibilityMasks).
     bool dumpMasks = false;

@@ -276,8 +276,72 @@ LightDesc sunDirectionDisk(const LightDesc& sun) {
     return d;
 }
 
-LightSamples generateLightSamples(const std::vector<LightDesc>& lights, int groupSize, uint64_t seed) {
+namespace {
+
+/// How light @p li's samples are laid out: its strata grid and their order, grouped into
+/// spatially compact ranges of at most @p groupSize (positions aside, all a plan needs).
+struct LightLayout {
+    LightDesc l;  ///< a sun as its disk of directions
+    bool directional = false, volumetric = false;
+    Frame frame;
+    std::vector<int> dims, order;
+    std::vector<std::pair<size_t, size_t>> ranges;
+
+    glm::ivec3 strataCoord(int s) const {
+        return glm::ivec3(s % dims[0], (s / dims[0]) % dims[1], volumetric ? s / (dims[0] * dims[1]) : 0);
+    }
+    glm::dvec3 canonical(glm::ivec3 c, glm::dvec3 jitter) const {
+        glm::dvec3 p((c.x + jitter.x) / dims[0], (c.y + jitter.y) / dims[1], 0.0);
+        if (volumetric) p.z = (c.z + jitter.z) / dims[2];
+        return p;
+    }
+};
+
+LightLayout layoutOf(const LightDesc& desc, int groupSize) {
+    validateLight(desc);
+    LightLayout out;
+    out.directional = desc.type == LightType::Sun;
+    out.l = out.directional ? sunDirectionDisk(desc) : desc;
+    out.volumetric = out.l.type == LightType::Sphere;
+    out.frame = out.volumetric ? Frame{} : planarFrame(out.l);
+    out.dims = gridDims(out.l.samples, out.volumetric ? 3 : 2);
+    std::vector<glm::dvec3> centers(out.l.samples);
+    for (int s = 0; s < out.l.samples; ++s) centers[s] = mapCanonical(out.l, out.frame, out.canonical(out.strataCoord(s), glm::dvec3(0.5)));
+    out.order.resize(out.l.samples);
+    std::iota(out.order.begin(), out.order.end(), 0);
+    groupStrata(out.order, centers, 0, out.order.size(), size_t(groupSize), out.ranges);
+    return out;
+}
+
+void checkGroupSize(int groupSize) {
     if (groupSize < 1 || groupSize > 64) throw InputError(fmt::format("group_size must be in 1..64, got {}", groupSize));
+}
+
+}  // namespace
+
+LightSamples lightSampleLayout(const std::vector<LightDesc>& lights, int groupSize) {
+    checkGroupSize(groupSize);
+    LightSamples out;
+    out.sets = 1;
+    for (const auto& l : lights) out.sets = std::max(out.sets, l.sampleSets), out.sampleCount += l.samples;
+    uint32_t firstSample = 0;
+    for (size_t li = 0; li < lights.size(); ++li) {
+        const LightLayout layout = layoutOf(lights[li], groupSize);
+        out.lightFirstGroup.push_back(uint32_t(out.groups.size()));
+        out.lightBounds.emplace_back().w = layout.directional ? 0.0 : 1.0;
+        for (auto [begin, end] : layout.ranges) {
+            LightSampleGroup g;
+            g.light = uint32_t(li), g.first = uint32_t(firstSample + begin), g.count = uint32_t(end - begin);
+            out.groups.push_back(std::move(g));
+        }
+        firstSample += uint32_t(layout.l.samples);
+    }
+    out.lightFirstGroup.push_back(uint32_t(out.groups.size()));
+    return out;
+}
+
+LightSamples generateLightSamples(const std::vector<LightDesc>& lights, int groupSize, uint64_t seed) {
+    checkGroupSize(groupSize);
     LightSamples out;
     out.sets = 1;
     for (const auto& l : lights) out.sets = std::max(out.sets, l.sampleSets), out.sampleCount += l.samples;
@@ -285,35 +349,18 @@ LightSamples generateLightSamples(const std::vector<LightDesc>& lights, int grou
 
     int firstSample = 0;
     for (size_t li = 0; li < lights.size(); ++li) {
-        validateLight(lights[li]);
-        const bool directional = lights[li].type == LightType::Sun;
-        const LightDesc l = directional ? sunDirectionDisk(lights[li]) : lights[li];
-        bool volumetric = l.type == LightType::Sphere;
-        Frame frame = volumetric ? Frame{} : planarFrame(l);
-        std::vector<int> dims = gridDims(l.samples, volumetric ? 3 : 2);
-        auto strataCoord = [&](int s) {
-            return glm::ivec3(s % dims[0], (s / dims[0]) % dims[1], volumetric ? s / (dims[0] * dims[1]) : 0);
-        };
-        auto canonical = [&](glm::ivec3 c, glm::dvec3 jitter) {
-            glm::dvec3 p((c.x + jitter.x) / dims[0], (c.y + jitter.y) / dims[1], 0.0);
-            if (volumetric) p.z = (c.z + jitter.z) / dims[2];
-            return p;
-        };
-        std::vector<glm::dvec3> centers(l.samples);
-        for (int s = 0; s < l.samples; ++s) centers[s] = mapCanonical(l, frame, canonical(strataCoord(s), glm::dvec3(0.5)));
-        std::vector<int> order(l.samples);
-        std::iota(order.begin(), order.end(), 0);
-        std::vector<std::pair<size_t, size_t>> ranges;
-        groupStrata(order, centers, 0, order.size(), size_t(groupSize), ranges);
-
+        const LightLayout layout = layoutOf(lights[li], groupSize);
+        const LightDesc& l = layout.l;
+        const bool directional = layout.directional, volumetric = layout.volumetric;
+        const Frame& frame = layout.frame;
         for (int set = 0; set < out.sets; ++set) {
             int ownSet = set % l.sampleSets;
             for (int k = 0; k < l.samples; ++k) {
-                int stratum = order[k];
+                int stratum = layout.order[k];
                 Rng rng(hashIndex(seed, li, ownSet, stratum));
                 glm::dvec3 jitter(rng.uniform(), rng.uniform(), rng.uniform());
                 out.positions[size_t(set) * out.sampleCount + firstSample + k] =
-                    glm::vec3(mapCanonical(l, frame, canonical(strataCoord(stratum), jitter)));
+                    glm::vec3(mapCanonical(l, frame, layout.canonical(layout.strataCoord(stratum), jitter)));
             }
         }
 
@@ -331,7 +378,7 @@ LightSamples generateLightSamples(const std::vector<LightDesc>& lights, int grou
         out.lightFirstGroup.push_back(uint32_t(out.groups.size()));
         out.lightBounds.push_back(bound(gather(0, l.samples), true));
         out.lightBounds.back().w = directional ? 0.0 : 1.0;
-        for (auto [begin, end] : ranges) {
+        for (auto [begin, end] : layout.ranges) {
             LightSampleGroup g;
             g.light = uint32_t(li);
             g.first = uint32_t(firstSample + begin);

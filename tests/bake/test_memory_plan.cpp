@@ -154,3 +154,25 @@ TEST_CASE("a refused budget never reads as the amount named as enough", "[memory
     CHECK(refusedBudgetText((103ull << 20) - 1) == "102.9 MiB");
     CHECK(refusedBudgetText(1024) == "1.00 KiB");
 }
+
+TEST_CASE("many sample sets are counted before they are generated", "[memory][cli]") {
+    // 65,536 samples x 64 sets: generating them takes about 420 MB (positions, the bound's copies
+    // of every set's points, its hull). Under 200M or an address space of 300 MB the refusal came
+    // only after that: 424 MB of RSS under a 200M budget, and "out of memory" naming 175 MiB
+    // under the cap. Now both are refused before, naming what the bake needs.
+    ScratchDir dir("many-sets");
+    std::ofstream(dir / "p.csv") << "0,0,0,0,1,0\n0.3,0,0.2,0,1,0\n";
+    std::ofstream(dir / "scene.json")
+        << R"({"geometry": [], "lights": [{"type": "rect", "center": [0, 1, 0], "u": [1, 0, 0], "v": [0, 0, 1],
+              "samples": 65536, "sample_sets": 64}], "receivers": {"type": "points", "path": "p.csv"}, "output": "v.npy"})";
+    for (const std::string& limit : {std::string("--memory-budget 200M"), std::string("")}) {
+        RunResult r = runPenumbra("bake " + (dir / "scene.json") + " -q --threads 1 " + limit, limit.empty() ? "prlimit --as=300000000" : "");
+        INFO(r.err);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.err, Catch::Contains("is too small for the passes before the receivers are counted") && !Catch::Contains("out of memory"));
+        const size_t at = r.err.find("at least ");
+        REQUIRE(at != std::string::npos);
+        CHECK(parseByteSize(r.err.substr(at + 9, r.err.find(' ', at + 9) - at - 9), "named") > (uint64_t(600) << 20));
+        CHECK_FALSE(std::filesystem::exists(dir / "v.npy"));
+    }
+}
