@@ -90,6 +90,7 @@ void addPrimitive(VertexFile& file, GltfPrimitiveReader& reader, const glm::dmat
     const size_t first = out.position.size();
     out.position.resize(first + n);
     out.normal.resize(first + n, glm::vec3(0.f));
+    size_t zeroNormals = 0;
     for (size_t v = 0; v < n; ++v) {
         glm::dvec3 x = world * glm::dvec4(glm::dvec3(reader.position(v)), 1.0);
         if (!std::isfinite(x.x) || !std::isfinite(x.y) || !std::isfinite(x.z))
@@ -98,22 +99,29 @@ void addPrimitive(VertexFile& file, GltfPrimitiveReader& reader, const glm::dmat
         if (normals) {
             glm::dvec3 nn = normalMatrix * glm::dvec3(glm::vec3(reader.attribute("NORMAL", 3, v)));
             double len = glm::length(nn);
-            // A zero normal means "no receiver cosine" (ReceiverShading), the honest fallback.
+            // A zero NORMAL (invalid glTF; a degenerate transform) takes its faces' normal, as a
+            // mesh without normals does: left at zero it would mean "no receiver cosine".
             if (len > 0 && std::isfinite(len)) out.normal[first + v] = glm::vec3(nn / len);
+            else ++zeroNormals;
         }
     }
     file.primitives.push_back({layout.mesh, layout.primitive, first, n, file.primitives.size()});
-    if (!normals) addFaceNormals(reader, out, first, mirrored, file.faceNormalSums[file.primitives.size() - 1] = std::vector<glm::dvec3>(n));
+    if (zeroNormals)
+        printWarning("{}: mesh {} primitive {}: {} vertex NORMAL(s) of zero length take their faces' normal", file.input,
+                     layout.mesh, layout.primitive, zeroNormals);
+    if (!normals || zeroNormals)
+        addFaceNormals(reader, out, first, mirrored, file.faceNormalSums[file.primitives.size() - 1] = std::vector<glm::dvec3>(n));
 }
 
-/// Normalizes the face-normal sums of the meshes without normals into their receivers' normals,
-/// once every primitive sharing their vertices has added its faces.
+/// Normalizes the face-normal sums of the meshes without normals (or with zero ones) into their
+/// receivers' normals where they have none, once every primitive sharing their vertices has
+/// added its faces.
 void finishNormals(VertexFile& file, ReceiverSet& out) {
     for (const auto& [owner, sum] : file.faceNormalSums) {
         const size_t first = file.primitives[owner].first;
         for (size_t v = 0; v < sum.size(); ++v) {
             const double len = glm::length(sum[v]);
-            if (len > 0 && std::isfinite(len)) out.normal[first + v] = glm::vec3(sum[v] / len);
+            if (out.normal[first + v] == glm::vec3(0.f) && len > 0 && std::isfinite(len)) out.normal[first + v] = glm::vec3(sum[v] / len);
         }
     }
     file.faceNormalSums.clear();
