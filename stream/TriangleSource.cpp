@@ -17,8 +17,8 @@ size_t FiniteSource::read(std::span<Triangle> out) {
     const size_t n = inner_->read(out);
     for (size_t i = 0; i < n; ++i)
         if (!isFinite(out[i]))
-            fail(where_, "triangle {} has a non-finite (NaN or infinite) vertex: the entry's numbers or its transform overflow float",
-                 position_ + i);
+            fail(where_, "triangle {} has a non-finite (NaN or infinite) vertex (in its data, or from a transform or scale "
+                 "that overflows float)", position_ + i);
     position_ += n;
     return n;
 }

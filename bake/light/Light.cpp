@@ -233,8 +233,8 @@ void validateLight(const LightDesc& l) {
             // disk or sphere of that size was always taken.
             if (const double area = glm::length(glm::cross(glm::dvec3(l.u), glm::dvec3(l.v)));
                 !(area > 0) || !(area > 1e-9 * glm::length(glm::dvec3(l.u)) * glm::length(glm::dvec3(l.v))))
-                fail(l.where, "zero-area light: u x v is zero (u=[{},{},{}], v=[{},{},{}])", l.u.x, l.u.y, l.u.z,
-                     l.v.x, l.v.y, l.v.z);
+                fail(l.where, "zero-area light: u and v are zero or parallel (|u x v| = {:.3g}, at most 1e-9 of |u| |v|; "
+                     "u=[{},{},{}], v=[{},{},{}])", area, l.u.x, l.u.y, l.u.z, l.v.x, l.v.y, l.v.z);
             break;
         case LightType::Sun:
             checkRange(l, "direction", l.direction, kMaxLightCoordinate);

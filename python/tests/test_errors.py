@@ -190,7 +190,7 @@ def test_a_one_shot_iterator_read_by_an_earlier_bake_is_an_error():
 def test_nan_vertex_raises_as_the_cli_does():
     bad = good()
     bad[0, 1, 2] = np.nan
-    with pytest.raises(penumbra.Error, match=r"<dict>: geometry triangle 1 has a non-finite \(NaN or infinite\) vertex"):
+    with pytest.raises(penumbra.Error, match=r"<dict>: geometry\[0\] \(python\): triangle 1 has a non-finite \(NaN or infinite\) vertex"):
         bake_chunks([good(), bad])
 
 
