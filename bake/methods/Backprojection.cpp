@@ -320,7 +320,10 @@ struct Backprojector {
     /// it faces the centre); the distance from the plane is linear across the light, so the
     /// corners decide at once, and the cells are touched only when some of the light is behind.
     void blockBehindPlane() {
-        const double c0 = glm::dot(view.ortho ? -view.axis : view.origin - r, n), cx = glm::dot(view.e1, n), cy = glm::dot(view.e2, n);
+        // A light point at image offset l lies at depth l . depthSlope along the axis.
+        const double along = glm::dot(view.axis, n);
+        const double c0 = glm::dot(view.ortho ? -view.axis : view.origin - r, n), cx = glm::dot(view.e1, n) + grid.depthSlope.x * along,
+                     cy = glm::dot(view.e2, n) + grid.depthSlope.y * along;
         const glm::dvec2 hi = grid.hi();
         if (c0 + std::min(grid.lo.x * cx, hi.x * cx) + std::min(grid.lo.y * cy, hi.y * cy) >= 0) return;  // all in front
         // The same sums as c0 + l.x cx + l.y cy at each cell centre l, with the column part shared.

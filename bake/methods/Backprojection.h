@@ -130,6 +130,10 @@ public:
     glm::dvec2 lo, cell;              ///< the grid's corner and cell size
     glm::dvec2 hi() const { return lo + double(kCells) * cell; }  ///< the opposite corner
     double radius = 0;                ///< the largest distance of the outline from the centre
+    /// A planar light seen obliquely: its depth along the view's axis per unit of image offset
+    /// (0 for lights without a plane and suns). The plane test uses the light's real points:
+    /// taken flat in the image plane, a receiver just in front of the light lost half of it.
+    glm::dvec2 depthSlope{0.0};
     /// The cells inside the outline, as j * kCells + i.
     const std::vector<uint16_t>& insideCells() const { return inside_; }
     /// Per row j, bit i: the cell inside the outline (a lookup's starting state).

@@ -245,6 +245,27 @@ void forEachChunk(TriangleSource& blockers, PenumbraMapStats& stats, const std::
     }
 }
 
+/// The depth along @p view's axis per unit of image offset of a light whose bound @p vertices
+/// lie in one plane through @p c (0 otherwise, or when the view sees that plane nearly edge-on).
+glm::dvec2 depthSlopeOf(const std::vector<glm::dvec3>& vertices, const glm::dvec3& c, const LightView& view) {
+    if (vertices.size() < 3) return glm::dvec2(0.0);
+    // The plane of the widest triangle of the vertices, from the first and the farthest from it.
+    const glm::dvec3& a = vertices[0];
+    glm::dvec3 b = a, normal(0.0);
+    for (const glm::dvec3& v : vertices)
+        if (glm::length(v - a) > glm::length(b - a)) b = v;
+    for (const glm::dvec3& v : vertices)
+        if (const glm::dvec3 n = glm::cross(b - a, v - a); glm::length(n) > glm::length(normal)) normal = n;
+    const double size = glm::length(b - a);
+    if (!(glm::length(normal) > 1e-12 * size * size)) return glm::dvec2(0.0);
+    normal = glm::normalize(normal);
+    for (const glm::dvec3& v : vertices)
+        if (std::abs(glm::dot(v - c, normal)) > 1e-6 * size) return glm::dvec2(0.0);  // not flat: a sphere
+    const double axis = glm::dot(view.axis, normal);
+    if (!(std::abs(axis) > 0.05)) return glm::dvec2(0.0);
+    return glm::dvec2(-glm::dot(view.e1, normal), -glm::dot(view.e2, normal)) / axis;
+}
+
 std::vector<ViewMaps> prepareViews(const LightSamples& samples, int li, const ReceiverPoints& receivers,
                                    const PenumbraMapOptions& options, double minimumExtent = 0, ShadowReach* reach = nullptr) {
     std::vector<ViewMaps> maps;
@@ -263,7 +284,10 @@ std::vector<ViewMaps> prepareViews(const LightSamples& samples, int li, const Re
                 m.outline.push_back({glm::dot(p - c, view.e1), glm::dot(p - c, view.e2)});
             }
         }
-        if (options.lookup == PenumbraMapOptions::Lookup::Backprojection) m.grid.emplace(m.outline);
+        if (options.lookup == PenumbraMapOptions::Lookup::Backprojection) {
+            m.grid.emplace(m.outline);
+            if (!bound.directional()) m.grid->depthSlope = depthSlopeOf(bound.vertices, c, view);
+        }
         maps.push_back(std::move(m));
     }
     return maps;

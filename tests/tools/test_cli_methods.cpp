@@ -256,3 +256,26 @@ TEST_CASE("bench methods: SIGTERM or SIGINT stops the child bake too, and leaves
         CHECK_FALSE(processMentions((dir / "tmp").c_str()));
     }
 }
+
+TEST_CASE("penumbra-map: receivers just in front of a light see all of it when nothing is in the way", "[penumbra-map][cli]") {
+    // A 1 x 1 light at height 1 facing down, no geometry, receivers 1e-4 to 1 below the light's
+    // centre and one beside it. The view's axis leans towards the receivers' mean direction, and
+    // the light was taken flat in the view's image plane: its near half fell behind the
+    // receivers' planes (V 0.5 at 1e-4 below, 0.79 at 0.1). The light's own plane now decides.
+    ScratchDir dir("pm-near-light");
+    std::ofstream(dir / "near.csv") << "x,y,z,nx,ny,nz\n0,0.9999,0,0,1,0\n0,0.99,0,0,1,0\n0,0.9,0,0,1,0\n0,0.8,0,0,1,0\n"
+                                       "0,0.5,0,0,1,0\n0,0,0,0,1,0\n0.4,0.9,0,0,1,0\n";
+    std::ofstream(dir / "near.json") << R"({"geometry": [], "lights": [{"type": "rect", "center": [0, 1, 0], "u": [1, 0, 0],
+        "v": [0, 0, 1], "samples": 256}], "receivers": {"type": "points", "path": "near.csv"}, "output": "v.npy"})";
+    RunResult r = runPenumbra("bake " + (dir / "near.json") + " -q --threads 1 --method penumbra-map");
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    const NpyArray v = readNpy(dir / "v.npy");
+    REQUIRE(v.shape.size() >= 1);
+    REQUIRE(v.shape[0] == 7);
+    const float* values = reinterpret_cast<const float*>(v.data.data());
+    for (int i = 0; i < 7; ++i) {
+        INFO("receiver " << i);
+        CHECK(values[i] == 1.0f);
+    }
+}
