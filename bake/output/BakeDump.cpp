@@ -126,6 +126,12 @@ void BakeDumpReader::next(uint64_t rows, std::vector<DumpReceiver>& receivers, s
         if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
             fail(path("receivers.npy"), "receiver {}: position is not finite", rowsRead_ + i);
         receivers[i] = {{p[0], p[1], p[2]}, {p[3], p[4], p[5]}, uint32_t(set)};
+        // Bits past the last sample name samples that do not exist (a compare would report them,
+        // and classify them from beyond samples.npy).
+        const uint64_t words = maskWords(), used = samplesPerSet_ - 64 * (words - 1);
+        if (const uint64_t last = masks[size_t(i * words + words - 1)]; used < 64 && (last >> used) != 0)
+            fail(path("masks.npy"), "receiver {}: bits set above its {} samples (last word 0x{:016x})", rowsRead_ + i,
+                 samplesPerSet_, last);
     }
     rowsRead_ += rows;
 }

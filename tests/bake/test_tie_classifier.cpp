@@ -177,3 +177,27 @@ TEST_CASE("compare reports every planted flip in a real dump as a real mismatch,
             CHECK_THAT(r.out, Catch::Contains("mismatch receiver") && Catch::Contains("real:"));
         }
 }
+
+TEST_CASE("compare refuses a mask file with bits above the dump's samples", "[tie][cli]") {
+    // A 65-sample light: the second word of each row holds one sample. A bit above it named a
+    // sample that does not exist, and with --scene was classified from beyond samples.npy.
+    ScratchDir dir("ties-padding");
+    const nlohmann::json s = {{"geometry", {{{"type", "grid"}, {"size", 2}, {"cells", 4}, {"levels", 1}, {"floor_size", 5}}}},
+                              {"lights", {{{"type", "rect"}, {"center", {0, 3, 0}}, {"u", {1, 0, 0}}, {"v", {0, 0, 1}}, {"samples", 65}}}},
+                              {"receivers", {{"type", "camera"}, {"eye", {0, 3, 3.5}}, {"target", {0, 0, 0}}, {"width", 16}, {"height", 12}}},
+                              {"output", "s.exr"}};
+    std::ofstream(dir / "s.json") << s.dump();
+    bakeDump(dir, "s.json", "a");
+    std::filesystem::copy(dir / "a", dir / "b");
+    NpyArray masks = readNpy(dir / "a/masks.npy");
+    REQUIRE(masks.shape[1] == 2);
+    reinterpret_cast<uint64_t*>(masks.data.data())[5 * 2 + 1] |= 1ull << 40;  // receiver 5, "sample 104"
+    std::filesystem::remove(dir / "b/masks.npy");
+    writeNpy(dir / "b/masks.npy", masks);
+    for (const std::string& scene : {std::string(), " --scene " + (dir / "s.json")}) {
+        RunResult r = runPenumbra("compare " + (dir / "a") + " " + (dir / "b") + scene);
+        INFO(r.out << r.err);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.err, Catch::Contains("b/masks.npy: receiver 5: bits set above its 65 samples"));
+    }
+}
