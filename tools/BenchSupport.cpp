@@ -304,6 +304,19 @@ void anchorPaths(json& j, const fs::path& sourceDir) {
 }
 }  // namespace
 
+json benchCameraScene(const std::string& examplesDir, const std::string& name) {
+    json scene = benchScene(examplesDir, name);
+    const json* receivers = scene.contains("receivers") ? &scene["receivers"] : nullptr;
+    const std::string type = receivers && receivers->is_object() && receivers->contains("type") && (*receivers)["type"].is_string()
+                                 ? (*receivers)["type"].get<std::string>()
+                                 : "?";
+    // The benches set the camera's size; any other kind's bake would fail on "width", every row.
+    if (type != "camera")
+        fail("--scenes", "{}: the bench sets a camera's image size, and this scene's receivers are \"{}\"",
+             benchSceneFile(examplesDir, name).string(), type);
+    return scene;
+}
+
 json benchScene(const std::string& examplesDir, const std::string& name) {
     const fs::path file = benchSceneFile(examplesDir, name);
     json scene = readJsonFile(file.string());

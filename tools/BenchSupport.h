@@ -104,6 +104,10 @@ nlohmann::json resizedScene(nlohmann::json scene, int width, int height, int sam
 /// children bake and compare those copies with --allow-outside-uris (bakeChild(), compareDumps()).
 nlohmann::json benchScene(const std::string& examplesDir, const std::string& name);
 
+/// @brief benchScene() for the benches that resize a camera (table2, methods).
+/// @throw InputError naming the scene file when its receivers are not a camera.
+nlohmann::json benchCameraScene(const std::string& examplesDir, const std::string& name);
+
 /// @brief `penumbra compare @p a @p b --scene @p scene` in a child process, run in @p dir.
 ChildResult compareDumps(const std::filesystem::path& a, const std::filesystem::path& b, const std::filesystem::path& scene,
                          const std::filesystem::path& dir);

@@ -4,6 +4,7 @@
 
 #include "bake/cast/Caster.h"
 #include "stream/util/Error.h"
+#include "stream/util/InputFile.h"
 #include "stream/util/JsonParams.h"
 #include "stream/util/Memory.h"
 #include "stream/util/Npy.h"
@@ -226,6 +227,7 @@ void runBenchMethods(const BenchMethodsOptions& given, const std::string& comman
     checkDistinctFiles({{"--render", o.renderPath}, {"--json", o.jsonPath}, {"--markdown", o.markdownPath}});
     if (!o.renderPath.empty()) {
         json result;
+        checkInputFile(o.renderPath);  // "cannot open", not a parse error of nothing
         try {
             result = json::parse(slurpFile(o.renderPath));
             writeMethodsMarkdown(result, o.markdownPath);
@@ -247,7 +249,7 @@ void runBenchMethods(const BenchMethodsOptions& given, const std::string& comman
     std::vector<std::pair<int, int>> sizes;
     for (const std::string& s : o.sizes) sizes.push_back(parseSize(s));
     std::vector<std::pair<std::string, json>> scenes;
-    for (const std::string& name : o.scenes) scenes.emplace_back(sceneName(name), benchScene(o.examplesDir, name));
+    for (const std::string& name : o.scenes) scenes.emplace_back(sceneName(name), benchCameraScene(o.examplesDir, name));
     const bool hh = std::find(o.methods.begin(), o.methods.end(), "hh") != o.methods.end();
     std::vector<std::string> cameraMethods;
     for (const std::string& m : o.methods)

@@ -356,7 +356,7 @@ void runBenchTable(const BenchTableOptions& o, const std::string& commandLine) {
     checkDistinctFiles({{"--json", o.jsonPath}, {"--markdown", o.markdownPath}});
     const std::vector<RowSpec> rows = checkedRows(o);
     std::vector<std::pair<std::string, json>> scenes;
-    for (const std::string& name : o.scenes) scenes.emplace_back(sceneName(name), benchScene(o.examplesDir, name));
+    for (const std::string& name : o.scenes) scenes.emplace_back(sceneName(name), benchCameraScene(o.examplesDir, name));
 
     const std::vector<int> threadList = o.threads.empty() ? std::vector<int>{0} : o.threads;
     const int tableThreads = threadList.back() > 0 ? threadList.back() : int(tbb::info::default_concurrency());

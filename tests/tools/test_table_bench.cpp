@@ -127,4 +127,16 @@ TEST_CASE("bench table2 rejects unknown rows and scenes with one-line errors", "
     r = runPenumbra("bench table2 --scenes nowhere --examples /nonexistent");
     CHECK(r.exitCode == 1);
     CHECK_THAT(r.err, Catch::Contains("no scene file"));
+    // A scene whose receivers are not a camera: every row's bake failed on "width", exit 0.
+    const std::string volume = std::string(PENUMBRA_SOURCE_DIR) + "/examples/volume.json";
+    for (const char* bench : {"table2", "methods"}) {
+        r = runPenumbra(std::string("bench ") + bench + " -q --scenes " + volume);
+        INFO(r.err);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.err, Catch::Contains("--scenes: " + volume + ": the bench sets a camera's image size") &&
+                              Catch::Contains("\"volume\""));
+    }
+    r = runPenumbra("bench methods --render /nonexistent/r.json");
+    CHECK(r.exitCode == 1);
+    CHECK_THAT(r.err, Catch::Contains("/nonexistent/r.json: cannot open"));
 }
