@@ -1,5 +1,6 @@
 #include "python/BakeRun.h"
 
+#include "bake/BakeOutputs.h"
 #include "bake/LibraryErrors.h"
 #include "bake/Pipeline.h"
 #include "bake/cast/Caster.h"
@@ -267,6 +268,8 @@ void PyResult::write(const std::string& path) const {
     // On a thread of its own, as a bake: Ctrl-C stops a camera's write between strips, and no
     // file is left (a 10 s EXR write ran to its end, then raised).
     InsideSource::refuse("Result.write()");
+    // As the CLI's -o: never over a file the bake read (a points file, the glTF a vertices bake copies).
+    translateErrors([&] { checkOutputAgainstInputs(desc, path); });
     runInterruptibly([&] { writeCapturedOutputs(desc, *capture, path); }, py::none());
 }
 

@@ -370,3 +370,22 @@ def test_threads_in_sources_and_callbacks_do_not_deadlock():
         w.join(timeout=300)
     assert not any(w.is_alive() for w in workers)
     assert len(results) == 2 and results[0] == results[1] > 0
+
+
+def test_write_refuses_a_file_the_bake_read(tmp_path):
+    # Result.write() over the points file (or the glTF a vertices bake copies) replaced it; the
+    # CLI's -o refuses, and so does write() now, leaving the file as it was.
+    points = tmp_path / "pts.npy"
+    np.save(points, np.array([[0, 0, 0, 0, 1, 0], [0.5, 0, 0, 0, 1, 0]], np.float32))
+    before = points.read_bytes()
+    scene = penumbra.Scene({
+        "geometry": [{"type": "grid", "cells": 2, "levels": 1}],
+        "lights": [{"type": "rect", "center": [0, 4, 0], "u": [1, 0, 0], "v": [0, 0, 1], "samples": 16}],
+        "receivers": {"type": "points", "path": "pts.npy"},
+    }, base_dir=str(tmp_path))
+    result = penumbra.bake(scene, threads=1)
+    with pytest.raises(penumbra.Error, match=r"pts\.npy: is also an input of this bake"):
+        result.write(str(points))
+    assert points.read_bytes() == before
+    result.write(str(tmp_path / "v.npy"))
+    assert np.load(tmp_path / "v.npy").shape == (2,)
