@@ -14,6 +14,7 @@
 
 #include <pybind11/stl.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -33,7 +34,7 @@ PyObject* sceneErrorType = nullptr;  // penumbra.SceneError
 constexpr auto kPollInterval = std::chrono::milliseconds(100);
 /// One bake at a time per process: the cancel flag, the scratch directory and the thread limit
 /// are the process's. A second caller's bake waits (with the GIL released) for the first.
-std::mutex bakeMutex;
+std::timed_mutex bakeMutex;
 
 }  // namespace
 
@@ -285,11 +286,19 @@ void runInterruptibly(const std::function<void()>& work, const py::object& progr
     std::condition_variable finishedChanged;
     bool finished = false;
     std::exception_ptr error;
+    // A caller waits for another's bake to end: until its own starts, its callback and Ctrl-C
+    // are its own business, and cancel only its wait (they cancelled the other's bake).
+    std::atomic<bool> started{false}, abandoned{false};
     std::thread worker([&] {
         try {
-            std::lock_guard one(bakeMutex);
-            clearCancel();
-            work();
+            std::unique_lock one(bakeMutex, std::defer_lock);
+            while (!one.try_lock_for(std::chrono::milliseconds(20)))
+                if (abandoned) break;
+            if (one.owns_lock()) {
+                clearCancel();
+                started = true;
+                if (!abandoned) work();
+            }
         } catch (...) {
             error = std::current_exception();
         }
@@ -300,14 +309,21 @@ void runInterruptibly(const std::function<void()>& work, const py::object& progr
     // Whatever unwinds this frame (a daemon thread that finalization ends, in the callback or as
     // it takes the GIL back) stops the worker first: it uses this frame's locals, and a joinable
     // std::thread destroyed aborts the process.
+    // The order (abandoned, then started; the worker the other way) leaves no gap: a worker that
+    // missed the abandoning is seen as started, and its bake is cancelled.
+    auto cancelOwn = [&] {
+        abandoned = true;
+        if (started) requestCancel();
+    };
     struct StopOnUnwind {
         std::thread& worker;
+        const std::function<void()> cancel;
         ~StopOnUnwind() {
             if (!worker.joinable()) return;
-            requestCancel();
+            cancel();
             worker.join();
         }
-    } stopWorker{worker};
+    } stopWorker{worker, cancelOwn};
     // This thread keeps the GIL only to check for signals and to call the callback; a Python
     // source on the bake's reader thread takes it in between.
     std::optional<py::error_already_set> interrupted;
@@ -327,10 +343,10 @@ void runInterruptibly(const std::function<void()>& work, const py::object& progr
         if (interrupted) continue;
         try {
             if (PyErr_CheckSignals() != 0) throw py::error_already_set();
-            if (!progress.is_none()) reportProgress(progress);
+            if (!progress.is_none() && started) reportProgress(progress);  // not another caller's phase
         } catch (py::error_already_set& e) {  // Ctrl-C, or the callback raised: the work stops
             interrupted.emplace(std::move(e));
-            requestCancel();
+            cancelOwn();
         }
     }
     if (worker.joinable()) {

@@ -389,3 +389,29 @@ def test_write_refuses_a_file_the_bake_read(tmp_path):
     assert points.read_bytes() == before
     result.write(str(tmp_path / "v.npy"))
     assert np.load(tmp_path / "v.npy").shape == (2,)
+
+
+def test_a_waiting_caller_cancels_only_its_own_bake():
+    # While B waits for A's bake, B's callback was called with A's phase, and B's raising
+    # callback (or Ctrl-C in B) cancelled A's bake. Now B's callback starts with its own bake,
+    # after A's has ended, and raising there stops B's only.
+    done = {}
+
+    def run_a():
+        done["a"] = penumbra.bake(slow_scene(400), threads=1)
+        done["a_end"] = time.monotonic()
+
+    a = threading.Thread(target=run_a)
+    a.start()
+    time.sleep(0.3)  # A is baking
+    calls = []
+
+    def progress(phase, fraction, eta):
+        calls.append(time.monotonic())
+        raise RuntimeError("B gives up")
+
+    with pytest.raises(RuntimeError, match="B gives up"):
+        penumbra.bake(slow_scene(400), threads=1, progress=progress)
+    a.join()
+    assert "a" in done and done["a"].visibility.size > 0  # A was not cancelled
+    assert calls and calls[0] >= done["a_end"]  # B's callback never saw A's bake
