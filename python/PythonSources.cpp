@@ -68,7 +68,7 @@ public:
     }
     ~PythonSource() override {
         py::gil_scoped_acquire gil;
-        iterator_ = py::object();
+        iterator_ = py::object(), slice_ = py::object();
         if (fd_ >= 0) ::close(fd_);
     }
     size_t read(std::span<Triangle> out) override {
@@ -95,6 +95,7 @@ public:
         }
         py::gil_scoped_acquire gil;
         iterator_ = py::object(), started_ = false, chunk_ = 0;
+        slice_ = py::object(), sliceNext_ = sliceCount_ = 0;
         pending_.clear(), next_ = 0;
         passTriangles_ = 0, ended_ = false;
     }
@@ -119,6 +120,7 @@ private:
             spec_->consumed = replay_ == Replay::Buffer;
         }
         pending_.clear(), next_ = 0;
+        if (sliceNext_ < sliceCount_) return takeSlice(), true;
         while (pending_.empty()) {
             // Ctrl-C is seen by the calling thread, which cancels: a source of a few triangles a
             // second was called for thousands more before the chunk was full.
@@ -164,24 +166,31 @@ private:
             if (a.ndim() == 1) shape += ",";  // Python's spelling of a 1-tuple
             throw py::value_error(fmt::format("{}: expected shape (n, 3, 3) or (n, 9), got ({})", where, shape));
         }
-        // A strided or broadcast array is copied to C order first; that copy can fail (a broadcast
-        // of 2^30 triangles needs 38 GB), and then ensure() returns null, NumPy's error cleared.
-        auto c = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(a);
-        if (!c) {
-            const uint64_t bytes = uint64_t(a.shape(0)) * 9 * sizeof(float);
-            PyErr_SetString(PyExc_MemoryError,
-                            fmt::format("{}: cannot copy the array into C order ({} bytes)", where, bytes).c_str());
-            throw py::error_already_set();
-        }
-        const float* p = c.data();
-        const size_t n = size_t(c.shape(0));
+        // Read in place through the array's strides, a slice of at most kTriangleChunk at a time:
+        // a copy of the whole chunk (to C order, then to triangles) was 45-75 bytes a triangle
+        // that no memory budget counted (a 4M-triangle chunk: 165 MiB over an 83M budget).
+        slice_ = a, sliceNext_ = 0, sliceCount_ = size_t(a.shape(0));
+        sliceBase_ = static_cast<const char*>(a.data());
+        sliceStride_[0] = a.strides(0);
+        for (int k = 0; k < 3; ++k)
+            for (int c = 0; c < 3; ++c)
+                sliceStride_[1 + 3 * k + c] = shape339 ? k * a.strides(1) + c * a.strides(2) : (3 * k + c) * a.strides(1);
+        if (sliceCount_ > 0) takeSlice();
+    }
+    /// The next slice of the array being read into pending_ (GIL held: the array is Python's).
+    void takeSlice() {
+        const size_t n = std::min(sliceCount_ - sliceNext_, size_t(kTriangleChunk));
         pending_.resize(n);
         const uint32_t flags = spec_->alpha ? kTriangleAlphaMatte : 0u;
-        for (size_t t = 0; t < n; ++t, p += 9) {
+        for (size_t t = 0; t < n; ++t) {
+            const char* row = sliceBase_ + py::ssize_t(sliceNext_ + t) * sliceStride_[0];
+            auto at = [&](int e) { float v; std::memcpy(&v, row + sliceStride_[1 + e], sizeof v); return v; };
             Triangle& tri = pending_[t];
-            for (int k = 0; k < 3; ++k) tri.v[k] = glm::vec3(p[3 * k], p[3 * k + 1], p[3 * k + 2]);
+            for (int k = 0; k < 3; ++k) tri.v[k] = glm::vec3(at(3 * k), at(3 * k + 1), at(3 * k + 2));
             tri.flags = flags;
         }
+        sliceNext_ += n;
+        if (sliceNext_ == sliceCount_) slice_ = py::object(), sliceCount_ = sliceNext_ = 0;
     }
     void append(std::span<const Triangle> tris) {
         if (fd_ < 0 && (fd_ = createAnonymousFile(scratchDirectory())) < 0)
@@ -217,6 +226,10 @@ private:
     uint64_t chunk_ = 0;
     std::vector<Triangle> pending_;
     size_t next_ = 0;
+    py::object slice_;                   // the array being read, a slice at a time (GIL held)
+    const char* sliceBase_ = nullptr;
+    py::ssize_t sliceStride_[10] = {};   // bytes: per triangle, then per coordinate of its corners
+    size_t sliceNext_ = 0, sliceCount_ = 0;
     int fd_ = -1;  // the one-shot source's copy
     uint64_t written_ = 0, offset_ = 0;
     bool replaying_ = false;
