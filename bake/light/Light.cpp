@@ -278,7 +278,7 @@ LightDesc sunDirectionDisk(const LightDesc& sun) {
 
 namespace {
 
-/// How light @p li's samples are laid out: its strata grid and their order, grouped into
+/// How a light's samples are laid out: its strata grid and their order, grouped into
 /// spatially compact ranges of at most @p groupSize (positions aside, all a plan needs).
 struct LightLayout {
     LightDesc l;  ///< a sun as its disk of directions
