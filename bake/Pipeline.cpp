@@ -48,7 +48,7 @@ namespace {
 /// pass instead, a budget that the first refusal named was refused again, with a larger number.
 uint64_t translucentBytes(uint64_t triangles, int threads, const LightSamples& samples) {
     if (triangles == 0) return 0;
-    return triangles * sizeof(Triangle) + TranslucentBlockers::bytesFor(triangles, samples, 0) +
+    return triangles * sizeof(Triangle) + TranslucentBlockers::bytesFor(triangles, samples.groups.size()) +
            uint64_t(threads) * uint64_t(samples.sampleCount) * 3 * sizeof(uint32_t);
 }
 

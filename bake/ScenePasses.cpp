@@ -24,18 +24,15 @@ namespace penumbra {
 namespace {
 
 
-/// Rejects NaN/inf vertices as they stream by, naming the triangle's position in the stream, grows
-/// the scene's bounding box and counts the casting translucent triangles (the translucent pass's
-/// memory), all in one visit of each triangle.
-class FiniteCheck {
+/// Grows the scene's bounding box and counts the casting translucent triangles (the translucent
+/// pass's memory) in one visit of each triangle. Non-finite vertices never get here: every scene
+/// entry is read through a FiniteSource (Scene.cpp), which names the entry.
+class SceneTally {
 public:
-    explicit FiniteCheck(const SceneDesc& scene) : scene_(scene) {}
     void operator()(std::span<const Triangle> chunk) {
-        for (size_t i = 0; i < chunk.size(); ++i) {
-            if (!isFinite(chunk[i]))
-                fail(scene_.file, "geometry triangle {} has a non-finite (NaN or infinite) vertex", seen_ + i);
-            for (const glm::vec3& v : chunk[i].v) lo_ = glm::min(lo_, v), hi_ = glm::max(hi_, v);
-            translucent_ += !(chunk[i].flags & kTriangleNoCast) && isTranslucentId(alphaIdOf(chunk[i].flags));
+        for (const Triangle& t : chunk) {
+            for (const glm::vec3& v : t.v) lo_ = glm::min(lo_, v), hi_ = glm::max(hi_, v);
+            translucent_ += !(t.flags & kTriangleNoCast) && isTranslucentId(alphaIdOf(t.flags));
         }
         seen_ += chunk.size();
     }
@@ -47,7 +44,6 @@ public:
     uint64_t translucent() const { return translucent_; }
 
 private:
-    const SceneDesc& scene_;
     uint64_t seen_ = 0;
     uint64_t translucent_ = 0;
     glm::vec3 lo_{INFINITY}, hi_{-INFINITY};
@@ -138,13 +134,13 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
     {
         ScopedTimer timer(streamSeconds);
         ProgressReporter progress("scan", source->sizeHint().value_or(0), settings.quiet);
-        FiniteCheck check(scene);
+        SceneTally tally;
         ClosedSolidScan solids(p.samples);
         const bool scanPass = kind.wantsPass(StreamPass::Scan);
         std::vector<Triangle> chunk(kTriangleChunk);
         while (size_t n = source->read(chunk)) {
             std::span<const Triangle> part(chunk.data(), n);
-            check(part);
+            tally(part);
             histogram.add(part);
             if (scanPass) kind.consume(StreamPass::Scan, StreamChunk{part, source->part()});
             if (scene.options.closedCasters) solids.scan(part, source->part());
@@ -159,8 +155,8 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
         // Nothing left to skip: this also spares hpc its pass that finds the receivers closed
         // casters must not skip for (ClosedExemptions.h).
         if (p.openedSolids.kept == 0) p.options.closedCasters = false;
-        p.options.epsilonLength = epsilonLength(p.receivers, check.box());
-        p.translucentScanned = check.translucent();
+        p.options.epsilonLength = epsilonLength(p.receivers, tally.box());
+        p.translucentScanned = tally.translucent();
     }
     reportOpenedSolids(p.openedSolids, p.lights, settings.quiet);
     if (const double epsilonMax = p.options.epsilon * p.options.epsilonLength;

@@ -33,6 +33,9 @@ struct alignas(32) HardShadowBlock {
     double side[kLanes];
 };
 
+/// @brief Blocks that hold @p samples consecutive samples (a group's).
+constexpr size_t hardShadowBlocksFor(uint32_t samples) { return (samples + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes; }
+
 /// @brief The blocks that hold a sample of @p samples: bit b is set when any of bits 4b..4b+3 is.
 /// Branch-free (nibbles folded to their low bit, then packed): the loop over set bits it replaces
 /// mispredicted on every pair of GRIDS under a large light (docs/performance.md).

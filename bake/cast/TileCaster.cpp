@@ -23,7 +23,6 @@ constexpr int kAlphaBoundMinimumBits = 32;
 
 /// Hard-shadow blocks holding group @p g's samples, four a block: the constructor's layout and
 /// fixedBytes()'s plan of it.
-size_t blocksOf(const LightSampleGroup& g) { return (g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes; }
 
 }  // namespace
 
@@ -35,7 +34,7 @@ TileCaster::TileCaster(const LightSamples& s, const CastOptions& o, const std::v
     groupVolumes.resize(groupCount);
     for (const LightSampleGroup& g : s.groups) {
         blockFirst.push_back(uint32_t(blocksPerSet));
-        blocksPerSet += blocksOf(g);
+        blocksPerSet += hardShadowBlocksFor(g.count);
     }
     hardBlocks.resize(size_t(s.sets) * blocksPerSet);
     hardReady.assign(size_t(s.sets) * groupCount, 0);
@@ -43,7 +42,7 @@ TileCaster::TileCaster(const LightSamples& s, const CastOptions& o, const std::v
 
 size_t TileCaster::fixedBytes(const LightSamples& samples) {
     size_t blocksPerSet = 0;
-    for (const LightSampleGroup& g : samples.groups) blocksPerSet += blocksOf(g);
+    for (const LightSampleGroup& g : samples.groups) blocksPerSet += hardShadowBlocksFor(g.count);
     const size_t groups = size_t(samples.groupCount()), sets = size_t(samples.sets);
     return sets * blocksPerSet * sizeof(HardShadowBlock) + groups * sizeof(PenumbraVolume) + sets * groups * sizeof(uint32_t) +
            MaskPool::slackBytes(int(groups));

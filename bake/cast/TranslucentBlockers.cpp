@@ -57,7 +57,7 @@ void TranslucentBlockers::prepare(SimdLevel simd, uint64_t cacheBytes) {
     for (size_t k = 0; k < ls.groups.size(); ++k) {
         const LightSampleGroup& g = ls.groups[k];
         blockFirst_.push_back(uint32_t(blocksPerSet_));
-        blocksPerSet_ += (g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes;
+        blocksPerSet_ += hardShadowBlocksFor(g.count);
         if (ls.w(g.light) == 0.0) continue;  // directions: no sphere, every sample is tested
         glm::dvec3 lo(INFINITY), hi(-INFINITY);
         for (int set = 0; set < ls.sets; ++set)
@@ -84,17 +84,10 @@ void TranslucentBlockers::prepare(SimdLevel simd, uint64_t cacheBytes) {
             }
 }
 
-size_t TranslucentBlockers::bytes() const {
-    return tris_.size() * (sizeof(BlockerTriangle) + sizeof(Sphere) + sizeof(OpticalDepth)) + groups_.size() * sizeof(Sphere) +
-           cache_.size() * sizeof(HardShadowBlock);
-}
+size_t TranslucentBlockers::bytes() const { return bytesFor(tris_.size(), groups_.size()) + cache_.size() * sizeof(HardShadowBlock); }
 
-uint64_t TranslucentBlockers::bytesFor(uint64_t triangles, const LightSamples& samples, uint64_t cacheBytes) {
-    size_t blocks = 0;
-    for (const LightSampleGroup& g : samples.groups) blocks += (g.count + HardShadowBlock::kLanes - 1) / HardShadowBlock::kLanes;
-    const uint64_t cached = std::min(cacheBytes, triangles * uint64_t(samples.sets) * blocks * sizeof(HardShadowBlock));
-    return triangles * (sizeof(BlockerTriangle) + sizeof(Sphere) + sizeof(OpticalDepth)) + samples.groups.size() * sizeof(Sphere) +
-           cached;
+uint64_t TranslucentBlockers::bytesFor(uint64_t triangles, size_t groups) {
+    return triangles * (sizeof(BlockerTriangle) + sizeof(Sphere) + sizeof(OpticalDepth)) + groups * sizeof(Sphere);
 }
 
 const HardShadowBlock* TranslucentBlockers::blocksOf(size_t i, int set, size_t k, uint64_t open, HardShadowBlock* scratch,

@@ -58,9 +58,9 @@ public:
     size_t cachedTriangles() const { return cached_; }
     /// @brief Bytes held for the bake (the memory plan's part for translucency).
     size_t bytes() const;
-    /// @brief Bytes held for @p triangles translucent triangles of @p samples, at most (before
-    /// they are read): their cast form and up to @p cacheBytes of cached blocks.
-    static uint64_t bytesFor(uint64_t triangles, const LightSamples& samples, uint64_t cacheBytes);
+    /// @brief Bytes held for @p triangles translucent triangles and @p groups sample groups
+    /// (before they are read), without the cached blocks: those take only what the plan leaves spare.
+    static uint64_t bytesFor(uint64_t triangles, size_t groups);
 
     /// @brief Receiver @p r's per-sample depth: @p depth (sampleCount x 3, sample-major) gets, for
     /// each sample not set in @p groupWords, the saturating sum of the depths of the translucent
@@ -131,12 +131,12 @@ private:
 /// @brief What a bake casts translucent blockers with, once @p view has read the whole replay:
 /// null when it held none or when method @p method weighs them itself (traits.translucency).
 /// @param partialFiles the flag of a sharded or checkpointed bake ("--shard", "--checkpoint"), or null
+/// @param cacheBytes at most this many bytes of blocks are built once (TranslucentBlockers())
 /// @throw InputError for partial files (they do not carry depths)
 /// @throw std::logic_error when the method reported a receiver before reading every blocker
 std::unique_ptr<TranslucentBlockers> translucentPass(const OpaqueOnlySource& view, const LightSamples& samples,
                                                      const std::string& method, const CasterTraits& traits,
-                                                     const char* partialFiles, SimdLevel simd = SimdLevel::Auto,
-                                                     uint64_t cacheBytes = TranslucentBlockers::kCachedBlockBytes);
+                                                     const char* partialFiles, SimdLevel simd, uint64_t cacheBytes);
 
 /// @brief A mask (one word per group, LightSampleGroup layout) with every sample set but
 /// @p perLight of each light's (or all it has), spread over the light by farthest-point

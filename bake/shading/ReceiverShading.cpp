@@ -23,6 +23,26 @@ constexpr size_t kMaxMaskedSamples = 4096;
 /// The per-channel transmittance of one sample's optical depths @p d (R, G, B).
 glm::dvec3 transmittance(const uint32_t* d) { return {transmittanceOf(d[0]), transmittanceOf(d[1]), transmittanceOf(d[2])}; }
 
+/// Whether the shading's AVX2 paths run (they give the scalar paths' bits).
+bool hasAvx2() {
+    static const bool avx2 = __builtin_cpu_supports("avx2");
+    return avx2;
+}
+
+/// transmittance() of the last depths asked for, kept: neighbouring samples mostly cross the same
+/// panes, so each distinct depth's exp2 is computed once.
+class TransmittanceMemo {
+public:
+    const glm::dvec3& of(const uint32_t* d) {
+        if (!std::equal(d, d + 3, last_)) value_ = transmittance(d), std::copy(d, d + 3, last_);
+        return value_;
+    }
+
+private:
+    uint32_t last_[3] = {0, 0, 0};
+    glm::dvec3 value_{1.0};  ///< the transmittance of depth 0
+};
+
 }  // namespace
 
 glm::dvec3 radianceFromPower(const LightDesc& l, const glm::dvec3& power) {
@@ -131,26 +151,19 @@ __attribute__((target("avx2"))) double sampleSumAvx2(const double* x, const doub
 /// its weight.
 double sampleSum(const double* x, const double* y, const double* z, size_t n, glm::dvec3 p, glm::dvec3 normal, glm::dvec3 emitter,
                  const uint64_t* visible = nullptr) {
-    static const bool avx2 = __builtin_cpu_supports("avx2");
-    return avx2 ? sampleSumAvx2(x, y, z, n, p, normal, emitter, visible) : sampleSumScalar(x, y, z, n, p, normal, emitter, visible);
+    return hasAvx2() ? sampleSumAvx2(x, y, z, n, p, normal, emitter, visible) : sampleSumScalar(x, y, z, n, p, normal, emitter, visible);
 }
 
-/// Adds @p term, tinted by the transmittance of optical depths @p d, to @p sum; @p last and
-/// @p lastT keep the last depths' transmittance (neighbouring samples cross the same panes).
-inline void addTinted(glm::dvec3& sum, double term, const uint32_t* d, uint32_t* last, glm::dvec3& lastT) {
-    if (!std::equal(d, d + 3, last)) lastT = transmittance(d), std::copy(d, d + 3, last);
-    sum += lastT * term;
-}
 
 /// Σ T_j term_j over the visible samples [0, n), in sample order: sampleSum()'s terms, each tinted
 /// by its sample's transmittance (@p depth: 3 depths per sample). The AVX2 path computes the terms
 /// four at a time with sampleTerm()'s bits and adds them in the same order, so both agree.
 glm::dvec3 tintedSampleSumScalar(const double* x, const double* y, const double* z, size_t n, glm::dvec3 p, glm::dvec3 normal,
                                  glm::dvec3 emitter, const uint64_t* visible, const uint32_t* depth) {
-    glm::dvec3 sum(0.0), lastT(1.0);
-    uint32_t last[3] = {0, 0, 0};
+    glm::dvec3 sum(0.0);
+    TransmittanceMemo t;
     for (size_t j = 0; j < n; ++j)
-        if (isVisible(visible, j)) addTinted(sum, sampleTerm(x[j], y[j], z[j], p, normal, emitter), depth + 3 * j, last, lastT);
+        if (isVisible(visible, j)) sum += t.of(depth + 3 * j) * sampleTerm(x[j], y[j], z[j], p, normal, emitter);
     return sum;
 }
 
@@ -158,8 +171,8 @@ __attribute__((target("avx2"))) glm::dvec3 tintedSampleSumAvx2(const double* x, 
                                                                glm::dvec3 p, glm::dvec3 normal, glm::dvec3 emitter,
                                                                const uint64_t* visible, const uint32_t* depth) {
     const SampleTermsAvx2 terms(p, normal, emitter);
-    glm::dvec3 sum(0.0), lastT(1.0);
-    uint32_t last[3] = {0, 0, 0};
+    glm::dvec3 sum(0.0);
+    TransmittanceMemo t;
     alignas(32) double lanes[4];
     size_t j = 0;
     for (; j + 4 <= n; j += 4) {
@@ -168,11 +181,11 @@ __attribute__((target("avx2"))) glm::dvec3 tintedSampleSumAvx2(const double* x, 
         _mm256_store_pd(lanes, terms.at(x + j, y + j, z + j));
         for (; nibble; nibble &= nibble - 1) {
             const int i = std::countr_zero(nibble);
-            addTinted(sum, lanes[i], depth + 3 * (j + size_t(i)), last, lastT);
+            sum += t.of(depth + 3 * (j + size_t(i))) * lanes[i];
         }
     }
     for (; j < n; ++j)
-        if (isVisible(visible, j)) addTinted(sum, sampleTerm(x[j], y[j], z[j], p, normal, emitter), depth + 3 * j, last, lastT);
+        if (isVisible(visible, j)) sum += t.of(depth + 3 * j) * sampleTerm(x[j], y[j], z[j], p, normal, emitter);
     return sum;
 }
 
@@ -257,9 +270,7 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
     }
     glm::dvec3 e(0.0);
     const bool planar = light.planar();
-    // Neighbouring samples mostly cross the same panes: each distinct depth's exp2 once.
-    uint32_t lastDepth[3] = {0, 0, 0};
-    glm::dvec3 lastTransmittance(1.0);
+    TransmittanceMemo tint;
     for (uint32_t k = g0; k < g1; ++k) {
         const LightSampleGroup& g = samples_.groups[k];
         const uint64_t word = blockedWord(k);
@@ -267,12 +278,7 @@ glm::dvec3 ReceiverShader::lightIrradiance(uint32_t r, int li, const uint64_t* g
         for (uint64_t visible = ~word & g.fullMask(); visible; visible &= visible - 1) {
             const int sample = int(g.first) + std::countr_zero(visible);
             // Translucent blockers crossed: the sample's weight per channel.
-            glm::dvec3 weight = light.weight;
-            if (depth) {
-                const uint32_t* d = &depth[size_t(sample) * 3];
-                if (!std::equal(d, d + 3, lastDepth)) lastTransmittance = transmittance(d), std::copy(d, d + 3, lastDepth);
-                weight *= lastTransmittance;
-            }
+            const glm::dvec3 weight = depth ? light.weight * tint.of(&depth[size_t(sample) * 3]) : light.weight;
             // A sun's sample is a direction (w = 0): the receiver's position does not matter.
             const glm::dvec3 l(samples_.position(set, sample));
             glm::dvec3 d = light.sun ? l : l - p;
@@ -314,12 +320,11 @@ double ReceiverShader::lightSampleSum(uint32_t r, int li, const uint64_t* visibl
 }
 
 glm::dvec3 ReceiverShader::lightTintedSum(uint32_t r, int li, const uint64_t* visible, const uint32_t* depth) const {
-    static const bool avx2 = __builtin_cpu_supports("avx2");
     const double* x = lightSamplesX(r, li);
     const size_t total = samples_.positions.size(), n = size_t(lights_[li].samples);
     const glm::dvec3 p(receivers_.position[r]), normal(receivers_.normal[r]);
     const uint32_t* lightDepth = depth + 3 * size_t(samples_.groups[samples_.lightFirstGroup[li]].first);
-    return avx2 ? tintedSampleSumAvx2(x, x + total, x + 2 * total, n, p, normal, lights_[li].normal, visible, lightDepth)
+    return hasAvx2() ? tintedSampleSumAvx2(x, x + total, x + 2 * total, n, p, normal, lights_[li].normal, visible, lightDepth)
                 : tintedSampleSumScalar(x, x + total, x + 2 * total, n, p, normal, lights_[li].normal, visible, lightDepth);
 }
 
