@@ -1,5 +1,7 @@
 #include "bake/BakeOutputs.h"
 
+#include "bake/kinds/ReceiverKind.h"
+
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
 #include "stream/util/PathText.h"
@@ -65,6 +67,9 @@ void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, cons
                       const std::string& visibilityPath, const std::vector<std::string>& directories) {
     checkSceneOutput(scene);
     std::vector<std::string> outputs{scene.output};
+    // The files the kind writes beside the output (a camera's PNG) too, so that a dump folder or
+    // a directory standing at their name stops the bake now, not after the cast.
+    for (std::string& derived : receiverKindDerivedOutputs(scene)) outputs.push_back(std::move(derived));
     if (!statsPath.empty()) outputs.push_back(statsPath);
     if (!visibilityPath.empty()) outputs.push_back(visibilityPath);
     std::vector<bool> folder(outputs.size(), false);  // folders of their own: not another output's name
@@ -76,13 +81,21 @@ void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, cons
             outputs.push_back((fs::path(dumpDir) / name).string()), folder.push_back(false);
     }
     const std::vector<std::string> inputs = sceneInputs(scene);
+    std::vector<std::string> names;  // comparablePath() of each output
     for (size_t i = 0; i < outputs.size(); ++i) {
+        names.push_back(comparablePath(outputs[i]));
+        for (size_t j = 0; j < i; ++j)
+            if (names[i] == names[j]) fail(outputs[i], "is named for two outputs of this bake; give each its own file");
         if (!folder[i]) checkOutputPath(outputs[i]), refuseInputs(outputs[i], inputs);
         else checkOutputFolder(outputs[i]);  // before the work, not when the first shard file is written
-        const std::string a = comparablePath(outputs[i]);
-        for (size_t j = 0; j < i; ++j)
-            if (a == comparablePath(outputs[j])) fail(outputs[i], "is named for two outputs of this bake; give each its own file");
     }
+    // A folder made for one output (--stats c.png/s.json) at the name of another that is a file
+    // (the camera's c.png) would be found only when the files are put in place, after the cast.
+    for (size_t i = 0; i < outputs.size(); ++i)
+        for (size_t j = 0; j < outputs.size(); ++j)
+            if (!folder[j] && names[i].size() > names[j].size() && names[i].compare(0, names[j].size(), names[j]) == 0 &&
+                names[i][names[j].size()] == '/')
+                fail(outputs[i], "is inside {}, which is an output file of this bake; give each its own name", outputs[j]);
 }
 
 }  // namespace penumbra

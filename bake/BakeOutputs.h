@@ -16,8 +16,9 @@ namespace penumbra {
 /// in the scene's directory unless -o named it, Scene.h), @p statsPath, the dump directory
 /// @p dumpDir and its files, and @p visibilityPath (any may be empty), and that no two of them,
 /// and none of them and an input the scene names (its geometry and points files, the scene file
-/// itself), are the same file. Files a receiver kind derives from the output (a camera's PNG, a
-/// lightmap's glTF) are checked when they are finished (OutputSet::commit()).
+/// itself), are the same file. The files a receiver kind always names after the output (a
+/// camera's PNG, receiverKindDerivedOutputs()) are checked with them; those named after what the
+/// scan finds (a lightmap's per-mesh files) when they are finished (OutputSet::commit()).
 /// @throw InputError naming the output and what is wrong with it.
 /// @param directories other folders the bake writes into (checkpoints, shard files): none may
 ///        share a name with an output.

@@ -169,11 +169,16 @@ public:
     std::optional<uint64_t> knownSize() const override {
         return scanned_ ? std::optional<uint64_t>(triangleCount_) : std::nullopt;
     }
-    /// The vertex store's bound for the vertices the file can hold (a `v` line has at least 8
-    /// bytes), and what reading a line holds: the line (getline(3) grows its buffer by doubling)
-    /// and, for a face, its corners and their triangulation. Known once scan() has run (on
-    /// opening); until then the line buffer's usual size.
-    uint64_t residentBytes() const override { return VertexStore::residentBytes(fileBytes_ / 8) + lineBytes(); }
+    /// The vertex store's bound for the vertices the scan stored, or before it has finished for
+    /// those the file can hold (a `v` line has at least 8 bytes: real exports have 30-40, so that
+    /// bound is 4-5x what a scene of many mesh files keeps), and what reading a line holds: the
+    /// line (getline(3) grows its buffer by doubling) and, for a face, its corners and their
+    /// triangulation. Known once scan() has run (on opening); until then the line buffer's usual
+    /// size.
+    uint64_t residentBytes() const override {
+        const uint64_t stored = storedVertices_.load();
+        return VertexStore::residentBytes(stored != kNotScanned ? stored : fileBytes_ / 8) + lineBytes();
+    }
     std::string residentDetail() const override {
         if (lineBytes() < kNotableResidentBytes) return {};
         return fmt::format("{}: reading its longest line ({} bytes) or largest face ({} corners) holds {}", path_, longestLine_,
@@ -198,6 +203,8 @@ private:
     std::vector<std::string> parts_;  // o/g groups streamed; empty: all
     mutable std::once_flag scanOnce_;
     std::atomic<bool> scanned_{false};
+    static constexpr uint64_t kNotScanned = UINT64_MAX;
+    std::atomic<uint64_t> storedVertices_{kNotScanned};  ///< the store's count once scan() is through
     uint64_t triangleCount_ = 0;
     uint64_t longestLine_ = 0;  // bytes, with its line end (scan())
     uint64_t mostCorners_ = 0;  // of any face (scan())
@@ -278,6 +285,7 @@ void ObjSource::scan() {
         if (!seen.count(wanted))
             fail(path_, "has no o/g group named \"{}\" (it has {} group{})", wanted, seen.size(), seen.size() == 1 ? "" : "s");
     lines_.close();
+    storedVertices_ = vertices_.size();
     rewind();
 }
 

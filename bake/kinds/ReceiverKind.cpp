@@ -20,10 +20,12 @@ namespace penumbra {
 namespace {
 
 std::mutex registryMutex;
-/// A registered kind: its factory and the extension of the file it writes.
+/// A registered kind: its factory, the extension of the file it writes, and the extensions of
+/// the files it writes beside it.
 struct KindEntry {
     ReceiverKindFactory factory;
     std::string extension;
+    std::vector<std::string> derivedExtensions;
 };
 
 std::map<std::string, KindEntry>& registry() {
@@ -82,9 +84,21 @@ void requireOutputExtension(const SceneDesc& scene, const std::vector<std::strin
          fmt::format("{}", fmt::join(extensions, " or ")));
 }
 
-void registerReceiverKind(const std::string& type, ReceiverKindFactory factory, std::string outputExtension) {
+void registerReceiverKind(const std::string& type, ReceiverKindFactory factory, std::string outputExtension,
+                          std::vector<std::string> derivedExtensions) {
     std::lock_guard lock(registryMutex);
-    registry()[type] = KindEntry{std::move(factory), std::move(outputExtension)};
+    registry()[type] = KindEntry{std::move(factory), std::move(outputExtension), std::move(derivedExtensions)};
+}
+
+std::vector<std::string> receiverKindDerivedOutputs(const SceneDesc& scene) {
+    const nlohmann::json& receivers = scene.receivers;
+    if (!receivers.is_object() || !receivers.contains("type") || !receivers["type"].is_string()) return {};
+    const std::optional<KindEntry> kind = findKind(receivers["type"].get<std::string>());
+    std::vector<std::string> paths;
+    if (kind)
+        for (const std::string& extension : kind->derivedExtensions)
+            paths.push_back(std::filesystem::path(scene.output).replace_extension(extension).string());
+    return paths;
 }
 
 std::string receiverKindExtension(const nlohmann::json& receivers) {

@@ -148,7 +148,15 @@ using ReceiverKindFactory =
 
 /// @brief Registers (or replaces) receiver type @p type, whose outputs default to
 /// @p outputExtension when the scene names none (`out/shadows.vdb` for a volume).
-void registerReceiverKind(const std::string& type, ReceiverKindFactory factory, std::string outputExtension = ".exr");
+/// @param derivedExtensions the files the kind always writes beside its output, named as the
+///        output with another extension (a camera's ".png" preview), so that they are checked
+///        with the other outputs before any work (BakeOutputs.h)
+void registerReceiverKind(const std::string& type, ReceiverKindFactory factory, std::string outputExtension = ".exr",
+                          std::vector<std::string> derivedExtensions = {});
+
+/// @brief The files the kind of @p scene always writes beside its output, named after it
+/// (registerReceiverKind()'s derived extensions): "out/a.png" for a camera's "out/a.exr".
+std::vector<std::string> receiverKindDerivedOutputs(const SceneDesc& scene);
 
 /// @brief The output extension of the kind the "receivers" object names (".exr" when the type is
 /// unknown or missing: makeReceiverKind() reports that).
@@ -167,8 +175,9 @@ void validateReceiverKind(const nlohmann::json& receivers, const SceneDesc& scen
 /// (`const ReceiverKindRegistration kCamera{"camera", &makeCameraKind};`), so that no central
 /// file lists the kinds. The library is linked whole (CMakeLists.txt) so that none is dropped.
 struct ReceiverKindRegistration {
-    ReceiverKindRegistration(const std::string& type, ReceiverKindFactory factory, std::string outputExtension = ".exr") {
-        registerReceiverKind(type, std::move(factory), std::move(outputExtension));
+    ReceiverKindRegistration(const std::string& type, ReceiverKindFactory factory, std::string outputExtension = ".exr",
+                             std::vector<std::string> derivedExtensions = {}) {
+        registerReceiverKind(type, std::move(factory), std::move(outputExtension), std::move(derivedExtensions));
     }
 };
 

@@ -429,6 +429,13 @@ void OutputSet::commit() {
             for (size_t j = 0; j < i; ++j)
                 if (files_[i]->target == AtomicFile::Target::Regular && keys[i] == keys[j])
                     fail(files_[i]->finalPath, "is named for two outputs of this bake; give each its own file");
+        // Something other than a file now standing at a target (a dump folder made at the
+        // preview's name) is refused before any file of the set is in place, not after the first.
+        for (const auto& f : files_) {
+            struct stat st {};
+            if (f->target == AtomicFile::Target::Regular && ::lstat(f->targetPath.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+                fail(f->finalPath, "is {} now, which is never replaced", fileKindName(st.st_mode));
+        }
         // Every rename is staged first, so a failure to link one leaves no file of the set in place.
         for (auto& f : files_)
             if (f->target == AtomicFile::Target::Regular && f->tempName.empty() && ::access(f->targetPath.c_str(), F_OK) == 0)

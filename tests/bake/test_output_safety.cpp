@@ -148,6 +148,18 @@ TEST_CASE("outputs: an OutputSet commits every file or none", "[io][output-safet
         CHECK_THAT(errorOf([&] { set.commit(); }), Catch::StartsWith(dir / "full" + ": write failed"));
         CHECK(slurp(dir / "a.exr") == "new a");
         CHECK(dir.entries() == (std::vector<std::string>{"a.exr", "b.png", "full"}));
+        fs::remove(dir / "full");
+    }
+    // A folder made at a later file's name while the set was open (a dump folder at the
+    // camera's preview) fails the set before the earlier file is put in place.
+    {
+        OutputSet set;
+        write(dir / "a.exr", "newest a");
+        write(dir / "c.png", "c");
+        fs::create_directory(dir / "c.png");
+        CHECK_THAT(errorOf([&] { set.commit(); }), Catch::StartsWith(dir / "c.png" + ": is a directory now"));
+        CHECK(slurp(dir / "a.exr") == "new a");
+        CHECK(dir.entries() == (std::vector<std::string>{"a.exr", "b.png", "c.png"}));
     }
     ::unsetenv("PENUMBRA_NO_TMPFILE");
 }

@@ -128,6 +128,20 @@ TEST_CASE("two outputs of one bake never share a file, the derived ones included
         requireCleanError(runPenumbra(bake + args), "is named for two outputs of this bake");
         for (const char* name : {"x.exr", "x.png", "d"}) CHECK_FALSE(std::filesystem::exists(dir / name));
     }
+    // A dump folder, or the folder of the stats, at the camera's PNG, and a folder already there:
+    // refused before the bake, with nothing written (the EXR was replaced, then the bake failed).
+    for (const std::string& args : {" --dump " + (dir / "x.png"), " --stats " + (dir / "x.png/s.json"),
+                                    " --visibility " + (dir / "x.png/v.npy")}) {
+        INFO(args);
+        RunResult r = runPenumbra(bake + args);
+        requireCleanError(r, "x.png");
+        CHECK_THAT(r.err, Catch::Contains("is named for two outputs") || Catch::Contains("which is an output file of this bake"));
+        for (const char* name : {"x.exr", "x.png"}) CHECK_FALSE(std::filesystem::exists(dir / name));
+    }
+    std::filesystem::create_directory(dir / "x.png");
+    requireCleanError(runPenumbra(bake), "x.png: is a directory");
+    CHECK_FALSE(std::filesystem::exists(dir / "x.exr"));
+    std::filesystem::remove(dir / "x.png");
     // Other spellings of one file: through "." and "..", or through a link to the folder (the
     // stats replaced the EXR, exit 0).
     std::filesystem::create_directory(dir / "sub");
