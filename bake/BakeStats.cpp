@@ -73,7 +73,11 @@ nlohmann::json bucketStats(const BakeStatsInputs& in) {
 
 nlohmann::json bakeStats(const BakeStatsInputs& in) {
     uint64_t blocked = 0;
-    for (float v : in.results.visibility) blocked += uint64_t(std::llround((1.0 - v) * in.samples.sampleCount));
+    auto count = [&](float v) { blocked += uint64_t(std::llround((1.0 - v) * in.samples.sampleCount)); };
+    if (in.castShare)
+        for (uint32_t r : *in.castShare) count(in.results.visibility[r]);
+    else
+        for (float v : in.results.visibility) count(v);
     nlohmann::json stats = {
         {"scene", in.scene.file},
         {"method", in.method},

@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include <string>
+#include <vector>
 
 namespace penumbra {
 
@@ -36,6 +37,9 @@ struct BakeStatsInputs {
     uint64_t triangles = 0;
     const BucketReplaySource* replay = nullptr;  ///< the bucket replay, for its read counters
     const OpenedSolids* openedSolids = nullptr;
+    /// A by-receivers shard's receivers: blocked_relations counts theirs only (the others are not
+    /// cast, and their results read as fully blocked). Null: every receiver.
+    const std::vector<uint32_t>* castShare = nullptr;
     double streamSeconds = 0, castSeconds = 0, refineSeconds = 0, totalSeconds = 0;
     /// Opening the sources before the scan: an OBJ's check pass, a glTF's JSON (minutes for a large OBJ).
     double openSeconds = 0;

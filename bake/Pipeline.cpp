@@ -429,6 +429,7 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total) {
     BakeStatsInputs in{scene, settings.method, b.threads, b.p.receivers, b.p.samples, b.p.options, b.results,
                        b.caster->stats(), b.buckets, b.plan, b.demand};
     in.triangles = b.p.triangleCount, in.replay = b.p.replay, in.openedSolids = &b.p.openedSolids;
+    if (b.castShare) in.castShare = &*b.castShare;
     in.openSeconds = b.openSeconds, in.streamSeconds = b.streamSeconds, in.castSeconds = b.castSeconds, in.refineSeconds = b.refineSeconds;
     in.totalSeconds = total.seconds();
     nlohmann::json stats = bakeStats(in);

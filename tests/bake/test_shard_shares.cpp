@@ -106,6 +106,27 @@ TEST_CASE("a by-blockers shard generates only its share of a generator's stream"
     CHECK(cast == stats["stream"]["triangles"].get<uint64_t>());
 }
 
+TEST_CASE("by-receivers shards' blocked relations add up to the whole bake's", "[shards]") {
+    registerProceduralGenerators();
+    // Each shard counted the other shards' receivers, which it does not cast, as fully blocked.
+    ScratchDir dir("shard-blocked-relations");
+    write(dir / "scene.json", grassScene("grass").dump());
+    auto bake = [&](uint32_t index, uint32_t count) {
+        BakeSettings settings;
+        settings.quiet = true;
+        if (count) {
+            settings.shard.index = index, settings.shard.count = count, settings.shard.cut = ShardCut::Receivers;
+            settings.shard.dir = dir / "shards";
+        }
+        return runBake(parseScene(grassScene("grass"), dir / "scene.json"), settings)["blocked_relations"].get<uint64_t>();
+    };
+    const uint64_t whole = bake(0, 0);
+    REQUIRE(whole > 0);
+    uint64_t sum = 0;
+    for (uint32_t i = 0; i < 3; ++i) sum += bake(i, 3);
+    CHECK(sum == whole);
+}
+
 TEST_CASE("generated shares merge to the unsharded bytes", "[shards]") {
     ScratchDir dir("shard-share-merge");
     write(dir / "grass.json", grassScene("grass").dump());
