@@ -41,6 +41,7 @@ ProgressSnapshot ProgressReporter::snapshot() const {
     std::lock_guard lock(estimateMutex_);
     s.done = workDone();
     if (total_ == 0) return s;
+    s.total = std::max(total_, s.done);
     estimate_.sample(s.elapsedSeconds, s.done, work_.load(std::memory_order_relaxed));
     s.fraction = estimate_.fraction();
     s.remainingSeconds = estimate_.remainingSeconds();
@@ -122,7 +123,8 @@ void ProgressReporter::stop(bool printFinal) {
     if (thread_.joinable()) thread_.join();
     if (quiet_) return;
     if (printFinal)
-        print(formatProgressLine(phase_, workDone(), total_, clock_.seconds(), true), true);
+        // An estimate the work outgrew (an atlas's packings) ends as "(1488/1488)", not 1488/1440.
+        print(formatProgressLine(phase_, workDone(), total_ ? std::max(total_, workDone()) : 0, clock_.seconds(), true), true);
     else if (tty_ && lastWidth_ > 0)
         std::fputc('\n', stderr);  // leave the partial line visible above the error message
 }

@@ -66,6 +66,10 @@ TEST_CASE("ProgressReporter writes short logs when stderr is not a terminal", "[
         penumbra::ProgressReporter quiet("silent", 10, true);
         quiet.update(10);
     }
+    {
+        penumbra::ProgressReporter outgrown("outgrown", 10, false);  // the estimate was short
+        outgrown.update(12);
+    }
     std::fflush(stderr);
     ::dup2(saved, STDERR_FILENO);
     ::close(saved);
@@ -78,7 +82,8 @@ TEST_CASE("ProgressReporter writes short logs when stderr is not a terminal", "[
     // Under 2 s, the non-TTY mode prints only the final line, and the quiet reporter nothing.
     const std::string out = text.str();
     CHECK(out.rfind("[phase] 100.0% (10/10) done in ", 0) == 0);
-    CHECK(std::count(out.begin(), out.end(), '\n') == 1);
+    CHECK(out.find("[outgrown] 100.0% (12/12) done in ") != std::string::npos);
+    CHECK(std::count(out.begin(), out.end(), '\n') == 2);
     CHECK(out.find('\r') == std::string::npos);
 }
 
