@@ -96,8 +96,11 @@ std::vector<std::string> receiverKindDerivedOutputs(const SceneDesc& scene) {
     const std::optional<KindEntry> kind = findKind(receivers["type"].get<std::string>());
     std::vector<std::string> paths;
     if (kind)
-        for (const std::string& extension : kind->derivedExtensions)
-            paths.push_back(std::filesystem::path(scene.output).replace_extension(extension).string());
+        for (const std::string& extension : kind->derivedExtensions) {
+            std::string path = std::filesystem::path(scene.output).replace_extension(extension).string();
+            // `-o x.png` of a camera: the kind refuses the output's extension, a clearer error.
+            if (path != scene.output) paths.push_back(std::move(path));
+        }
     return paths;
 }
 
