@@ -23,8 +23,9 @@ void writeBakeDump(const std::string& dir, const ReceiverSet& receivers, std::sp
     std::filesystem::path base(dir);
     std::error_code ec;
     const bool existed = std::filesystem::exists(base, ec);
-    std::filesystem::create_directories(base, ec);
-    if (ec) fail(dir, "cannot create dump directory: {}", ec.message());
+    // Through ensureParentDirectory(), so that the folder belongs to the open OutputSet: a signal
+    // before the outputs are in place removes it, as a failure below does.
+    ensureParentDirectory((base / "rule.json").string());
     try {
         writeDumpFiles(base, receivers, sampleSets, samples, masks, epsilon);
     } catch (...) {

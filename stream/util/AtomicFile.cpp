@@ -399,8 +399,19 @@ OutputSet::OutputSet() {
 }
 
 OutputSet::~OutputSet() {
-    std::lock_guard lock(g_setMutex);
-    if (g_openSet == this) g_openSet = nullptr;
+    {
+        std::lock_guard lock(g_setMutex);
+        if (g_openSet == this) g_openSet = nullptr;
+    }
+    if (open_) removeMadeDirectories();  // never committed: a later output of the job failed
+}
+
+void OutputSet::removeMadeDirectories() noexcept {
+    for (auto it = madeDirectories_.rbegin(); it != madeDirectories_.rend(); ++it) {
+        ::rmdir(it->c_str());  // fails, as it should, for a folder something else has filled
+        unregisterTempFile(*it);
+    }
+    madeDirectories_.clear();
 }
 
 std::vector<std::string> OutputSet::paths() const {
@@ -447,9 +458,12 @@ void OutputSet::commit() {
         for (auto& f : files_) syncDirectoryOf(*f);
     } catch (...) {
         files_.clear();  // discards what is not in place, staged names included
+        removeMadeDirectories();
         throw;
     }
     files_.clear();
+    for (const std::string& dir : madeDirectories_) unregisterTempFile(dir);  // they hold outputs now
+    madeDirectories_.clear();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -465,7 +479,18 @@ void ensureParentDirectory(const std::string& path) {
     std::filesystem::path parent = std::filesystem::path(path).parent_path();
     if (parent.empty()) return;
     std::error_code ec;
+    std::vector<std::string> missing;  // the folders this call makes, innermost first
+    for (std::filesystem::path p = parent; !p.empty() && !std::filesystem::exists(p, ec); p = p.parent_path()) {
+        missing.push_back(p.string());
+        if (p == p.parent_path()) break;
+    }
     std::filesystem::create_directories(parent, ec);
+    if (!missing.empty() && !ec) {
+        std::lock_guard lock(g_setMutex);
+        if (g_openSet)  // innermost first in the registry, so that a signal empties them in order
+            for (auto it = missing.begin(); it != missing.end(); ++it) registerTempFile(*it);
+        if (g_openSet) g_openSet->madeDirectories_.insert(g_openSet->madeDirectories_.end(), missing.rbegin(), missing.rend());
+    }
     if (ec) fail(path, "cannot create directory {}: {}", parent.string(), ec.message());
     // create_directories() reports no error when the parent exists as a regular file on some
     // library versions; check explicitly so the message is about the directory, not the file.

@@ -135,7 +135,14 @@ public:
 
 private:
     friend class AtomicFile;
+    friend void ensureParentDirectory(const std::string& path);
+    /// Removes the folders made for the set's files (innermost first, each only if empty): the
+    /// set was not put in place.
+    void removeMadeDirectories() noexcept;
     std::vector<std::unique_ptr<AtomicFile::Finished>> files_;
+    /// Folders ensureParentDirectory() made while the set was open, outermost first; registered
+    /// with TempRegistry.h until the set is in place, so that a signal before then removes them.
+    std::vector<std::string> madeDirectories_;
     bool open_ = true;
 };
 
@@ -146,7 +153,9 @@ enum class FileSync { None, Durable };
 /// @throw InputError naming @p path on failure.
 void writeFileAtomically(const std::string& path, std::span<const uint8_t> bytes, FileSync sync = FileSync::None);
 
-/// @brief Creates the parent directory of @p path (and its parents) if missing.
+/// @brief Creates the parent directory of @p path (and its parents) if missing. While an
+/// OutputSet is open the folders it makes belong to the set: they are removed, if still empty,
+/// when the set is not put in place or a termination signal ends the process first.
 /// @throw InputError "PATH: cannot create directory DIR: REASON" on failure.
 void ensureParentDirectory(const std::string& path);
 

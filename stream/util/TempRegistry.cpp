@@ -60,7 +60,8 @@ void removeRegisteredTempFiles() noexcept {
         // A Busy slot is being (un)registered by another thread right now; skipping it is the
         // price of never blocking in a signal handler.
         if (!slot.state.compare_exchange_strong(expected, kSlotBusy)) continue;
-        ::unlink(slot.path);
+        // A folder made for an output that was never put in place: removed only if empty.
+        if (::unlink(slot.path) != 0 && errno == EISDIR) ::rmdir(slot.path);
         slot.path[0] = '\0';
         slot.state.store(kSlotFree, std::memory_order_release);
     }

@@ -22,8 +22,8 @@ namespace penumbra {
 void registerTempFile(const std::string& path);
 /// @brief Forgets @p path (after it has been renamed or removed by its owner).
 void unregisterTempFile(const std::string& path);
-/// @brief unlink()s every registered file and forgets it. Only async-signal-safe calls are
-/// made, so this may run inside a signal handler.
+/// @brief unlink()s every registered file (rmdir() for a folder, which goes only if empty) and
+/// forgets it. Only async-signal-safe calls are made, so this may run inside a signal handler.
 void removeRegisteredTempFiles() noexcept;
 /// @brief Installs handlers for SIGINT, SIGTERM, SIGHUP and SIGQUIT that remove registered temp
 /// files and then re-raise the signal with its default action (so the exit status still says

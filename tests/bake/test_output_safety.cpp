@@ -7,6 +7,7 @@
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
 #include "stream/util/InputFile.h"
+#include "stream/util/TempRegistry.h"
 
 #include "TestSupport.h"
 
@@ -162,6 +163,35 @@ TEST_CASE("outputs: an OutputSet commits every file or none", "[io][output-safet
         CHECK(dir.entries() == (std::vector<std::string>{"a.exr", "b.png", "c.png"}));
     }
     ::unsetenv("PENUMBRA_NO_TMPFILE");
+}
+
+TEST_CASE("outputs: folders made for a set that is never put in place are removed", "[io][output-safety]") {
+    // A merge killed or failing before its outputs were in place left the --dump folder it made.
+    ScratchDir dir;
+    fs::create_directory(dir / "kept");
+    {
+        OutputSet set;
+        ensureParentDirectory(dir / "made/deeper/a.npy");
+        ensureParentDirectory(dir / "kept/b.npy");
+        write(dir / "made/deeper/a.npy", "a");
+        write(dir / "kept/b.npy", "b");
+    }  // not committed
+    CHECK(dir.entries() == std::vector<std::string>{"kept"});
+    CHECK(fs::is_empty(dir / "kept"));
+    {
+        OutputSet set;
+        ensureParentDirectory(dir / "made/deeper/a.npy");
+        write(dir / "made/deeper/a.npy", "a");
+        set.commit();
+    }
+    CHECK(slurp(dir / "made/deeper/a.npy") == "a");
+    // What a signal handler removes: a registered folder only while it is empty.
+    fs::create_directory(dir / "empty");
+    registerTempFile(dir / "empty");
+    registerTempFile(dir / "made");
+    removeRegisteredTempFiles();
+    CHECK_FALSE(fs::exists(dir / "empty"));
+    CHECK(slurp(dir / "made/deeper/a.npy") == "a");
 }
 
 TEST_CASE("outputs: two writers of one path leave one complete file", "[io][output-safety]") {
