@@ -5,6 +5,7 @@
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
 #include "stream/util/PathText.h"
+#include "stream/util/SafePath.h"
 
 #include <sys/stat.h>
 
@@ -91,10 +92,10 @@ void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, cons
     }
     // A folder made for one output (--stats c.png/s.json) at the name of another that is a file
     // (the camera's c.png) would be found only when the files are put in place, after the cast.
+    // (Equal names were refused above.)
     for (size_t i = 0; i < outputs.size(); ++i)
         for (size_t j = 0; j < outputs.size(); ++j)
-            if (!folder[j] && names[i].size() > names[j].size() && names[i].compare(0, names[j].size(), names[j]) == 0 &&
-                names[i][names[j].size()] == '/')
+            if (i != j && !folder[j] && isInside(names[i], names[j]))
                 fail(outputs[i], "is inside {}, which is an output file of this bake; give each its own name", outputs[j]);
 }
 

@@ -21,9 +21,6 @@ constexpr uint32_t kSplitTableMinimumBits = 48;
 /// (docs/performance.md, "Alpha tests by group"); a group with fewer candidates tests its hits.
 constexpr int kAlphaBoundMinimumBits = 32;
 
-/// Hard-shadow blocks holding group @p g's samples, four a block: the constructor's layout and
-/// fixedBytes()'s plan of it.
-
 }  // namespace
 
 TileCaster::TileCaster(const LightSamples& s, const CastOptions& o, const std::vector<SampleMaskTable>* t)

@@ -202,7 +202,7 @@ std::unique_ptr<ReceiverKind> makeCameraKind(const JsonParams& j, const SceneDes
 }
 
 namespace {
-const ReceiverKindRegistration kCamera{"camera", &makeCameraKind, ".exr", {".png"}};  // previewPath()
+const ReceiverKindRegistration kCamera{"camera", &makeCameraKind, ".exr", &previewOutputs};
 }  // namespace
 
 }  // namespace penumbra

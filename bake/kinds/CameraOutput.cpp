@@ -23,6 +23,8 @@ std::string previewPath(const std::string& output) {
     return std::filesystem::path(output).replace_extension(".png").string();
 }
 
+std::vector<std::string> previewOutputs(const std::string& output) { return {previewPath(output)}; }
+
 glm::vec3 shadedIrradiance(const ReceiverSet& receivers, const ReceiverResults& results, size_t r,
                            const VertexBend* smooth) {
     if (!smooth) return results.irradiance[r];

@@ -20,6 +20,10 @@ namespace penumbra {
 /// @brief The PNG preview path that goes with an output path: "out/a.exr" -> "out/a.png".
 std::string previewPath(const std::string& output);
 
+/// @brief previewPath() as the one file a kind writes beside its output (ReceiverKind.h's
+/// DerivedOutputs): the camera's and the vertex colours' preview.
+std::vector<std::string> previewOutputs(const std::string& output);
+
 /// @brief Antialiasing refinement for the outputs: receivers from index `firstPass` on are
 /// sub-pixel receivers (grouped by pixel), `subPixels` per refined pixel at most.
 struct CameraRefinement {

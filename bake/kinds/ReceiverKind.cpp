@@ -20,12 +20,12 @@ namespace penumbra {
 namespace {
 
 std::mutex registryMutex;
-/// A registered kind: its factory, the extension of the file it writes, and the extensions of
-/// the files it writes beside it.
+/// A registered kind: its factory, the extension of the file it writes, and the files it writes
+/// beside it.
 struct KindEntry {
     ReceiverKindFactory factory;
     std::string extension;
-    std::vector<std::string> derivedExtensions;
+    DerivedOutputs derived = nullptr;
 };
 
 std::map<std::string, KindEntry>& registry() {
@@ -44,6 +44,12 @@ std::optional<KindEntry> findKind(const std::string& type) {
         if (attempt == 0 && !loadPlugin(type)) break;  // the plugin registers its kind as it loads
     }
     return std::nullopt;
+}
+
+/// The kind the "receivers" object's "type" names; nullopt when it names none (or no known one).
+std::optional<KindEntry> kindOf(const nlohmann::json& receivers) {
+    if (!receivers.is_object() || !receivers.contains("type") || !receivers["type"].is_string()) return std::nullopt;
+    return findKind(receivers["type"].get<std::string>());
 }
 
 /// Point receivers from a file; a .npy of visible fractions.
@@ -85,28 +91,22 @@ void requireOutputExtension(const SceneDesc& scene, const std::vector<std::strin
 }
 
 void registerReceiverKind(const std::string& type, ReceiverKindFactory factory, std::string outputExtension,
-                          std::vector<std::string> derivedExtensions) {
+                          DerivedOutputs derived) {
     std::lock_guard lock(registryMutex);
-    registry()[type] = KindEntry{std::move(factory), std::move(outputExtension), std::move(derivedExtensions)};
+    registry()[type] = KindEntry{std::move(factory), std::move(outputExtension), derived};
 }
 
 std::vector<std::string> receiverKindDerivedOutputs(const SceneDesc& scene) {
-    const nlohmann::json& receivers = scene.receivers;
-    if (!receivers.is_object() || !receivers.contains("type") || !receivers["type"].is_string()) return {};
-    const std::optional<KindEntry> kind = findKind(receivers["type"].get<std::string>());
-    std::vector<std::string> paths;
-    if (kind)
-        for (const std::string& extension : kind->derivedExtensions) {
-            std::string path = std::filesystem::path(scene.output).replace_extension(extension).string();
-            // `-o x.png` of a camera: the kind refuses the output's extension, a clearer error.
-            if (path != scene.output) paths.push_back(std::move(path));
-        }
+    const std::optional<KindEntry> kind = kindOf(scene.receivers);
+    if (!kind || !kind->derived) return {};
+    std::vector<std::string> paths = kind->derived(scene.output);
+    // `-o x.png` of a camera: the kind refuses the output's extension, a clearer error.
+    std::erase(paths, scene.output);
     return paths;
 }
 
 std::string receiverKindExtension(const nlohmann::json& receivers) {
-    if (!receivers.is_object() || !receivers.contains("type") || !receivers["type"].is_string()) return ".exr";
-    const std::optional<KindEntry> kind = findKind(receivers["type"].get<std::string>());
+    const std::optional<KindEntry> kind = kindOf(receivers);
     return kind ? kind->extension : ".exr";
 }
 

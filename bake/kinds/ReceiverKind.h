@@ -146,16 +146,19 @@ enum class KindUse : uint8_t { Bake, Validate };
 using ReceiverKindFactory =
     std::function<std::unique_ptr<ReceiverKind>(const JsonParams& params, const SceneDesc& scene, KindUse use)>;
 
+/// @brief The files a kind always writes beside output @p output, named after it (a camera's
+/// preview: previewPath()). The kind's writer names them with the same function.
+using DerivedOutputs = std::vector<std::string> (*)(const std::string& output);
+
 /// @brief Registers (or replaces) receiver type @p type, whose outputs default to
 /// @p outputExtension when the scene names none (`out/shadows.vdb` for a volume).
-/// @param derivedExtensions the files the kind always writes beside its output, named as the
-///        output with another extension (a camera's ".png" preview), so that they are checked
-///        with the other outputs before any work (BakeOutputs.h)
+/// @param derived the files the kind always writes beside its output, so that they are checked
+///        with the other outputs before any work (BakeOutputs.h); null: none
 void registerReceiverKind(const std::string& type, ReceiverKindFactory factory, std::string outputExtension = ".exr",
-                          std::vector<std::string> derivedExtensions = {});
+                          DerivedOutputs derived = nullptr);
 
 /// @brief The files the kind of @p scene always writes beside its output, named after it
-/// (registerReceiverKind()'s derived extensions): "out/a.png" for a camera's "out/a.exr".
+/// (registerReceiverKind()'s DerivedOutputs): "out/a.png" for a camera's "out/a.exr".
 std::vector<std::string> receiverKindDerivedOutputs(const SceneDesc& scene);
 
 /// @brief The output extension of the kind the "receivers" object names (".exr" when the type is
@@ -176,8 +179,8 @@ void validateReceiverKind(const nlohmann::json& receivers, const SceneDesc& scen
 /// file lists the kinds. The library is linked whole (CMakeLists.txt) so that none is dropped.
 struct ReceiverKindRegistration {
     ReceiverKindRegistration(const std::string& type, ReceiverKindFactory factory, std::string outputExtension = ".exr",
-                             std::vector<std::string> derivedExtensions = {}) {
-        registerReceiverKind(type, std::move(factory), std::move(outputExtension), std::move(derivedExtensions));
+                             DerivedOutputs derived = nullptr) {
+        registerReceiverKind(type, std::move(factory), std::move(outputExtension), derived);
     }
 };
 

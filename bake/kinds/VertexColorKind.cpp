@@ -367,7 +367,7 @@ const ReceiverKindRegistration kVertices{"vertices", [](const JsonParams& j, con
             files.push_back(std::move(file));
         }
         return use == KindUse::Validate ? nullptr : std::make_unique<VertexColorKind>(std::move(files), std::move(camera));
-    }, ".glb", {".png"}};  // the preview, previewPath()
+    }, ".glb", &previewOutputs};
 
 }  // namespace
 

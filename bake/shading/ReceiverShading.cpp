@@ -154,7 +154,6 @@ double sampleSum(const double* x, const double* y, const double* z, size_t n, gl
     return hasAvx2() ? sampleSumAvx2(x, y, z, n, p, normal, emitter, visible) : sampleSumScalar(x, y, z, n, p, normal, emitter, visible);
 }
 
-
 /// Σ T_j term_j over the visible samples [0, n), in sample order: sampleSum()'s terms, each tinted
 /// by its sample's transmittance (@p depth: 3 depths per sample). The AVX2 path computes the terms
 /// four at a time with sampleTerm()'s bits and adds them in the same order, so both agree.
@@ -325,7 +324,7 @@ glm::dvec3 ReceiverShader::lightTintedSum(uint32_t r, int li, const uint64_t* vi
     const glm::dvec3 p(receivers_.position[r]), normal(receivers_.normal[r]);
     const uint32_t* lightDepth = depth + 3 * size_t(samples_.groups[samples_.lightFirstGroup[li]].first);
     return hasAvx2() ? tintedSampleSumAvx2(x, x + total, x + 2 * total, n, p, normal, lights_[li].normal, visible, lightDepth)
-                : tintedSampleSumScalar(x, x + total, x + 2 * total, n, p, normal, lights_[li].normal, visible, lightDepth);
+                     : tintedSampleSumScalar(x, x + total, x + 2 * total, n, p, normal, lights_[li].normal, visible, lightDepth);
 }
 
 glm::dvec3 ReceiverShader::unoccludedIrradiance(uint32_t r, int li) const {

@@ -487,9 +487,11 @@ void ensureParentDirectory(const std::string& path) {
     std::filesystem::create_directories(parent, ec);
     if (!missing.empty() && !ec) {
         std::lock_guard lock(g_setMutex);
-        if (g_openSet)  // innermost first in the registry, so that a signal empties them in order
-            for (auto it = missing.begin(); it != missing.end(); ++it) registerTempFile(*it);
-        if (g_openSet) g_openSet->madeDirectories_.insert(g_openSet->madeDirectories_.end(), missing.rbegin(), missing.rend());
+        if (g_openSet) {
+            // Innermost first in the registry, so that a signal empties them in order.
+            for (const std::string& dir : missing) registerTempFile(dir);
+            g_openSet->madeDirectories_.insert(g_openSet->madeDirectories_.end(), missing.rbegin(), missing.rend());
+        }
     }
     if (ec) fail(path, "cannot create directory {}: {}", parent.string(), ec.message());
     // create_directories() reports no error when the parent exists as a regular file on some

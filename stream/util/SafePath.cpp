@@ -25,12 +25,6 @@ fs::path normalAbsolute(const fs::path& path) {
     return p;
 }
 
-/// True when @p inner is @p outer or lies below it (both normal and absolute).
-bool isInside(const fs::path& inner, const fs::path& outer) {
-    const fs::path rel = inner.lexically_relative(outer);
-    return !rel.empty() && *rel.begin() != "..";
-}
-
 /// The longest existing prefix of @p path with its symbolic links resolved, followed by the rest.
 fs::path resolvedLinks(const fs::path& path) {
     std::error_code ec;
@@ -39,6 +33,11 @@ fs::path resolvedLinks(const fs::path& path) {
 }
 
 }  // namespace
+
+bool isInside(const fs::path& inner, const fs::path& outer) {
+    const fs::path rel = inner.lexically_relative(outer);
+    return !rel.empty() && *rel.begin() != "..";
+}
 
 void setOutsidePathsAllowed(bool allowed) { g_allowOutside.store(allowed); }
 

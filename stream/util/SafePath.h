@@ -27,6 +27,9 @@ bool outsidePathsAllowed();
 /// name tinygltf will open.
 std::string percentDecode(std::string_view uri);
 
+/// @brief True when @p inner is @p outer or lies below it (both absolute and lexically normal).
+bool isInside(const std::filesystem::path& inner, const std::filesystem::path& outer);
+
 /// @brief Resolves @p name against @p baseDir and refuses it if it leaves @p baseDir.
 /// @param what names the directory in messages: "the scene's directory", "the model's directory".
 /// @return the resolved, lexically normal path (relative when @p baseDir is).
