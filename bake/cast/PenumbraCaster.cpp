@@ -54,9 +54,10 @@ struct PenumbraCaster::Impl {
     Impl(const LightSamples& s, const CastOptions& o) : samples(s), options(o) {}
     void buildTiles(const ReceiverSet& receivers, std::span<const uint32_t> sampleSetOf,
                     std::span<const uint32_t> receiverIds, int tileCount);
-    /// Casts every published chunk that tile @p t has not cast yet, unless another thread holds
-    /// the tile (that thread then sees the new chunks before it lets go).
-    void drain(size_t t);
+    /// Casts every published chunk that tile @p t has not cast yet (at most @p most of them),
+    /// unless another thread holds the tile (that thread then sees the new chunks before it lets
+    /// go). A caller that stops early leaves the rest to the tasks of the next publish.
+    void drain(size_t t, uint64_t most = UINT64_MAX);
     /// The tile's part of a chunk; the last tile to finish it counts the chunk's root culls.
     void castOnTile(size_t t, BlockerBatch& batch);
 };
@@ -198,13 +199,17 @@ void PenumbraCaster::Impl::castOnTile(size_t t, BlockerBatch& batch) {
     batch.inUse.store(false);
 }
 
-void PenumbraCaster::Impl::drain(size_t t) {
+void PenumbraCaster::Impl::drain(size_t t, uint64_t most) {
     for (;;) {
         if (tileBusy[t].exchange(true)) return;
         try {
-            while (tileNext[t] < published.load()) {
+            for (; tileNext[t] < published.load(); ++tileNext[t]) {
+                if (most == 0) {
+                    tileBusy[t].store(false);
+                    return;
+                }
                 castOnTile(t, *ring[tileNext[t] % ring.size()]);
-                ++tileNext[t];
+                --most;
             }
         } catch (...) {
             failed = true;  // the tile stays held: its state is unknown, nobody casts it again
@@ -229,7 +234,7 @@ void PenumbraCaster::cast(std::span<const Triangle> blockers) {
     // counted its root culls. Rather than wait, this thread casts the tiles nobody holds; it
     // yields only while the tiles that still need the slot run on other threads.
     while (batch.inUse.load()) {
-        for (size_t t = 0; t < m.tiles.size() && !m.failed; ++t) m.drain(t);
+        for (size_t t = 0; t < m.tiles.size() && !m.failed && batch.inUse.load(); ++t) m.drain(t, 1);
         if (m.failed) m.group.wait();  // rethrows the tile's exception
         if (batch.inUse.load()) std::this_thread::yield();
     }
