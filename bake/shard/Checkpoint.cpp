@@ -83,7 +83,13 @@ void Checkpoints::reject(const std::string& path, const std::string& why) {
     if (!quiet_) printNote("{}: ignoring the checkpoint: {}", path, why);
 }
 
-std::optional<PartialFile> Checkpoints::readMatching(const std::string& path, uint32_t role, std::span<const uint32_t> ids) {
+std::string Checkpoints::misnamedWhy(const PartialHeader& h, size_t tile, size_t tiles) {
+    if (h.part == tile && h.parts == tiles) return {};
+    return fmt::format("holds tile {} of {}, not tile {} of {} as its name says (renamed?)", h.part, h.parts, tile, tiles);
+}
+
+std::optional<PartialFile> Checkpoints::readMatching(const std::string& path, uint32_t role, size_t tile, size_t tiles,
+                                                     std::span<const uint32_t> ids) {
     std::error_code ec;
     if (!fs::exists(path, ec)) return std::nullopt;
     PartialFile f;
@@ -101,6 +107,7 @@ std::optional<PartialFile> Checkpoints::readMatching(const std::string& path, ui
         return reject(path, "a checkpoint of other settings (method, shard or cut)"), std::nullopt;
     if (h.contentHash != header_.contentHash || h.receivers != header_.receivers || h.groups != header_.groups)
         return reject(path, "a checkpoint of other receivers or light samples"), std::nullopt;
+    if (const std::string why = misnamedWhy(h, tile, tiles); !why.empty()) return reject(path, why), std::nullopt;
     // The tile must hold exactly these receivers: another memory budget tiles differently.
     size_t present = 0;
     for (uint8_t s : f.state) present += s != uint8_t(ReceiverState::Absent);
@@ -112,8 +119,7 @@ std::optional<PartialFile> Checkpoints::readMatching(const std::string& path, ui
 
 bool Checkpoints::sameBake(const std::string& path) const {
     try {  // only this bake's files: a folder may hold another bake's, which are not ours to judge
-        const PartialHeader h = readPartialHeader(path);
-        return h.sceneHash == header_.sceneHash && h.settingsHash == header_.settingsHash && h.contentHash == header_.contentHash;
+        return isThisBake(readPartialHeader(path));
     } catch (const InputError&) {
         return false;  // damaged: its own bake reports it
     }
@@ -145,7 +151,12 @@ void Checkpoints::checkOtherTilings(size_t tiles) {
         if (std::sscanf(name.c_str(), "tile-%lu-of-%lu%n", &t, &m, &used) != 2) continue;
         const std::string rest = name.substr(size_t(used));
         if (rest != ".pnpart" && rest != ".progress.pnpart") continue;
-        if (ours && m == tiles) continue;
+        if (ours && m == tiles) {
+            // Checked now, before any tile is cast: a misnamed file would otherwise stop a resumed
+            // bake only when its tile comes up.
+            if (settings_.resume) checkName(entry.path().string(), t, m);
+            continue;
+        }
         if (!sameBake(entry.path().string())) continue;
         if (ours) other.push_back(entry.path().string());
         else if (m == tiles && !fs::exists(fs::path(settings_.checkpointDir) / (prefix + name), ec))
@@ -160,6 +171,17 @@ void Checkpoints::checkOtherTilings(size_t tiles) {
                            settings_.checkpointDir, other.size(), tiles);
     // Superseded by this bake's own: removed with them once the outputs are in place.
     written_.insert(written_.end(), other.begin(), other.end());
+}
+
+void Checkpoints::checkName(const std::string& path, size_t tile, size_t tiles) {
+    PartialHeader h;
+    try {
+        h = readPartialHeader(path);
+    } catch (const InputError&) {
+        return;  // damaged: reported when its tile reads it
+    }
+    if (!isThisBake(h)) return;  // another bake's: reported, with the reason, when its tile reads it
+    if (const std::string why = misnamedWhy(h, tile, tiles); !why.empty()) reject(path, why);
 }
 
 void Checkpoints::adoptMoved(std::vector<std::pair<std::string, std::string>> moved) {
@@ -179,7 +201,7 @@ void Checkpoints::adoptMoved(std::vector<std::pair<std::string, std::string>> mo
 bool Checkpoints::restore(size_t tile, size_t tiles, std::span<const uint32_t> ids, VisibilityMasks& masks) {
     checkOtherTilings(tiles);
     const std::string path = pathOf(tile, tiles);
-    const std::optional<PartialFile> f = readMatching(path, PartialHeader::kCheckpoint, ids);
+    const std::optional<PartialFile> f = readMatching(path, PartialHeader::kCheckpoint, tile, tiles, ids);
     if (!f) return false;
     std::vector<uint8_t> covered(masks.receivers(), 0);
     addPartialMasks(*f, samples_, masks, covered);
@@ -193,7 +215,7 @@ std::optional<TileProgress> Checkpoints::resumeTile(size_t tile, size_t tiles, s
     checkOtherTilings(tiles);
     progressClock_.reset(), chunksSinceSave_ = 0;
     const std::string path = pathOf(tile, tiles, ".progress");
-    const std::optional<PartialFile> f = readMatching(path, PartialHeader::kTileProgress, ids);
+    const std::optional<PartialFile> f = readMatching(path, PartialHeader::kTileProgress, tile, tiles, ids);
     if (!f) return std::nullopt;
     TileProgress p{f->header.replayed, f->header.replayHash, VisibilityMasks(ids.size(), int(header_.groups))};
     const uint64_t* words = f->words.data();

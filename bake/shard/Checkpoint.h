@@ -103,11 +103,21 @@ private:
     void reject(const std::string& path, const std::string& why);
     /// Whether @p path's header is this bake's (scene, settings, content); false when unreadable.
     bool sameBake(const std::string& path) const;
+    bool isThisBake(const PartialHeader& h) const {
+        return h.sceneHash == header_.sceneHash && h.settingsHash == header_.settingsHash && h.contentHash == header_.contentHash;
+    }
+    /// Why a file of this bake named tile @p tile of @p tiles holds another tile; empty when not.
+    static std::string misnamedWhy(const PartialHeader& h, size_t tile, size_t tiles);
+    /// --resume: reject()s @p path, named tile @p tile of @p tiles, if it is this bake's file of
+    /// another tile (checked for every file before the first tile is cast).
+    void checkName(const std::string& path, size_t tile, size_t tiles);
     /// Renames each (from, to) of checkOtherTilings(): this bake's files under another scene path.
     void adoptMoved(std::vector<std::pair<std::string, std::string>> moved);
     /// @brief Reads @p path if it exists and checks that it is a @p role file of this bake and
-    /// of a tile of exactly @p ids; a mismatch is reject()ed. @return the file, or nullopt.
-    std::optional<PartialFile> readMatching(const std::string& path, uint32_t role, std::span<const uint32_t> ids);
+    /// of tile @p tile of @p tiles, holding exactly @p ids; a mismatch is reject()ed.
+    /// @return the file, or nullopt.
+    std::optional<PartialFile> readMatching(const std::string& path, uint32_t role, size_t tile, size_t tiles,
+                                            std::span<const uint32_t> ids);
 
     ShardSettings settings_;
     PartialHeader header_;

@@ -293,6 +293,36 @@ TEST_CASE("checkpoints of another tiling are refused under --resume, noted and r
     CHECK_FALSE(hasTempFiles(dir.path));
 }
 
+TEST_CASE("a checkpoint renamed to another tile is refused before any tile is cast under --resume, ignored under --checkpoint",
+          "[shards][resume]") {
+    // It was refused only when tile 0 was cast, with a message about another tiling.
+    ResumeBake b;
+    ScratchDir& dir = b.dir;
+    b.killed("PENUMBRA_TEST_KILL_AFTER_TILES=1");
+    const std::vector<std::string> files = filesIn(dir / "ckpt");
+    REQUIRE(files.size() == 1);
+    const size_t at = files[0].find("tile-0-of-");
+    REQUIRE(at != std::string::npos);
+    std::string renamed = files[0];
+    renamed.replace(at, 6, "tile-1");
+    fs::rename(dir / ("ckpt/" + files[0]), dir / ("ckpt/" + renamed));
+    RunResult refused = runPenumbra("bake " + b.scene + b.common + " --quiet --resume " + dir / "ckpt");
+    requireCleanError(refused, "holds tile 0 of");
+    CHECK_THAT(refused.err, Catch::Contains(renamed) && Catch::Contains("not tile 1 of") && Catch::Contains("(renamed?)"));
+    RunResult shown = runPenumbra("bake " + b.scene + b.common + " --resume " + dir / "ckpt");
+    CHECK(shown.exitCode == 1);
+    CHECK_THAT(shown.err, Catch::Contains("[bucket]") && !Catch::Contains("[cast"));  // refused before any tile was cast
+    CHECK_FALSE(fs::exists(dir / "out/scene.exr"));
+
+    RunResult noted = runPenumbra("bake " + b.scene + b.common + " --checkpoint " + dir / "ckpt");
+    INFO(noted.err);
+    REQUIRE(noted.exitCode == 0);
+    CHECK_THAT(noted.err, Catch::Contains("ignoring the checkpoint: holds tile 0 of"));
+    CHECK(b.outputs() == b.expected);
+    CHECK_FALSE(fs::exists(dir / "ckpt"));
+    CHECK_FALSE(hasTempFiles(dir.path));
+}
+
 TEST_CASE("checkpoints and shard files are synced before they are named, and their directory after", "[shards][resume][fsync]") {
     ScratchDir dir("resume-fsync");
     writeText(dir / "scene.json", kShardScene);
