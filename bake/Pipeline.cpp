@@ -131,9 +131,14 @@ void scanScene(Bake& b) {
              scene.receivers.value("type", std::string("?")));
     if (!b.method.traits.masks && b.dump())
         fail("--dump", "--method {} gives visible fractions, not per-sample masks", b.method.name);
+    // Checkpoints are hpc's finished memory tiles: another method would save nothing and lose
+    // its whole cast to a SIGTERM, while the user believed it safe.
+    if (!b.settings.shard.checkpointDir.empty() && !b.settings.shard.merge && !b.method.traits.memoryTiles)
+        fail(b.settings.shard.resume ? "--resume" : "--checkpoint",
+             "--method {} has no memory tiles to save; only hpc checkpoints (bake without it, or shard the bake)", b.method.name);
     if (!b.method.traits.masks && ShardedCast::keepsMasks(b.settings.shard))
-        fail(b.settings.shard.merge ? "merge" : b.settings.shard.count ? "--shard" : "--checkpoint",
-             "--method {} gives visible fractions, not per-sample masks to merge", b.method.name);
+        fail(b.settings.shard.merge ? "merge" : "--shard", "--method {} gives visible fractions, not per-sample masks to merge",
+             b.method.name);
     if (b.settings.shard.casting() && b.dump()) fail("--dump", "a shard writes no outputs; give --dump to penumbra merge");
     TriangleSourcePtr geometry = [&] {
         ScopedTimer timer(b.openSeconds);

@@ -107,6 +107,33 @@ void registerExceptions(py::module_& m) {
     m.add_object("SceneError", py::handle(sceneErrorType));
 }
 
+namespace {
+
+/// The CLI's option names in a message, as a Python caller gave them: "--memory-budget 1 MiB is
+/// too small" was said to a caller who passed memory_budget="1M".
+std::string withPythonNames(std::string message) {
+    static const std::pair<const char*, const char*> kNames[] = {
+        {"--memory-budget", "memory_budget"}, {"--method", "method"}, {"--threads", "threads"},
+        {"--tmp", "tmp_dir"},                 {"--output", "write()"}, {"-o", "write()"}};
+    for (const auto& [cli, python] : kNames) {
+        const std::string from = cli;
+        for (size_t at = message.find(from); at != std::string::npos; at = message.find(from, at)) {
+            const size_t end = at + from.size();
+            const bool word = (at == 0 || message[at - 1] == ' ' || message[at - 1] == '(') &&
+                              (end == message.size() || message[end] == ' ' || message[end] == ':' || message[end] == ',' || message[end] == ')');
+            if (!word) {
+                at = end;
+                continue;
+            }
+            message.replace(at, from.size(), python);
+            at += std::string(python).size();
+        }
+    }
+    return message;
+}
+
+}  // namespace
+
 void raiseCurrent(bool scene) {
     std::string message;
     PyObject* type = scene ? sceneErrorType : errorType;
@@ -125,7 +152,7 @@ void raiseCurrent(bool scene) {
         message = library ? *library : std::string("internal error: ") + e.what();
         if (!library) type = errorType;
     }
-    PyErr_SetString(type, message.c_str());
+    PyErr_SetString(type, withPythonNames(message).c_str());
     throw py::error_already_set();
 }
 

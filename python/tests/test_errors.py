@@ -440,3 +440,24 @@ print(result.stats["counters"]["triangles_read"], grew)
     assert int(triangles) >= 4_000_000
     assert float(grew) < 100  # MiB beyond the 1M-triangle array the test made itself (38 MB)
 
+
+
+def test_messages_name_the_python_arguments_not_the_cli_options(tmp_path):
+    # "--memory-budget 1 MiB is too small" was said to a caller who passed memory_budget="1M".
+    scene = penumbra.Scene(grid_scene())
+    with pytest.raises(penumbra.Error, match=r"^memory_budget 1 MiB is too small") as budget:
+        penumbra.bake(scene, memory_budget="1M")
+    with pytest.raises(penumbra.Error, match=r"^method hh: applies to lightmap receivers only") as method:
+        penumbra.bake(scene, method="hh")
+    with pytest.raises(penumbra.Error, match=r"^write\(\): .*x\.npy.*: camera receivers write \.exr files") as write:
+        penumbra.bake(scene).write(str(tmp_path / "x.npy"))
+    for raised in (budget, method, write):
+        assert "--" not in str(raised.value)
+
+
+def test_an_argument_of_the_wrong_type_is_a_type_error():
+    # A wrong value is a ValueError (above); a wrong type is Python's TypeError, as documented.
+    scene = penumbra.Scene(grid_scene())
+    for kwargs in ({"method": 3}, {"method": None}, {"threads": 1.5}, {"threads": "2"}):
+        with pytest.raises(TypeError):
+            penumbra.bake(scene, **kwargs)

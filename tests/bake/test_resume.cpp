@@ -323,6 +323,21 @@ TEST_CASE("a checkpoint renamed to another tile is refused before any tile is ca
     CHECK_FALSE(hasTempFiles(dir.path));
 }
 
+TEST_CASE("methods without memory tiles refuse --checkpoint and --resume before any work", "[shards][resume]") {
+    // They took the option, saved nothing, and lost the whole cast to a SIGTERM without a word.
+    ScratchDir dir("resume-methods");
+    const TiledScene tiled = tiledShardScene(dir);
+    for (const std::string method : {"reference", "embree", "ssv", "penumbra-map"}) {
+        for (const std::string option : {"--checkpoint", "--resume"}) {
+            INFO(method << " " << option);
+            RunResult r = runPenumbra("bake " + tiled.path + " --quiet --method " + method + " " + option + " " + dir / "ckpt");
+            requireCleanError(r, option + ": --method " + method + " has no memory tiles to save; only hpc checkpoints");
+            CHECK_FALSE(fs::exists(dir / "ckpt"));
+            CHECK_FALSE(fs::exists(dir / "out"));
+        }
+    }
+}
+
 TEST_CASE("checkpoints and shard files are synced before they are named, and their directory after", "[shards][resume][fsync]") {
     ScratchDir dir("resume-fsync");
     writeText(dir / "scene.json", kShardScene);
