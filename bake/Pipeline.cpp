@@ -357,10 +357,16 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total);
 [[noreturn]] void failOutOfMemory(const Bake& b) {
     const uint64_t data = std::max(b.minimum, scanPhaseBytes(b.demand));
     const uint64_t limit = addressSpaceLimit();
-    if (limit)
+    if (limit) {
+        const uint64_t need = mappedNotResidentBytes() + 2 * kReadAheadStackBytes + kBaselineBytes + data + data / 4;
+        // A need at or below the limit would contradict the failure: the plan had not yet seen
+        // what failed (a file's parse, as it was being opened).
+        if (need <= limit)
+            fail(b.scene.file, "out of memory under the address-space limit (prlimit --as, ulimit -v) of {}: this bake needs "
+                 "more than that; give it more, or lower the resolution or sample count", formatBytes(limit));
         fail(b.scene.file, "out of memory under the address-space limit (prlimit --as, ulimit -v) of {}: this bake needs "
-             "at least {}; give it more, or lower the resolution or sample count", formatBytes(limit),
-             formatBytes(mappedNotResidentBytes() + 2 * kReadAheadStackBytes + kBaselineBytes + data + data / 4));
+             "at least {}; give it more, or lower the resolution or sample count", formatBytes(limit), formatBytes(need));
+    }
     fail(b.scene.file, "out of memory: this bake's data needs at least {} at once; lower the resolution or sample "
          "count, or give --memory-budget to bake in memory tiles", formatBytes(data + data / 4));
 }

@@ -284,7 +284,10 @@ void registerFileSourceTypes() {
             // The key, for a file that is not there: with several entries (or nested scatters) a
             // bare "rock.obj: cannot open" does not say which one names it.
             std::error_code ec;
-            if (!std::filesystem::exists(path, ec)) fail(j.where("path"), "{}: no such file", path);
+            // exists() is false for a folder that cannot be entered and a symlink loop too: those
+            // say what stat() said (a CI job with wrong permissions went looking for a missing file).
+            if (!std::filesystem::exists(path, ec))
+                fail(j.where("path"), "{}: {}", path, ec && ec != std::errc::no_such_file_or_directory ? ec.message() : "no such file");
             const std::vector<std::string> parts = geometryParts(j);
             j.finish();
             if (type == "file" && geometryFormatOf(path) == GeometryFormat::Gltf)

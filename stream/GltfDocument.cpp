@@ -5,6 +5,7 @@
 #include "stream/GltfMaterials.h"
 #include "stream/GltfTranslucency.h"
 #include "stream/util/InputFile.h"
+#include "stream/util/PathText.h"
 #include "stream/util/JsonText.h"
 #include "stream/util/RegularFile.h"
 #include "stream/util/SafePath.h"
@@ -45,6 +46,12 @@ std::string readJsonText(const std::string& path, std::optional<std::pair<uint64
     RegularFile file(path);
     unsigned char header[20] = {};
     file.read(header, size_t(std::min<uint64_t>(file.size(), 20)), 0);
+    if (file.size() == 0) fail(path, "is empty");
+    // Told apart by content, but a .glb that is not one is named so, not as the JSON parser's
+    // complaint about its first byte.
+    if (lowercaseExtension(path) == ".glb" && (file.size() < 4 || u32(header) != kGlbMagic))
+        fail(path, "is not a GLB file: it starts with \"{}\", not \"glTF\"",
+             printableLine(std::string_view(reinterpret_cast<const char*>(header), size_t(std::min<uint64_t>(file.size(), 4)))));
     if (file.size() >= 4 && u32(header) == kGlbMagic) {
         if (file.size() < 20) fail(path, "truncated GLB header (expected at least 20 bytes, found {})", file.size());
         if (uint32_t version = u32(header + 4); version != 2) fail(path, "unsupported GLB version {}", version);
@@ -85,6 +92,30 @@ uint64_t gltfJsonTextBytes(const std::string& path) {
     } catch (const InputError&) {
         return 0;
     }
+}
+
+uint64_t gltfJsonObjectCount(const std::string& path) {
+    std::string text;
+    try {
+        std::optional<std::pair<uint64_t, uint64_t>> bin;
+        text = readJsonText(path, bin);
+    } catch (const InputError&) {
+        return 0;  // opening says why
+    }
+    uint64_t objects = 0;
+    bool inString = false;
+    for (size_t i = 0; i < text.size(); ++i) {
+        const char c = text[i];
+        if (inString) {
+            if (c == '\\') ++i;
+            else if (c == '"') inString = false;
+        } else if (c == '"') {
+            inString = true;
+        } else {
+            objects += c == '{';
+        }
+    }
+    return objects;
 }
 
 namespace {

@@ -167,6 +167,11 @@ struct GltfDocument {
 /// header), else the file's size; 0 when the file cannot be read (loading says why).
 uint64_t gltfJsonTextBytes(const std::string& path);
 
+/// @brief How many JSON objects @p path's glTF JSON holds (nodes, accessors, primitives, ...),
+/// from one pass over its text, which is read and dropped: the parse's structures that stay grow
+/// with them, not with the bytes. 0 when the file cannot be read (loading says why).
+uint64_t gltfJsonObjectCount(const std::string& path);
+
 GltfDocument loadGltfDocument(const std::string& path);
 
 /// Bytes of one component of @p componentType (0 for an invalid type).

@@ -46,10 +46,18 @@ namespace penumbra {
 ///        out of range, non-finite positions and compressed data that does not decode.
 TriangleSourcePtr openGltf(const std::string& path, std::shared_ptr<const GltfAlphaIds> alpha = nullptr);
 
-/// @brief What opening @p path will hold while it parses the JSON (about 13 bytes per byte of
-/// it), from the GLB header or the file's size, without reading the JSON: a memory check before
-/// the opening, so that a refusal does not itself peak above the budget it refuses.
-/// @return 0 when the file cannot be read or its header is not a GLB's (opening says why).
-uint64_t gltfParsingBytes(const std::string& path);
+/// @brief What opening a glTF holds: @ref parse while its JSON is parsed (text and tree, about 13
+/// bytes per byte of JSON, freed after), and @ref held that the opened document keeps per JSON
+/// object (nodes, their placements).
+struct GltfOpeningBytes {
+    uint64_t parse = 0, held = 0;
+    uint64_t total() const { return parse + held; }
+};
+
+/// @brief What opening @p path will hold, from the GLB header or the file's size and, when the
+/// parse is notable, one pass over the JSON text that counts its objects: a memory check before
+/// the opening, so that a refusal does not itself peak above the budget it refuses, and names
+/// enough. Zero when the file cannot be read or its header is not a GLB's (opening says why).
+GltfOpeningBytes gltfOpeningBytes(const std::string& path);
 
 }  // namespace penumbra

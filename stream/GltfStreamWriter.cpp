@@ -23,6 +23,13 @@ namespace penumbra {
 
 namespace {
 
+/// A mesh name as JSON: an OBJ's group names are bytes, often Latin-1 from old exporters, which
+/// JSON cannot hold; broken UTF-8 becomes U+FFFD instead of failing the write.
+std::string nameJson(const std::string& name) {
+    return nlohmann::json(name).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
+
 constexpr uint32_t kEmptySlot = std::numeric_limits<uint32_t>::max();
 constexpr int kFloat = 5126, kUnsignedInt = 5125;         // glTF componentType
 constexpr int kArrayBuffer = 34962, kElementBuffer = 34963;  // bufferView target
@@ -283,7 +290,7 @@ void GltfStreamWriter::writeDocument(const std::string& uri, const std::function
     for (const auto& mesh : meshes_) {
         if (mesh->written.empty()) continue;
         put(R"({}{}{{)", comma, sep);
-        if (!mesh->name.empty()) put(R"("name":{},)", nlohmann::json(mesh->name).dump());
+        if (!mesh->name.empty()) put(R"("name":{},)", nameJson(mesh->name));
         put(R"("primitives":[)");
         for (size_t i = 0; i < mesh->written.size(); ++i) {
             put(R"({}{{"attributes":{{"POSITION":{})", i ? "," : "", accessor++);
@@ -303,7 +310,7 @@ void GltfStreamWriter::writeDocument(const std::string& uri, const std::function
     for (const auto& mesh : meshes_) {
         if (mesh->written.empty()) continue;
         put(R"({}{}{{)", comma, sep);
-        if (!mesh->name.empty()) put(R"("name":{},)", nlohmann::json(mesh->name).dump());
+        if (!mesh->name.empty()) put(R"("name":{},)", nameJson(mesh->name));
         put(R"("mesh":{}}})", node++);
         comma = ",";
     }

@@ -59,12 +59,23 @@ std::string_view ObjTokens::rest() const {
     return rest_.substr(begin, end + 1 - begin);
 }
 
+namespace {
+
+/// @p token as an error quotes it: cut after 32 characters, with its length (a 10 MB number was
+/// quoted whole, up to the 9 KiB line cut).
+std::string quotedToken(std::string_view token) {
+    if (token.size() <= 40) return fmt::format("'{}'", token);
+    return fmt::format("'{}...' ({} characters)", token.substr(0, 32), token.size());
+}
+
+}  // namespace
+
 float parseObjNumber(std::string_view token, const ObjLocation& where) {
     std::string_view digits = withoutPlus(token);
     float value = 0;
     auto [end, error] = std::from_chars(digits.data(), digits.data() + digits.size(), value);
     if (end != digits.data() + digits.size() || (error != std::errc() && error != std::errc::result_out_of_range))
-        fail(where.text(), "unparsable number '{}'", token);
+        fail(where.text(), "unparsable number {}", quotedToken(token));
     if (error == std::errc::result_out_of_range) {
         // from_chars reports overflow and underflow alike. Underflow (to a denormal or zero) is
         // harmless, overflow is an infinite coordinate; a double parse tells them apart (strtod
@@ -75,10 +86,11 @@ float parseObjNumber(std::string_view token, const ObjLocation& where) {
             bool tiny = digits.find("e-") != std::string_view::npos || digits.find("E-") != std::string_view::npos;
             wide = tiny ? 0.0 : HUGE_VAL;
         }
-        if (!(std::abs(wide) <= FLT_MAX)) fail(where.text(), "non-finite coordinate '{}'", token);
+        if (!(std::abs(wide) <= FLT_MAX))
+            fail(where.text(), "coordinate {} is out of the float range (at most {:g} in magnitude)", quotedToken(token), double(FLT_MAX));
         value = std::copysign(static_cast<float>(wide), digits[0] == '-' ? -1.0f : 1.0f);
     }
-    if (!std::isfinite(value)) fail(where.text(), "non-finite coordinate '{}'", token);
+    if (!std::isfinite(value)) fail(where.text(), "non-finite coordinate {}", quotedToken(token));
     return value;
 }
 
@@ -104,7 +116,7 @@ void parseObjFace(ObjTokens& tokens, const uint64_t counts[3], std::vector<ObjCo
         std::string_view rest = corner;
         while (true) {
             size_t slash = rest.find('/');
-            if (fieldCount == 3) fail(where.text(), "unparsable face corner '{}'", corner);
+            if (fieldCount == 3) fail(where.text(), "unparsable face corner {}", quotedToken(corner));
             fields[fieldCount++] = rest.substr(0, slash);
             if (slash == std::string_view::npos) break;
             rest.remove_prefix(slash + 1);
@@ -114,7 +126,7 @@ void parseObjFace(ObjTokens& tokens, const uint64_t counts[3], std::vector<ObjCo
         for (size_t i = 0; i < fieldCount; ++i) {
             if (i > 0 && fields[i].empty()) continue;  // "v//vn"
             int64_t index = 0;
-            if (!parseInteger(fields[i], index)) fail(where.text(), "unparsable face corner '{}'", corner);
+            if (!parseInteger(fields[i], index)) fail(where.text(), "unparsable face corner {}", quotedToken(corner));
             *out[i] = resolve(index, counts[i], int(i), where);
         }
         corners.push_back(c);

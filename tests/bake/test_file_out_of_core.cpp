@@ -281,6 +281,46 @@ TEST_CASE("a budget too small for parsing a glTF's JSON is refused before the JS
     CHECK(bake(dir, scene(file(dir / "padded.gltf"))).exitCode == 0);
 }
 
+TEST_CASE("a glTF of many nodes: the budget or address-space limit named before its opening holds after it",
+          "[outofcore][memory]") {
+    // The check before the opening counted the parse alone: 300,000 nodes named 279M, refused
+    // again after the parse naming 400M; under prlimit --as it took four tries (300 MiB, 850M,
+    // 1853M, 1873M for a million nodes), each after seconds of parsing.
+    ScratchDir dir("gltf-many-nodes");
+    const std::string triangle = "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAAAAAAIA/";  // (0,0,0) (1,0,0) (0,0,1)
+    nlohmann::json doc = {{"asset", {{"version", "2.0"}}},
+                          {"buffers", {{{"byteLength", 36}, {"uri", "data:application/octet-stream;base64," + triangle}}}},
+                          {"bufferViews", {{{"buffer", 0}, {"byteLength", 36}}}},
+                          {"accessors", {{{"bufferView", 0}, {"componentType", 5126}, {"count", 3}, {"type", "VEC3"},
+                                          {"min", {0, 0, 0}}, {"max", {1, 0, 1}}}}},
+                          {"meshes", {{{"primitives", {{{"attributes", {{"POSITION", 0}}}}}}}}}, {"scene", 0}};
+    nlohmann::json nodes = nlohmann::json::array(), roots = nlohmann::json::array();
+    for (int i = 0; i < 100000; ++i) {
+        nodes.push_back({{"mesh", 0}, {"scale", {0.01, 0.01, 0.01}}, {"translation", {(i % 300) * 0.03 - 4.5, 0.5, (i / 300) * 0.03 - 5.0}}});
+        roots.push_back(i);
+    }
+    doc["nodes"] = std::move(nodes), doc["scenes"] = {{{"nodes", std::move(roots)}}};
+    std::ofstream(dir / "nodes.gltf") << doc.dump();
+    doc = {};
+    const nlohmann::json s = scene(file(dir / "nodes.gltf"), 80, 60);
+    for (const bool addressSpace : {false, true}) {
+        INFO((addressSpace ? "prlimit --as" : "--memory-budget"));
+        const std::string cap = addressSpace ? "prlimit --as=" + std::to_string(100 << 20) : "";
+        const Bake refused = bake(dir, s, addressSpace ? "" : "--memory-budget 16M", cap);
+        INFO(refused.err);
+        REQUIRE(refused.exitCode == 1);
+        CHECK_THAT(refused.err, Catch::Contains("nodes.gltf: its glTF JSON takes about") && Catch::Contains("to hold"));
+        const std::string named = namedBudget(refused.err);
+        REQUIRE_FALSE(named.empty());
+        const uint64_t mib = std::stoull(named);  // "187M"
+        const Bake enough = addressSpace ? bake(dir, s, "", "prlimit --as=" + std::to_string(mib << 20)) : bake(dir, s, "--memory-budget " + named);
+        INFO(enough.err);
+        CHECK(enough.exitCode == 0);
+        if (enough.exitCode == 0 && !addressSpace)
+            CHECK(enough.rss() <= double(enough.stats["memory_plan"]["budget_bytes"].get<uint64_t>()));
+    }
+}
+
 TEST_CASE("ssv on triangles sharing a few points: the budget its refusal names holds", "[outofcore][memory][ssv]") {
     // The kd-tree's build holds up to three trees' worth (its arrays grow by doubling while the
     // pending lists live): a budget named for one was exceeded by 20 %.

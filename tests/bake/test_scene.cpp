@@ -139,6 +139,17 @@ TEST_CASE("a geometry file's path that is empty or names no file is an error nam
                                  Catch::Contains(*path ? "rock.obj: no such file" : "must name a file"));
         }
     }
+    // A symlink loop says so (exists() is false for it too; it was "no such file").
+    std::filesystem::remove(dir / "a.obj"), std::filesystem::remove(dir / "b.obj");
+    std::filesystem::create_symlink("b.obj", dir / "a.obj");
+    std::filesystem::create_symlink("a.obj", dir / "b.obj");
+    s["geometry"][1]["source"]["path"] = "a.obj";
+    try {
+        openSceneGeometry(parseScene(s, (dir / "scene.json").string()));
+        FAIL("no error");
+    } catch (const InputError& e) {
+        CHECK_THAT(std::string(e.what()), Catch::Contains("a.obj: Too many levels of symbolic links"));
+    }
     std::filesystem::remove_all(dir);
 }
 

@@ -485,8 +485,15 @@ TEST_CASE("glTF: load failures carry tinygltf's first error line", "[stream][glt
     std::string message = gltfError(dir.file("junk.gltf"));
     CHECK(message.rfind(dir.file("junk.gltf") + ": ", 0) == 0);
     CHECK(message.find('\n') == std::string::npos);
+    // An empty file, or a .glb that is not one, is named so, not by the JSON parser's complaint.
     writeText(dir.file("empty.glb"), "");
-    CHECK(gltfError(dir.file("empty.glb")) != "no error");
+    CHECK(gltfError(dir.file("empty.glb")) == dir.file("empty.glb") + ": is empty");
+    writeText(dir.file("empty.gltf"), "");
+    CHECK(gltfError(dir.file("empty.gltf")) == dir.file("empty.gltf") + ": is empty");
+    writeText(dir.file("bad.glb"), "XXXX\x02\0\0\0{}");
+    CHECK(gltfError(dir.file("bad.glb")) == dir.file("bad.glb") + ": is not a GLB file: it starts with \"XXXX\", not \"glTF\"");
+    writeText(dir.file("short.glb"), "gl");
+    CHECK(gltfError(dir.file("short.glb")) == dir.file("short.glb") + ": is not a GLB file: it starts with \"gl\", not \"glTF\"");
     CHECK(gltfError("/dev/zero") == "/dev/zero: not a regular file");
     CHECK(gltfError(dir.path.string()) == dir.path.string() + ": not a regular file");
 }

@@ -178,6 +178,17 @@ TEST_CASE("convert to glTF: an OBJ of many groups gives a mesh per group, in ord
     CHECK(meshes[7].position[3] == glm::vec3(2507, 0, 0));
 }
 
+TEST_CASE("convert to glTF: a group name that is not UTF-8 is written with U+FFFD in its place", "[stream][gltf]") {
+    // Old exporters write Latin-1 names; the JSON library's own error ended the convert.
+    ScratchDir dir("gltf-stream-latin1");
+    writeText(dir.file("latin1.obj"), "o caf\xe9\nv 0 1 0\nv 1 1 0\nv 0 1 1\nf 1 2 3\ng chair\nv 0 2 0\nv 1 2 0\nv 0 2 1\nf 4 5 6\n");
+    convertGeometryFile(dir.file("latin1.obj"), dir.file("latin1.glb"));
+    const std::vector<IndexedMesh> meshes = loadIndexedMeshes(dir.file("latin1.glb"), glm::mat4(1.0f));
+    REQUIRE(meshes.size() == 2);
+    CHECK(meshes[0].name == "caf\xef\xbf\xbd");
+    CHECK(meshes[1].name == "chair");
+}
+
 namespace {
 
 /// A source that says it holds more triangles than a glTF buffer takes, and must not be read.

@@ -198,7 +198,11 @@ TEST_CASE("OBJ: errors name the file and line", "[stream][obj]") {
     CHECK(objError(dir, "v 0 0 1\xc3\xa9\n") == "mesh.obj:1: unparsable number '1\xc3\xa9'");  // UTF-8 kept
     CHECK(objError(dir, "\nv nan 0 0\n") == "mesh.obj:2: non-finite coordinate 'nan'");
     CHECK(objError(dir, "v 0 inf 0\n") == "mesh.obj:1: non-finite coordinate 'inf'");
-    CHECK(objError(dir, "v 0 0 1e39\n") == "mesh.obj:1: non-finite coordinate '1e39'");
+    // 1e39 is finite; it overflows a float.
+    CHECK(objError(dir, "v 0 0 1e39\n") == "mesh.obj:1: coordinate '1e39' is out of the float range (at most 3.40282e+38 in magnitude)");
+    // A long token is cut (a 10 MB number was quoted up to the 9 KiB line cut).
+    CHECK(objError(dir, "v 0 0 " + std::string(100000, '1') + "x\n") ==
+          "mesh.obj:1: unparsable number '" + std::string(32, '1') + "...' (100001 characters)");
     CHECK(objError(dir, square + "f 1 2 x\n") == "mesh.obj:5: unparsable face corner 'x'");
     CHECK(objError(dir, square + "f 1 2 3/\n") == "no error");  // an empty vt field is harmless
     CHECK(objError(dir, square + "f 1 2 3/x\n") == "mesh.obj:5: unparsable face corner '3/x'");
@@ -215,7 +219,7 @@ TEST_CASE("OBJ: errors name the file and line", "[stream][obj]") {
 
     CHECK(objError(dir, "v +-1 0 0\n") == "mesh.obj:1: unparsable number '+-1'");
     CHECK(objError(dir, "v 0x10 0 0\n") == "mesh.obj:1: unparsable number '0x10'");
-    CHECK(objError(dir, "v 0 1e400 0\n") == "mesh.obj:1: non-finite coordinate '1e400'");
+    CHECK(objError(dir, "v 0 1e400 0\n") == "mesh.obj:1: coordinate '1e400' is out of the float range (at most 3.40282e+38 in magnitude)");
 
     // Underflow is not an error: denormals keep their value, smaller numbers become zero.
     auto tiny = readObjText(dir, square + "v 1e-40 -1e-45 1e-400\nv -1e-999 0 0\nf 5 6 1\n");
