@@ -169,18 +169,18 @@ void checkParsingFits(const SceneDesc& scene, const ReceiverKind& kind, const Ba
     // The held bytes are an estimate from the objects' count, and the plan after the opening
     // counts the rest exactly: a margin, so that the budget named now holds then (30,000 nodes
     // named 106M before the opening and 107M after it without one).
-    uint64_t parsing = opening.parse + (opening.held ? opening.held + kGltfHeldMarginBytes : 0);
+    uint64_t openingBytes = opening.parse + (opening.held ? opening.held + kGltfHeldMarginBytes : 0);
     std::string detail = fmt::format("{}: its glTF JSON takes about {} to parse", file, formatBytes(opening.parse));
     if (opening.held) detail += fmt::format(" and {} to hold", formatBytes(opening.held));
     // Under an address-space limit the parse's text and tree stay mapped once freed (the heap
     // and the threads' arenas keep them; the plan after the opening measures what is mapped):
     // for 300,000 nodes in 15.8 MiB, 498M named before the opening became 788M after it, and
     // with the parse counted twice, 703M became 839M. Three times names enough at once.
-    if (budget.overhead) parsing += 2 * opening.parse, detail += ", which stays mapped under an address-space limit";
+    if (budget.overhead) openingBytes += 2 * opening.parse, detail += ", which stays mapped under an address-space limit";
     const VectorSource none({});
     MemoryDemand before = demandBeforeScan(scene, kind, none, masks, methodMemory, /*alpha=*/false);
     before.threads = budget.threads;
-    before.sourceBytes += parsing;
+    before.sourceBytes += openingBytes;
     before.sourceDetail = detail;
     checkBeforeScan(before, budget);
 }
