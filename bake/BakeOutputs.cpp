@@ -65,12 +65,14 @@ void checkOutputAgainstInputs(const SceneDesc& scene, const std::string& output)
 }
 
 void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, const std::string& dumpDir,
-                      const std::string& visibilityPath, const std::vector<std::string>& directories) {
+                      const std::string& visibilityPath, const std::vector<std::string>& directories,
+                      const std::vector<std::string>& kindFiles) {
     checkSceneOutput(scene);
     std::vector<std::string> outputs{scene.output};
     // The files the kind writes beside the output (a camera's PNG) too, so that a dump folder or
     // a directory standing at their name stops the bake now, not after the cast.
     for (std::string& derived : receiverKindDerivedOutputs(scene)) outputs.push_back(std::move(derived));
+    outputs.insert(outputs.end(), kindFiles.begin(), kindFiles.end());
     if (!statsPath.empty()) outputs.push_back(statsPath);
     if (!visibilityPath.empty()) outputs.push_back(visibilityPath);
     std::vector<bool> folder(outputs.size(), false);  // folders of their own: not another output's name

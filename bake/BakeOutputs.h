@@ -18,12 +18,15 @@ namespace penumbra {
 /// and none of them and an input the scene names (its geometry and points files, the scene file
 /// itself), are the same file. The files a receiver kind always names after the output (a
 /// camera's PNG, receiverKindDerivedOutputs()) are checked with them; those named after what the
-/// scan finds (a lightmap's per-mesh files) when they are finished (OutputSet::commit()).
+/// scan finds (a lightmap's per-mesh files) once it has run (@p kindFiles), before the cast.
 /// @throw InputError naming the output and what is wrong with it.
 /// @param directories other folders the bake writes into (checkpoints, shard files): none may
 ///        share a name with an output.
+/// @param kindFiles the files the receiver kind named after the scan (ReceiverKind::outputFiles()),
+///        checked with the others once it has run.
 void checkBakeOutputs(const SceneDesc& scene, const std::string& statsPath, const std::string& dumpDir,
-                      const std::string& visibilityPath = "", const std::vector<std::string>& directories = {});
+                      const std::string& visibilityPath = "", const std::vector<std::string>& directories = {},
+                      const std::vector<std::string>& kindFiles = {});
 
 /// @brief Refuses an output typed by hand whose folder does not exist: penumbra makes folders only
 /// for the scene's own "output" (its out/ beside the scene), never for a path given on the

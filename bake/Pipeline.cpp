@@ -152,6 +152,12 @@ void scanScene(Bake& b) {
                           b.budget.overhead ? leastNamedLimit(b.demand, b.budget) : 0);
     checkMemoryFits(scene.file, "casting", planMemory(b.demand, 0).minimumBudget);
     auto afterScan = [&](const Prepared& prepared, uint64_t triangles) {
+        // The files the scan named (a lightmap's per-mesh maps) against the other outputs now,
+        // not when they are put in place after the cast.
+        if (!b.settings.shard.casting())
+            if (const std::vector<std::string> files = b.kind->outputFiles(scene.output); !files.empty())
+                checkBakeOutputs(scene, b.settings.statsPath, b.settings.dumpDir, b.settings.visibilityPath,
+                                 {b.settings.shard.checkpointDir, b.settings.shard.dir}, files);
         b.demand.receivers = prepared.receivers.size();
         b.demand.kindBytes = b.kind->maxResidentBytes(b.demand.receivers, triangles);
         b.demand.outputBytes = b.kind->outputBytes(b.demand.receivers);
@@ -453,7 +459,8 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total) {
         stats["translucent"] = {{"triangles", b.opaqueView->translucent().size()}, {"bytes", collected + (b.translucent ? b.translucent->bytes() : 0)}};
         if (b.translucent) stats["translucent"]["relations_tested"] = b.translucent->tests.load(), stats["translucent"]["crossings"] = b.translucent->crossings.load();
     }
-    stats["outputs_written"] = outputs.paths();  // every file of the bake but the stats themselves
+    stats["outputs_written"] = outputs.paths();  // every file of the bake, the stats themselves last
+    if (!settings.statsPath.empty()) stats["outputs_written"].push_back(settings.statsPath);
     for (const std::string& warning : b.p.warnings) stats["warnings"].push_back(warning);  // after the kind's, if any
     if (const auto& u = b.p.receivers.unshadowed; !u.empty())  // "receive_shadows": false
         stats["unshadowed_receivers"] = uint64_t(std::count(u.begin(), u.end(), uint8_t(1)));

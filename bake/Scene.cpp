@@ -70,6 +70,7 @@ LightDesc parseLight(const JsonParams& j) {
     l.samples = int(j.integer("samples", l.samples, 1, 65536));
     l.sampleSets = int(j.integer("sample_sets", l.sampleSets, 1, 256));
     validateLight(l);
+    flattenPolygon(l);
     // Power needs the light's area, so it is converted after the shape is known to be valid.
     if (l.type == LightType::Sun && j.has("power")) fail(j.where("power"), "a sun takes \"irradiance\" or \"radiance\", not \"power\"");
     if (j.has("power")) l.radiance = radianceFromPower(l, colour(j, "power", glm::dvec3(0.0)));

@@ -235,9 +235,9 @@ glm::vec3 MeshPlacement::normal(const glm::vec3& n) const {
 }
 
 std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::mat4& transform,
-                                           const std::vector<std::string>& parts) {
-    std::string ext = lowercaseExtension(path);
-    if (ext != ".obj") {
+                                           const std::vector<std::string>& parts, MeshFileFormat format) {
+    const bool obj = format == MeshFileFormat::ByExtension ? lowercaseExtension(path) == ".obj" : format == MeshFileFormat::Obj;
+    if (!obj) {
         if (!parts.empty()) fail(path, "\"parts\" selects o/g groups of OBJ files only");
         return GltfMeshReader(path).read(glm::dmat4(transform));
     }

@@ -64,13 +64,18 @@ struct MeshPlacement {
 /// indices of TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN primitives, with node transforms; an
 /// attribute is kept only when every primitive of the mesh has it. Mirroring transforms reverse
 /// the winding so front faces stay front faces.
-/// @param path the file (told apart by extension: .obj, else glTF by content)
+/// @param path the file (told apart by @p format, or by extension: .obj, else glTF by content)
 /// @param transform applied to positions (as points) and normals (inverse transpose)
 /// @param parts OBJ only: the o/g groups to load (empty: all); a name the file lacks is an error
 /// @throw InputError naming the file for malformed input: bad numbers or indices
 ///        (`mesh.obj:12: face index 40 out of range (38 vertices)`), out-of-bounds or mistyped
 ///        accessors, attribute counts that differ from POSITION, non-finite values.
+/// @brief Which reader loadIndexedMeshes() uses: a scene entry's type chooses it (an OBJ may be
+/// called mesh.txt), a bare path its extension.
+enum class MeshFileFormat { ByExtension, Obj, Gltf };
+
 std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::mat4& transform,
-                                           const std::vector<std::string>& parts = {});
+                                           const std::vector<std::string>& parts = {},
+                                           MeshFileFormat format = MeshFileFormat::ByExtension);
 
 }  // namespace penumbra

@@ -81,9 +81,8 @@ void addCastOptions(CLI::App& bake, BakeCommand& c) {
 }
 
 /// The files a bake wrote, for its summary line: each one, up to a few, then how many more.
-std::string writtenFiles(const nlohmann::json& stats, const std::string& statsPath) {
-    std::vector<std::string> files = stats.value("outputs_written", std::vector<std::string>{});
-    if (!statsPath.empty()) files.push_back(statsPath);
+std::string writtenFiles(const nlohmann::json& stats) {
+    const std::vector<std::string> files = stats.value("outputs_written", std::vector<std::string>{});
     if (files.empty()) return "no files written";
     constexpr size_t kNamed = 4;
     std::string text;
@@ -186,7 +185,7 @@ void runBakeCommand(const BakeCommand& c) {
     if (c.quiet) return;
     fmt::print(stderr, "penumbra: {} receivers, {} samples, {} triangles, {:.2f} s -> {}\n", stats["receivers"].get<uint64_t>(),
                stats["light_samples"].get<int>(), stats["counters"]["triangles_read"].get<uint64_t>(),
-               stats["table2"]["total_time_s"].get<double>(), writtenFiles(stats, settings.statsPath));
+               stats["table2"]["total_time_s"].get<double>(), writtenFiles(stats));
 }
 
 }  // namespace penumbra

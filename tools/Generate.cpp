@@ -13,6 +13,7 @@
 #include "stream/util/Progress.h"
 #include "stream/util/InputFile.h"
 #include "stream/util/Memory.h"
+#include "stream/util/PathText.h"
 
 #include <fmt/format.h>
 
@@ -34,6 +35,22 @@ CLI::App* addGenerateCommand(CLI::App& app, GenerateOptions& options) {
 }
 
 namespace {
+
+/// Counts the triangles of the last pass that carry an alpha outline (alphaIdOf()).
+class CutoutCount final : public DecoratedSource {
+public:
+    using DecoratedSource::DecoratedSource;
+    size_t read(std::span<Triangle> out) override {
+        const size_t n = inner_->read(out);
+        for (size_t i = 0; i < n; ++i) count_ += alphaIdOf(out[i].flags) != 0;
+        return n;
+    }
+    void rewind() override { inner_->rewind(), count_ = 0; }
+    uint64_t count() const { return count_; }
+
+private:
+    uint64_t count_ = 0;
+};
 
 /// Under an address-space limit, whether the opened sources' working sets (a scatter's kept
 /// source, a forest's variants, terrain heights: built on the first read) fit, before any is
@@ -77,7 +94,16 @@ uint64_t generateOnce(const GenerateOptions& options) {
     checkGenerateFits(*source, budget, options.scene);
     // Generation and the write are one pass, shown as a phase: a billion blades take minutes.
     source = std::make_unique<ProgressSource>(std::move(source), "generate", options.quiet);
+    auto counted = std::make_unique<CutoutCount>(std::move(source));
+    CutoutCount& cutouts = *counted;
+    source = std::move(counted);
     convertGeometry(*source, options.output);
+    // Only .ptri holds a triangle's outline: petals and leaves written to .obj or glTF block as
+    // whole triangles when the file is baked (the bake of the generators cuts them).
+    if (cutouts.count() && lowercaseExtension(options.output) != ".ptri")
+        printWarning("{}: {} cut-out triangles (petal and leaf outlines) written as plain ones: {} holds no outlines, so baked "
+                     "from this file they block as whole triangles; write .ptri to keep them",
+                     options.output, cutouts.count(), lowercaseExtension(options.output));
     // convertGeometry does not report a count; the stream's size is known for every generator,
     // and for files it equals what was written, so ask the source rather than reading it again.
     uint64_t written = source->sizeHint().value_or(0);

@@ -120,7 +120,7 @@ std::vector<std::string> unbakedSurfaceWarnings(const Lightmap& map) {
     const double surface = l.surfaceArea > 0 ? l.surfaceArea : 1.0;
     if (l.outsideArea > 1e-3 * surface)
         out.push_back(fmt::format("{}: {:.1f} % of the surface has UVs outside [0, 1] and gets no texels (a lightmap does not wrap; "
-                                  "\"uv\": \"auto\" or \"generate\" makes new ones)",
+                                  "\"uv\": \"generate\" makes new ones)",
                                   map.label, 100.0 * l.outsideArea / surface));
     if (l.noUvTriangles > 0 && l.noUvArea > 1e-3 * surface)
         out.push_back(fmt::format("{}: {} triangle{} ({:.1f} % of the surface) with no UV area get{} no texels (\"uv\": \"generate\" "
@@ -201,6 +201,14 @@ public:
     uint64_t residentBytes() const override { return texels_ * kBytesPerTexel; }
 
     const ReceiverPolygons* receiverPolygons() const override { return &polygons_; }
+
+    std::vector<std::string> outputFiles(const std::string& output) const override {
+        std::vector<std::string> files;
+        for (const Lightmap& map : maps_)
+            files.push_back(derivedPath(output, map.name, ".exr")), files.push_back(derivedPath(output, map.name, ".png"));
+        if (!atlasMeshes_.empty()) files.push_back(derivedPath(output, "uv1", ".glb"));
+        return files;
+    }
 
     void write(const OutputContext& c) override {
         outputs_.clear();
@@ -371,6 +379,17 @@ private:
     bool meshesFromCheck_ = false;          ///< the meshes were parseScene's (ValidatedMaps)
 };
 
+/// The reader for entry @p g's file @p file: its type chooses it, as for the blocker stream (an
+/// OBJ may be called mesh.txt); a "file" entry's extension. ByExtension: neither says a mesh.
+MeshFileFormat meshFormat(const GeometryDesc& g, const std::string& file) {
+    if (g.type == "obj") return MeshFileFormat::Obj;
+    if (g.type == "gltf" || g.type == "glb") return MeshFileFormat::Gltf;
+    const std::string ext = lowercaseExtension(file);
+    if (ext == ".obj") return MeshFileFormat::Obj;
+    if (ext == ".gltf" || ext == ".glb") return MeshFileFormat::Gltf;
+    return MeshFileFormat::ByExtension;
+}
+
 /// The file behind geometry entry @p index, which must be an obj/gltf/glb file.
 std::string meshFile(const JsonParams& j, const SceneDesc& scene, size_t slot, size_t index) {
     const std::string key = fmt::format("meshes[{}]", slot);
@@ -379,8 +398,7 @@ std::string meshFile(const JsonParams& j, const SceneDesc& scene, size_t slot, s
     if (!path || !path->is_string())
         fail(j.where(key), "{} is a \"{}\" entry, not a mesh file (obj, gltf or glb)", g.path, g.type);
     std::string file = resolveScenePath(scene.baseDir, path->get<std::string>());
-    std::string ext = lowercaseExtension(file);
-    if (ext != ".obj" && ext != ".gltf" && ext != ".glb")
+    if (meshFormat(g, file) == MeshFileFormat::ByExtension)
         fail(j.where(key), "{} ({}) is not an obj, gltf or glb file", g.path, file);
     return file;
 }
@@ -426,6 +444,11 @@ LightmapSettings parseSettings(const JsonParams& j) {
     settings.chartDeg = angle("chart_angle_deg", kDefaultChartConeDeg, 1, 80);
     settings.powerOfTwo = j.boolean("power_of_two", false);
     settings.maxSide = int(j.integer("max_resolution", kMaxSide, 1, kMaxSide));
+    // They shape the size texels_per_unit chooses; with a fixed resolution they would do nothing
+    // (as texels_per_unit with resolution is refused above).
+    if (resolution)
+        for (const char* key : {"power_of_two", "max_resolution"})
+            if (j.has(key)) fail(j.where(key), "applies to texels_per_unit, not to a fixed \"resolution\"; give one or the other");
     return settings;
 }
 
@@ -502,7 +525,7 @@ LightmapMaps makeMaps(const JsonParams& j, const SceneDesc& scene, const std::ve
         const GeometryDesc& geometry = scene.geometry[index];
         // The entry's OBJ "parts" pick its o/g groups here too: one lightmap mesh per group.
         const std::vector<std::string> parts = geometryParts(JsonParams(geometry.params, scene.file, geometry.path));
-        std::vector<IndexedMesh> loaded = loadIndexedMeshes(file, geometry.transform.matrix(), parts);
+        std::vector<IndexedMesh> loaded = loadIndexedMeshes(file, geometry.transform.matrix(), parts, meshFormat(geometry, file));
         if (loaded.empty()) fail(j.where(key), "{} has no triangle meshes", file);
         for (size_t m = 0; m < loaded.size(); ++m) {
             Lightmap map;
@@ -536,6 +559,10 @@ LightmapMaps makeMaps(const JsonParams& j, const SceneDesc& scene, const std::ve
 std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneDesc& scene, KindUse use) {
     requireOutputExtension(scene, {".exr"}, "lightmap");
     const std::vector<size_t> meshes = geometryIndices(j, "meshes", scene);
+    // A mesh listed twice baked twice, into NAME-mesh.exr and NAME-mesh-2.exr, without a word.
+    for (size_t slot = 1; slot < meshes.size(); ++slot)
+        if (std::find(meshes.begin(), meshes.begin() + std::ptrdiff_t(slot), meshes[slot]) != meshes.begin() + std::ptrdiff_t(slot))
+            fail(j.where(fmt::format("meshes[{}]", slot)), "geometry {} is listed twice", meshes[slot]);
     const LightmapSettings settings = parseSettings(j);
     std::vector<std::string> files;  // each entry's mesh file, checked once
     for (size_t slot = 0; slot < meshes.size(); ++slot) files.push_back(meshFile(j, scene, slot, meshes[slot]));

@@ -124,6 +124,11 @@ public:
     virtual const ReceiverPolygons* receiverPolygons() const { return nullptr; }
     /// Kind-specific entries for the stats JSON (null for none), asked after write().
     virtual nlohmann::json stats() const { return nullptr; }
+    /// The files write() will make for the bake's @p output that only the scan names (a
+    /// lightmap's per-mesh maps), asked after receivers(), so that they are checked against the
+    /// bake's other outputs before the cast; empty for kinds whose files the output names alone
+    /// (receiverKindDerivedOutputs()).
+    virtual std::vector<std::string> outputFiles(const std::string& output) const { return {}; }
     /// Writes the outputs. Every file goes through AtomicFile (no partial outputs).
     virtual void write(const OutputContext& context) = 0;
     /// Units of work write() reports to OutputContext::progress (a camera: its rows); 0 when it

@@ -81,6 +81,11 @@ struct LightSamples {
 /// (zero area, non-unit-count samples, non-planar or non-convex polygon...).
 void validateLight(const LightDesc& light);
 
+/// @brief Projects a polygon light's vertices onto their mean plane when they are off it by more
+/// than 1e-6 of its size (validateLight() allows 1e-4: coordinates typed to four decimals), so
+/// that its samples, bounds and tables all see one plane. Other lights are left as they are.
+void flattenPolygon(LightDesc& light);
+
 /// @brief A sun as the disk of directions it is sampled as: centre at the unit vector towards the
 /// sun, normal along the direction of travel, radius tan(angular diameter / 2).
 LightDesc sunDirectionDisk(const LightDesc& sun);

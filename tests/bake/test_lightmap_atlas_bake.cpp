@@ -270,3 +270,28 @@ TEST_CASE("lightmap: the atlas's packing is a phase of its own on stderr, silent
     REQUIRE(quiet.exitCode == 0);
     CHECK(quiet.err.empty());
 }
+
+TEST_CASE("lightmap: an obj entry's file is read as OBJ whatever its name, as the blocker stream reads it", "[lightmap][atlas][cli]") {
+    // "The entry's type chooses the reader (an OBJ may be called mesh.txt)": the lightmap went by
+    // the extension and refused it.
+    ScratchDir dir("lightmap-obj-named-txt");
+    writeText(dir / "quad.obj", kQuadObj);
+    writeText(dir / "box.obj", kBoxObj);
+    writeText(dir / "scene.json", sceneJson(R"({"type": "lightmap", "meshes": [1], "resolution": 64})"));
+    bake(dir, "");
+    const std::string expected = slurp(dir / "out/lightmap-atlas.exr");
+    std::filesystem::rename(dir / "box.obj", dir / "box.txt");
+    std::string scene = sceneJson(R"({"type": "lightmap", "meshes": [1], "resolution": 64})");
+    scene.replace(scene.find("box.obj"), 7, "box.txt");
+    writeText(dir / "scene.json", scene);
+    std::filesystem::remove_all(dir / "out");
+    bake(dir, "");
+    CHECK(slurp(dir / "out/lightmap-atlas.exr").size() == expected.size());
+    // A "file" entry goes by its extension, which names no mesh format here.
+    const std::string entry = R"("type": "obj", "path": "box.txt")";
+    scene.replace(scene.find(entry), entry.size(), R"("type": "file", "path": "box.txt")");
+    writeText(dir / "scene.json", scene);
+    RunResult r = runPenumbra("bake " + (dir / "scene.json") + " --quiet");
+    CHECK(r.exitCode == 1);
+    CHECK_THAT(r.err, Catch::Contains("is not an obj, gltf or glb file"));
+}

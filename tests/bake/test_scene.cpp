@@ -208,6 +208,24 @@ TEST_CASE("the closed key marks or unmarks every triangle of an entry", "[scene]
     CHECK_THROWS_WITH(parseScene(s, "dir/scene.json"), Catch::Contains("geometry[0].closed"));
 }
 
+TEST_CASE("a polygon light typed to four decimals is flattened onto its plane, and one farther off names its vertex", "[scene]") {
+    // A pentagon of radius 1 turned 37 degrees, to four decimals: 3.6e-6 off its plane, refused
+    // at 1e-6 of its size, with the first vertex tested named.
+    json s = minimal();
+    s["lights"][0] = json::parse(R"({"type": "polygon", "vertices": [[0.309, 3.5724, 0.7596], [-0.809, 3.3538, 0.4695],
+        [-0.809, 2.6462, -0.4695], [0.309, 2.4276, -0.7596], [1.0, 3.0, 0.0]]})");
+    const SceneDesc scene = parseScene(s, "dir/scene.json");
+    const std::vector<glm::dvec3>& p = scene.lights[0].polygon;
+    const glm::dvec3 n = glm::normalize(glm::cross(p[1] - p[0], p[2] - p[0]));
+    for (const glm::dvec3& q : p) CHECK(std::abs(glm::dot(q - p[0], n)) < 1e-12);  // one plane now
+    CHECK(glm::length(p[4] - glm::dvec3(1.0, 3.0, 0.0)) < 1e-5);                      // and barely moved
+    // An exactly planar polygon keeps its bits.
+    s["lights"][0] = json::parse(R"({"type": "polygon", "vertices": [[0, 3, 1], [0.5, 3, 1.5], [1, 3, 1], [1, 3, 0], [0, 3, 0]]})");
+    CHECK(parseScene(s, "dir/scene.json").lights[0].polygon[1] == glm::dvec3(0.5, 3, 1.5));
+    s["lights"][0]["vertices"][3] = {1, 3.1, 0};
+    requireError(s, "lights[0]: polygon vertex 3 is 0.0319 off the plane of the vertices (at most 0.000");
+}
+
 TEST_CASE("a light's zero area is judged relative to its size: a micrometre light is a light", "[scene]") {
     json s = minimal();
     s["lights"][0]["u"] = {1e-6, 0, 0}, s["lights"][0]["v"] = {0, 0, 1e-6};  // area 1e-12

@@ -340,6 +340,14 @@ TEST_CASE("bad lightmap parameters name the key", "[lightmap]") {
                Catch::Contains("receivers.max_resolution"));
     CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "power_of_two": 1})")),
                Catch::Contains("receivers.power_of_two"));
+    // Keys that shape texels_per_unit's size did nothing beside a fixed resolution, silently.
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "resolution": 100, "power_of_two": true})")),
+               Catch::Contains("receivers.power_of_two: applies to texels_per_unit, not to a fixed \"resolution\""));
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "resolution": 100, "max_resolution": 64})")),
+               Catch::Contains("receivers.max_resolution: applies to texels_per_unit"));
+    // A mesh listed twice was baked twice, the second copy as NAME-2.
+    CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0, 0]})")),
+               Catch::Contains("receivers.meshes[1]: geometry 0 is listed twice"));
     CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [2]})")), Catch::Contains("receivers.meshes[0]"));
     CHECK_THAT(errorOf(scene(R"({"type": "lightmap", "meshes": [0], "texels_per_unit": -1})")),
                Catch::Contains("receivers.texels_per_unit"));

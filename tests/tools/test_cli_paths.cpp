@@ -99,6 +99,30 @@ TEST_CASE("glTF buffer URIs may not leave the model's directory, percent-encoded
                       "model/secret.bin: cannot open: No such file or directory (buffer 0 of model/m.gltf)");
 }
 
+TEST_CASE("a lightmap's per-mesh files are checked against the other outputs after the scan, before the cast", "[cli][paths]") {
+    // They are named after the meshes the scan finds; a dump folder or stats file at one of them
+    // failed only when the outputs were put in place, after the whole cast.
+    ScratchDir dir("lightmap-outputs");
+    write(dir / "quad.obj", kQuad);
+    const nlohmann::json scene = {
+        {"geometry", {{{"type", "obj"}, {"path", "quad.obj"}}}},
+        {"lights", {{{"type", "rect"}, {"center", {0, 4, 0}}, {"u", {1, 0, 0}}, {"v", {0, 0, 1}}, {"samples", 16}}}},
+        {"receivers", {{"type", "lightmap"}, {"meshes", {0}}, {"uv", "generate"}, {"resolution", 32}}}};
+    write(dir / "scene.json", scene.dump());
+    const std::string bake = "bake " + (dir / "scene.json") + " -o " + (dir / "x.exr");
+    for (const std::string& args : {" --dump " + (dir / "x-atlas.png"), " --stats " + (dir / "x-uv1.glb"),
+                                    " --visibility " + (dir / "x-atlas.exr/v.npy")}) {
+        INFO(args);
+        RunResult r = runPenumbra(bake + args);
+        CHECK(r.exitCode == 1);
+        CHECK_THAT(r.err, Catch::Contains("is named for two outputs") || Catch::Contains("which is an output file of this bake"));
+        CHECK_THAT(r.err, Catch::Contains("[scan]") && !Catch::Contains("[cast]"));
+        for (const char* name : {"x-atlas.exr", "x-atlas.png", "x-uv1.glb"}) CHECK_FALSE(std::filesystem::exists(dir / name));
+    }
+    CHECK(runPenumbra(bake + " -q --stats " + (dir / "s.json")).exitCode == 0);
+    for (const char* name : {"x-atlas.exr", "x-atlas.png", "x-uv1.glb", "s.json"}) CHECK(std::filesystem::exists(dir / name));
+}
+
 TEST_CASE("an output that is also an input is refused, by device and inode", "[cli][paths]") {
     ScratchDir dir("output-input");
     write(dir / "quad.obj", kQuad);
