@@ -197,6 +197,21 @@ void checkColour(const LightDesc& l, const char* key, const glm::dvec3& c) {
 /// How far a polygon light's vertex may lie off the vertices' mean plane, relative to its size.
 constexpr double kPolygonPlanarity = 1e-4;
 
+/// The plane through a polygon's vertex mean with unit normal @p n, and its vertex farthest off it.
+struct PolygonPlane {
+    glm::dvec3 centre{0.0};
+    size_t farthest = 0;
+    double off = 0;  ///< the farthest vertex's distance from the plane
+};
+
+PolygonPlane polygonPlane(const std::vector<glm::dvec3>& p, const glm::dvec3& n) {
+    PolygonPlane plane;
+    for (const glm::dvec3& q : p) plane.centre += q / double(p.size());
+    for (size_t i = 0; i < p.size(); ++i)
+        if (const double d = std::abs(glm::dot(p[i] - plane.centre, n)); d > plane.off) plane.off = d, plane.farthest = i;
+    return plane;
+}
+
 /// A convex polygon winds once: every vertex is on or left of every edge (seen along the normal),
 /// no edge has zero length, and the exterior angles sum to one full turn (a doubled square and a
 /// pentagram have every turn convex but wind twice).
@@ -208,14 +223,9 @@ void checkConvexPolygon(const LightDesc& l, const glm::dvec3& n, double scale) {
     // Planar to 1e-4 of its size: vertices typed to four decimals are 1e-5 off their plane (at
     // 1e-6 such a pentagon was refused). Measured from the vertices' mean plane, so that the
     // vertex named is the one off it, not the first one tested.
-    glm::dvec3 centre(0.0);
-    for (const glm::dvec3& q : p) centre += q / double(m);
-    size_t farthest = 0;
-    for (size_t i = 1; i < m; ++i)
-        if (std::abs(glm::dot(p[i] - centre, n)) > std::abs(glm::dot(p[farthest] - centre, n))) farthest = i;
-    if (const double off = std::abs(glm::dot(p[farthest] - centre, n)); off > kPolygonPlanarity * scale)
+    if (const PolygonPlane plane = polygonPlane(p, n); plane.off > kPolygonPlanarity * scale)
         fail(l.where, "polygon vertex {} is {:.3g} off the plane of the vertices (at most {:.3g}, {:g} of the polygon's size, "
-                      "is allowed)", farthest, off, kPolygonPlanarity * scale, kPolygonPlanarity);
+                      "is allowed)", plane.farthest, plane.off, kPolygonPlanarity * scale, kPolygonPlanarity);
     double turning = 0.0;
     for (size_t i = 0; i < m; ++i) {
         const glm::dvec3 &a = p[i], &b = p[(i + 1) % m], &c = p[(i + 2) % m];
@@ -240,13 +250,12 @@ void flattenPolygon(LightDesc& light) {
     const double len = glm::length(polygonNormal(p));
     if (!(len > 0)) return;
     const glm::dvec3 n = polygonNormal(p) / len;
-    glm::dvec3 centre(0.0);
-    double scale = 0, off = 0;
-    for (const glm::dvec3& q : p) centre += q / double(p.size()), scale = std::max(scale, glm::length(q - p[0]));
-    for (const glm::dvec3& q : p) off = std::max(off, std::abs(glm::dot(q - centre, n)));
+    double scale = 0;
+    for (const glm::dvec3& q : p) scale = std::max(scale, glm::length(q - p[0]));
+    const PolygonPlane plane = polygonPlane(p, n);
     // Within the old tolerance the vertices are kept bit for bit: their samples do not move.
-    if (off <= 1e-6 * scale) return;
-    for (glm::dvec3& q : p) q -= glm::dot(q - centre, n) * n;
+    if (plane.off <= 1e-6 * scale) return;
+    for (glm::dvec3& q : p) q -= glm::dot(q - plane.centre, n) * n;
 }
 
 void validateLight(const LightDesc& l) {
