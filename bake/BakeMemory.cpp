@@ -136,9 +136,6 @@ void checkBeforeScan(const MemoryDemand& demand, const BakeBudget& budget) {
 
 namespace {
 
-/// Added to a glTF's held bytes before its opening (gltfOpeningBytes() estimates them).
-constexpr uint64_t kGltfHeldMarginBytes = 4ull << 20;
-
 /// The largest opening among the scene's glTF files (gltfOpeningBytes()) and its file: opening
 /// holds it before the plan made after the opening can refuse anything.
 std::pair<GltfOpeningBytes, std::string> gltfOpeningPeak(const SceneDesc& scene) {
@@ -166,10 +163,7 @@ void checkParsingFits(const SceneDesc& scene, const ReceiverKind& kind, const Ba
     if (budget.bytes == 0) return;
     const auto [opening, file] = gltfOpeningPeak(scene);
     if (opening.parse < TriangleSource::kNotableResidentBytes) return;
-    // The held bytes are an estimate from the objects' count, and the plan after the opening
-    // counts the rest exactly: a margin, so that the budget named now holds then (30,000 nodes
-    // named 106M before the opening and 107M after it without one).
-    uint64_t openingBytes = opening.parse + (opening.held ? opening.held + kGltfHeldMarginBytes : 0);
+    uint64_t openingBytes = opening.total();
     std::string detail = fmt::format("{}: its glTF JSON takes about {} to parse", file, formatBytes(opening.parse));
     if (opening.held) detail += fmt::format(" and {} to hold", formatBytes(opening.held));
     // Under an address-space limit the parse's text and tree stay mapped once freed (the heap

@@ -42,6 +42,13 @@
 namespace penumbra {
 namespace {
 
+/// The bake's outputs checked together (checkBakeOutputs()): before any work, and with @p kindFiles
+/// once the scan has named them.
+void checkOutputsOf(const SceneDesc& scene, const BakeSettings& settings, const std::vector<std::string>& kindFiles = {}) {
+    checkBakeOutputs(scene, settings.statsPath, settings.dumpDir, settings.visibilityPath,
+                     {settings.shard.checkpointDir, settings.shard.dir}, kindFiles);
+}
+
 /// What the translucent pass holds for @p triangles translucent blockers: each twice (the copy the
 /// replay view collects and the cast form), and a row of depths per thread. Counted in the scan,
 /// so that the plan made after it already holds it: with every cut-out counted after the bucket
@@ -156,8 +163,7 @@ void scanScene(Bake& b) {
         // not when they are put in place after the cast.
         if (!b.settings.shard.casting())
             if (const std::vector<std::string> files = b.kind->outputFiles(scene.output); !files.empty())
-                checkBakeOutputs(scene, b.settings.statsPath, b.settings.dumpDir, b.settings.visibilityPath,
-                                 {b.settings.shard.checkpointDir, b.settings.shard.dir}, files);
+                checkOutputsOf(scene, b.settings, files);
         b.demand.receivers = prepared.receivers.size();
         b.demand.kindBytes = b.kind->maxResidentBytes(b.demand.receivers, triangles);
         b.demand.outputBytes = b.kind->outputBytes(b.demand.receivers);
@@ -367,11 +373,9 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total);
         const uint64_t need = mappedNotResidentBytes() + 2 * kReadAheadStackBytes + kBaselineBytes + data + data / 4;
         // A need at or below the limit would contradict the failure: the plan had not yet seen
         // what failed (a file's parse, as it was being opened).
-        if (need <= limit)
-            fail(b.scene.file, "out of memory under the address-space limit (prlimit --as, ulimit -v) of {}: this bake needs "
-                 "more than that; give it more, or lower the resolution or sample count", formatBytes(limit));
         fail(b.scene.file, "out of memory under the address-space limit (prlimit --as, ulimit -v) of {}: this bake needs "
-             "at least {}; give it more, or lower the resolution or sample count", formatBytes(limit), formatBytes(need));
+             "{}; give it more, or lower the resolution or sample count", formatBytes(limit),
+             need <= limit ? std::string("more than that") : "at least " + formatBytes(need));
     }
     fail(b.scene.file, "out of memory: this bake's data needs at least {} at once; lower the resolution or sample "
          "count, or give --memory-budget to bake in memory tiles", formatBytes(data + data / 4));
@@ -382,8 +386,7 @@ nlohmann::json runBake(const SceneDesc& scene, const BakeSettings& settings) {
     InputScope inputs;  // no output may replace a file this bake reads
     if (settings.threads < 0 || settings.threads > kMaxThreads)
         fail("--threads", "must be in 0..{} (0: all cores), got {}", kMaxThreads, settings.threads);
-    checkBakeOutputs(scene, settings.statsPath, settings.dumpDir, settings.visibilityPath,
-                     {settings.shard.checkpointDir, settings.shard.dir});
+    checkOutputsOf(scene, settings);
     Stopwatch total;
     Bake b(scene, settings);
     try {

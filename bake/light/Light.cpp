@@ -204,6 +204,13 @@ struct PolygonPlane {
     double off = 0;  ///< the farthest vertex's distance from the plane
 };
 
+/// A polygon's size: its vertices' largest distance from the first, the scale of its tolerances.
+double polygonSize(const std::vector<glm::dvec3>& p) {
+    double size = 0;
+    for (const glm::dvec3& q : p) size = std::max(size, glm::length(q - p[0]));
+    return size;
+}
+
 PolygonPlane polygonPlane(const std::vector<glm::dvec3>& p, const glm::dvec3& n) {
     PolygonPlane plane;
     for (const glm::dvec3& q : p) plane.centre += q / double(p.size());
@@ -250,11 +257,9 @@ void flattenPolygon(LightDesc& light) {
     const double len = glm::length(polygonNormal(p));
     if (!(len > 0)) return;
     const glm::dvec3 n = polygonNormal(p) / len;
-    double scale = 0;
-    for (const glm::dvec3& q : p) scale = std::max(scale, glm::length(q - p[0]));
     const PolygonPlane plane = polygonPlane(p, n);
     // Within the old tolerance the vertices are kept bit for bit: their samples do not move.
-    if (plane.off <= 1e-6 * scale) return;
+    if (plane.off <= 1e-6 * polygonSize(p)) return;
     for (glm::dvec3& q : p) q -= glm::dot(q - plane.centre, n) * n;
 }
 
@@ -294,8 +299,7 @@ void validateLight(const LightDesc& l) {
                 checkRange(l, fmt::format("vertices[{}]", i).c_str(), l.polygon[i], kMaxLightCoordinate);
             glm::dvec3 n = polygonNormal(l.polygon);
             double len = glm::length(n);
-            double scale = 0;
-            for (const auto& p : l.polygon) scale = std::max(scale, glm::length(p - l.polygon[0]));
+            const double scale = polygonSize(l.polygon);
             if (!(len > 0) || !(len > 1e-9 * scale * scale)) fail(l.where, "zero-area light: polygon has no area");  // relative, as for rect
             checkConvexPolygon(l, n / len, scale);
         }
