@@ -189,6 +189,8 @@ public:
     void rewind() override;
     std::string name() const override { return set_->directory(); }
     std::optional<uint64_t> sizeHint() const override { return set_->triangles(); }
+    /// The opaque triangles, then the alpha-matte ones (which cost more each: alpha tests).
+    std::vector<uint64_t> costRuns() const override { return {set_->opaqueTriangles(), set_->alphaMatteTriangles()}; }
 
     const BucketSet& buckets() const { return *set_; }
     /// Index (in BucketSet::buckets() order) of the bucket the next triangle comes from;

@@ -35,6 +35,7 @@ public:
     std::string name() const override { return inner_->name(); }
     std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
     std::optional<uint64_t> knownSize() const override { return inner_->knownSize(); }
+    std::vector<uint64_t> costRuns() const override { return inner_->costRuns(); }
     /// The inner source's bytes, the chunks held ahead and the one being handed out.
     uint64_t residentBytes() const override {
         return inner_->residentBytes() + (depth_ + 2) * chunkTriangles_ * sizeof(Triangle);

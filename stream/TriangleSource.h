@@ -60,6 +60,10 @@ public:
     /// parts back to back (ConcatSource: a scene's geometry entries, in order): one read never
     /// mixes parts. 0 for a source of one part.
     virtual uint32_t part() const { return 0; }
+    /// @brief Runs of consecutive triangles, in play order, whose cost to cast may differ run to
+    /// run (a bucket replay's opaque triangles, then its cut-outs), for the progress estimate; they
+    /// add up to sizeHint(). Empty when the source knows of none.
+    virtual std::vector<uint64_t> costRuns() const { return {}; }
 };
 
 using TriangleSourcePtr = std::unique_ptr<TriangleSource>;
@@ -75,6 +79,7 @@ public:
     std::optional<uint64_t> knownSize() const override { return inner_->knownSize(); }
     uint64_t residentBytes() const override { return inner_->residentBytes(); }
     std::string residentDetail() const override { return inner_->residentDetail(); }
+    std::vector<uint64_t> costRuns() const override { return inner_->costRuns(); }
 
 protected:
     TriangleSourcePtr inner_;

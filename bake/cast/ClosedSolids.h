@@ -161,6 +161,7 @@ public:
     std::string name() const override { return inner_->name(); }
     std::optional<uint64_t> sizeHint() const override { return inner_->sizeHint(); }
     uint32_t part() const override { return inner_->part(); }
+    std::vector<uint64_t> costRuns() const override { return inner_->costRuns(); }
 
 private:
     TriangleSourcePtr inner_;

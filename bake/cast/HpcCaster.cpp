@@ -136,6 +136,7 @@ public:
         if (hooks && hooks->select) ids = hooks->select(std::move(ids));
         const auto tiles = partitionReceivers(c_.receivers, ids, std::max(1, c_.memoryTiles));
         ProgressReporter progress("cast", blockers.sizeHint().value_or(0) * tiles.size(), c_.quiet);
+        progress.setRuns(blockers.costRuns());
         for (size_t t = 0; t < tiles.size(); ++t) {
             if (hooks && hooks->restore && hooks->restore(t, tiles.size(), tiles[t])) {
                 progress.update(blockers.sizeHint().value_or(0));  // a tile restored from a checkpoint is done

@@ -167,26 +167,30 @@ void PenumbraCaster::Impl::castOnTile(size_t t, BlockerBatch& batch) {
     const size_t n = batch.n, lights = size_t(samples.lightCount());
     TileCaster& tile = *tiles[t];
     uint8_t* reached = &batch.reached[t * n];
-    uint64_t reported = tile.work();
+    uint64_t reported = tile.work(), credited = 0;
+    const uint64_t count = tiles.size();
     for (size_t i = 0; i < n; ++i) {
         reached[i] = 0;
-        // Work is reported as it is spent, not only when the chunk is through: a heavy chunk (the
-        // cut-outs, replayed last) would otherwise hold the display's ETA near zero while it drains.
+        // Work and triangles are reported as they are spent, not only when the chunk is through: a
+        // heavy chunk (the cut-outs, replayed last) would otherwise hold the display's ETA near
+        // zero while it drains, and its first finished share would arrive with every tile's work.
+        // A tile credits one triangle per `count` it has cast; its share's rest comes at the end.
         if (progress && i % kWorkReportEvery == kWorkReportEvery - 1) {
-            const uint64_t w = tile.work();
-            progress(0, w - reported);
-            reported = w;
+            const uint64_t w = tile.work(), items = i / count - credited;
+            progress(items, w - reported);
+            reported = w, credited += items;
         }
         if (!batch.prepared[i].valid) continue;
         reached[i] = tile.castTriangle(batch.prepared[i], &batch.lightVolumes[i * lights], &batch.lightActive[i * lights]);
     }
     const uint64_t work = tile.work() - reported;
-    // Each tile finishing the chunk credits its share of the chunk's triangles (tiles hold
-    // near-equal receiver counts); the shares add up to n exactly. Counted as tiles finish, not
+    // Each tile finishing the chunk completes its share of the chunk's triangles (tiles hold
+    // near-equal receiver counts); the shares add up to n exactly. Counted as tiles cast, not
     // when the chunk is handed out, so the display reaches 100 % when the cast does.
     const int before = batch.remaining.fetch_sub(1);
-    const uint64_t finished = tiles.size() - size_t(before), count = tiles.size();
-    if (progress) progress(n * (finished + 1) / count - n * finished / count, work);
+    const uint64_t finished = count - size_t(before);
+    // The share is at least floor(n / count), which is at least what was credited on the way.
+    if (progress) progress(n * (finished + 1) / count - n * finished / count - credited, work);
     if (before != 1) return;
     if (options.countDelayForTestsUs > 0) std::this_thread::sleep_for(std::chrono::microseconds(options.countDelayForTestsUs));
     uint64_t culled = 0;  // the last tile: every tile's flags are written

@@ -114,6 +114,7 @@ public:
     std::optional<uint64_t> knownSize() const override { return inner_.knownSize(); }
     uint64_t residentBytes() const override { return inner_.residentBytes(); }
     uint32_t part() const override { return inner_.part(); }
+    std::vector<uint64_t> costRuns() const override { return inner_.costRuns(); }
 
     /// True once a read reached the end of the stream: translucent() holds them all.
     bool complete() const { return complete_; }

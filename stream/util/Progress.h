@@ -83,6 +83,12 @@ public:
         done_.fetch_add(items, std::memory_order_relaxed);
     }
 
+    /// @brief Runs of items that cost differently (WorkEstimate::setRuns()), before any update.
+    void setRuns(std::vector<uint64_t> runs) {
+        std::lock_guard lock(estimateMutex_);
+        estimate_.setRuns(std::move(runs));
+    }
+
     /// @brief Stops the display thread and prints the final line with the total time.
     /// Idempotent.
     void done();

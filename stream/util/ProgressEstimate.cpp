@@ -9,27 +9,73 @@ namespace {
 constexpr double kBeforeDone = 0.999;
 }  // namespace
 
-WorkEstimate::WorkEstimate(uint64_t totalItems) : total_(std::max<uint64_t>(totalItems, 1)) {}
+WorkEstimate::WorkEstimate(uint64_t totalItems)
+    : total_(std::max<uint64_t>(totalItems, 1)), runs_{total_}, period_(total_), runItems_(1, 0.0), runWork_(1, 0.0) {}
+
+void WorkEstimate::setRuns(std::vector<uint64_t> runs) {
+    std::erase(runs, 0);
+    uint64_t period = 0;
+    for (uint64_t r : runs) period += r;
+    if (runs.empty() || period == 0 || total_ % period != 0) return;
+    runs_ = std::move(runs), period_ = period;
+    runItems_.assign(runs_.size(), 0.0), runWork_.assign(runs_.size(), 0.0);
+}
+
+void WorkEstimate::countByRun(uint64_t first, uint64_t count, std::vector<double>& perRun, double weight) const {
+    const uint64_t periods = count / period_;
+    for (size_t k = 0; k < runs_.size(); ++k) perRun[k] += weight * double(periods * runs_[k]);
+    uint64_t position = first % period_, left = count - periods * period_;
+    size_t k = 0;
+    uint64_t runEnd = runs_[0];
+    while (left > 0) {
+        while (position >= runEnd) runEnd += runs_[++k];
+        const uint64_t take = std::min(left, runEnd - position);
+        perRun[k] += weight * double(take);
+        left -= take, position += take;
+        if (position == period_) position = 0, k = 0, runEnd = runs_[0];
+    }
+}
+
+double WorkEstimate::expectedWork(uint64_t items) const {
+    std::vector<double> left(runs_.size(), 0.0);
+    countByRun(items, total_ - items, left, 1.0);
+    const double mean = double(workAtItems_) / double(items);
+    double expected = 0;
+    for (size_t k = 0; k < runs_.size(); ++k) expected += left[k] * (runItems_[k] > 0 ? runWork_[k] / runItems_[k] : mean);
+    return expected;
+}
 
 void WorkEstimate::sample(double seconds, uint64_t items, uint64_t work) {
+    if (items > itemsSeen_) {
+        // The work since the items last changed went to the items finished since: shared out
+        // over their runs by count.
+        const uint64_t count = items - itemsSeen_;
+        countByRun(itemsSeen_, count, runItems_, 1.0);
+        countByRun(itemsSeen_, count, runWork_, double(work - workAtItems_) / double(count));
+    }
     if (items != itemsSeen_) itemsSeen_ = items, workAtItems_ = work;
     if (items >= total_) {  // what is left (a last pass over the results) is not counted
         fraction_ = kBeforeDone;
         remaining_.reset();
         return;
     }
+    // Time is measured from the first work: what ran before it (building the receiver hierarchy)
+    // is not part of the rate, and on GRIDS it made the first ETA 200 times too long.
+    const bool firstWork = work > 0 && !firstWork_;
+    if (firstWork) firstWork_ = WorkAt{seconds, work};
     double share;
     if (work == 0 || items == 0 || workAtItems_ == 0) {  // nothing measured yet: the items' share, a linear ETA
         share = double(items) / double(total_);
         if (items > 0) remaining_ = seconds * double(total_ - items) / double(items);
         else remaining_.reset();
     } else {
-        const double expected = double(workAtItems_) / double(items) * double(total_ - items);
+        const double expected = expectedWork(items);
         const double inFlight = double(work - workAtItems_);
         // Continuous in inFlight: both terms meet at two-thirds of the expected work.
         const double left = std::max(expected - inFlight, 0.5 * inFlight);
         share = double(work) / (double(work) + left);
-        remaining_ = seconds * left / double(work);
+        if (firstWork || seconds <= firstWork_->seconds) remaining_.reset();  // no rate yet
+        else remaining_ = (seconds - firstWork_->seconds) * left / double(work - firstWork_->work);
     }
     fraction_ = std::max(fraction_, std::min(share, kBeforeDone));
 }

@@ -3,17 +3,26 @@
 /// @brief The share of a phase done and the time it still needs, from measured work as well as
 /// from the count of finished items.
 ///
-/// A cast reports two counters: items with a known total (triangles cast, each tile crediting its
-/// share of a chunk when it finishes it)
-/// and work with an unknown total (hierarchy nodes visited and exact tests, whose count follows
-/// the time spent whatever else runs on the machine). Work per item varies a lot along the
-/// stream, and the mean so far predicted the rest better than a recent window did
-/// (docs/performance.md, "Progress and ETA"). Items finish a tile's chunk at a time, so between
-/// two the work already spent on the next ones counts against what they are expected to need; when it exceeds that, they are heavier than the mean and are taken as
-/// two-thirds done, so the ETA grows rather than sitting near zero while the last chunk drains.
+/// A cast reports two counters: items with a known total (triangles cast, each tile crediting one
+/// per tile count as it casts, and the rest of its share when it finishes a chunk) and work with
+/// an unknown total (hierarchy nodes visited and exact tests, whose count follows the time spent
+/// whatever else runs on the machine). Work per item varies a lot along the stream, and the mean
+/// so far predicted the rest better than a recent window did (docs/performance.md, "Progress and
+/// ETA"). Between two changes of the item count, the work already spent on the next items counts
+/// against what they are expected to need; when it exceeds that, they are heavier than the mean
+/// and are taken as two-thirds done, so the ETA grows rather than sitting near zero.
+///
+/// Runs. When the items come in runs that cost differently (a bucket replay's opaque triangles,
+/// then its cut-outs, which cost up to 60 times as much each), each run's items are expected to
+/// cost what that run's finished items cost, and a run not begun what every finished item cost on
+/// average. Without runs the whole phase is one run.
+///
+/// Rate. The remaining time is the work expected over the rate of work since the first sample
+/// that had any: the time before it (building the receiver hierarchy) does no work.
 
 #include <cstdint>
 #include <optional>
+#include <vector>
 
 namespace penumbra {
 
@@ -23,6 +32,11 @@ class WorkEstimate {
 public:
     /// @param totalItems the items the phase will finish (> 0)
     explicit WorkEstimate(uint64_t totalItems);
+
+    /// @brief Sets the runs: item counts in the order the items finish, summing to a period that
+    /// divides the total (a replay played once per memory tile repeats its runs). Ignored, leaving
+    /// one run, when they do not. Call before the first sample.
+    void setRuns(std::vector<uint64_t> runs);
 
     /// @brief Records the counters at @p seconds since the phase began. Counters never decrease.
     void sample(double seconds, uint64_t items, uint64_t work);
@@ -35,8 +49,21 @@ public:
     std::optional<double> remainingSeconds() const { return remaining_; }
 
 private:
+    /// Adds @p count items starting at item @p first to @p perRun, run by run.
+    void countByRun(uint64_t first, uint64_t count, std::vector<double>& perRun, double weight) const;
+    /// The work the items after @p items are expected to need.
+    double expectedWork(uint64_t items) const;
+
     uint64_t total_;
+    std::vector<uint64_t> runs_;  ///< one run of total_ items unless setRuns() was given others
+    uint64_t period_;             ///< the sum of runs_
+    std::vector<double> runItems_, runWork_;  ///< finished items per run, and the work they took
     uint64_t itemsSeen_ = 0, workAtItems_ = 0;  ///< the items last seen, and the work when they changed
+    struct WorkAt {
+        double seconds;
+        uint64_t work;
+    };
+    std::optional<WorkAt> firstWork_;  ///< the first sample with work: the rate is measured from it
     double fraction_ = 0;
     std::optional<double> remaining_;
 };

@@ -7,6 +7,7 @@
 
 #include "bucket/AreaHistogram.h"
 #include "bucket/BucketFiles.h"
+#include "stream/PrefetchSource.h"
 #include "bucket/BucketPlan.h"
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
@@ -158,6 +159,9 @@ TEST_CASE("Bucket replay yields every triangle once, largest ranges first, opaqu
 
     BucketReplaySource replay(set, 1 << 16);
     CHECK(replay.sizeHint() == input.size());
+    // The progress estimate's runs: the opaque triangles, then the alpha-matte ones, as replayed.
+    CHECK(replay.costRuns() == std::vector<uint64_t>{input.size() - alpha, alpha});
+    CHECK(PrefetchSource(std::make_unique<BucketReplaySource>(set, 1 << 16)).costRuns() == replay.costRuns());
     std::vector<Triangle> out = replayAll(replay, kTriangleChunk);
     REQUIRE(out.size() == input.size());
 

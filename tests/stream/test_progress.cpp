@@ -159,12 +159,14 @@ TEST_CASE("WorkEstimate: monotone share below 100 %, an ETA that grows while a h
 
 TEST_CASE("WorkEstimate: work in flight past its expectation raises the ETA", "[io][progress]") {
     penumbra::WorkEstimate e(100);
-    e.sample(1.0, 50, 1000);  // 20 units an item so far: 1000 more expected
+    e.sample(0.5, 25, 500);  // the first work: no rate yet
+    CHECK(!e.remainingSeconds());
+    e.sample(1.0, 50, 1000);  // 20 units an item so far: 1000 more expected, at 1000 a second
     REQUIRE(e.remainingSeconds());
     CHECK(*e.remainingSeconds() == Approx(1.0));
     CHECK(e.fraction() == Approx(0.5));
     e.sample(2.0, 50, 2000);  // the next items took all of it and are still running
-    CHECK(*e.remainingSeconds() == Approx(2.0 * 500 / 2000));  // taken as two-thirds done
+    CHECK(*e.remainingSeconds() == Approx(500.0 / 1000));  // taken as two-thirds done
     CHECK(e.fraction() == Approx(0.8));
     e.sample(3.0, 100, 2500);  // every item finished: the closing line says 100 %, not this
     CHECK(e.fraction() == Approx(0.999));
@@ -181,4 +183,39 @@ TEST_CASE("WorkEstimate without work is the items' share with a linear ETA", "[i
     CHECK(*e.remainingSeconds() == Approx(3.0));
     CHECK(formatProgressLine("cast", 250, 1000, 1.0, e.fraction(), e.remainingSeconds()) ==
           "[cast] 25.0% (250/1000) elapsed 1.0s ETA 3.0s");
+}
+
+TEST_CASE("WorkEstimate: the rate counts from the first work, not from the phase's start", "[io][progress]") {
+    // The receiver hierarchy takes 2 s to build, then 1000 units a second for 200 items of 10 each.
+    penumbra::WorkEstimate e(200);
+    e.sample(1.0, 0, 0);
+    e.sample(2.5, 50, 500);
+    e.sample(3.0, 100, 1000);
+    REQUIRE(e.remainingSeconds());
+    CHECK(*e.remainingSeconds() == Approx(1.0));  // not 3.0 s, from the phase's start
+}
+
+TEST_CASE("WorkEstimate with runs: a costly last run is expected at its own cost once begun", "[io][progress]") {
+    // 1000 items at 10 units, then 100 cut-outs at 1000: the second run is nine tenths of the work.
+    penumbra::WorkEstimate plain(1100), runs(1100);
+    runs.setRuns({1000, 100});
+    for (penumbra::WorkEstimate* e : {&plain, &runs}) {
+        e->sample(0.5, 100, 1000);
+        e->sample(1.0, 1000, 10000);
+        e->sample(2.0, 1010, 20000);  // ten cut-outs done: 90 to go, 90,000 units at 10,000 a second
+    }
+    REQUIRE(runs.remainingSeconds());
+    CHECK(*runs.remainingSeconds() == Approx(90000.0 / (19000.0 / 1.5)));
+    CHECK(*plain.remainingSeconds() < 0.2 * *runs.remainingSeconds());  // one mean: 20,000 / 1010 an item
+    // Runs that do not divide the total are ignored: one run, as without them.
+    penumbra::WorkEstimate odd(1100);
+    odd.setRuns({1000, 99});
+    odd.sample(0.5, 100, 1000), odd.sample(1.0, 1000, 10000), odd.sample(2.0, 1010, 20000);
+    CHECK(*odd.remainingSeconds() == Approx(*plain.remainingSeconds()));
+    // A replay played twice (two memory tiles) repeats its runs.
+    penumbra::WorkEstimate twice(2200);
+    twice.setRuns({1000, 100});
+    twice.sample(0.5, 100, 1000), twice.sample(1.0, 1000, 10000), twice.sample(2.0, 1100, 110000);
+    REQUIRE(twice.remainingSeconds());
+    CHECK(*twice.remainingSeconds() == Approx((1000 * 10.0 + 100 * 1000.0) / (109000.0 / 1.5)));
 }
