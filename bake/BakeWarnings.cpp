@@ -95,10 +95,12 @@ std::optional<std::string> sampleSpacingWarning(const LightDesc& light) {
 
 }  // namespace
 
-std::vector<std::string> bakeWarnings(const nlohmann::json& receivers, const ReceiverSet& set, const std::vector<LightDesc>& lights) {
+std::vector<std::string> bakeWarnings(const nlohmann::json& receivers, const ReceiverSet& set, const std::vector<LightDesc>& lights,
+                                      const std::string& sceneFile) {
     std::vector<std::string> warnings;
     if (set.size() == 0) {
-        warnings.push_back(noReceivers(receivers.is_object() ? receivers.value("type", std::string()) : std::string()));
+        const std::string line = noReceivers(receivers.is_object() ? receivers.value("type", std::string()) : std::string());
+        warnings.push_back(sceneFile.empty() ? line : sceneFile + ": " + line);
         return warnings;
     }
     for (const LightDesc& light : lights)

@@ -20,7 +20,9 @@ namespace penumbra {
 ///   side only, so every receiver's irradiance from it is 0 (a swapped `u`/`v`);
 /// - no receivers at all: a camera that sees no geometry, receiver meshes that are empty.
 /// @param receivers the "receivers" object (its type names the kind in messages).
-std::vector<std::string> bakeWarnings(const nlohmann::json& receivers, const ReceiverSet& set, const std::vector<LightDesc>& lights);
+/// @param sceneFile names the scene in the no-receivers line, as the lights' own `where` does
+std::vector<std::string> bakeWarnings(const nlohmann::json& receivers, const ReceiverSet& set, const std::vector<LightDesc>& lights,
+                                      const std::string& sceneFile = "");
 
 /// @brief A warning when the rule's receiver epsilon at the largest receiver coordinate,
 /// @p epsilon x @p length (BlockingRule.h), is more than 1 % of the receivers' extent: blockers

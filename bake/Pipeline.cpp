@@ -454,7 +454,9 @@ nlohmann::json bakeScene(Bake& b, const Stopwatch& total) {
     in.totalSeconds = total.seconds();
     nlohmann::json stats = bakeStats(in);
     if (nlohmann::json extra = b.kind->stats(); extra.is_object())
-        for (auto& [key, value] : extra.items()) stats[key] = value;
+        for (auto& [key, value] : extra.items())  // merged: the pipeline's keys of an object stay (antialias)
+            if (value.is_object() && stats.contains(key) && stats[key].is_object()) stats[key].update(value);
+            else stats[key] = value;
     if (nlohmann::json extra = b.caster->methodStats(); !extra.is_null()) stats[settings.method] = extra;
     if (b.sharded) stats["shard"] = b.sharded->stats(), stats["shard"]["blockers_cast"] = b.p.blockersCast;
     if (b.opaqueView && !b.opaqueView->translucent().empty()) {

@@ -169,7 +169,7 @@ Prepared prepare(const SceneDesc& scene, const BakeSettings& settings, ReceiverK
                       "with the coordinates)",
                       epsilonMax, 100 * kClosedEpsilonShare, p.openedSolids.smallestExtent);
     }
-    p.warnings = bakeWarnings(scene.receivers, p.receivers, p.lights);
+    p.warnings = bakeWarnings(scene.receivers, p.receivers, p.lights, scene.file);
     if (auto far = epsilonWarning(p.receivers, p.options.epsilon, p.options.epsilonLength)) p.warnings.push_back(std::move(*far));
     for (std::string& warning : leakySolidWarnings(p.openedSolids, scene)) p.warnings.push_back(std::move(warning));
     for (const std::string& warning : p.warnings) printWarning("{}", warning);

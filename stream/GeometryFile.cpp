@@ -132,7 +132,13 @@ void convertGeometry(TriangleSource& in, const std::string& outPath) {
     if (ext == ".ptri") return writePtri(in, outPath);
     if (ext == ".obj") return writeObj(in, outPath);
     if (ext == ".glb" || ext == ".gltf") return writeGltf(in, outPath, ext == ".glb");
-    fail(outPath, "unknown output extension '{}' (expected .obj, .gltf, .glb or .ptri)", ext);
+    checkGeometryOutputExtension(outPath);
+}
+
+void checkGeometryOutputExtension(const std::string& outPath) {
+    const std::string ext = lowercaseExtension(outPath);
+    if (ext != ".ptri" && ext != ".obj" && ext != ".glb" && ext != ".gltf")
+        fail(outPath, "unknown output extension '{}' (expected .obj, .gltf, .glb or .ptri)", ext);
 }
 
 void convertGeometryFile(const std::string& inPath, const std::string& outPath, std::optional<bool> progressQuiet) {

@@ -63,6 +63,11 @@ GeometryInfo scanGeometry(TriangleSource& source);
 ///        source throws; no partial output is left behind.
 void convertGeometry(TriangleSource& in, const std::string& outPath);
 
+/// @brief Refuses an output path whose extension names no format convertGeometry() writes, so a
+/// command can say so before its work and its warnings.
+/// @throw InputError "PATH: unknown output extension '.stl' (expected .obj, .gltf, .glb or .ptri)"
+void checkGeometryOutputExtension(const std::string& outPath);
+
 /// @brief `penumbra convert`: the file @p inPath written as @p outPath. An OBJ or glTF written as
 /// glTF keeps its meshes (one per OBJ o/g group or glTF node), their normals and texture
 /// coordinates (in glTF's convention), with identical corners welded; a .ptri

@@ -83,6 +83,7 @@ uint64_t generateOnce(const GenerateOptions& options) {
     const ScopedTbbControl stacks(tbb::global_control::thread_stack_size, threads > 1 && addressSpaceLimit() != 0 ? size_t(kWorkerStackBytes) : 0);
 
     const Stopwatch watch;
+    checkGeometryOutputExtension(options.output);  // before the scene's warnings and the work
     SceneDesc scene = loadScene(options.scene);
     checkOutputAgainstInputs(scene, options.output);
     warnExportDrops(scene);  // what a geometry file cannot hold, before the work

@@ -512,8 +512,9 @@ PenumbraMapOptions penumbraMapOptions(const JsonParams& bake) {
     PenumbraMapOptions o;
     o.resolution = int(bake.integer("penumbra_map_resolution", o.resolution, 16, 16384));
     o.bias = bake.number("penumbra_map_bias", o.bias);
-    if (!(o.bias >= 0) || !std::isfinite(o.bias))
-        fail(bake.where("penumbra_map_bias"), "must be finite and non-negative, got {}", o.bias);
+    // The option's range too (--penumbra-map-bias): a bias of a million texels already hides
+    // every shadow, so a larger one is a typo.
+    if (!(o.bias >= 0 && o.bias <= 1e6)) fail(bake.where("penumbra_map_bias"), "must be in 0..1000000, got {}", o.bias);
     o.taps = int(bake.integer("penumbra_map_taps", o.taps, 1, 8));
     const std::string lookup = bake.string("penumbra_map_lookup", "backprojection");
     if (lookup == "wyman-hansen") o.lookup = PenumbraMapOptions::Lookup::WymanHansen;

@@ -60,10 +60,16 @@ Checkpoints::Checkpoints(const ShardSettings& settings, PartialHeader header, co
     // --resume promises saved work; a folder that is not there is more often a typo than a start.
     if (settings_.resume && !fs::exists(settings_.checkpointDir, ec))
         printWarning("--resume: {} does not exist, so there is nothing to resume; baking from the start", settings_.checkpointDir);
-    fs::create_directories(settings_.checkpointDir, ec);
+    madeFolder_ = fs::create_directories(settings_.checkpointDir, ec);
     if (ec || !fs::is_directory(settings_.checkpointDir, ec))
         fail(settings_.checkpointDir, "cannot create the checkpoint directory: {}", ec ? ec.message() : "not a directory");
     if (const char* kill = std::getenv("PENUMBRA_TEST_KILL_AFTER_TILES"); kill && *kill) killAfter_ = std::atol(kill);
+}
+
+Checkpoints::~Checkpoints() {
+    std::error_code ec;
+    if (madeFolder_ && fs::is_directory(settings_.checkpointDir, ec) && fs::is_empty(settings_.checkpointDir, ec) && !ec)
+        fs::remove(settings_.checkpointDir, ec);
 }
 
 void Checkpoints::ensureFolder() const {

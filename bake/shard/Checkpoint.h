@@ -40,6 +40,11 @@ public:
     ///        may share the folder
     Checkpoints(const ShardSettings& settings, PartialHeader header, const LightSamples& samples, bool quiet,
                 const std::string& sceneFile = "");
+    /// Removes the folder when this bake made it and it is still empty (a bake refused after it
+    /// was opened, such as for translucent blockers, leaves no folder behind).
+    ~Checkpoints();
+    Checkpoints(const Checkpoints&) = delete;
+    Checkpoints& operator=(const Checkpoints&) = delete;
 
     /// @brief Restores tile @p tile of @p tiles (receivers @p ids) into @p masks when its
     /// checkpoint exists and matches. @return whether it did.
@@ -120,6 +125,7 @@ private:
                                             std::span<const uint32_t> ids);
 
     ShardSettings settings_;
+    bool madeFolder_ = false;  ///< the constructor created settings_.checkpointDir
     PartialHeader header_;
     const LightSamples& samples_;
     bool quiet_;

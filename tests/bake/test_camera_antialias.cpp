@@ -95,6 +95,7 @@ TEST_CASE("antialiasing refines exactly the high-contrast pixels with the sub-pi
     CHECK(v0[size_t(H / 2) * W + W - 3] == 1.f);    // lit, right
     CHECK(aa.stats["antialias"]["refined_pixels"] == expectedCount);
     CHECK(aa.stats["antialias"]["added_receivers"] == 4 * expectedCount);
+    CHECK(aa.stats["antialias"]["refine_scan_time_s"].get<double>() > 0);  // the pipeline's key beside the kind's
     CHECK(aa.stats["receivers"] == W * H + 4 * expectedCount);
 
     // A refined pixel is the mean of the 2 x 2 finer pixels it covers (same surface points, same

@@ -321,6 +321,12 @@ TEST_CASE("translucency: bad declarations and unsupported bakes give one line", 
     INFO(shardError);
     CHECK(shardError.find("--shard: scenes with translucent blockers cannot be sharded") == 0);
     CHECK((!std::filesystem::exists(dir / "shards") || std::filesystem::is_empty(dir / "shards")));  // no partial file
+    BakeSettings checkpointed;
+    checkpointed.quiet = true, checkpointed.shard.checkpointDir = dir / "ck";
+    const std::string checkpointError = errorOf([&] { runBake(pane, checkpointed); });
+    INFO(checkpointError);
+    CHECK(checkpointError.find("--checkpoint: scenes with translucent blockers cannot be sharded or checkpointed") == 0);
+    CHECK(!std::filesystem::exists(dir / "ck"));  // the folder it made for the refused bake is gone
 }
 
 TEST_CASE("translucency: .ptri files refuse translucent triangles", "[translucent]") {

@@ -141,6 +141,10 @@ TEST_CASE("generate warns about what a geometry file cannot hold", "[procedural]
                           Catch::Contains("generate carries geometry"));
     CHECK_THAT(r.err, Catch::Contains("scene.json: geometry[1]: \"translucent\" not written"));
     CHECK_THAT(r.err, Catch::Contains("scene.json: geometry[2]: \"max_distance\" not written"));
+    // An output no format matches is refused first: one line, none of the warnings above.
+    RunResult stl = runPenumbra("generate " + (dir / "scene.json") + " -o " + (dir / "out.stl"));
+    CHECK(stl.exitCode == 1);
+    CHECK(stl.err == "penumbra: error: " + (dir / "out.stl") + ": unknown output extension '.stl' (expected .obj, .gltf, .glb or .ptri)\n");
 }
 
 TEST_CASE("generate under an address-space limit names one that works before building anything", "[procedural][cli][memory]") {

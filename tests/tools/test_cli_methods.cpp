@@ -116,7 +116,9 @@ TEST_CASE("a method's own scene keys are read by the method whichever method bak
     CHECK(ok.exitCode == 0);
     requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_resolution\": 8") + " -q"), "bake.penumbra_map_resolution");
     requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_bias\": -1") + " -q --method penumbra-map"),
-                      "bake.penumbra_map_bias: must be finite and non-negative");
+                      "bake.penumbra_map_bias: must be in 0..1000000, got -1");
+    requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_bias\": 2e6") + " -q --method penumbra-map"),
+                      "bake.penumbra_map_bias: must be in 0..1000000, got 2000000");  // as --penumbra-map-bias
     requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_resolutions\": 64") + " -q"), "penumbra_map_resolutions");
     requireCleanError(runPenumbra("bake " + scene("\"penumbra_map_lookup\": \"pcss\"") + " -q --method penumbra-map"),
                       "bake.penumbra_map_lookup: must be \"backprojection\" or \"wyman-hansen\"");
