@@ -476,7 +476,11 @@ VisibilityMasks castEmbree(const LightSamples& samples, const ReceiverSet& recei
         Packet packet;
         FilterContext fc;
         rtcInitIntersectContext(&fc.context);
-        fc.context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // one receiver's rays share their origin
+        // Incoherent, although one receiver's rays share their origin: with the coherent flag
+        // Embree traced a packet through one frustum, which for a narrow sun's near-parallel rays
+        // culled a flat BVH box (a box's top) that every ray crossed, and left real blocks lit.
+        // Incoherent packets were as fast on GRIDS and SPONZA-LIKE (docs/BENCHMARKS.md).
+        fc.context.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
         fc.packet = &packet;
         fc.vertices = bvh.vertices;
         fc.primitives = bvh.primitives.data();
