@@ -74,7 +74,7 @@ void WorkEstimate::sample(double seconds, uint64_t items, uint64_t work) {
         // Continuous in inFlight: both terms meet at two-thirds of the expected work.
         const double left = std::max(expected - inFlight, 0.5 * inFlight);
         share = double(work) / (double(work) + left);
-        if (firstWork || seconds <= firstWork_->seconds) remaining_.reset();  // no rate yet
+        if (firstWork || seconds <= firstWork_->seconds || work <= firstWork_->work) remaining_.reset();  // no rate yet
         else remaining_ = (seconds - firstWork_->seconds) * left / double(work - firstWork_->work);
     }
     fraction_ = std::max(fraction_, std::min(share, kBeforeDone));

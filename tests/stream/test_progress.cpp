@@ -193,6 +193,11 @@ TEST_CASE("WorkEstimate: the rate counts from the first work, not from the phase
     e.sample(3.0, 100, 1000);
     REQUIRE(e.remainingSeconds());
     CHECK(*e.remainingSeconds() == Approx(1.0));  // not 3.0 s, from the phase's start
+    // Items that finish with no work since the first sample give no rate, not an infinite ETA.
+    penumbra::WorkEstimate flat(200);
+    flat.sample(1.0, 10, 100);
+    flat.sample(2.0, 20, 100);
+    CHECK(!flat.remainingSeconds());
 }
 
 TEST_CASE("WorkEstimate with runs: a costly last run is expected at its own cost once begun", "[io][progress]") {
