@@ -139,7 +139,7 @@ public:
         progress.setRuns(blockers.costRuns());
         for (size_t t = 0; t < tiles.size(); ++t) {
             if (hooks && hooks->restore && hooks->restore(t, tiles.size(), tiles[t])) {
-                progress.update(blockers.sizeHint().value_or(0));  // a tile restored from a checkpoint is done
+                progress.skip(blockers.sizeHint().value_or(0));  // a tile restored from a checkpoint is done
                 continue;
             }
             castTile(blockers, Tile{t, tiles.size(), tiles[t]}, sink, hooks, progress);
@@ -189,7 +189,7 @@ private:
         // share and ETA follow the work rather than the count (ProgressEstimate.h); what a resumed
         // tile skipped is done.
         if (caster) caster.main().setProgress([&progress](uint64_t triangles, uint64_t work) { progress.updateMeasured(triangles, work); });
-        if (prior) progress.update(prior->replayed);
+        if (prior) progress.skip(prior->replayed);
         double readSeconds = 0;
         std::vector<Triangle> chunk(kTriangleChunk);
         for (;;) {

@@ -42,7 +42,7 @@ ProgressSnapshot ProgressReporter::snapshot() const {
     s.done = workDone();
     if (total_ == 0) return s;
     s.total = std::max(total_, s.done);
-    estimate_.sample(s.elapsedSeconds, s.done, work_.load(std::memory_order_relaxed));
+    estimate_.sample(s.elapsedSeconds, s.done, work_.load(std::memory_order_relaxed), skipped_.load(std::memory_order_relaxed));
     s.fraction = estimate_.fraction();
     s.remainingSeconds = estimate_.remainingSeconds();
     return s;

@@ -89,6 +89,14 @@ public:
         estimate_.setRuns(std::move(runs));
     }
 
+    /// @brief Records @p items more units as done without work (a tile restored from a
+    /// checkpoint): they count in the share, not in the ETA's cost per item or its rate.
+    /// @throw Cancelled after requestCancel().
+    void skip(uint64_t items) {
+        skipped_.fetch_add(items, std::memory_order_relaxed);
+        update(items);
+    }
+
     /// @brief Stops the display thread and prints the final line with the total time.
     /// Idempotent.
     void done();
@@ -120,6 +128,7 @@ private:
     int uncaughtAtStart_;
     std::atomic<uint64_t> done_{0};
     std::atomic<uint64_t> work_{0};  ///< updateMeasured()'s work
+    std::atomic<uint64_t> skipped_{0};  ///< skip()'s items, also in done_
     mutable std::mutex estimateMutex_;
     mutable WorkEstimate estimate_;  ///< guarded by estimateMutex_; sampled by snapshot()
     Stopwatch clock_;

@@ -36,24 +36,30 @@ void WorkEstimate::countByRun(uint64_t first, uint64_t count, std::vector<double
     }
 }
 
-double WorkEstimate::expectedWork(uint64_t items) const {
+double WorkEstimate::expectedWork(uint64_t items, uint64_t cast) const {
     std::vector<double> left(runs_.size(), 0.0);
     countByRun(items, total_ - items, left, 1.0);
-    const double mean = double(workAtItems_) / double(items);
+    const double mean = double(workAtItems_) / double(cast);
     double expected = 0;
     for (size_t k = 0; k < runs_.size(); ++k) expected += left[k] * (runItems_[k] > 0 ? runWork_[k] / runItems_[k] : mean);
     return expected;
 }
 
-void WorkEstimate::sample(double seconds, uint64_t items, uint64_t work) {
+void WorkEstimate::sample(double seconds, uint64_t items, uint64_t work, uint64_t skipped) {
+    skipped = std::min(skipped, items);
     if (items > itemsSeen_) {
-        // The work since the items last changed went to the items finished since: shared out
-        // over their runs by count.
-        const uint64_t count = items - itemsSeen_;
-        countByRun(itemsSeen_, count, runItems_, 1.0);
-        countByRun(itemsSeen_, count, runWork_, double(work - workAtItems_) / double(count));
+        // The work since the items last changed went to the items finished since, less the
+        // skipped ones (before them): shared out over their runs by count.
+        const uint64_t newlySkipped = std::min(skipped - std::min(skipped, skippedSeen_), items - itemsSeen_);
+        const uint64_t count = items - itemsSeen_ - newlySkipped, first = itemsSeen_ + newlySkipped;
+        if (count > 0) {
+            countByRun(first, count, runItems_, 1.0);
+            countByRun(first, count, runWork_, double(work - workAtItems_) / double(count));
+        }
     }
+    skippedSeen_ = std::max(skippedSeen_, skipped);
     if (items != itemsSeen_) itemsSeen_ = items, workAtItems_ = work;
+    const uint64_t cast = items - skipped;  // items done with work
     if (items >= total_) {  // what is left (a last pass over the results) is not counted
         fraction_ = kBeforeDone;
         remaining_.reset();
@@ -64,16 +70,18 @@ void WorkEstimate::sample(double seconds, uint64_t items, uint64_t work) {
     const bool firstWork = work > 0 && !firstWork_;
     if (firstWork) firstWork_ = WorkAt{seconds, work};
     double share;
-    if (work == 0 || items == 0 || workAtItems_ == 0) {  // nothing measured yet: the items' share, a linear ETA
+    if (work == 0 || cast == 0 || workAtItems_ == 0) {  // nothing measured yet: the items' share, a linear ETA
         share = double(items) / double(total_);
-        if (items > 0) remaining_ = seconds * double(total_ - items) / double(items);
+        if (cast > 0) remaining_ = seconds * double(total_ - items) / double(cast);
         else remaining_.reset();
     } else {
-        const double expected = expectedWork(items);
+        const double expected = expectedWork(items, cast);
         const double inFlight = double(work - workAtItems_);
         // Continuous in inFlight: both terms meet at two-thirds of the expected work.
         const double left = std::max(expected - inFlight, 0.5 * inFlight);
-        share = double(work) / (double(work) + left);
+        // The skipped items are done; the rest of the share follows the work.
+        const double skippedShare = double(skipped) / double(total_);
+        share = skippedShare + (1.0 - skippedShare) * double(work) / (double(work) + left);
         if (firstWork || seconds <= firstWork_->seconds || work <= firstWork_->work) remaining_.reset();  // no rate yet
         else remaining_ = (seconds - firstWork_->seconds) * left / double(work - firstWork_->work);
     }

@@ -39,7 +39,10 @@ public:
     void setRuns(std::vector<uint64_t> runs);
 
     /// @brief Records the counters at @p seconds since the phase began. Counters never decrease.
-    void sample(double seconds, uint64_t items, uint64_t work);
+    /// @param skipped how many of @p items were done without work (tiles restored from a
+    ///        checkpoint): they count as done, but not in what an item is expected to cost, nor
+    ///        in the rate. They are taken to come before the items finished since the last sample.
+    void sample(double seconds, uint64_t items, uint64_t work, uint64_t skipped = 0);
 
     /// @brief The share done, in [0, 0.999]: never lower than a previous answer, and 0.999 once
     /// the items reach their total (the phase's closing line says 100 %, not a running one).
@@ -51,14 +54,15 @@ public:
 private:
     /// Adds @p count items starting at item @p first to @p perRun, run by run.
     void countByRun(uint64_t first, uint64_t count, std::vector<double>& perRun, double weight) const;
-    /// The work the items after @p items are expected to need.
-    double expectedWork(uint64_t items) const;
+    /// The work the items after @p items are expected to need, @p cast of them done with work.
+    double expectedWork(uint64_t items, uint64_t cast) const;
 
     uint64_t total_;
     std::vector<uint64_t> runs_;  ///< one run of total_ items unless setRuns() was given others
     uint64_t period_;             ///< the sum of runs_
     std::vector<double> runItems_, runWork_;  ///< finished items per run, and the work they took
     uint64_t itemsSeen_ = 0, workAtItems_ = 0;  ///< the items last seen, and the work when they changed
+    uint64_t skippedSeen_ = 0;                   ///< the skipped items last seen
     struct WorkAt {
         double seconds;
         uint64_t work;

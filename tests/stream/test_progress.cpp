@@ -224,3 +224,16 @@ TEST_CASE("WorkEstimate with runs: a costly last run is expected at its own cost
     REQUIRE(twice.remainingSeconds());
     CHECK(*twice.remainingSeconds() == Approx((1000 * 10.0 + 100 * 1000.0) / (109000.0 / 1.5)));
 }
+
+TEST_CASE("WorkEstimate: items restored from a checkpoint count as done, not in the cost per item", "[io][progress]") {
+    // Two of three memory tiles restored (200 items, no work), then 100 items of 100 units each.
+    penumbra::WorkEstimate e(300);
+    e.sample(0.5, 200, 0, 200);
+    CHECK(e.fraction() == Approx(200.0 / 300));
+    CHECK(!e.remainingSeconds());  // nothing cast yet: no cost per item
+    e.sample(1.0, 210, 1000, 200);
+    CHECK(e.fraction() == Approx(200.0 / 300 + 100.0 / 300 * 1000 / (1000 + 9000)));
+    e.sample(2.0, 220, 2000, 200);
+    REQUIRE(e.remainingSeconds());
+    CHECK(*e.remainingSeconds() == Approx(8.0));  // 80 items at 100 units, 1000 a second; not 0.7 s
+}
