@@ -1,4 +1,5 @@
 #include "stream/IndexedMesh.h"
+#include "stream/GeometryFile.h"
 #include "stream/util/PathText.h"
 
 #include "stream/util/Error.h"
@@ -235,8 +236,8 @@ glm::vec3 MeshPlacement::normal(const glm::vec3& n) const {
 }
 
 std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::mat4& transform,
-                                           const std::vector<std::string>& parts, MeshFileFormat format) {
-    const bool obj = format == MeshFileFormat::ByExtension ? lowercaseExtension(path) == ".obj" : format == MeshFileFormat::Obj;
+                                           const std::vector<std::string>& parts, std::optional<GeometryFormat> format) {
+    const bool obj = format ? *format == GeometryFormat::Obj : lowercaseExtension(path) == ".obj";
     if (!obj) {
         if (!parts.empty()) fail(path, "\"parts\" selects o/g groups of OBJ files only");
         return GltfMeshReader(path).read(glm::dmat4(transform));

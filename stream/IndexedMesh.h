@@ -17,10 +17,13 @@
 #include <glm/vec3.hpp>
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 namespace penumbra {
+
+enum class GeometryFormat;  // stream/GeometryFile.h
 
 /// @brief One mesh: per-vertex attributes (an attribute array is either empty, meaning the mesh
 /// does not have it, or holds one entry per position) and a triangle list.
@@ -64,18 +67,16 @@ struct MeshPlacement {
 /// indices of TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN primitives, with node transforms; an
 /// attribute is kept only when every primitive of the mesh has it. Mirroring transforms reverse
 /// the winding so front faces stay front faces.
-/// @param path the file (told apart by @p format, or by extension: .obj, else glTF by content)
+/// @param path the file
 /// @param transform applied to positions (as points) and normals (inverse transpose)
 /// @param parts OBJ only: the o/g groups to load (empty: all); a name the file lacks is an error
+/// @param format the reader: OBJ, else glTF by content; a scene entry's type chooses it (an OBJ
+///        may be called mesh.txt). nullopt: by extension, .obj or glTF.
 /// @throw InputError naming the file for malformed input: bad numbers or indices
 ///        (`mesh.obj:12: face index 40 out of range (38 vertices)`), out-of-bounds or mistyped
 ///        accessors, attribute counts that differ from POSITION, non-finite values.
-/// @brief Which reader loadIndexedMeshes() uses: a scene entry's type chooses it (an OBJ may be
-/// called mesh.txt), a bare path its extension.
-enum class MeshFileFormat { ByExtension, Obj, Gltf };
-
 std::vector<IndexedMesh> loadIndexedMeshes(const std::string& path, const glm::mat4& transform,
                                            const std::vector<std::string>& parts = {},
-                                           MeshFileFormat format = MeshFileFormat::ByExtension);
+                                           std::optional<GeometryFormat> format = std::nullopt);
 
 }  // namespace penumbra

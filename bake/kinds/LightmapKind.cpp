@@ -13,6 +13,7 @@
 #include "receivers/LightmapReceivers.h"
 #include "stream/util/AtomicFile.h"
 #include "stream/util/Error.h"
+#include "stream/GeometryFile.h"
 #include "stream/IndexedMesh.h"
 
 #include <fmt/format.h>
@@ -380,14 +381,12 @@ private:
 };
 
 /// The reader for entry @p g's file @p file: its type chooses it, as for the blocker stream (an
-/// OBJ may be called mesh.txt); a "file" entry's extension. ByExtension: neither says a mesh.
-MeshFileFormat meshFormat(const GeometryDesc& g, const std::string& file) {
-    if (g.type == "obj") return MeshFileFormat::Obj;
-    if (g.type == "gltf" || g.type == "glb") return MeshFileFormat::Gltf;
-    const std::string ext = lowercaseExtension(file);
-    if (ext == ".obj") return MeshFileFormat::Obj;
-    if (ext == ".gltf" || ext == ".glb") return MeshFileFormat::Gltf;
-    return MeshFileFormat::ByExtension;
+/// OBJ may be called mesh.txt); a "file" entry's extension. nullopt: neither says a mesh.
+std::optional<GeometryFormat> meshFormat(const GeometryDesc& g, const std::string& file) {
+    if (g.type == "obj") return GeometryFormat::Obj;
+    if (g.type == "gltf" || g.type == "glb") return GeometryFormat::Gltf;
+    const std::optional<GeometryFormat> format = geometryFormatOf(file);
+    return format == GeometryFormat::Ptri ? std::nullopt : format;
 }
 
 /// The file behind geometry entry @p index, which must be an obj/gltf/glb file.
@@ -398,7 +397,7 @@ std::string meshFile(const JsonParams& j, const SceneDesc& scene, size_t slot, s
     if (!path || !path->is_string())
         fail(j.where(key), "{} is a \"{}\" entry, not a mesh file (obj, gltf or glb)", g.path, g.type);
     std::string file = resolveScenePath(scene.baseDir, path->get<std::string>());
-    if (meshFormat(g, file) == MeshFileFormat::ByExtension)
+    if (!meshFormat(g, file))
         fail(j.where(key), "{} ({}) is not an obj, gltf or glb file", g.path, file);
     return file;
 }

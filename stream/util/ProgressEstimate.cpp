@@ -21,27 +21,28 @@ void WorkEstimate::setRuns(std::vector<uint64_t> runs) {
     runItems_.assign(runs_.size(), 0.0), runWork_.assign(runs_.size(), 0.0);
 }
 
-void WorkEstimate::countByRun(uint64_t first, uint64_t count, std::vector<double>& perRun, double weight) const {
+std::vector<uint64_t> WorkEstimate::countByRun(uint64_t first, uint64_t count) const {
     const uint64_t periods = count / period_;
-    for (size_t k = 0; k < runs_.size(); ++k) perRun[k] += weight * double(periods * runs_[k]);
+    std::vector<uint64_t> perRun(runs_.size());
+    for (size_t k = 0; k < runs_.size(); ++k) perRun[k] = periods * runs_[k];
     uint64_t position = first % period_, left = count - periods * period_;
     size_t k = 0;
     uint64_t runEnd = runs_[0];
     while (left > 0) {
         while (position >= runEnd) runEnd += runs_[++k];
         const uint64_t take = std::min(left, runEnd - position);
-        perRun[k] += weight * double(take);
+        perRun[k] += take;
         left -= take, position += take;
         if (position == period_) position = 0, k = 0, runEnd = runs_[0];
     }
+    return perRun;
 }
 
 double WorkEstimate::expectedWork(uint64_t items, uint64_t cast) const {
-    std::vector<double> left(runs_.size(), 0.0);
-    countByRun(items, total_ - items, left, 1.0);
+    const std::vector<uint64_t> left = countByRun(items, total_ - items);
     const double mean = double(workAtItems_) / double(cast);
     double expected = 0;
-    for (size_t k = 0; k < runs_.size(); ++k) expected += left[k] * (runItems_[k] > 0 ? runWork_[k] / runItems_[k] : mean);
+    for (size_t k = 0; k < runs_.size(); ++k) expected += double(left[k]) * (runItems_[k] > 0 ? runWork_[k] / runItems_[k] : mean);
     return expected;
 }
 
@@ -52,10 +53,9 @@ void WorkEstimate::sample(double seconds, uint64_t items, uint64_t work, uint64_
         // skipped ones (before them): shared out over their runs by count.
         const uint64_t newlySkipped = std::min(skipped - std::min(skipped, skippedSeen_), items - itemsSeen_);
         const uint64_t count = items - itemsSeen_ - newlySkipped, first = itemsSeen_ + newlySkipped;
-        if (count > 0) {
-            countByRun(first, count, runItems_, 1.0);
-            countByRun(first, count, runWork_, double(work - workAtItems_) / double(count));
-        }
+        const std::vector<uint64_t> perRun = count > 0 ? countByRun(first, count) : std::vector<uint64_t>{};
+        const double workPerItem = count > 0 ? double(work - workAtItems_) / double(count) : 0.0;
+        for (size_t k = 0; k < perRun.size(); ++k) runItems_[k] += double(perRun[k]), runWork_[k] += workPerItem * double(perRun[k]);
     }
     skippedSeen_ = std::max(skippedSeen_, skipped);
     if (items != itemsSeen_) itemsSeen_ = items, workAtItems_ = work;

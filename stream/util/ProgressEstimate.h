@@ -52,8 +52,8 @@ public:
     std::optional<double> remainingSeconds() const { return remaining_; }
 
 private:
-    /// Adds @p count items starting at item @p first to @p perRun, run by run.
-    void countByRun(uint64_t first, uint64_t count, std::vector<double>& perRun, double weight) const;
+    /// How many of the @p count items from item @p first fall in each run.
+    std::vector<uint64_t> countByRun(uint64_t first, uint64_t count) const;
     /// The work the items after @p items are expected to need, @p cast of them done with work.
     double expectedWork(uint64_t items, uint64_t cast) const;
 
