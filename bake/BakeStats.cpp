@@ -21,6 +21,7 @@ nlohmann::json table2(const BakeStatsInputs& in) {
             {"hierarchy_build_wall_s", in.cast.hierarchyBuildWallSeconds},
             {"penumbra_cast_time_s", cast},
             {"replay_read_time_s", in.cast.replayReadSeconds},
+            {"shade_time_s", in.cast.shadeSeconds},
             {"samples_memory_bytes", in.receivers.bytes() + in.cast.receiverBytes},
             {"peak_hierarchy_memory_bytes", in.cast.peakHierarchyBytes},
             {"peak_mask_memory_bytes", in.cast.peakMaskBytes},

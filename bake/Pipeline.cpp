@@ -287,7 +287,12 @@ void mergeShards(Bake& b) {
     makeCaster(b);  // for a refinement's cast, and the stats
     const uint32_t shards = b.sharded->merge(b.masks);
     const ReceiverShader shader(p.lights, p.samples, p.receivers, p.sampleSets);
-    tbb::parallel_for(size_t(0), b.firstPass, [&](size_t r) { shader.shade(uint32_t(r), b.masks.row(r), false, b.results); });
+    ProgressReporter shading("shade", b.firstPass, b.settings.quiet);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, b.firstPass, 1024), [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t r = range.begin(); r != range.end(); ++r) shader.shade(uint32_t(r), b.masks.row(r), false, b.results);
+        shading.update(range.size());
+    });
+    shading.done();
     if (b.kind->wantsPass(StreamPass::Cast)) {  // the kind's pass over the faces that the cast would have carried
         p.blockers->rewind();
         feedPass(*b.kind, StreamPass::Cast, *p.blockers, false);

@@ -104,6 +104,9 @@ struct CastStats {
     /// while the caller reads the next chunk, so this includes the replay read.
     double castSeconds = 0;
     double replayReadSeconds = 0;  ///< of castSeconds, the caller's time reading the bucket replay
+    /// Wall-clock seconds of the pass after the cast that hands every receiver's masks on to be
+    /// shaded (hpc's `[shade]` phase); 0 for methods that shade each receiver as they find it.
+    double shadeSeconds = 0;
     uint64_t trianglesProcessed = 0;
     uint64_t trianglesCulledAtRoot = 0;  ///< no tile root box intersected V_L
     uint64_t closedBackFaces = 0;        ///< closed-surface triangles facing away from every light

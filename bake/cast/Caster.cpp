@@ -38,6 +38,7 @@ void addSequential(CastStats& total, const CastStats& s) {
     total.hierarchyBuildWallSeconds += s.hierarchyBuildWallSeconds;
     total.castSeconds += s.castSeconds;
     total.replayReadSeconds += s.replayReadSeconds;
+    total.shadeSeconds += s.shadeSeconds;
     total.trianglesProcessed += s.trianglesProcessed;
     total.trianglesCulledAtRoot += s.trianglesCulledAtRoot;
     total.closedBackFaces += s.closedBackFaces;

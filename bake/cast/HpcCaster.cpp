@@ -78,8 +78,15 @@ public:
             exempt_->cast(std::span<const Triangle>(closed_).subspan(at, std::min(kClosedExemptChunk, closed_.size() - at)));
     }
 
-    void finish(const MaskVisitor& visit) {
-        if (!exempt_) return main_->finish(visit);
+    /// Waits until both have cast every chunk.
+    void flush() {
+        main_->flush();
+        if (exempt_) exempt_->flush();
+    }
+
+    /// Every receiver to @p visit once (PenumbraCaster::finish()), with @p visited counting them.
+    void finish(const MaskVisitor& visit, const std::function<void(uint64_t)>& visited = {}) {
+        if (!exempt_) return main_->finish(visit, visited);
         const int groups = c_.samples.groupCount();
         VisibilityMasks extra(exemptIds_.size(), groups);
         std::vector<uint8_t> extraFull(exemptIds_.size(), 0);
@@ -102,7 +109,7 @@ public:
             // Reported as one caster would: full umbra as such, nothing blocked as null.
             if (all) return visit(r, nullptr, true);
             visit(r, any ? merged.data() : nullptr, false);
-        });
+        }, visited);
     }
 
     /// The two run at once: times are the main one's, work and memory add up.
@@ -138,9 +145,14 @@ public:
         ProgressReporter progress("cast", blockers.sizeHint().value_or(0) * tiles.size(), c_.quiet);
         progress.setRuns(blockers.costRuns());
         for (size_t t = 0; t < tiles.size(); ++t) {
-            if (hooks && hooks->restore && hooks->restore(t, tiles.size(), tiles[t])) {
-                progress.skip(blockers.sizeHint().value_or(0));  // a tile restored from a checkpoint is done
-                continue;
+            if (hooks && hooks->restore) {
+                progress.pause();  // a restored tile's receivers are shaded as a phase of their own
+                const bool restored = hooks->restore(t, tiles.size(), tiles[t]);
+                progress.resume();
+                if (restored) {
+                    progress.skip(blockers.sizeHint().value_or(0));  // a tile restored from a checkpoint is done
+                    continue;
+                }
             }
             castTile(blockers, Tile{t, tiles.size(), tiles[t]}, sink, hooks, progress);
             if (hooks && hooks->finished) hooks->finished(t, tiles.size(), tiles[t]);
@@ -215,10 +227,13 @@ private:
             throwIfStopRequested("cast");  // the finished tiles and this one's progress are checkpointed
         }
         observed_ = true;
-        report(caster, tile, prior, sink);
+        if (caster) caster.flush();  // the last chunks are the cast's: they credit its line
+        double shadeSeconds = 0;
+        shade(caster, tile, prior, sink, progress, shadeSeconds);
         if (!caster) return;
         CastStats s = caster.stats();
         s.replayReadSeconds = readSeconds;
+        s.shadeSeconds = shadeSeconds;
         s.closedExemptReceivers = exempt.size();
         s.closedExemptSeconds = exemptSeconds;
         addSequential(stats_, s);
@@ -263,15 +278,35 @@ private:
         return now;
     }
 
+    /// The pass that hands the tile's receivers to @p sink, where they are shaded, as a phase of
+    /// its own (`[shade]`, counting receivers) timed into @p seconds. Under a light of thousands
+    /// of samples it can take longer than the cast, whose line would sit at 99.9 % through it
+    /// without an ETA. The cast's line closes before the last tile's pass and is paused during
+    /// the others'.
+    void shade(TileCasters& caster, const Tile& tile, const std::optional<TileProgress>& prior, const CastSink& sink,
+               ProgressReporter& castProgress, double& seconds) const {
+        ScopedTimer timer(seconds);
+        const bool last = tile.index + 1 == tile.count;
+        if (last) castProgress.done();
+        else castProgress.pause();
+        ProgressReporter shading("shade", tile.ids.size(), c_.quiet);
+        report(caster, tile, prior, sink, [&shading](uint64_t n) { shading.update(n); });
+        shading.done();
+        if (!last) castProgress.resume();
+    }
+
     /// Every receiver of the tile to @p sink once: cast ones with @p prior ORed in, the ones
-    /// @p prior had in full umbra as such.
-    void report(TileCasters& caster, const Tile& tile, const std::optional<TileProgress>& prior,
-                const CastSink& sink) const {
-        if (prior)
+    /// @p prior had in full umbra as such. @p visited counts them as they go.
+    void report(TileCasters& caster, const Tile& tile, const std::optional<TileProgress>& prior, const CastSink& sink,
+                const std::function<void(uint64_t)>& visited) const {
+        if (prior) {
+            uint64_t full = 0;
             for (size_t i = 0; i < tile.ids.size(); ++i)
-                if (fullRow(prior->masks.row(i))) sink.masks(tile.ids[i], nullptr, true);
+                if (fullRow(prior->masks.row(i))) sink.masks(tile.ids[i], nullptr, true), ++full;
+            visited(full);
+        }
         if (!caster) return;
-        if (!prior) return caster.finish(sink.masks);
+        if (!prior) return caster.finish(sink.masks, visited);
         caster.finish([&](uint32_t r, const uint64_t* words, bool full) {
             if (full) return sink.masks(r, nullptr, true);
             thread_local std::vector<uint64_t> merged;
@@ -280,7 +315,7 @@ private:
             if (words)
                 for (size_t k = 0; k < merged.size(); ++k) merged[k] |= words[k];
             sink.masks(r, merged.data(), false);  // shaded as a merge shades ORed shard masks
-        });
+        }, visited);
     }
 
     bool fullRow(const uint64_t* row) const {

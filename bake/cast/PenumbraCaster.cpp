@@ -262,21 +262,24 @@ void PenumbraCaster::flush() {
     m.stats.trianglesCulledAtRoot = m.culledAtRoot.load();
 }
 
-void PenumbraCaster::finish(const MaskVisitor& visit) {
+void PenumbraCaster::finish(const MaskVisitor& visit, const std::function<void(uint64_t)>& visited) {
     flush();
-    // Shading every receiver is a few percent of a bake; done on one thread it was most of the
-    // time outside the cast. Receivers are independent, so visits run in parallel.
+    // Shading every receiver is a few percent of a bake, and most of it under a light of
+    // thousands of samples; done on one thread it was most of the time outside the cast.
+    // Receivers are independent, so visits run in parallel.
     tbb::parallel_for(size_t(0), impl_->tiles.size(), [&](size_t t) {
         const TileCaster& tile = *impl_->tiles[t];
         const ReceiverHierarchy& h = tile.hierarchy();
         tbb::parallel_for(tbb::blocked_range<size_t>(0, h.retired.size(), 1024), [&](const tbb::blocked_range<size_t>& range) {
             for (size_t i = range.begin(); i != range.end(); ++i) visit(h.retired[i], nullptr, true);
+            if (visited) visited(range.size());
         });
         tbb::parallel_for(tbb::blocked_range<size_t>(0, h.liveCount(), 1024), [&](const tbb::blocked_range<size_t>& range) {
             for (size_t r = range.begin(); r != range.end(); ++r) {
                 if (h.fullUmbra[r]) visit(h.id[r], nullptr, true);
                 else visit(h.id[r], h.mask[r] != MaskPool::kNone ? tile.pool().data(h.mask[r]) : nullptr, false);
             }
+            if (visited) visited(range.size());
         });
     });
 }

@@ -51,7 +51,9 @@ public:
     void flush();
     /// @brief Flushes, then reports every receiver's result to @p visit exactly once. Visits run
     /// in parallel, so @p visit must be safe to call concurrently for different receivers.
-    void finish(const MaskVisitor& visit);
+    /// @param visited when given, called with the count of each block of receivers visited
+    ///        (up to a thousand at a time, concurrently): the shading's progress.
+    void finish(const MaskVisitor& visit, const std::function<void(uint64_t)>& visited = {});
 
     /// @brief Counters and timers; call after finish() or flush() to include the last chunk.
     CastStats stats() const;

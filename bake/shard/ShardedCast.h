@@ -32,7 +32,8 @@ public:
 
     /// @brief Hooks for the caster's first pass: the shard's receivers, restored and finished tiles.
     /// @param masks every receiver's masks, filled by the sink as tiles finish
-    /// @param restored called for each receiver of a restored tile, with its masks (to shade it)
+    /// @param restored called for each receiver of a restored tile, with its masks (to shade it),
+    ///        concurrently for different receivers
     TileHooks tileHooks(VisibilityMasks& masks, std::function<void(uint32_t, const uint64_t*)> restored);
 
     /// @brief Writes the shard file of this bake (`--shard`).
@@ -58,6 +59,7 @@ private:
     const LightSamples& samples_;
     BakeIdentity id_;
     ShardCut cut_ = ShardCut::Automatic;
+    bool quiet_;
     std::vector<uint8_t> present_;  ///< receivers this bake has cast or restored
     std::unique_ptr<Checkpoints> checkpoints_;
 };

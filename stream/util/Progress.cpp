@@ -35,9 +35,32 @@ std::optional<ProgressSnapshot> currentProgress() {
     return running().back()->snapshot();
 }
 
+double ProgressReporter::elapsedSeconds() const {
+    std::lock_guard lock(estimateMutex_);
+    const double now = clock_.seconds();
+    return now - pausedSeconds_ - (paused_.load() ? now - pausedAt_ : 0.0);
+}
+
+void ProgressReporter::pause() {
+    {
+        std::lock_guard lock(estimateMutex_);
+        if (paused_.exchange(true)) return;
+        pausedAt_ = clock_.seconds();
+    }
+    // After this no redraw starts (run() looks at paused_ under printMutex_).
+    std::lock_guard print(printMutex_);
+    if (tty_ && lastWidth_ > 0) std::fputc('\n', stderr), std::fflush(stderr), lastWidth_ = 0;
+}
+
+void ProgressReporter::resume() {
+    std::lock_guard lock(estimateMutex_);
+    if (!paused_.exchange(false)) return;
+    pausedSeconds_ += clock_.seconds() - pausedAt_;
+}
+
 ProgressSnapshot ProgressReporter::snapshot() const {
     ProgressSnapshot s;
-    s.phase = phase_, s.total = total_, s.elapsedSeconds = clock_.seconds();
+    s.phase = phase_, s.total = total_, s.elapsedSeconds = elapsedSeconds();
     std::lock_guard lock(estimateMutex_);
     s.done = workDone();
     if (total_ == 0) return s;
@@ -121,10 +144,12 @@ void ProgressReporter::stop(bool printFinal) {
     }
     wake_.notify_all();
     if (thread_.joinable()) thread_.join();
+    resume();  // a phase that ends paused ends at its own time
     if (quiet_) return;
+    std::lock_guard lock(printMutex_);
     if (printFinal)
         // An estimate the work outgrew (an atlas's packings) ends as "(1488/1488)", not 1488/1440.
-        print(formatProgressLine(phase_, workDone(), total_ ? std::max(total_, workDone()) : 0, clock_.seconds(), true), true);
+        print(formatProgressLine(phase_, workDone(), total_ ? std::max(total_, workDone()) : 0, elapsedSeconds(), true), true);
     else if (tty_ && lastWidth_ > 0)
         std::fputc('\n', stderr);  // leave the partial line visible above the error message
 }
@@ -142,9 +167,13 @@ void ProgressReporter::run() {
         }
         // Format and write without holding the lock so done() never waits on stderr.
         lock.unlock();
-        print(total_ > 0 ? formatProgressLine(phase_, s.done, total_, s.elapsedSeconds, s.fraction, s.remainingSeconds)
-                         : formatProgressLine(phase_, s.done, total_, s.elapsedSeconds, false),
-              false);
+        {
+            std::lock_guard print(printMutex_);
+            if (!paused_.load())
+                this->print(total_ > 0 ? formatProgressLine(phase_, s.done, total_, s.elapsedSeconds, s.fraction, s.remainingSeconds)
+                                       : formatProgressLine(phase_, s.done, total_, s.elapsedSeconds, false),
+                            false);
+        }
         lock.lock();
     }
 }

@@ -104,14 +104,22 @@ public:
     /// left before its end). Idempotent, and done() after it prints nothing.
     void abandon() { stop(false); }
 
+    /// @brief Holds the display while a phase nested in this one shows its own line (the shading
+    /// of one memory tile's receivers, between that tile's cast and the next). On a terminal the
+    /// line drawn so far stays above the nested one. The time paused counts neither in the
+    /// elapsed time shown nor in the ETA's rate. Thread safe; pausing twice is pausing once.
+    void pause();
+    /// @brief Shows the line again after pause(), from the next redraw.
+    void resume();
+
     /// Units of work reported so far.
     uint64_t workDone() const { return done_.load(std::memory_order_relaxed); }
     /// Units of work expected (0: unknown).
     uint64_t totalWork() const { return total_; }
     /// The phase's name.
     const std::string& phase() const { return phase_; }
-    /// Seconds since construction.
-    double elapsedSeconds() const { return clock_.seconds(); }
+    /// Seconds since construction, less the time paused (pause()).
+    double elapsedSeconds() const;
     /// @brief Samples the counters now and returns the share done and the ETA (WorkEstimate), as
     /// the display shows them. Thread safe.
     ProgressSnapshot snapshot() const;
@@ -129,6 +137,8 @@ private:
     std::atomic<uint64_t> done_{0};
     std::atomic<uint64_t> work_{0};  ///< updateMeasured()'s work
     std::atomic<uint64_t> skipped_{0};  ///< skip()'s items, also in done_
+    std::atomic<bool> paused_{false};
+    double pausedSeconds_ = 0, pausedAt_ = 0;  ///< guarded by estimateMutex_: time held by pause()
     mutable std::mutex estimateMutex_;
     mutable WorkEstimate estimate_;  ///< guarded by estimateMutex_; sampled by snapshot()
     Stopwatch clock_;
@@ -137,7 +147,8 @@ private:
     std::condition_variable wake_;
     bool stopping_ = false;  // guarded by mutex_
     bool finished_ = false;  // guarded by mutex_
-    size_t lastWidth_ = 0;   // only touched by whoever prints (the thread, then done())
+    std::mutex printMutex_;  // held while a line is written, so that pause() ends the line last
+    size_t lastWidth_ = 0;   // guarded by printMutex_
     std::thread thread_;
 };
 

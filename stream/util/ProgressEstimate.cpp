@@ -60,7 +60,7 @@ void WorkEstimate::sample(double seconds, uint64_t items, uint64_t work, uint64_
     skippedSeen_ = std::max(skippedSeen_, skipped);
     if (items != itemsSeen_) itemsSeen_ = items, workAtItems_ = work;
     const uint64_t cast = items - skipped;  // items done with work
-    if (items >= total_) {  // what is left (a last pass over the results) is not counted
+    if (items >= total_) {  // only the closing line says 100 %
         fraction_ = kBeforeDone;
         remaining_.reset();
         return;

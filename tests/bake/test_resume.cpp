@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 using namespace penumbra::test;
 namespace fs = std::filesystem;
@@ -100,6 +101,33 @@ TEST_CASE("a bake killed with SIGKILL at every phase resumes to the same bytes",
     b.killed("PENUMBRA_TEST_KILL_AT=write");  // all tiles restored: a kill while writing again
     CHECK(b.checkpoints() == tiles);
     b.resumes();
+}
+
+TEST_CASE("a resumed bake shades restored and cast tiles as phases of their own, once per receiver", "[shards][resume][progress]") {
+    ResumeBake b;
+    b.killed("PENUMBRA_TEST_KILL_AFTER_TILES=1");  // the first tile on disk
+    REQUIRE(b.checkpoints() == 1);
+    std::string loud = b.command;
+    loud.erase(loud.rfind(" --quiet"));
+    RunResult r = runPenumbra(loud + " --stats " + b.dir / "s.json");
+    INFO(r.err);
+    REQUIRE(r.exitCode == 0);
+    CHECK(b.outputs() == b.expected);
+    // stderr is not a terminal: each phase's closing line, one [shade] per memory tile (the
+    // restored one first), and the cast's single closing line before the last tile's [shade].
+    uint64_t shaded = 0;
+    size_t shadeLines = 0;
+    std::istringstream lines(r.err);
+    for (std::string line; std::getline(lines, line);) {
+        if (line.rfind("[shade] 100.0% (", 0) != 0) continue;
+        ++shadeLines;
+        shaded += std::stoull(line.substr(16));
+    }
+    const nlohmann::json stats = nlohmann::json::parse(slurp(b.dir / "s.json"));
+    CHECK(shaded == stats["receivers"].get<uint64_t>());
+    CHECK(shadeLines >= 3);
+    CHECK(r.err.find("[shade] ") < r.err.find("[cast] 100.0%"));  // the restored tile, before the cast ends
+    CHECK(r.err.rfind("[shade] ") > r.err.find("[cast] 100.0%"));
 }
 
 TEST_CASE("SIGTERM stops a checkpointing bake with exit 143, and a second signal ends it at once", "[shards][resume][sigterm]") {

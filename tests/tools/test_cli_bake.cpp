@@ -225,14 +225,25 @@ TEST_CASE("bake: the cast's progress lines on a terminal rise monotonically and 
       "lights": [{"type": "rect", "center": [0,5,0], "u": [2,0,0], "v": [0,0,2], "samples": 256, "sample_sets": 4}],
       "receivers": {"type": "camera", "eye": [0,5,7], "target": [0,0.5,0], "width": 320, "height": 240},
       "output": "out/progress.exr"})");
-    const std::string bake = std::string(PENUMBRA_BINARY) + " bake " + (dir / "scene.json") + " --threads 2";
+    const std::string bake = std::string(PENUMBRA_BINARY) + " bake " + (dir / "scene.json") + " --threads 2 --stats " + (dir / "s.json");
     REQUIRE(runShell("script -qfec '" + bake + "' " + (dir / "tty.txt") + " >/dev/null 2>&1") == 0);
     std::string text = slurp(dir / "tty.txt");
     std::replace(text.begin(), text.end(), '\r', '\n');
-    std::vector<std::string> cast;
+    std::vector<std::string> cast, shade;
     std::istringstream lines(text);
-    for (std::string line; std::getline(lines, line);)
+    for (std::string line; std::getline(lines, line);) {
         if (line.rfind("[cast] ", 0) == 0) cast.push_back(line);
+        if (line.rfind("[shade] ", 0) == 0) shade.push_back(line);
+    }
+    // The pass that shades every receiver after the cast is a phase of its own, after the cast's
+    // closing line, counting the receivers (under a light of thousands of samples it can take
+    // longer than the cast, which would otherwise sit at 99.9 % through it).
+    REQUIRE(!shade.empty());
+    const nlohmann::json stats = nlohmann::json::parse(slurp(dir / "s.json"));
+    const std::string receivers = std::to_string(stats["receivers"].get<uint64_t>());
+    CHECK_THAT(shade.back(), Catch::StartsWith("[shade] 100.0% (" + receivers + "/" + receivers + ") done in "));
+    CHECK(text.find("[shade] ") > text.rfind("[cast] "));
+    CHECK(stats["table2"]["shade_time_s"].get<double>() > 0);
     REQUIRE(!cast.empty());
     double last = 0;
     for (size_t i = 0; i < cast.size(); ++i) {
