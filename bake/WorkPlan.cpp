@@ -60,8 +60,15 @@ void checkAddressSpaceLeft(const std::string& scene, const char* what, uint64_t 
     // thread's stack rides along.
     const uint64_t limit = addressSpaceLimit();
     if (!limit || addressSpaceAvailable(neededBytes + kReadAheadReserve)) return;
-    fail(scene, "{} does not fit under the address-space limit (prlimit --as, ulimit -v) of {}: at least {} is needed", what,
-         formatBytes(limit), budgetText(std::max(addressSpaceNeeded(neededBytes), wholeBake)));
+    const uint64_t phase = addressSpaceNeeded(neededBytes);
+    if (wholeBake <= phase)
+        fail(scene, "{} does not fit under the address-space limit (prlimit --as, ulimit -v) of {}: at least {} is needed", what,
+             formatBytes(limit), budgetText(phase));
+    // The rest of the bake at its worst (every receiver the scan may find) is what the limit named
+    // must hold, so that it is not refused again; less may do, and the user is told so.
+    fail(scene, "{} does not fit under the address-space limit (prlimit --as, ulimit -v) of {}: at least {} is sure to "
+                "do for the whole bake at its worst (the pass itself needs {})",
+         what, formatBytes(limit), budgetText(wholeBake), budgetText(phase));
 }
 
 void checkMemoryFits(const std::string& scene, const char* what, uint64_t neededBytes) {

@@ -28,8 +28,9 @@ uint64_t freeDiskBytes(const std::string& dir);
 /// address-space limit leaves now, asking the kernel rather than trusting the plan's estimate of
 /// what is mapped already (a tight `prlimit --as` would otherwise end in a failed allocation, or
 /// a thread that cannot start, in the middle of the scan).
-/// @param wholeBake the least limit the rest of the bake will ask for (0: unknown); the refusal
-///        names the larger, so that the limit it names is not refused again by a later phase.
+/// @param wholeBake the least limit the rest of the bake may ask for at its worst (0: unknown);
+///        when it is the larger, the refusal names it as sure to do and the phase's own need beside
+///        it, so that the limit named is not refused again by a later phase.
 /// @throw InputError naming @p scene and the least limit that works.
 void checkAddressSpaceLeft(const std::string& scene, const char* what, uint64_t neededBytes, uint64_t wholeBake = 0);
 

@@ -20,6 +20,7 @@
 #include <condition_variable>
 #include <filesystem>
 #include <mutex>
+#include <system_error>
 #include <thread>
 
 namespace py = pybind11;
@@ -95,7 +96,7 @@ nlohmann::json toJsonAt(py::handle o, const std::string& path, const std::string
 
 }  // namespace
 
-nlohmann::json toJson(py::handle o, const std::string& where) { return toJsonAt(o, "", where); }
+nlohmann::json toJson(py::handle o, const std::string& where, const std::string& path) { return toJsonAt(o, path, where); }
 
 void registerExceptions(py::module_& m) {
     errorType = PyErr_NewExceptionWithDoc("penumbra.Error", "A bake or scene problem, as the CLI reports it.",
@@ -180,6 +181,11 @@ void PyScene::addGeometry(const std::string& type, nlohmann::json params) {
     document = std::move(next);
     desc = std::move(parsed);
     desc.outputFromScene = false;
+}
+
+std::string PyScene::nextGeometryKey() const {
+    const auto geometry = document.find("geometry");
+    return fmt::format("geometry[{}]", geometry != document.end() && geometry->is_array() ? geometry->size() : 0);
 }
 
 void PyScene::addSource(py::object source, bool alpha, std::optional<bool> closed, std::optional<uint64_t> count) {
@@ -306,6 +312,21 @@ namespace {
 /// The callback's view of the phase running now.
 void reportProgress(const py::object& progress);
 
+/// Starts @p body on a thread of its own. No thread to be had, most often because an address-space
+/// limit leaves no room for its stack, raises penumbra.Error saying so, not a bare RuntimeError.
+std::thread startBakeThread(std::function<void()> body) {
+    try {
+        return std::thread(std::move(body));
+    } catch (const std::system_error& e) {
+        const uint64_t limit = addressSpaceLimit();
+        const InputError refusal(limit ? fmt::format("the address-space limit (prlimit --as, ulimit -v) of {} leaves no room "
+                                                     "for the bake's thread and its stack ({})",
+                                                     formatBytes(limit), e.what())
+                                       : fmt::format("cannot start the bake's thread: {}", e.what()));
+        return translateErrors([&]() -> std::thread { throw refusal; });
+    }
+}
+
 }  // namespace
 
 void runInterruptibly(const std::function<void()>& work, const py::object& progress) {
@@ -316,7 +337,12 @@ void runInterruptibly(const std::function<void()>& work, const py::object& progr
     // A caller waits for another's bake to end: until its own starts, its callback and Ctrl-C
     // are its own business, and cancel only its wait (they cancelled the other's bake).
     std::atomic<bool> started{false}, abandoned{false};
-    std::thread worker([&] {
+    // Under an address-space limit the bake keeps one malloc arena (fitAddressSpace()), but that
+    // comes too late for a thread of its own: its first allocation would reserve an arena (64 MiB
+    // of address space) before the plan looks, and the minimum a refusal names then grew with the
+    // limit given (sweep P at stop 63).
+    if (addressSpaceLimit() != 0) useOneMallocArena();
+    std::thread worker = startBakeThread([&] {
         try {
             std::unique_lock one(bakeMutex, std::defer_lock);
             while (!one.try_lock_for(std::chrono::milliseconds(20)))

@@ -28,9 +28,10 @@ inline pybind11::array readOnly(pybind11::array a) {
 /// JSON through Python's json module (dicts of plain values, both ways).
 pybind11::object toPython(const nlohmann::json& j);
 /// @brief @p o (a dict of the scene format) as JSON.
-/// @param where what the message of a bad value starts with ("<dict>", "add_geometry")
+/// @param where what the message of a bad value starts with (the scene's name, "<dict>")
+/// @param path the key @p o sits at ("geometry[2]" for add_geometry()'s parameters; "": the top)
 /// @throw SceneError naming the key of a value JSON cannot hold (NaN, inf, a non-string key)
-nlohmann::json toJson(pybind11::handle o, const std::string& where);
+nlohmann::json toJson(pybind11::handle o, const std::string& where, const std::string& path = "");
 
 /// @brief A scene as the JSON document it is, parsed again (with every check) after each change.
 struct PyScene {
@@ -43,6 +44,8 @@ struct PyScene {
     /// @brief Appends {"type": type, ...params} to "geometry" and opens it once to check it.
     /// @throw SceneError naming the key.
     void addGeometry(const std::string& type, nlohmann::json params);
+    /// The key the next add_geometry() entry will have, for messages: "geometry[N]".
+    std::string nextGeometryKey() const;
     /// @brief Appends a Python source (PythonSources.h).
     void addSource(pybind11::object source, bool alpha, std::optional<bool> closed, std::optional<uint64_t> count);
     /// @brief Receivers from arrays, replacing the scene's "receivers".

@@ -107,7 +107,9 @@ Scene(dict, points=None, base_dir=".") takes the keys of the JSON scene format
              py::arg("scene"), py::arg("points") = py::none(), py::arg("base_dir") = ".")
         .def_static("from_json", [](const std::string& path) { return loadPyScene(path); }, py::arg("path"),
                     "Reads a scene file; relative paths in it are relative to its folder.")
-        .def("add_geometry", [](PyScene& s, const std::string& type, py::kwargs params) { s.addGeometry(type, toJson(params, "add_geometry")); },
+        .def("add_geometry", [](PyScene& s, const std::string& type, py::kwargs params) {
+                 s.addGeometry(type, toJson(params, s.file, s.nextGeometryKey()));
+             },
              py::arg("type"),
              "add_geometry(type, transform=None, closed=None, **params): a file (obj, gltf, glb, ptri, file) or a "
              "generator (grid, terrain, grass, tree, forest, flowers, scatter, boxes, colonnade) with its parameters, "

@@ -2,6 +2,7 @@
 cancels leaving nothing behind; threads in sources and callbacks never deadlock."""
 import _thread
 import faulthandler
+import json
 import os
 import pathlib
 import signal
@@ -36,7 +37,8 @@ def test_a_value_json_cannot_hold_is_named_by_its_key():
         scene["lights"][0]["radiance"] = [1, value, 1]
         with pytest.raises(penumbra.SceneError, match=r"<dict>: lights\[0\]\.radiance\[1\]: -?(nan|inf) is not a finite number"):
             penumbra.Scene(scene)
-    with pytest.raises(penumbra.SceneError, match=r"add_geometry: size: nan is not a finite number"):
+    # Named as the entry's key, as a bad parameter of the same entry in a dict is (docs/python.md).
+    with pytest.raises(penumbra.SceneError, match=r"<dict>: geometry\[0\]\.size: nan is not a finite number"):
         penumbra.Scene(without_geometry(grid_scene())).add_geometry("grid", size=float("nan"))
     # NumPy scalars and arrays are their Python values.
     scene = grid_scene()
@@ -461,3 +463,73 @@ def test_an_argument_of_the_wrong_type_is_a_type_error():
     for kwargs in ({"method": 3}, {"method": None}, {"threads": 1.5}, {"threads": "2"}):
         with pytest.raises(TypeError):
             penumbra.bake(scene, **kwargs)
+
+
+def _run_python(code, *prefix, timeout=120):
+    """Runs @p code in a fresh /usr/bin/python3 that imports this build's penumbra and these tests."""
+    import subprocess
+    import sys
+    package, tests = str(pathlib.Path(penumbra.__file__).parents[1]), str(pathlib.Path(__file__).parent)
+    header = f"import sys\nsys.path.insert(0, {package!r})\nsys.path.insert(0, {tests!r})\n"
+    return subprocess.run([*prefix, sys.executable, "-c", header + code], capture_output=True, text=True, timeout=timeout)
+
+
+def test_an_address_space_limit_too_small_for_the_module_is_an_import_error_not_an_abort():
+    # Between about 125 and 158 MiB the libraries mapped and the logging thread OpenVDB's
+    # log4cplus starts as it loads did not: std::terminate, SIGABRT, from inside the import.
+    for mib in (100, 140):
+        out = _run_python("import penumbra", "prlimit", f"--as={mib << 20}")
+        assert out.returncode == 1, out.stderr
+        assert (f"ImportError: penumbra: the address-space limit (prlimit --as, ulimit -v) of {mib} MiB is too small to "
+                "load the module") in out.stderr
+
+
+def test_no_room_for_the_bake_thread_is_a_penumbra_error():
+    # The thread bake() runs on could not get its stack: a bare RuntimeError("Resource
+    # temporarily unavailable") that named neither the limit nor penumbra.
+    code = """
+import resource
+import penumbra
+from test_bake import grid_scene
+scene = penumbra.Scene(grid_scene())
+mapped = next(int(line.split()[1]) * 1024 for line in open("/proc/self/status") if line.startswith("VmSize:"))
+resource.setrlimit(resource.RLIMIT_AS, (mapped + (4 << 20), resource.RLIM_INFINITY))
+try:
+    penumbra.bake(scene, threads=1)
+    print("baked")
+except penumbra.Error as e:
+    print("Error:", e)
+"""
+    out = _run_python(code)
+    assert out.returncode == 0, out.stderr
+    assert "Error: the address-space limit (prlimit --as, ulimit -v) of " in out.stdout
+    assert "leaves no room for the bake's thread and its stack" in out.stdout
+
+
+def test_a_larger_address_space_limit_never_refuses_a_bake_that_a_smaller_one_ran(tmp_path):
+    # The bake's own thread reserved a malloc arena (64 MiB of address space) before the plan kept
+    # malloc to one, so that 270-290M baked, 300-320M were refused naming 331M, and 330M baked.
+    scene = dict(grid_scene(), output=str(tmp_path / "out/s.exr"))
+    scene["receivers"].update(width=320, height=240)
+    (tmp_path / "s.json").write_text(json.dumps(scene))
+    code = f"""
+import penumbra
+try:
+    penumbra.bake(penumbra.Scene.from_json({str(tmp_path / "s.json")!r}), threads=2, masks=False)
+    print("OK")
+except penumbra.Error as e:
+    print("refused:", e)
+"""
+    ran, results = None, []
+    for mib in range(200, 460, 10):  # the module alone needs about 166M (above)
+        out = _run_python(code, "prlimit", f"--as={mib << 20}")
+        assert out.returncode == 0, out.stderr
+        results.append((mib, out.stdout.strip()))
+        if out.stdout.startswith("OK"):
+            ran = ran or mib
+        else:
+            assert ran is None, results  # refused above a limit that ran
+            assert "address-space limit" in out.stdout, results
+        if ran is not None and mib >= ran + 60:
+            break
+    assert ran is not None, results
