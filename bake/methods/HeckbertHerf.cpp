@@ -157,12 +157,18 @@ int clipSlab(const glm::dvec3* in, const double* h, int n, double lo, double hi,
     return k;
 }
 
-/// Projects blocker @p t from every sample the polygon's receivers use into its texels.
+/// Projects blocker @p t from every sample the polygon's receivers use into its texels, from
+/// either side of the polygon's plane: what lies between a sample and the plane, on the sample's
+/// side, shadows it. (The paper's back-face test, a sample behind the plane lighting none of the
+/// texels, holds for a closed surface only; an open sheet lit from behind is lit, and a closed
+/// surface's other faces project over it from there.)
 void shadePolygon(const Polygon& p, const Triangle& t, Context& c, HeckbertHerfStats& local) {
     glm::dvec3 v[3];
     double h[3];
     for (int i = 0; i < 3; ++i) v[i] = glm::dvec3(t.v[i]), h[i] = glm::dot(p.n, v[i] - p.p0);
-    if (std::max({h[0], h[1], h[2]}) <= p.eps) return;  // on or behind the polygon's plane
+    const bool above = std::max({h[0], h[1], h[2]}) > p.eps, below = std::min({h[0], h[1], h[2]}) < -p.eps;
+    if (!above && !below) return;  // in the polygon's plane
+    const double hBelow[3] = {-h[0], -h[1], -h[2]};
     const LightSamples& s = c.samples;
     const uint32_t alphaId = c.alpha ? alphaIdOf(t.flags) : 0;
     for (uint32_t set = 0; set < uint32_t(s.sets); ++set) {
@@ -170,17 +176,20 @@ void shadePolygon(const Polygon& p, const Triangle& t, Context& c, HeckbertHerfS
         for (uint32_t k = 0; k < uint32_t(s.sampleCount); ++k) {
             const glm::dvec3 l(s.position(int(set), int(k)));
             const double w = s.sampleW(k);
-            // Height of the sample (w = 1) or of its direction (w = 0) above the plane.
-            const double hl = w == 1.0 ? glm::dot(p.n, l - p.p0) : glm::dot(p.n, l);
-            if (!(hl > 0)) continue;  // behind the polygon (the back-face test): see behindPolygon()
-            if (w == 1.0 && std::min({h[0], h[1], h[2]}) >= hl) continue;  // wholly beyond the sample
+            // Height of the sample (w = 1) or of its direction (w = 0) above the plane; below it,
+            // the heights are taken from the other side, so that the sample's side is up.
+            const double signedHl = w == 1.0 ? glm::dot(p.n, l - p.p0) : glm::dot(p.n, l);
+            if (!(signedHl > 0 ? above : signedHl < 0 && below)) continue;  // nothing on the sample's side
+            const double side = signedHl > 0 ? 1.0 : -1.0, hl = side * signedHl;
+            const double* hs = side > 0 ? h : hBelow;
+            if (w == 1.0 && std::min({hs[0], hs[1], hs[2]}) >= hl) continue;  // wholly beyond the sample
             glm::dvec3 clipped[5];
-            const int n = clipSlab(v, h, 3, p.eps, w == 1.0 ? hl * (1 - 1e-9) : INFINITY, clipped);
+            const int n = clipSlab(v, hs, 3, p.eps, w == 1.0 ? hl * (1 - 1e-9) : INFINITY, clipped);
             if (n < 3) continue;
             glm::dvec2 texels[5];
             for (int i = 0; i < n; ++i) {
-                const double hx = glm::dot(p.n, clipped[i] - p.p0);
-                const glm::dvec3 x = w == 1.0 ? l + (clipped[i] - l) * (hl / (hl - hx)) : clipped[i] - l * (hx / hl);
+                const double hx = side * glm::dot(p.n, clipped[i] - p.p0);
+                const glm::dvec3 x = w == 1.0 ? l + (clipped[i] - l) * (hl / (hl - hx)) : clipped[i] - l * (hx / signedHl) * side;
                 const glm::dvec3 q = x - p.p0;
                 texels[i] = p.t0 + glm::dot(p.ga, q) * p.ta + glm::dot(p.gb, q) * p.tb;
             }
@@ -189,23 +198,6 @@ void shadePolygon(const Polygon& p, const Triangle& t, Context& c, HeckbertHerfS
             local.coveredTexels += cover(p, texels, n, set, k, c, alphaId ? &cut : nullptr);
         }
     }
-}
-
-/// Section 3.6's back-face test: a sample behind the polygon's plane lights none of its texels.
-/// Such samples are not projected; they are counted as blocked (a closed surface blocks them from
-/// behind, and they bring no irradiance either way).
-void behindPolygon(const Polygon& p, Context& c) {
-    const LightSamples& s = c.samples;
-    for (int y = 0; y < p.height; ++y)
-        for (int x = 0; x < p.width; ++x) {
-            const int32_t r = p.grid[size_t(y) * p.width + x];
-            if (r < 0) continue;
-            for (uint32_t k = 0; k < uint32_t(s.sampleCount); ++k) {
-                const glm::dvec3 l(s.position(int(c.sets[r]), int(k)));
-                const double hl = s.sampleW(k) == 1.0 ? glm::dot(p.n, l - p.p0) : glm::dot(p.n, l);
-                if (!(hl > 0)) c.masks.row(size_t(r))[c.groupOf[k]] |= 1ull << (k - s.groups[c.groupOf[k]].first);
-            }
-        }
 }
 
 }  // namespace
@@ -224,7 +216,6 @@ VisibilityMasks castHeckbertHerf(const LightSamples& samples, const ReceiverSet&
     std::atomic<uint64_t> projections{0}, covered{0};
     HeckbertHerfStats local;
     local.polygons = prepared.size();
-    tbb::parallel_for(size_t(0), prepared.size(), [&](size_t i) { behindPolygon(prepared[i], c); });
     blockers.rewind();
     std::vector<Triangle> chunk(kTriangleChunk);
     while (size_t read = blockers.read(chunk)) {

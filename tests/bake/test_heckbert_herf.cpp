@@ -92,6 +92,38 @@ TEST_CASE("hh: a square over a lightmapped floor, against its closed-form penumb
     requireHhProfile(light, quad, [&](const glm::dvec3& p) { return 1.0 - overlap(p.x) * overlap(p.z); });
 }
 
+TEST_CASE("hh: an open floor lit from below is lit, and a square under it shadows it as from above", "[hh]") {
+    // The square's scene mirrored under the floor, whose receivers still face up: every sample is
+    // behind the polygon's plane. The paper's back-face test counted them all blocked (V = 0
+    // everywhere), where the reference blocks only the square's shadow: nothing closes the floor.
+    const LightDesc light = rectLight({0, -4, 0}, {0, 0, 1}, {1, 0, 0}, 256, 4);  // facing up
+    std::vector<Triangle> quad;
+    addQuad(quad, {-0.5f, -2, -0.5f}, {0.5f, -2, -0.5f}, {0.5f, -2, 0.5f}, {-0.5f, -2, 0.5f});
+    auto overlap = [](double c) { return std::clamp(std::min(0.5, -c + 1) - std::max(-0.5, -c - 1), 0.0, 1.0); };
+    requireHhProfile(light, quad, [&](const glm::dvec3& p) { return 1.0 - overlap(p.x) * overlap(p.z); });
+}
+
+TEST_CASE("hh: a closed box's top lit from below is shadowed by the box's own bottom", "[hh]") {
+    // The floor as the top of a box [-2, 2] x [-1, 0] x [-2, 2]: from a light under it every
+    // segment to the top crosses the bottom face first, which hh now projects (it is on the
+    // samples' side of the top's plane), as the reference blocks it.
+    LightmappedFloor f = lightmappedFloor(32);
+    std::vector<Triangle> blockers = f.triangles;
+    addQuad(blockers, {-2, -1, -2}, {2, -1, -2}, {2, -1, 2}, {-2, -1, 2});
+    const LightSamples samples = generateLightSamples({rectLight({0, -4, 0}, {0, 0, 1}, {1, 0, 0}, 64, 4)}, 64, 5);
+    const std::vector<uint32_t> sets = assignSets(f.receivers, samples.sets);
+    const ReceiverEpsilon eps = receiverEpsilonOf(CastOptions());
+    VectorSource source(blockers);
+    const VisibilityMasks hh = castHeckbertHerf(samples, f.receivers, sets, source, eps, f.polygons, nullptr);
+    const VisibilityMasks reference = castReference(samples, f.receivers, sets, blockers, eps);
+    double hhVisible = 0;
+    for (size_t r = 0; r < f.receivers.size(); ++r) {
+        CHECK(reference.visibleFraction(r, samples) == 0.0);
+        hhVisible += hh.visibleFraction(r, samples);
+    }
+    CHECK(hhVisible == 0.0);
+}
+
 TEST_CASE("hh: a straight edge gives the analytic penumbra profile", "[hh]") {
     // The profile of tests/test_radiometry.cpp: light x in [-0.5, 0.5] at H = 4, a half-plane
     // blocker over x < 0 at h = 2: V = clamp(0.5 + x).
