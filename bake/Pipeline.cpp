@@ -142,7 +142,8 @@ void scanScene(Bake& b) {
     // its whole cast to a SIGTERM, while the user believed it safe.
     if (!b.settings.shard.checkpointDir.empty() && !b.settings.shard.merge && !b.method.traits.memoryTiles)
         fail(b.settings.shard.resume ? "--resume" : "--checkpoint",
-             "--method {} has no memory tiles to save; only hpc checkpoints (bake without it, or shard the bake)", b.method.name);
+             "--method {} has no memory tiles to save; only hpc checkpoints (bake without it{})", b.method.name,
+             b.method.traits.masks ? ", or shard the bake" : "");  // a method without masks cannot shard either
     if (!b.method.traits.masks && ShardedCast::keepsMasks(b.settings.shard))
         fail(b.settings.shard.merge ? "merge" : "--shard", "--method {} gives visible fractions, not per-sample masks to merge",
              b.method.name);

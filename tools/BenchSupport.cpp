@@ -104,6 +104,13 @@ void checkDistinctFiles(const std::vector<std::pair<std::string, std::string>>& 
         }
 }
 
+void checkMarkdownFile(const std::string& path) {
+    if (path.empty() || fs::path(path).extension() == ".md") return;
+    // The section is spliced into the file, or appended to one that has none: into a script or a
+    // README.txt given by mistake, it went without a word.
+    fail("--markdown", "{}: not a Markdown file (.md); the bench splices its generated section into a BENCHMARKS.md", path);
+}
+
 json machineInfo() {
     std::string os;
     std::ifstream osRelease("/etc/os-release");
@@ -304,17 +311,21 @@ void anchorPaths(json& j, const fs::path& sourceDir) {
 }
 }  // namespace
 
-json benchCameraScene(const std::string& examplesDir, const std::string& name) {
+json benchSceneOf(const std::string& examplesDir, const std::string& name, const std::string& kind, const char* option,
+                  const char* why) {
     json scene = benchScene(examplesDir, name);
     const json* receivers = scene.contains("receivers") ? &scene["receivers"] : nullptr;
     const std::string type = receivers && receivers->is_object() && receivers->contains("type") && (*receivers)["type"].is_string()
                                  ? (*receivers)["type"].get<std::string>()
                                  : "?";
-    // The benches set the camera's size; any other kind's bake would fail on "width", every row.
-    if (type != "camera")
-        fail("--scenes", "{}: the bench sets a camera's image size, and this scene's receivers are \"{}\"",
-             benchSceneFile(examplesDir, name).string(), type);
+    // Any other kind's bake would fail in every row, after the rows before it had run.
+    if (type != kind)
+        fail(option, "{}: {}, and this scene's receivers are \"{}\"", benchSceneFile(examplesDir, name).string(), why, type);
     return scene;
+}
+
+json benchCameraScene(const std::string& examplesDir, const std::string& name) {
+    return benchSceneOf(examplesDir, name, "camera", "--scenes", "the bench sets a camera's image size");
 }
 
 json benchScene(const std::string& examplesDir, const std::string& name) {

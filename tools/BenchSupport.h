@@ -23,6 +23,9 @@ void writeText(const std::string& path, const std::string& text);
 /// empty paths ignored.
 /// @throw InputError naming the second option.
 void checkDistinctFiles(const std::vector<std::pair<std::string, std::string>>& files);
+/// @brief Refuses a bench's `--markdown` file that is not a `.md` file, before any work.
+/// @throw InputError naming the file.
+void checkMarkdownFile(const std::string& path);
 /// CPU, cores, RAM, OS, compiler and commit, for the record.
 nlohmann::json machineInfo();
 /// The 1-minute load average: on a shared machine it says how many cores the bench really had.
@@ -103,6 +106,12 @@ nlohmann::json resizedScene(nlohmann::json scene, int width, int height, int sam
 /// the scene's folder, so that the copies the benches write elsewhere read the same files. Their
 /// children bake and compare those copies with --allow-outside-uris (bakeChild(), compareDumps()).
 nlohmann::json benchScene(const std::string& examplesDir, const std::string& name);
+
+/// @brief benchScene(), refused unless its receivers are of @p kind ("camera", "lightmap").
+/// @param option and @p why name the option that gave the scene and what needs that kind
+/// @throw InputError "OPTION: FILE: WHY, and this scene's receivers are \"TYPE\""
+nlohmann::json benchSceneOf(const std::string& examplesDir, const std::string& name, const std::string& kind, const char* option,
+                            const char* why);
 
 /// @brief benchScene() for the benches that resize a camera (table2, methods).
 /// @throw InputError naming the scene file when its receivers are not a camera.

@@ -225,6 +225,7 @@ void runBenchMethods(const BenchMethodsOptions& given, const std::string& comman
     BenchMethodsOptions o = given;  // "hpc" in --methods is no error: every row runs it as the baseline
     o.methods.erase(std::remove(o.methods.begin(), o.methods.end(), "hpc"), o.methods.end());
     checkDistinctFiles({{"--render", o.renderPath}, {"--json", o.jsonPath}, {"--markdown", o.markdownPath}});
+    checkMarkdownFile(o.markdownPath);
     if (!o.renderPath.empty()) {
         json result;
         checkInputFile(o.renderPath);  // "cannot open", not a parse error of nothing
@@ -251,6 +252,9 @@ void runBenchMethods(const BenchMethodsOptions& given, const std::string& comman
     std::vector<std::pair<std::string, json>> scenes;
     for (const std::string& name : o.scenes) scenes.emplace_back(sceneName(name), benchCameraScene(o.examplesDir, name));
     const bool hh = std::find(o.methods.begin(), o.methods.end(), "hh") != o.methods.end();
+    // Before any row: a --lightmap that hh cannot bake failed its rows after every camera row.
+    const json lightmapScene = hh ? benchSceneOf(o.examplesDir, o.lightmap, "lightmap", "--lightmap", "hh bakes lightmap receivers")
+                                  : json();
     std::vector<std::string> cameraMethods;
     for (const std::string& m : o.methods)
         if (m != "hh") cameraMethods.push_back(m);
@@ -282,11 +286,10 @@ void runBenchMethods(const BenchMethodsOptions& given, const std::string& comman
             save();
         }
     if (hh) {
-        const json base = benchScene(o.examplesDir, o.lightmap);
         for (int samples : o.hhSamples) {
             const fs::path work = tmp.path / fmt::format("hh-{}", samples);
             fs::create_directories(work);
-            json scene = base;
+            json scene = lightmapScene;
             for (json& light : scene["lights"]) light["samples"] = samples;
             scene["output"] = (work / "out.exr").string();
             const fs::path file = work / "scene.json";

@@ -354,6 +354,7 @@ void runRootCull(TableRun& run) {
 
 void runBenchTable(const BenchTableOptions& o, const std::string& commandLine) {
     checkDistinctFiles({{"--json", o.jsonPath}, {"--markdown", o.markdownPath}});
+    checkMarkdownFile(o.markdownPath);
     const std::vector<RowSpec> rows = checkedRows(o);
     std::vector<std::pair<std::string, json>> scenes;
     for (const std::string& name : o.scenes) scenes.emplace_back(sceneName(name), benchCameraScene(o.examplesDir, name));

@@ -360,6 +360,8 @@ TEST_CASE("methods without memory tiles refuse --checkpoint and --resume before 
             INFO(method << " " << option);
             RunResult r = runPenumbra("bake " + tiled.path + " --quiet --method " + method + " " + option + " " + dir / "ckpt");
             requireCleanError(r, option + ": --method " + method + " has no memory tiles to save; only hpc checkpoints");
+            // Sharding is offered only to methods that can shard (penumbra-map has no masks to merge).
+            CHECK((r.err.find("or shard the bake") != std::string::npos) == (method != "penumbra-map"));
             CHECK_FALSE(fs::exists(dir / "ckpt"));
             CHECK_FALSE(fs::exists(dir / "out"));
         }

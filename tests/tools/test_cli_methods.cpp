@@ -206,6 +206,17 @@ TEST_CASE("bench methods reads a scene's files where the scene lives, and compar
         CHECK(slurp(dir / "doc.md") == "# notes\n");
     }
     requireCleanError(runPenumbra("bench methods -q --methods ssv:fast"), "--methods");
+    // A --markdown that is no Markdown file (a script named by mistake) got the section appended.
+    write(dir / "notes.py", "print('x')\n");
+    for (const char* bench : {"methods", "table2"}) {
+        requireCleanError(runPenumbra(fmt::format("bench {} -q --markdown {}", bench, dir / "notes.py")),
+                          "--markdown: " + dir / "notes.py" + ": not a Markdown file (.md)");
+        CHECK(slurp(dir / "notes.py") == "print('x')\n");
+    }
+    // hh's scene must be a lightmap: refused before the camera rows, not in a failed row after them.
+    requireCleanError(runPenumbra("bench methods -q --methods hh --lightmap grids --examples " + std::string(PENUMBRA_SOURCE_DIR) +
+                                  "/examples"),
+                      "--lightmap: ");
 }
 
 namespace {
