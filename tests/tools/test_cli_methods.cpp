@@ -101,6 +101,23 @@ TEST_CASE("ssv bakes the masks hpc bakes up to ties, and hh and penumbra-map ref
     CHECK(v.shape[0] == readNpy(dir / "hpc/receivers.npy").shape[0]);
 }
 
+TEST_CASE("another method's options are named as ignored, and the method's own are not", "[cli][methods]") {
+    // --embree-filter off with hpc was taken without a word.
+    ScratchDir dir("methods-options");
+    write(dir / "camera.json", kCameraScene);
+    const std::string bake = "bake " + dir / "camera.json" + " -q --threads 1";
+    RunResult hpc = runPenumbra(bake + " --embree-filter off --penumbra-map-taps 5");
+    INFO(hpc.err);
+    REQUIRE(hpc.exitCode == 0);
+    CHECK_THAT(hpc.err, Catch::Contains("penumbra: warning: --embree-filter applies to --method embree only; --method hpc ignores it"));
+    CHECK_THAT(hpc.err, Catch::Contains("penumbra: warning: --penumbra-map-taps applies to --method penumbra-map only; --method hpc "
+                                        "ignores it"));
+    RunResult own = runPenumbra(bake + " --method penumbra-map --penumbra-map-taps 5 --penumbra-map-lookup wyman-hansen");
+    INFO(own.err);
+    REQUIRE(own.exitCode == 0);
+    CHECK(own.err.find("warning") == std::string::npos);
+}
+
 TEST_CASE("a method's own scene keys are read by the method whichever method bakes", "[cli][methods]") {
     ScratchDir dir("methods");
     auto scene = [&](const std::string& bake) {
