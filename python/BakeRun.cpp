@@ -465,10 +465,24 @@ BakeSettings settingsOf(const std::string& method, std::optional<int> threads, c
 
 }  // namespace
 
-std::shared_ptr<PyResult> bake(std::shared_ptr<PyScene> scene, const std::string& method, std::optional<int> threads,
+namespace {
+
+/// The threads argument: None or an int. A bool is an int to Python, and threads=True ran one
+/// thread; it is refused as the wrong type, as a scene's "width": true is.
+std::optional<int> threadsArgument(const py::object& threads) {
+    if (threads.is_none()) return std::nullopt;
+    if (py::isinstance<py::bool_>(threads) || !py::isinstance<py::int_>(threads))
+        throw py::type_error(fmt::format("threads: expected an int or None, got {}", std::string(py::str(threads.get_type().attr("__name__")))));
+    return threads.cast<int>();
+}
+
+}  // namespace
+
+std::shared_ptr<PyResult> bake(std::shared_ptr<PyScene> scene, const std::string& method, const py::object& threadsArg,
                                py::object memoryBudget, py::object progress, std::optional<std::string> tmpDir, bool masks,
                                std::optional<std::string> output) {
     InsideSource::refuse("penumbra.bake()");
+    const std::optional<int> threads = threadsArgument(threadsArg);
     auto result = std::make_shared<PyResult>();
     result->scene = scene;
     result->desc = scene->desc;

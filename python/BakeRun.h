@@ -82,7 +82,7 @@ void runInterruptibly(const std::function<void()>& work, const pybind11::object&
 
 /// @brief penumbra.bake(): runBake on a thread of its own while this (the caller's) thread
 /// polls progress, calls the callback and watches for KeyboardInterrupt.
-std::shared_ptr<PyResult> bake(std::shared_ptr<PyScene> scene, const std::string& method, std::optional<int> threads,
+std::shared_ptr<PyResult> bake(std::shared_ptr<PyScene> scene, const std::string& method, const pybind11::object& threads,
                                pybind11::object memoryBudget, pybind11::object progress, std::optional<std::string> tmpDir,
                                bool masks, std::optional<std::string> output);
 

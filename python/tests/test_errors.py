@@ -460,7 +460,7 @@ def test_messages_name_the_python_arguments_not_the_cli_options(tmp_path):
 def test_an_argument_of_the_wrong_type_is_a_type_error():
     # A wrong value is a ValueError (above); a wrong type is Python's TypeError, as documented.
     scene = penumbra.Scene(grid_scene())
-    for kwargs in ({"method": 3}, {"method": None}, {"threads": 1.5}, {"threads": "2"}):
+    for kwargs in ({"method": 3}, {"method": None}, {"threads": 1.5}, {"threads": "2"}, {"threads": True}):
         with pytest.raises(TypeError):
             penumbra.bake(scene, **kwargs)
 
