@@ -270,6 +270,10 @@ std::vector<size_t> geometryIndices(const JsonParams& j, const std::string& key,
         const int64_t index = value.get<int64_t>();
         if (index < 0 || uint64_t(index) >= scene.geometry.size())
             fail(where, "geometry index {} is out of range (the scene has {} entries)", index, scene.geometry.size());
+        // A repeat baked the entry again, into as many identical outputs (NAME-mesh-2.exr, a
+        // vertex bake's NAME-i.glb), without a word.
+        if (std::find(indices.begin(), indices.end(), size_t(index)) != indices.end())
+            fail(where, "geometry {} is listed twice", index);
         indices.push_back(size_t(index));
     }
     return indices;

@@ -113,7 +113,7 @@ TriangleSourcePtr openSceneGeometryForExport(const SceneDesc& scene);
 std::vector<std::string> geometryParts(const JsonParams& entry);
 
 /// @brief The indices into the scene's "geometry" list that key @p key of @p j holds (a kind's
-/// "meshes", a band's "geometry"): a non-empty array of in-range integers.
+/// "meshes", a band's "geometry"): a non-empty array of in-range integers, each listed once.
 /// @throw InputError naming the key, or KEY[i] for a bad element.
 std::vector<size_t> geometryIndices(const JsonParams& j, const std::string& key, const SceneDesc& scene);
 

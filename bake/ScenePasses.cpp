@@ -55,9 +55,12 @@ private:
 void checkReceiversFinite(const SceneDesc& scene, const ReceiverSet& receivers) {
     for (size_t r = 0; r < receivers.size(); ++r) {
         const glm::vec3& p = receivers.position[r];
-        if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-            fail(scene.file, "receiver {} lies at a non-finite position: a geometry entry's receiver_offset moves it past "
-                             "the float range (about 3.4e38)", r);
+        if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+            const bool offsets = std::any_of(scene.receiverClasses.begin(), scene.receiverClasses.end(),
+                                             [](const ReceiverClass& c) { return c.offset != 0.0; });
+            fail(scene.file, "receiver {} lies at a non-finite position, past the float range (about 3.4e38){}", r,
+                 offsets ? ": a geometry entry's receiver_offset moves it there" : "");
+        }
     }
 }
 

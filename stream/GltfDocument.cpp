@@ -582,6 +582,27 @@ void warnUnposed(const std::string& path, const Json& root) {
 
 }  // namespace
 
+namespace {
+
+/// Records the model's image files as inputs of the run, read or not: a copy of the model (a
+/// vertex bake's) still refers to them, and a bake's preview written over one (out NAME.glb,
+/// preview NAME.png, a texture NAME.png) replaced it with exit 0. Missing ones, and URIs outside
+/// the model's directory, are the readers' business where they read them.
+void recordImageFiles(const std::string& path, const Json& root) {
+    const auto images = root.find("images");
+    if (images == root.end() || !images->is_array()) return;
+    const std::filesystem::path base = std::filesystem::path(path).parent_path();
+    for (const Json& image : *images) {
+        const auto uri = image.is_object() ? image.find("uri") : image.end();
+        if (!image.is_object() || uri == image.end() || !uri->is_string()) continue;
+        const std::string text = uri->get<std::string>();
+        if (text.empty() || text.rfind("data:", 0) == 0 || text.find("://") != std::string::npos) continue;
+        recordReferencedFile((base / gltfPercentDecoded(text)).lexically_normal().string());
+    }
+}
+
+}  // namespace
+
 GltfDocument loadGltfDocument(const std::string& path) {
     GltfDocument doc;
     doc.path = path;
@@ -624,6 +645,7 @@ GltfDocument loadGltfDocument(const std::string& path) {
                      "does not allow; the matrix is used, as viewers do", path, matrixOverTrs, firstOverTrs);
     warnUnposed(path, root);
     findRoots(root, doc);
+    recordImageFiles(path, root);
     return doc;
 }
 

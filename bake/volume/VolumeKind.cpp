@@ -11,6 +11,7 @@
 #include <openvdb/tools/Prune.h>
 
 #include <glm/common.hpp>
+#include <glm/gtx/component_wise.hpp>
 #include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
 
@@ -176,7 +177,10 @@ private:
                         if (acc.isValueOn(coord)) continue;
                         const glm::dvec3 p = lattice_.centre(coord);
                         const glm::dvec3 d = p - closestOnTriangle(p, a, b, cc);
-                        if (glm::dot(d, d) > w2) continue;
+                        // Within the width up to the closest point's rounding: with width 0, the
+                        // lattice points on a triangle (22 of 1089 on a floor were left out).
+                        const double slack = kBandSlack * (glm::length(p) + lattice_.h);
+                        if (glm::dot(d, d) > w2 + slack * slack) continue;
                         acc.setValueOn(coord);
                         if (++marked_ > kMaxVolumeVoxels)
                             fail(where_, "the band holds more than {} voxels (receivers are indexed by 32 bits); raise "
@@ -193,8 +197,11 @@ private:
     };
     BoxLattice boxLattice(const Triangle& t) const {
         const glm::dvec3 a(t.v[0]), b(t.v[1]), c(t.v[2]);
-        const glm::dvec3 lo = glm::ceil((glm::min(a, glm::min(b, c)) - width_ - lattice_.origin) / lattice_.h);
-        const glm::dvec3 hi = glm::floor((glm::max(a, glm::max(b, c)) + width_ - lattice_.origin) / lattice_.h);
+        const glm::dvec3 low = glm::min(a, glm::min(b, c)), high = glm::max(a, glm::max(b, c));
+        // Grown by markBand()'s slack, so that a lattice point on the box's face is visited.
+        const double slack = kBandSlack * (std::max(glm::compMax(glm::abs(low)), glm::compMax(glm::abs(high))) + lattice_.h);
+        const glm::dvec3 lo = glm::ceil((low - width_ - slack - lattice_.origin) / lattice_.h);
+        const glm::dvec3 hi = glm::floor((high + width_ + slack - lattice_.origin) / lattice_.h);
         BoxLattice box;
         for (int axis = 0; axis < 3; ++axis)
             // OpenVDB coordinates are 32-bit, with room for its node arithmetic.
@@ -207,6 +214,9 @@ private:
         box.count = (hi.x - lo.x + 1) * (hi.y - lo.y + 1) * (hi.z - lo.z + 1);
         return box;
     }
+
+    /// A band's distances are compared up to this relative rounding (of the coordinates' size).
+    static constexpr double kBandSlack = 1e-9;
 
     Lattice lattice_;
     openvdb::CoordBBox box_;
@@ -257,8 +267,16 @@ const ReceiverKindRegistration kVolume{"volume", [](const JsonParams& j, const S
             glm::dvec3 n;
             for (int a = 0; a < 3; ++a) n[a] = std::max(1.0, std::ceil((hi[a] - lo[a]) / lattice.h - 1e-9));
             if (n.x * n.y * n.z > kMaxVoxels)
-                fail(j.where("voxel_size"), "the box would have {:.0f} voxels (at most {:.0f})", n.x * n.y * n.z, kMaxVoxels);
+                fail(j.where("voxel_size"), "the box would have {:.3g} voxels (at most {:.0f})", n.x * n.y * n.z, kMaxVoxels);
             lattice.origin = lo + 0.5 * lattice.h;
+            // Voxel centres are float receivers: the last one must be a finite float (a box at
+            // 1e39, or a voxel of 1e300, was blamed on a receiver_offset the scene did not have).
+            for (int a = 0; a < 3; ++a)
+                if (const double last = lattice.origin[a] + (n[a] - 1) * lattice.h; !std::isfinite(float(lattice.origin[a])) ||
+                                                                                   !std::isfinite(float(last)))
+                    fail(j.where(std::abs(lo[a]) > 3.4e38 || std::abs(hi[a]) > 3.4e38 ? "box" : "voxel_size"),
+                         "voxel centres would lie at {:.3g} along {}, beyond the float range of receiver positions (about 3.4e38)",
+                         std::isfinite(float(lattice.origin[a])) ? last : lattice.origin[a], "xyz"[a]);
             openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(int(n.x) - 1, int(n.y) - 1, int(n.z) - 1));
             if (use == KindUse::Validate) return nullptr;
             return std::make_unique<VolumeKind>(lattice, box, std::vector<size_t>{}, 0.0, irradiance, j.where("box"));

@@ -112,6 +112,11 @@ std::FILE* openInputStream(const std::string& path) {
 
 void checkInputFile(const std::string& path) { ::close(openInputFile(path)); }
 
+void recordReferencedFile(const std::string& path) {
+    struct stat st {};
+    if (!path.empty() && ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode)) record(st, path);
+}
+
 std::optional<std::string> recordedInput(dev_t device, ino_t inode) {
     std::lock_guard lock(inputsMutex);
     auto it = inputs().find(std::pair(device, inode));

@@ -30,6 +30,11 @@ std::FILE* openInputStream(const std::string& path);
 /// @throw InputError as openInputFile().
 void checkInputFile(const std::string& path);
 
+/// @brief Records @p path as an input of the current InputScope when it is a regular file, and
+/// does nothing otherwise: for files an input refers to that the run does not read itself (a
+/// glTF's textures, which a vertex bake's copy still refers to), so that no output replaces them.
+void recordReferencedFile(const std::string& path);
+
 /// @brief One version of a file: its device, inode, size and modification time. A file replaced
 /// (renamed over, as `penumbra generate` writes) or rewritten in place has another, even at the
 /// same size. Readers that read a file once per pass keep the first pass's stamp and require the

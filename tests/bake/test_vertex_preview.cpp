@@ -109,3 +109,28 @@ TEST_CASE("vertices: a bad receivers.camera is a one-line error naming the key",
     requireCleanError(bake(5), "receivers.camera");
     CHECK(!std::filesystem::exists(dir / "out/floor.glb"));
 }
+
+TEST_CASE("vertices: a preview that would replace a texture of the input glTF is refused, and the texture kept", "[vertices][preview]") {
+    // out wood.glb writes its preview to wood.png; the floor's (opaque, so never decoded) texture
+    // was wood.png, and the bake replaced it with exit 0, leaving the input and the baked copy
+    // pointing at the preview.
+    ScratchDir dir("vertices-texture");
+    const std::string texture = "\x89PNG\r\n\x1a\n not decoded: an opaque material's texture is never read";
+    std::ofstream(dir / "wood.png", std::ios::binary) << texture;
+    // Two triangles of a 4 x 4 floor at y = 0, positions in a base64 data URI.
+    std::ofstream(dir / "floor.gltf") << R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+      "nodes": [{"name": "Floor", "mesh": 0}],
+      "meshes": [{"name": "Floor", "primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
+      "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+      "textures": [{"source": 0}], "images": [{"uri": "wood.png"}],
+      "buffers": [{"byteLength": 72, "uri": "data:application/octet-stream;base64,AAAAwAAAAAAAAADAAAAAQAAAAAAAAABAAAAAQAAAAAAAAADAAAAAwAAAAAAAAADAAAAAwAAAAAAAAABAAAAAQAAAAAAAAABA"}],
+      "bufferViews": [{"buffer": 0, "byteLength": 72}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 6, "type": "VEC3", "min": [-2, 0, -2], "max": [2, 0, 2]}]})";
+    std::ofstream(dir / "scene.json") << R"({"geometry": [{"type": "gltf", "path": "floor.gltf"}],
+        "lights": [{"type": "rect", "center": [0, 3, 0], "u": [1, 0, 0], "v": [0, 0, 1], "samples": 16}],
+        "receivers": {"type": "vertices", "meshes": [0]}, "output": "wood.glb"})";
+    const RunResult r = runPenumbra("bake " + dir / "scene.json" + " -q");
+    requireCleanError(r, "wood.png: is also an input of this run");
+    CHECK(slurp(dir / "wood.png") == texture);
+    CHECK_FALSE(std::filesystem::exists(dir / "wood.glb"));
+}

@@ -191,6 +191,22 @@ TEST_CASE("volume: a narrow band holds the voxels near the geometry", "[volume]"
     CHECK(hi->value() == openvdb::Vec3i(31, 16, 31));
 }
 
+TEST_CASE("volume: a narrow band of width 0 holds every lattice point on the geometry", "[volume]") {
+    // The floor (6 x 6 at y = 0) holds the lattice points (i, 0, k), |i|, |k| <= 30, at voxel_size
+    // 0.1; rounding in the distance and in the triangles' lattice boxes left some of them out.
+    ScratchDir dir("volume-band-0");
+    bake(dir, sceneJson({{"type", "volume"}, {"narrow_band", {{"geometry", {0}}, {"width", 0}}}, {"voxel_size", 0.1}},
+                        dir / "b.vdb"));
+    auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(readGrid(dir / "b.vdb", "visibility"));
+    REQUIRE(grid);
+    auto acc = grid->getConstAccessor();
+    int missing = 0;
+    for (int i = -30; i <= 30; ++i)
+        for (int k = -30; k <= 30; ++k) missing += !acc.isValueOn(openvdb::Coord(i, 0, k));
+    CHECK(missing == 0);
+    CHECK(!acc.isValueOn(openvdb::Coord(0, 5, 0)));  // off the geometry
+}
+
 TEST_CASE("volume: the narrow band is found in the bake's scan pass: the geometry is opened once", "[volume]") {
     // A geometry type that counts how often it is opened: the pipeline opens the scene once (and
     // rewinds it for the bucket pass); the band no longer reads the source on its own.
@@ -233,10 +249,21 @@ TEST_CASE("volume: bad parameters are one-line errors naming the key", "[volume]
     CHECK_THAT(error({{"type", "volume"}, {"box", {1, 2}}, {"voxel_size", 0.1}}), Catch::Contains("receivers.box"));
     CHECK_THAT(error({{"type", "volume"}, {"box", box}, {"voxel_size", 0.1}}, "v.exr"), Catch::Contains("output"));
     CHECK_THAT(error({{"type", "volume"}, {"box", box}, {"voxel_size", 1e-6}}), Catch::Contains("voxels"));
+    // Voxel centres past the float range were blamed on a receiver_offset the scene did not have.
+    CHECK_THAT(error({{"type", "volume"}, {"box", box}, {"voxel_size", 1e300}}),
+               Catch::Contains("receivers.voxel_size: voxel centres would lie at 5e+299 along x, beyond the float range"));
+    CHECK_THAT(error({{"type", "volume"}, {"box", {{1e39, 0, 0}, {1e39, 1, 1}}}, {"voxel_size", 0.5}}),
+               Catch::Contains("receivers.box: voxel centres would lie at 1e+39 along x"));
+    CHECK_THAT(error({{"type", "volume"}, {"box", {{0, 0, 0}, {1e300, 1, 1}}}, {"voxel_size", 0.1}}),
+               Catch::Contains("the box would have 1e+303 voxels"));
     CHECK_THAT(error({{"type", "volume"}, {"voxel_size", 0.1}, {"narrow_band", {{"geometry", {2}}, {"width", 0.1}}}}),
                Catch::Contains("receivers.narrow_band.geometry[0]") && Catch::Contains("out of range"));
     CHECK_THAT(error({{"type", "volume"}, {"voxel_size", 0.1}, {"narrow_band", {{"geometry", {0}}}}}),
                Catch::Contains("receivers.narrow_band.width"));
+    // Any list of geometry entries (a band's, a lightmap's or a vertex bake's meshes) names each once.
+    CHECK_THAT(error({{"type", "volume"}, {"voxel_size", 0.1}, {"narrow_band", {{"geometry", {0, 0}}, {"width", 0.1}}}}),
+               Catch::Contains("receivers.narrow_band.geometry[1]: geometry 0 is listed twice"));
+    CHECK_THAT(error({{"type", "vertices"}, {"meshes", {0, 0}}}, "v.glb"), Catch::Contains("receivers.meshes[1]: geometry 0 is listed twice"));
     CHECK_THAT(error({{"type", "volume"}, {"voxel_size", 0.1}, {"narrow_band", {{"geometry", {0}}, {"width", 1}, {"x", 1}}}}),
                Catch::Contains("receivers.narrow_band.x"));
 }
