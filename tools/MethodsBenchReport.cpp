@@ -165,8 +165,14 @@ std::string methodsMarkdown(const json& result) {
         for (const auto& [method, c] : at(row, "methods").items())
             if (method != "hpc") md += methodLine(at(row, "scene"), size, method, c, hpc);
     }
-    md += "\n### ssv: the numbers of Harter, Osswald & Assarsson\n\n" + ssvTable(result);
-    if (!at(result, "hh").empty()) md += "\n### hh against hpc on the lightmap example, as the samples grow\n\n" + hhTable(result);
+    // Sections only for the methods the run had (an empty ssv table was printed without ssv).
+    const json& rows = at(result, "rows");
+    if (std::any_of(rows.begin(), rows.end(), [](const json& row) { return !at(at(at(row, "methods"), "ssv"), "ssv").is_null(); }))
+        md += "\n### ssv: the numbers of Harter, Osswald & Assarsson\n\n" + ssvTable(result);
+    if (const json& hh = at(result, "hh"); !hh.empty()) {
+        const std::string scene = at(hh[0], "scene").is_string() ? at(hh[0], "scene").get<std::string>() : std::string("lightmap");
+        md += fmt::format("\n### hh against hpc on the {} example, as the samples grow\n\n", scene) + hhTable(result);
+    }
     md += "\n### Targets\n\n" + targets(result);
     return md;
 }

@@ -171,6 +171,9 @@ TEST_CASE("bench methods --render writes the Markdown of an earlier result, with
     CHECK_THAT(r.out, Catch::Contains("| 8.0× / 5.0× / 5.0× | **not met** |"));
     CHECK_THAT(r.out, Catch::Contains("| penumbra-map mean abs dV < 0.05 on grids 1280x960 | 0.0200 | met |"));
     CHECK_THAT(slurp(dir / "BENCH.md"), Catch::Contains("# Benchmarks") && Catch::Contains("penumbra bench methods: begin"));
+    // Sections only for the methods the run had: no ssv, no hh.
+    CHECK(r.out.find("### ssv") == std::string::npos);
+    CHECK(r.out.find("### hh") == std::string::npos);
     write(dir / "bad.json", "{\"rows\": 3}");
     requireCleanError(runPenumbra("bench methods --render " + (dir / "bad.json")), "--render");
 }
