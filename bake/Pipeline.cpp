@@ -235,7 +235,9 @@ void castReceivers(Bake& b, uint32_t first) {
     Prepared& p = b.p;
     const ReceiverShader shader(p.lights, p.samples, p.receivers, p.sampleSets);
     if (b.sharded)  // a restored tile's receivers are shaded from their checkpointed masks
-        b.tileHooks = b.sharded->tileHooks(b.masks, [&](uint32_t r, const uint64_t* row) { shader.shade(r, row, false, b.results); });
+        b.tileHooks = b.sharded->tileHooks(b.masks, [&](std::span<const uint32_t> ids) {
+            shadeEach(ids.size(), b.settings.quiet, [&](size_t i) { shader.shade(ids[i], b.masks.row(ids[i]), false, b.results); });
+        });
     makeCaster(b);
     // A merge's first cast read no blockers, so the caster takes the replay as ready; the
     // refinement's scan has read it to the end.
@@ -288,12 +290,7 @@ void mergeShards(Bake& b) {
     makeCaster(b);  // for a refinement's cast, and the stats
     const uint32_t shards = b.sharded->merge(b.masks);
     const ReceiverShader shader(p.lights, p.samples, p.receivers, p.sampleSets);
-    ProgressReporter shading("shade", b.firstPass, b.settings.quiet);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, b.firstPass, 1024), [&](const tbb::blocked_range<size_t>& range) {
-        for (size_t r = range.begin(); r != range.end(); ++r) shader.shade(uint32_t(r), b.masks.row(r), false, b.results);
-        shading.update(range.size());
-    });
-    shading.done();
+    shadeEach(b.firstPass, b.settings.quiet, [&](size_t r) { shader.shade(uint32_t(r), b.masks.row(r), false, b.results); });
     if (b.kind->wantsPass(StreamPass::Cast)) {  // the kind's pass over the faces that the cast would have carried
         p.blockers->rewind();
         feedPass(*b.kind, StreamPass::Cast, *p.blockers, false);

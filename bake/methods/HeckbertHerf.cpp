@@ -180,16 +180,17 @@ void shadePolygon(const Polygon& p, const Triangle& t, Context& c, HeckbertHerfS
             // the heights are taken from the other side, so that the sample's side is up.
             const double signedHl = w == 1.0 ? glm::dot(p.n, l - p.p0) : glm::dot(p.n, l);
             if (!(signedHl > 0 ? above : signedHl < 0 && below)) continue;  // nothing on the sample's side
-            const double side = signedHl > 0 ? 1.0 : -1.0, hl = side * signedHl;
-            const double* hs = side > 0 ? h : hBelow;
+            const double hl = std::abs(signedHl);
+            const double* hs = signedHl > 0 ? h : hBelow;
             if (w == 1.0 && std::min({hs[0], hs[1], hs[2]}) >= hl) continue;  // wholly beyond the sample
             glm::dvec3 clipped[5];
             const int n = clipSlab(v, hs, 3, p.eps, w == 1.0 ? hl * (1 - 1e-9) : INFINITY, clipped);
             if (n < 3) continue;
             glm::dvec2 texels[5];
             for (int i = 0; i < n; ++i) {
-                const double hx = side * glm::dot(p.n, clipped[i] - p.p0);
-                const glm::dvec3 x = w == 1.0 ? l + (clipped[i] - l) * (hl / (hl - hx)) : clipped[i] - l * (hx / signedHl) * side;
+                // The plane's intersection, in signed heights: the same quotients from either side.
+                const double hx = glm::dot(p.n, clipped[i] - p.p0);
+                const glm::dvec3 x = w == 1.0 ? l + (clipped[i] - l) * (signedHl / (signedHl - hx)) : clipped[i] - l * (hx / signedHl);
                 const glm::dvec3 q = x - p.p0;
                 texels[i] = p.t0 + glm::dot(p.ga, q) * p.ta + glm::dot(p.gb, q) * p.tb;
             }

@@ -4,11 +4,14 @@
 
 #include "stream/Translucency.h"
 #include "stream/util/Error.h"
+#include "stream/util/Progress.h"
 
 #include <glm/geometric.hpp>
 #include <glm/gtc/constants.hpp>
 
 #include <immintrin.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <bit>
@@ -378,6 +381,15 @@ void ReceiverShader::shadeVisibleFraction(uint32_t r, const float* lightVisibili
     }
     out.visibility[r] = samples_.sampleCount ? float(visible / samples_.sampleCount) : 1.f;
     out.irradiance[r] = glm::vec3(total);
+}
+
+void shadeEach(size_t count, bool quiet, const std::function<void(size_t)>& shadeOne) {
+    ProgressReporter shading("shade", count, quiet);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1024), [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t i = range.begin(); i != range.end(); ++i) shadeOne(i);
+        shading.update(range.size());
+    });
+    shading.done();
 }
 
 }  // namespace penumbra

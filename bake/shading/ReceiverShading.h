@@ -10,6 +10,7 @@
 #include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
 
+#include <functional>
 #include <mutex>
 #include <span>
 #include <vector>
@@ -117,5 +118,11 @@ private:
     mutable std::vector<double> soa_;
     mutable std::once_flag soaOnce_;
 };
+
+/// @brief Calls @p shadeOne(i) for every i in [0, @p count), in parallel, shown as the `[shade]`
+/// phase (quiet or not as @p quiet): receivers shaded from masks a cast did not hand over as it
+/// went (a merge's first pass, a tile restored from a checkpoint). @p shadeOne is called
+/// concurrently for different i.
+void shadeEach(size_t count, bool quiet, const std::function<void(size_t)>& shadeOne);
 
 }  // namespace penumbra

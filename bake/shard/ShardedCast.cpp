@@ -2,10 +2,6 @@
 
 #include "bake/shard/ShardFiles.h"
 #include "stream/util/Error.h"
-#include "stream/util/Progress.h"
-
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 
@@ -15,7 +11,7 @@ ShardedCast::ShardedCast(const ShardSettings& settings, const std::string& scene
                          bool memoryTiles, const ReceiverSet& receivers, const std::vector<uint32_t>& sampleSets,
                          const LightSamples& samples, bool quiet)
     : settings_(settings), receivers_(receivers), samples_(samples),
-      id_(bakeIdentity(sceneFile, methodKey, receivers, sampleSets, samples)), quiet_(quiet) {
+      id_(bakeIdentity(sceneFile, methodKey, receivers, sampleSets, samples)) {
     if (settings_.casting()) {
         cut_ = resolveShardCut(settings_.cut, receivers.size(), settings_.count, memoryTiles);
         if (cut_ == ShardCut::Receivers && !memoryTiles)
@@ -36,7 +32,7 @@ ShardedCast::ShardedCast(const ShardSettings& settings, const std::string& scene
 
 ShardedCast::~ShardedCast() = default;
 
-TileHooks ShardedCast::tileHooks(VisibilityMasks& masks, std::function<void(uint32_t, const uint64_t*)> restored) {
+TileHooks ShardedCast::tileHooks(VisibilityMasks& masks, std::function<void(std::span<const uint32_t>)> restored) {
     TileHooks hooks;
     if (settings_.casting() && cut_ == ShardCut::Receivers)
         hooks.select = [this](std::vector<uint32_t> ids) {
@@ -44,13 +40,8 @@ TileHooks ShardedCast::tileHooks(VisibilityMasks& masks, std::function<void(uint
         };
     hooks.restore = [this, &masks, restored](size_t tile, size_t tiles, std::span<const uint32_t> ids) {
         if (!checkpoints_ || !checkpoints_->restore(tile, tiles, ids, masks)) return false;
-        // Shaded as a cast tile's receivers are: in parallel, as a phase of its own.
-        ProgressReporter shading("shade", ids.size(), quiet_);
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, ids.size(), 1024), [&](const tbb::blocked_range<size_t>& range) {
-            for (size_t i = range.begin(); i != range.end(); ++i) present_[ids[i]] = 1, restored(ids[i], masks.row(ids[i]));
-            shading.update(range.size());
-        });
-        shading.done();
+        for (uint32_t r : ids) present_[r] = 1;
+        restored(ids);
         return true;
     };
     hooks.finished = [this, &masks](size_t tile, size_t tiles, std::span<const uint32_t> ids) {

@@ -11,6 +11,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 
 namespace penumbra {
 
@@ -32,9 +33,9 @@ public:
 
     /// @brief Hooks for the caster's first pass: the shard's receivers, restored and finished tiles.
     /// @param masks every receiver's masks, filled by the sink as tiles finish
-    /// @param restored called for each receiver of a restored tile, with its masks (to shade it),
-    ///        concurrently for different receivers
-    TileHooks tileHooks(VisibilityMasks& masks, std::function<void(uint32_t, const uint64_t*)> restored);
+    /// @param restored called once per restored tile with its receivers, whose masks @p masks now
+    ///        holds (to shade them)
+    TileHooks tileHooks(VisibilityMasks& masks, std::function<void(std::span<const uint32_t>)> restored);
 
     /// @brief Writes the shard file of this bake (`--shard`).
     void writeShard(const VisibilityMasks& masks);
@@ -59,7 +60,6 @@ private:
     const LightSamples& samples_;
     BakeIdentity id_;
     ShardCut cut_ = ShardCut::Automatic;
-    bool quiet_;
     std::vector<uint8_t> present_;  ///< receivers this bake has cast or restored
     std::unique_ptr<Checkpoints> checkpoints_;
 };

@@ -11,12 +11,12 @@
 #include <openvdb/tools/Prune.h>
 
 #include <glm/common.hpp>
-#include <glm/gtx/component_wise.hpp>
 #include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace penumbra {
 namespace {
@@ -179,8 +179,7 @@ private:
                         const glm::dvec3 d = p - closestOnTriangle(p, a, b, cc);
                         // Within the width up to the closest point's rounding: with width 0, the
                         // lattice points on a triangle (22 of 1089 on a floor were left out).
-                        const double slack = kBandSlack * (glm::length(p) + lattice_.h);
-                        if (glm::dot(d, d) > w2 + slack * slack) continue;
+                        if (glm::dot(d, d) > w2 + box.slack * box.slack) continue;
                         acc.setValueOn(coord);
                         if (++marked_ > kMaxVolumeVoxels)
                             fail(where_, "the band holds more than {} voxels (receivers are indexed by 32 bits); raise "
@@ -194,15 +193,17 @@ private:
     struct BoxLattice {
         glm::ivec3 lo{0}, hi{-1};
         double count = 0;
+        double slack = 0;  ///< markBand()'s rounding allowance for the box's points (kBandSlack of their size)
     };
     BoxLattice boxLattice(const Triangle& t) const {
         const glm::dvec3 a(t.v[0]), b(t.v[1]), c(t.v[2]);
         const glm::dvec3 low = glm::min(a, glm::min(b, c)), high = glm::max(a, glm::max(b, c));
-        // Grown by markBand()'s slack, so that a lattice point on the box's face is visited.
-        const double slack = kBandSlack * (std::max(glm::compMax(glm::abs(low)), glm::compMax(glm::abs(high))) + lattice_.h);
-        const glm::dvec3 lo = glm::ceil((low - width_ - slack - lattice_.origin) / lattice_.h);
-        const glm::dvec3 hi = glm::floor((high + width_ + slack - lattice_.origin) / lattice_.h);
+        // Grown by markBand()'s slack, so that a lattice point on the box's face is visited; the
+        // slack bounds the size of every point of the box, once per triangle.
         BoxLattice box;
+        box.slack = kBandSlack * (glm::length(glm::max(glm::abs(low), glm::abs(high))) + width_ + 2 * lattice_.h);
+        const glm::dvec3 lo = glm::ceil((low - width_ - box.slack - lattice_.origin) / lattice_.h);
+        const glm::dvec3 hi = glm::floor((high + width_ + box.slack - lattice_.origin) / lattice_.h);
         for (int axis = 0; axis < 3; ++axis)
             // OpenVDB coordinates are 32-bit, with room for its node arithmetic.
             if (!(std::abs(lo[axis]) < kMaxLatticeIndex && std::abs(hi[axis]) < kMaxLatticeIndex))
@@ -274,7 +275,7 @@ const ReceiverKindRegistration kVolume{"volume", [](const JsonParams& j, const S
             for (int a = 0; a < 3; ++a)
                 if (const double last = lattice.origin[a] + (n[a] - 1) * lattice.h; !std::isfinite(float(lattice.origin[a])) ||
                                                                                    !std::isfinite(float(last)))
-                    fail(j.where(std::abs(lo[a]) > 3.4e38 || std::abs(hi[a]) > 3.4e38 ? "box" : "voxel_size"),
+                    fail(j.where(std::max(std::abs(lo[a]), std::abs(hi[a])) > std::numeric_limits<float>::max() ? "box" : "voxel_size"),
                          "voxel centres would lie at {:.3g} along {}, beyond the float range of receiver positions (about 3.4e38)",
                          std::isfinite(float(lattice.origin[a])) ? last : lattice.origin[a], "xyz"[a]);
             openvdb::CoordBBox box(openvdb::Coord(0), openvdb::Coord(int(n.x) - 1, int(n.y) - 1, int(n.z) - 1));

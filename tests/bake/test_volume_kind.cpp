@@ -53,6 +53,15 @@ openvdb::GridBase::Ptr readGrid(const std::string& path, const std::string& name
     return grid;
 }
 
+/// The visibility grid of a band of @p width around the floor entry, at voxel_size 0.1.
+openvdb::FloatGrid::Ptr bakeBand(const ScratchDir& dir, double width) {
+    bake(dir, sceneJson({{"type", "volume"}, {"narrow_band", {{"geometry", {0}}, {"width", width}}}, {"voxel_size", 0.1}},
+                        dir / "b.vdb"));
+    auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(readGrid(dir / "b.vdb", "visibility"));
+    REQUIRE(grid);
+    return grid;
+}
+
 }  // namespace
 
 TEST_CASE("volume: box voxels match a points bake exactly, every baked voxel is active, lit regions are tiles", "[volume]") {
@@ -173,10 +182,7 @@ TEST_CASE("volume: fully shadowed regions become tiles", "[volume]") {
 
 TEST_CASE("volume: a narrow band holds the voxels near the geometry", "[volume]") {
     ScratchDir dir("volume-band");
-    bake(dir, sceneJson({{"type", "volume"}, {"narrow_band", {{"geometry", {0}}, {"width", 0.15}}}, {"voxel_size", 0.1}},
-                        dir / "b.vdb"));
-    auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(readGrid(dir / "b.vdb", "visibility"));
-    REQUIRE(grid);
+    auto grid = bakeBand(dir, 0.15);
     CHECK(grid->indexToWorld(openvdb::Coord(3, 1, -2)).eq(openvdb::Vec3d(0.3, 0.1, -0.2), 1e-12));
     auto acc = grid->getConstAccessor();
     CHECK(acc.getValue(openvdb::Coord(0, 1, 0)) < 1.0f);  // in the band, under the blocker
@@ -195,10 +201,7 @@ TEST_CASE("volume: a narrow band of width 0 holds every lattice point on the geo
     // The floor (6 x 6 at y = 0) holds the lattice points (i, 0, k), |i|, |k| <= 30, at voxel_size
     // 0.1; rounding in the distance and in the triangles' lattice boxes left some of them out.
     ScratchDir dir("volume-band-0");
-    bake(dir, sceneJson({{"type", "volume"}, {"narrow_band", {{"geometry", {0}}, {"width", 0}}}, {"voxel_size", 0.1}},
-                        dir / "b.vdb"));
-    auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(readGrid(dir / "b.vdb", "visibility"));
-    REQUIRE(grid);
+    const auto grid = bakeBand(dir, 0);
     auto acc = grid->getConstAccessor();
     int missing = 0;
     for (int i = -30; i <= 30; ++i)
